@@ -1,0 +1,28 @@
+"""Console-script entry points (``airfisheye-train``, ``airfisheye-generate``, ...).
+
+The Hydra configuration lives in ``configs/`` at the project root (the package is installed in editable mode,
+as the README says), so every entry point composes the same files as ``python train.py``.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+PROJECT_ROOT = Path(__file__).resolve().parents[1]
+CONFIG_DIR = PROJECT_ROOT / "configs"
+
+
+def train() -> None:
+    """``airfisheye-train``: the same as ``python train.py``."""
+    import runpy
+
+    sys.argv[0] = str(PROJECT_ROOT / "train.py")
+    runpy.run_path(str(PROJECT_ROOT / "train.py"), run_name="__main__")
+
+
+def generate() -> None:
+    """``airfisheye-generate``: the same as ``python scripts/generate_synthetic.py``."""
+    from airfisheye_bench.synth.cli import main
+
+    main(sys.argv[1:])

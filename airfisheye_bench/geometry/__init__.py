@@ -1,0 +1,34 @@
+"""Geometry: fisheye camera models, cubemap-to-fisheye remapping, rigid transforms, LiDAR projection and occlusion."""
+
+from airfisheye_bench.geometry.camera import MODELS, FisheyeCamera, incidence_angle
+from airfisheye_bench.geometry.cubemap import FACE_NAMES, CubemapToFisheye, face_rays, face_rotation
+from airfisheye_bench.geometry.transforms import (
+    CAM_FROM_FLU,
+    check_rigid,
+    euler_to_matrix,
+    invert_rigid,
+    make_transform,
+    matrix_to_quaternion,
+    quaternion_to_matrix,
+    relative_transform,
+    transform_points,
+)
+
+__all__ = [
+    "CAM_FROM_FLU",
+    "FACE_NAMES",
+    "MODELS",
+    "CubemapToFisheye",
+    "FisheyeCamera",
+    "check_rigid",
+    "euler_to_matrix",
+    "face_rays",
+    "face_rotation",
+    "incidence_angle",
+    "invert_rigid",
+    "make_transform",
+    "matrix_to_quaternion",
+    "quaternion_to_matrix",
+    "relative_transform",
+    "transform_points",
+]

@@ -1,0 +1,118 @@
+"""Benchmark the cubemap -> fisheye remap against cv2.remap, side by side in one run.
+
+Measures, on one thread:
+  * lookup-table build time;
+  * RGB bilinear + labels nearest + depth nearest from 5 faces to a fisheye, for ``CubemapToFisheye`` and for
+    ``cv2.remap`` on the same data (OpenCV's fastest layout: the faces as one padded atlas with fixed-point
+    ``CV_16SC2`` maps, so cv2 does a single remap per modality, as py360convert does).
+
+Usage:
+    python scripts/bench_remap.py [--face 1024] [--out 1536] [--repeat 7]
+
+OpenCV comes from the optional ``bench`` extra (``pip install -e ".[bench]"``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+import torch
+
+from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
+from airfisheye_bench.geometry.cubemap import _TABLES, direction_to_face
+
+
+def timeit(fn, repeat: int) -> float:
+    """Median wall time in ms over ``repeat`` runs after one warm-up."""
+    fn()
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append((time.perf_counter() - t0) * 1e3)
+    return statistics.median(times)
+
+
+def cv2_atlas_maps(camera: FisheyeCamera, s: int):
+    """Maps for cv2.remap into a vertical atlas of the 5 faces, each padded by one texel (edge replicate)."""
+    import cv2
+
+    rays = camera.ray_grid(torch.float64).reshape(-1, 3)
+    face, u, v = direction_to_face(rays, s)
+    inside = camera.valid_mask().reshape(-1) & (face >= 0)
+    mx = torch.where(inside, u + 1, -10.0).reshape(camera.height, camera.width).numpy().astype(np.float32)
+    my = torch.where(inside, face.clamp_min(0) * (s + 2) + v + 1, -10.0)
+    my = my.reshape(camera.height, camera.width).numpy().astype(np.float32)
+    return cv2.convertMaps(mx, my, cv2.CV_16SC2)
+
+
+def to_atlas(faces_hwc: np.ndarray) -> np.ndarray:
+    """``[5, S, S, C]`` -> padded ``[5 * (S + 2), S + 2, C]`` (replicated edges; what a cv2 pipeline would build)."""
+    padded = np.pad(faces_hwc, ((0, 0), (1, 1), (1, 1), (0, 0)), mode="edge")
+    return padded.reshape(-1, *padded.shape[2:])
+
+
+def bench(face: int, out: int, repeat: int) -> dict[str, float]:
+    import cv2
+
+    cv2.setNumThreads(1)
+    torch.set_num_threads(1)
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 256, (5, face, face, 3), dtype=np.uint8)
+    label = rng.integers(0, 23, (5, face, face, 1), dtype=np.uint8)
+    depth = rng.uniform(1, 120, (5, face, face, 1)).astype(np.float32)
+    camera = FisheyeCamera(out, out)
+
+    _TABLES.clear()
+    t0 = time.perf_counter()
+    remap = CubemapToFisheye(camera, face)
+    remap.table("bilinear")
+    remap.table("nearest")
+    lut_ms = (time.perf_counter() - t0) * 1e3
+
+    # Ours takes [5, C, S, S]; the channel-first copy is the datamodule's layout and is not timed.
+    rgb_t, label_t, depth_t = (
+        torch.from_numpy(x).permute(0, 3, 1, 2).contiguous() for x in (rgb, label, depth)
+    )
+    ours = {
+        "rgb": timeit(lambda: remap(rgb_t, "bilinear"), repeat),
+        "label": timeit(lambda: remap(label_t, "nearest", fill=255), repeat),
+        "depth": timeit(lambda: remap(depth_t, "nearest"), repeat),
+    }
+    m1, m2 = cv2_atlas_maps(camera, face)
+    atl_rgb, atl_label, atl_depth = to_atlas(rgb), to_atlas(label)[..., 0], to_atlas(depth)[..., 0]
+    cv = {
+        "rgb": timeit(lambda: cv2.remap(atl_rgb, m1, m2, cv2.INTER_LINEAR), repeat),
+        "label": timeit(lambda: cv2.remap(atl_label, m1, m2, cv2.INTER_NEAREST, borderValue=255), repeat),
+        "depth": timeit(lambda: cv2.remap(atl_depth, m1, m2, cv2.INTER_NEAREST), repeat),
+    }
+    cv_with_atlas = timeit(lambda: (to_atlas(rgb), to_atlas(label), to_atlas(depth)), repeat)
+    return {"lut_ms": lut_ms, "ours": ours, "cv2": cv, "cv2_atlas_ms": cv_with_atlas}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--face", type=int, nargs="+", default=[1024, 512])
+    parser.add_argument("--out", type=int, nargs="+", default=[1536, 512])
+    parser.add_argument("--repeat", type=int, default=7)
+    args = parser.parse_args()
+    print(
+        "| faces | output | LUT build (ms) | ours RGB / label / depth (ms) | cv2 RGB / label / depth (ms) "
+        "| ours total | cv2 total | ratio | cv2 incl. atlas copy |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for face, out in zip(args.face, args.out, strict=True):
+        r = bench(face, out, args.repeat)
+        ours, cv = sum(r["ours"].values()), sum(r["cv2"].values())
+        fmt = lambda d: " / ".join(f"{d[k]:.1f}" for k in ("rgb", "label", "depth"))  # noqa: E731
+        print(
+            f"| 5x{face}^2 | {out}^2 | {r['lut_ms']:.0f} | {fmt(r['ours'])} | {fmt(r['cv2'])} | {ours:.1f} | {cv:.1f} "
+            f"| {ours / cv:.2f}x | {cv + r['cv2_atlas_ms']:.1f} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
