@@ -1,0 +1,210 @@
+"""``AirFisheyeDataModule``: every task of the benchmark from one dataset root, composed from Hydra configs.
+
+``root=None`` means the synthetic dataset of ``preset``, generated on first use and cached
+(:func:`airfisheye_bench.synth.writer.ensure_dataset`); a path reads the real release (or any dataset in the layout).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader
+
+from airfisheye_bench.geometry import FisheyeCamera
+from datamodules.augment import FisheyeAugment
+from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD, AirFisheyeDataset, CameraConfig, collate
+
+log = logging.getLogger(__name__)
+
+
+class AirFisheyeDataModule(L.LightningDataModule):
+    """Train/val/test loaders of an AirFisheye-layout dataset for one task.
+
+    Args:
+        task: ``seg``, ``depth`` or ``completion``.
+        root: Dataset root; ``None`` uses the synthetic ``preset`` (generated on first use into ``cache_dir``).
+        preset: Synthetic preset when ``root`` is ``None`` (``tiny``, ``quickstart``, ...).
+        cache_dir: Where synthetic datasets are cached (default: ``$AIRFISHEYE_DATA`` or ``~/.cache/airfisheye-bench``).
+        source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
+        camera: Served camera: ``{"size": 512, "model": ..., "fov_deg": ..., "k": ...}``; unset keys follow the release.
+        occlusion: LiDAR occlusion correction for completion: ``ordering`` | ``zbuffer`` | ``none``.
+        motion_compensation: Per-frame ``T_cam_lidar`` from both sensors' poses at their own timestamps.
+        max_depth: Depth beyond this is invalid (paper: 120 m).
+        augment: ``{"hflip": 0.5, "rotate_deg": 0, "color_jitter": [b, c, s, h] | None}`` for training, or ``None``.
+        batch_size: Per-process batch size for training (evaluation uses ``eval_batch_size`` or the same).
+        num_workers: DataLoader workers (0 loads in the main process).
+        pin_memory: Pin host memory (for GPU training).
+        persistent_workers: Keep workers alive between epochs.
+        skip_bad_frames: Skip (and count) frames that fail to load instead of stopping.
+        splits: Names of the train, val and test splits in ``dataset.yaml``.
+
+    Example:
+        >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
+        >>> dm.prepare_data(); dm.setup("fit")                                             # doctest: +SKIP
+        >>> batch = next(iter(dm.train_dataloader()))                                      # doctest: +SKIP
+        >>> batch["image"].shape, batch["label"].shape                                     # doctest: +SKIP
+        (torch.Size([2, 3, 64, 64]), torch.Size([2, 64, 64]))
+    """
+
+    def __init__(
+        self,
+        task: str,
+        root: str | Path | None = None,
+        preset: str = "quickstart",
+        cache_dir: str | Path | None = None,
+        source: str = "cubemap",
+        camera: dict[str, Any] | None = None,
+        occlusion: str = "ordering",
+        motion_compensation: bool = True,
+        max_depth: float = 120.0,
+        augment: dict[str, Any] | None = None,
+        batch_size: int = 4,
+        eval_batch_size: int | None = None,
+        num_workers: int = 0,
+        pin_memory: bool = False,
+        persistent_workers: bool = False,
+        skip_bad_frames: bool = False,
+        splits: tuple[str, str, str] = ("train", "val", "test"),
+        seed: int = 0,
+    ) -> None:
+        super().__init__()
+        if batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+        if root is not None and not Path(root).is_dir():
+            raise ValueError(
+                f"data.root={str(root)!r} is not a folder; point it at a dataset in the AirFisheye layout (holding "
+                "dataset.yaml) or leave it unset to use the synthetic dataset"
+            )
+        self.task = task
+        self.root = Path(root) if root is not None else None
+        self.preset = preset
+        self.cache_dir = cache_dir
+        self.seed = seed
+        self.camera_config = CameraConfig(**_camera_kwargs(camera or {}))
+        self.augment = FisheyeAugment(**_augment_kwargs(augment)) if augment is not None else None
+        self.dataset_kwargs = dict(
+            task=task,
+            source=source,
+            camera=self.camera_config,
+            occlusion=occlusion,
+            motion_compensation=motion_compensation,
+            max_depth=max_depth,
+            skip_bad_frames=skip_bad_frames,
+        )
+        self.batch_size = batch_size
+        self.eval_batch_size = eval_batch_size or batch_size
+        self.loader_kwargs = dict(
+            num_workers=num_workers,
+            pin_memory=pin_memory,
+            persistent_workers=persistent_workers and num_workers > 0,
+            collate_fn=collate,
+        )
+        self.split_names = tuple(splits)
+        self.datasets: dict[str, AirFisheyeDataset] = {}
+
+    # ----------------------------------------------------------------------------------- Lightning hooks
+    def prepare_data(self) -> None:
+        """Generate the synthetic dataset on first use (once per node)."""
+        self.dataset_root()
+
+    def setup(self, stage: str | None = None) -> None:
+        wanted = {"fit": (0, 1), "validate": (1,), "test": (2,), "predict": (2,), None: (0, 1, 2)}[stage]
+        root = self.dataset_root()
+        for i in wanted:
+            name = self.split_names[i]
+            if name not in self.datasets:
+                augment = self.augment if i == 0 else None
+                self.datasets[name] = AirFisheyeDataset(root, name, augment=augment, **self.dataset_kwargs)
+                # Build the lookup tables before any worker starts: forked workers share them.
+                self.datasets[name].warm_up()
+
+    def train_dataloader(self) -> DataLoader:
+        generator = torch.Generator().manual_seed(self.seed)
+        return DataLoader(
+            self._dataset(0),
+            batch_size=self.batch_size,
+            shuffle=True,
+            drop_last=True,
+            generator=generator,
+            **self.loader_kwargs,
+        )
+
+    def val_dataloader(self) -> DataLoader:
+        return DataLoader(
+            self._dataset(1), batch_size=self.eval_batch_size, shuffle=False, **self.loader_kwargs
+        )
+
+    def test_dataloader(self) -> DataLoader:
+        return DataLoader(
+            self._dataset(2), batch_size=self.eval_batch_size, shuffle=False, **self.loader_kwargs
+        )
+
+    # ------------------------------------------------------------------------------------ information
+    def dataset_root(self) -> Path:
+        """The dataset folder (generating the synthetic preset if needed)."""
+        if self.root is not None:
+            return self.root
+        from airfisheye_bench.synth.writer import ensure_dataset
+
+        self.root = ensure_dataset(self.preset, root=self.cache_dir, seed=self.seed)
+        return self.root
+
+    @property
+    def camera(self) -> FisheyeCamera:
+        """The served fisheye camera (after ``setup``)."""
+        return self._any_dataset().camera
+
+    @property
+    def num_classes(self) -> int:
+        return self._any_dataset().spec.num_train_classes
+
+    @property
+    def class_names(self) -> list[str]:
+        return self._any_dataset().spec.train_class_names
+
+    @property
+    def palette(self) -> np.ndarray:
+        """``uint8 [256, 3]`` colours by training class id."""
+        return self._any_dataset().spec.train_palette()
+
+    @property
+    def normalization(self) -> dict[str, tuple[float, float, float]]:
+        return {"mean": IMAGENET_MEAN, "std": IMAGENET_STD}
+
+    def _dataset(self, index: int) -> AirFisheyeDataset:
+        name = self.split_names[index]
+        if name not in self.datasets:
+            self.setup({0: "fit", 1: "validate", 2: "test"}[index])
+        return self.datasets[name]
+
+    def _any_dataset(self) -> AirFisheyeDataset:
+        if not self.datasets:
+            self.setup(None)
+        return next(iter(self.datasets.values()))
+
+
+def _camera_kwargs(camera: dict[str, Any]) -> dict[str, Any]:
+    allowed = {"size", "model", "fov_deg", "k"}
+    unknown = set(camera) - allowed
+    if unknown:
+        raise ValueError(f"unknown data.camera keys {sorted(unknown)}; expected some of {sorted(allowed)}")
+    out = dict(camera)
+    if out.get("k") is not None:
+        out["k"] = tuple(float(v) for v in out["k"])
+    return out
+
+
+def _augment_kwargs(augment: dict[str, Any]) -> dict[str, Any]:
+    allowed = {"hflip", "rotate_deg", "color_jitter"}
+    unknown = set(augment) - allowed
+    if unknown:
+        raise ValueError(f"unknown data.augment keys {sorted(unknown)}; expected some of {sorted(allowed)}")
+    out = dict(augment)
+    if out.get("color_jitter") is not None:
+        out["color_jitter"] = tuple(float(v) for v in out["color_jitter"])
+    return out

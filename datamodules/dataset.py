@@ -1,0 +1,333 @@
+"""``AirFisheyeDataset``: one split of a dataset in the AirFisheye layout, served for one task.
+
+A sample is a dict:
+
+=================  ============================  ==========================================================
+key                shape, dtype                  meaning
+=================  ============================  ==========================================================
+``image``          ``[3, H, W]`` float32         RGB normalised with ImageNet mean/std
+``valid_mask``     ``[H, W]`` bool               inside the image circle and seen by a cube face
+``label``          ``[H, W]`` int64              ``seg``: training class, 255 = ignore (incl. outside)
+``depth``          ``[1, H, W]`` float32         ``depth``/``completion``: range in metres, 0 = invalid
+``sparse_depth``   ``[1, H, W]`` float32         ``completion``: LiDAR range map after occlusion correction
+``sample_id``      str                           ``<env>/<trajectory>/<frame>``
+=================  ============================  ==========================================================
+
+Sources: ``cubemap`` remaps the raw cube faces on the fly with :class:`~airfisheye_bench.geometry.CubemapToFisheye`
+at the requested camera (any lens, FOV and size, no re-generation: the lookup table is built directly at the
+training resolution); ``fisheye`` reads the pre-rendered fisheye files (resized if the camera asks for another size).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch.utils.data import Dataset
+
+from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
+from airfisheye_bench.geometry.occlusion import lidar_depth_map
+from airfisheye_bench.io import DatasetFormatError, DatasetReader
+from datamodules.augment import (
+    FisheyeAugment,
+    apply_color_jitter,
+    apply_geometry,
+    rotation_about_optical_axis,
+)
+
+log = logging.getLogger(__name__)
+
+TASKS = ("seg", "depth", "completion")
+SOURCES = ("cubemap", "fisheye")
+OCCLUSION_METHODS = ("ordering", "zbuffer", "none")
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+IMAGENET_STD = (0.229, 0.224, 0.225)
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The fisheye the models see. ``None`` fields take the release's calibrated camera.
+
+    Args:
+        size: Output width and height in pixels (the paper trains at 512).
+        model: Lens model (``equidistant``, ``equisolid``, ``stereographic``, ``orthographic``, ``kannala_brandt``).
+        fov_deg: Field of view in degrees.
+        k: Kannala-Brandt coefficients.
+    """
+
+    size: int | None = None
+    model: str | None = None
+    fov_deg: float | None = None
+    k: tuple[float, float, float, float] | None = None
+
+    def resolve(self, calibrated: FisheyeCamera, source: str) -> FisheyeCamera:
+        """The camera to serve, given the release's calibrated fisheye."""
+        size = self.size or calibrated.width
+        lens_changed = any(v is not None for v in (self.model, self.fov_deg, self.k))
+        if not lens_changed:
+            return calibrated.resized(size, size * calibrated.height // calibrated.width)
+        if source == "fisheye":
+            raise ValueError(
+                "camera.model/fov_deg/k can only change with source=cubemap (the pre-rendered fisheye files have a "
+                "fixed lens); drop them or set data.source=cubemap"
+            )
+        return FisheyeCamera(
+            size,
+            size,
+            fov_deg=self.fov_deg if self.fov_deg is not None else calibrated.fov_deg,
+            model=self.model or calibrated.model,
+            k=self.k
+            if self.k is not None
+            else (calibrated.k if (self.model or calibrated.model) == "kannala_brandt" else None),
+        )
+
+
+class AirFisheyeDataset(Dataset):
+    """One split of an AirFisheye-layout dataset, for one task.
+
+    Args:
+        root: Dataset root (holds ``dataset.yaml``).
+        split: Split name (``train``, ``val``, ``test``).
+        task: ``seg``, ``depth`` or ``completion``.
+        source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
+        camera: The served camera (see :class:`CameraConfig`).
+        occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer`` or ``none``.
+        motion_compensation: Use ``T_cam_lidar`` from both sensors' poses at their own timestamps; ``False`` uses
+            the static extrinsics (for comparison).
+        max_depth: Ground truth and sparse depth beyond this range are invalid (paper: 120 m).
+        augment: Random augmentation, or ``None`` (evaluation).
+        skip_bad_frames: Return ``None`` for a frame that fails to load (logged) instead of raising;
+            :func:`collate` drops it and counts it.
+
+    Example:
+        >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
+        >>> sorted(ds[0])                                                     # doctest: +SKIP
+        ['depth', 'image', 'sample_id', 'sparse_depth', 'valid_mask']
+    """
+
+    def __init__(
+        self,
+        root: str | Path,
+        split: str,
+        task: str,
+        source: str = "cubemap",
+        camera: CameraConfig | None = None,
+        occlusion: str = "ordering",
+        motion_compensation: bool = True,
+        max_depth: float = 120.0,
+        augment: FisheyeAugment | None = None,
+        skip_bad_frames: bool = False,
+    ) -> None:
+        for name, value, allowed in (
+            ("task", task, TASKS),
+            ("source", source, SOURCES),
+            ("occlusion", occlusion, OCCLUSION_METHODS),
+        ):
+            if value not in allowed:
+                raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
+        if not max_depth > 0:
+            raise ValueError(f"max_depth must be positive, got {max_depth}")
+        self.reader = DatasetReader(root)
+        self.spec = self.reader.spec
+        self.split = split
+        self.task = task
+        self.source = source
+        self.occlusion = occlusion
+        self.motion_compensation = motion_compensation
+        self.max_depth = float(max_depth)
+        self.augment = augment
+        self.skip_bad_frames = skip_bad_frames
+        self.sample_ids = self.reader.split(split)
+        if not self.sample_ids:
+            raise ValueError(f"split {split!r} of {root} is empty")
+        if source == "cubemap" and not self.spec.has("cubemap"):
+            raise ValueError(f"{root} has no cube faces; use data.source=fisheye")
+        if task == "completion" and not self.spec.has("lidar"):
+            raise ValueError(f"{root} has no LiDAR scans; task=completion needs them")
+
+        first_calib = self.reader.calib(self.sample_ids[0])
+        self.calibrated_camera = first_calib.fisheye_camera()
+        self.camera = (camera or CameraConfig()).resolve(self.calibrated_camera, source)
+        self.face_size = first_calib.face_size
+        self.label_lut = torch.from_numpy(self.spec.label_lut())
+        known = np.zeros(256, dtype=bool)
+        known[[c.id for c in self.spec.raw_classes]] = True
+        known[self.spec.ignore_index] = True  # the "outside the image circle" value
+        self.known_raw = torch.from_numpy(known)
+        self._remap = CubemapToFisheye(self.camera, self.face_size) if source == "cubemap" else None
+        self._mean = torch.tensor(IMAGENET_MEAN).view(3, 1, 1)
+        self._std = torch.tensor(IMAGENET_STD).view(3, 1, 1)
+
+    def __len__(self) -> int:
+        return len(self.sample_ids)
+
+    @property
+    def valid_mask(self) -> torch.Tensor:
+        """``[H, W]`` pixels that carry data (inside the image circle and on a cube face)."""
+        return self._remap.valid_mask if self._remap is not None else self.camera.valid_mask()
+
+    def warm_up(self) -> None:
+        """Build the remap lookup tables now, so DataLoader workers inherit them instead of rebuilding them."""
+        if self._remap is not None:
+            for mode in ("bilinear", "nearest"):
+                self._remap.table(mode)
+
+    def __getitem__(self, index: int) -> dict | None:
+        sample_id = self.sample_ids[index]
+        try:
+            return self._load(sample_id)
+        except (DatasetFormatError, OSError, ValueError) as err:
+            if not self.skip_bad_frames:
+                raise
+            log.warning("skipping bad frame %s: %s", sample_id, err)
+            return None
+
+    # ------------------------------------------------------------------------------------------------ loading
+    def _load(self, sample_id: str) -> dict:
+        params = self.augment.sample() if self.augment is not None else None
+        valid = self.valid_mask
+        rgb = self._dense(sample_id, "rgb")  # uint8 [3, H, W]
+        out: dict = {"sample_id": sample_id}
+        if self.task == "seg":
+            raw = self._dense(sample_id, "seg")[0]
+            unknown = ~self.known_raw[raw.long()]
+            if unknown.any():
+                ids = sorted(set(raw[unknown].tolist()))
+                raise DatasetFormatError(
+                    self._path(sample_id, "seg"), f"label ids {ids} are not raw classes of dataset.yaml"
+                )
+            label = self.label_lut[raw.long()]
+            out["label"] = label
+        if self.task in ("depth", "completion"):
+            depth = self._dense(sample_id, "depth")  # float32 [1, H, W]
+            out["depth"] = self._clip_depth(depth)
+        if self.task == "completion":
+            out["sparse_depth"] = self._sparse_depth(sample_id, params)
+
+        if params is not None:
+            cx, cy = self.camera.cx, self.camera.cy
+            rgb = apply_geometry(rgb, params, cx, cy, "bilinear")
+            valid = apply_geometry(valid[None], params, cx, cy, "nearest")[0]
+            if "label" in out:
+                label = apply_geometry(out["label"][None], params, cx, cy, "nearest")[0]
+                out["label"] = torch.where(valid, label, self.spec.ignore_index)
+            if "depth" in out:
+                out["depth"] = apply_geometry(out["depth"], params, cx, cy, "nearest") * valid
+            if "sparse_depth" in out and params.flip:
+                out["sparse_depth"] = out["sparse_depth"].flip(-1)  # rotation was applied to the points
+            rgb = apply_color_jitter(rgb, params) * valid
+        if "label" in out:
+            out["label"] = out["label"].long()
+        if "sparse_depth" in out:
+            # A point just inside FOV/2 can round to a border pixel whose centre is just outside the circle.
+            out["sparse_depth"] = out["sparse_depth"] * valid
+        out["image"] = (rgb.float() / 255.0 - self._mean) / self._std
+        out["valid_mask"] = valid
+        return out
+
+    def _dense(self, sample_id: str, modality: str) -> torch.Tensor:
+        """One dense modality at the served camera: ``[C, H, W]`` (uint8 RGB / raw labels, float32 depth)."""
+        if self._remap is not None:
+            faces = self._faces(sample_id, modality)
+            if modality == "rgb":
+                return self._remap(faces, "bilinear")
+            return self._remap(faces, "nearest", fill=self.spec.ignore_index if modality == "seg" else 0)
+        image = self.reader.fisheye(sample_id, modality)
+        expected = (self.calibrated_camera.height, self.calibrated_camera.width)
+        if image.shape[:2] != expected:
+            raise DatasetFormatError(
+                self._path(sample_id, modality),
+                f"image is {image.shape[1]}x{image.shape[0]}, calib.yaml says {expected[1]}x{expected[0]}",
+            )
+        x = torch.from_numpy(image)
+        x = x.permute(2, 0, 1) if x.ndim == 3 else x[None]
+        if modality == "depth":
+            self._check_finite(x, sample_id, modality)
+        if (self.camera.height, self.camera.width) == expected:
+            return x.contiguous()
+        size = (self.camera.height, self.camera.width)
+        if modality == "rgb":  # antialiased downsampling, as renderers do
+            return F.interpolate(x[None].float(), size=size, mode="area")[0].round().to(torch.uint8)
+        return F.interpolate(x[None], size=size, mode="nearest-exact")[0]
+
+    def _faces(self, sample_id: str, modality: str) -> torch.Tensor:
+        """Stacked faces ``[5, C, S, S]``; RGB stays channels-last in memory (no copy) for the remap kernel."""
+        faces = self.reader.cubemap(sample_id, modality)
+        if faces.shape[1:3] != (self.face_size, self.face_size):
+            raise DatasetFormatError(
+                self._path(sample_id, modality),
+                f"cube faces are {faces.shape[2]}x{faces.shape[1]}, calib.yaml says "
+                f"face_size={self.face_size}",
+            )
+        x = torch.from_numpy(faces)
+        if modality == "depth":
+            self._check_finite(x, sample_id, modality)
+        return x.permute(0, 3, 1, 2) if x.ndim == 4 else x[:, None]
+
+    def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:
+        scan = self.reader.lidar(sample_id)
+        if len(scan) == 0:
+            raise DatasetFormatError(self.reader.layout.lidar(sample_id), "the LiDAR scan is empty")
+        if not np.isfinite(scan[:, :3]).all():
+            raise DatasetFormatError(
+                self.reader.layout.lidar(sample_id), "the LiDAR scan has non-finite coordinates"
+            )
+        calib = self.reader.calib(sample_id)
+        T = torch.from_numpy(self.T_cam_lidar(sample_id))
+        if params is not None and params.angle_rad != 0.0:
+            # Dense maps are flipped, then rotated; the sparse map is rotated (as points), then flipped.
+            # flip . rot(a) == rot(-a) . flip, so the points turn the other way when the frame is flipped.
+            T = rotation_about_optical_axis(-params.angle_rad if params.flip else params.angle_rad) @ T
+        depth = lidar_depth_map(
+            scan[:, :3].astype(np.float64),
+            T.numpy(),
+            self.camera,
+            calib.lidar_spec(),
+            method=self.occlusion,
+            max_depth=self.max_depth,
+        )
+        return torch.from_numpy(depth)[None]
+
+    def T_cam_lidar(self, sample_id: str) -> np.ndarray:
+        """``[4, 4]`` float64 LiDAR -> camera transform of a frame.
+
+        With ``motion_compensation`` it comes from the two sensors' poses at their own timestamps (the platform
+        moves between the camera exposure and the LiDAR sweep); without, from the static extrinsics only.
+        """
+        if self.motion_compensation:
+            return np.asarray(self.reader.T_cam_lidar(sample_id), dtype=np.float64)
+        return np.asarray(self.reader.calib(sample_id).T_cam_lidar_static, dtype=np.float64)
+
+    def _clip_depth(self, depth: torch.Tensor) -> torch.Tensor:
+        return torch.where((depth > 0) & (depth <= self.max_depth), depth, 0.0).float()
+
+    def _check_finite(self, x: torch.Tensor, sample_id: str, modality: str) -> None:
+        if not torch.isfinite(x).all():
+            raise DatasetFormatError(
+                self._path(sample_id, modality), "depth contains NaN or inf (0 marks invalid)"
+            )
+
+    def _path(self, sample_id: str, modality: str) -> Path:
+        if self.source == "cubemap":
+            return self.reader.layout.cubemap(sample_id, "front", modality).parent.parent
+        return self.reader.layout.fisheye(sample_id, modality)
+
+
+def collate(samples: list[dict | None]) -> dict:
+    """Stack samples, dropping frames that failed to load (``skip_bad_frames``); ``num_skipped`` counts them."""
+    kept = [s for s in samples if s is not None]
+    if not kept:
+        return {"num_skipped": len(samples)}
+    batch: dict = {}
+    for key in kept[0]:
+        values = [s[key] for s in kept]
+        batch[key] = torch.stack(values) if isinstance(values[0], torch.Tensor) else values
+    batch["num_skipped"] = len(samples) - len(kept)
+    return batch
+
+
+__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "AirFisheyeDataset", "CameraConfig", "collate"]
