@@ -55,7 +55,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self,
         task: str,
         root: str | Path | None = None,
-        preset: str = "quickstart",
+        preset: str | None = "quickstart",
         cache_dir: str | Path | None = None,
         source: str = "cubemap",
         camera: dict[str, Any] | None = None,
@@ -75,6 +75,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
         super().__init__()
         if batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+        if root is None and preset is None:
+            raise ValueError(
+                "give data.root (a dataset folder) or data.preset (a synthetic preset such as quickstart)"
+            )
         if root is not None and not Path(root).is_dir():
             raise ValueError(
                 f"data.root={str(root)!r} is not a folder; point it at a dataset in the AirFisheye layout (holding "

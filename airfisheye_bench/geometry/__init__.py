@@ -2,6 +2,15 @@
 
 from airfisheye_bench.geometry.camera import MODELS, FisheyeCamera, incidence_angle
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, CubemapToFisheye, face_rays, face_rotation
+from airfisheye_bench.geometry.lidar import LidarSpec, organize_scan, spherical_coordinates
+from airfisheye_bench.geometry.occlusion import (
+    OCCLUSION_METHODS,
+    LidarProjection,
+    lidar_depth_map,
+    occlusion_mask,
+    ordering_reference,
+    project_lidar,
+)
 from airfisheye_bench.geometry.transforms import (
     CAM_FROM_FLU,
     check_rigid,
@@ -18,17 +27,26 @@ __all__ = [
     "CAM_FROM_FLU",
     "FACE_NAMES",
     "MODELS",
+    "OCCLUSION_METHODS",
     "CubemapToFisheye",
     "FisheyeCamera",
+    "LidarProjection",
+    "LidarSpec",
     "check_rigid",
     "euler_to_matrix",
     "face_rays",
     "face_rotation",
     "incidence_angle",
     "invert_rigid",
+    "lidar_depth_map",
     "make_transform",
     "matrix_to_quaternion",
+    "occlusion_mask",
+    "ordering_reference",
+    "organize_scan",
+    "project_lidar",
     "quaternion_to_matrix",
     "relative_transform",
+    "spherical_coordinates",
     "transform_points",
 ]

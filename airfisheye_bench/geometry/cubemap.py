@@ -300,36 +300,31 @@ def _planar(faces: torch.Tensor) -> torch.Tensor:
 def _apply_cpu(faces: torch.Tensor, lut: RemapTable, out: torch.Tensor) -> None:
     """Apply ``lut`` with a fused numba kernel, writing into ``out [B, C, H*W]``.
 
-    Channels-last faces (e.g. ``torch.from_numpy(hwc).permute(0, 3, 1, 2)``, no copy) are read in place with the
-    interleaved kernel; other layouts go through the planar one.
+    Nearest tables copy values exactly (any dtype). Three-channel faces stored channels-last (e.g.
+    ``torch.from_numpy(hwc).permute(0, 3, 1, 2)``, no copy) are blended in place by the interleaved kernel.
     """
     b, _, c, s, _ = faces.shape
-    interleaved = faces.permute(0, 1, 3, 4, 2)
-    if interleaved.is_contiguous() and c > 1:
-        src = interleaved.reshape(b, 5 * s * s, c).numpy()
-        kernel = _kernels.gather_interleaved
-    else:
-        src = _planar(faces).numpy()
-        kernel = _kernels.gather_planar
+    pixels, index, weight = lut.pixels.numpy(), lut.index.numpy(), lut.weight.numpy()
+    if index.shape[1] == 1:
+        _kernels.copy_nearest(_planar(faces).numpy(), pixels, index[:, 0].copy(), out.numpy())
+        return
     is_int = not faces.is_floating_point()
     lo, hi = (
         (float(torch.iinfo(faces.dtype).min), float(torch.iinfo(faces.dtype).max)) if is_int else (0.0, 0.0)
     )
-    args = (
-        lut.pixels.numpy(),
-        lut.index.numpy(),
-        lut.weight.numpy(),
-        out.numpy(),
-        is_int,
-        np.float32(lo),
-        np.float32(hi),
-    )
-    kernel(src, *args)
+    args = (pixels, index, weight, out.numpy(), is_int, np.float32(lo), np.float32(hi))
+    interleaved = faces.permute(0, 1, 3, 4, 2)
+    if c == 3 and interleaved.is_contiguous():
+        _kernels.blend_interleaved3(interleaved.reshape(b, 5 * s * s, 3).numpy(), *args)
+    else:
+        _kernels.blend_planar(_planar(faces).numpy(), *args)
 
 
 def _apply_torch(src: torch.Tensor, lut: RemapTable) -> torch.Tensor:
     """Device-agnostic: planar ``[B, C, L]`` -> ``[B, C, P]``, ``out[..., p] = sum_t w[p, t] * src[..., index[p, t]]``."""
     index = lut.index.T.to(device=src.device, dtype=torch.int64)
+    if index.shape[0] == 1:
+        return src.index_select(2, index[0])
     weight = lut.weight.T.to(src.device)
     work = src if src.is_floating_point() else src.float()
     acc = work.index_select(2, index[0]) * weight[0].to(work.dtype)

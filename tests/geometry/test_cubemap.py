@@ -120,6 +120,18 @@ def test_bilinear_is_seamless_on_a_constant_image() -> None:
     assert (out[:, ~mask] == 0).all()
 
 
+def test_nearest_is_an_exact_copy_for_any_dtype() -> None:
+    remap = CubemapToFisheye(FisheyeCamera(32, 32), 8)
+    lut = remap.table("nearest")
+    for dtype in (torch.float64, torch.int64, torch.int32, torch.float32):
+        faces = (torch.rand(5, 2, 8, 8, dtype=torch.float64) * 2**40 + 1e-7).to(dtype)
+        out = remap(faces, mode="nearest").reshape(2, -1)[:, lut.pixels]
+        ref = _apply_torch(faces.transpose(0, 1).reshape(1, 2, -1), lut)[0]
+        assert out.dtype == dtype
+        assert torch.equal(out, ref)
+        assert set(out.flatten().tolist()) <= set(faces.flatten().tolist())
+
+
 def test_batched_and_numpy_inputs() -> None:
     remap = CubemapToFisheye(FisheyeCamera(40, 40), 12)
     batch = torch.rand(3, 5, 2, 12, 12)

@@ -1,0 +1,199 @@
+"""The LightningModule shared by the three benchmark tasks.
+
+A task owns a zoo model (built by registry name, so a checkpoint alone rebuilds it), the paper's loss, one set of
+metrics per evaluation stage plus their breakdown by incidence-angle ring, and qualitative panels written every
+validation epoch. Subclasses say which batch keys feed the model, how the loss is computed, which metric to use and
+how to draw a panel row.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, ClassVar
+
+import lightning as L
+import numpy as np
+import torch
+from torch import Tensor, nn
+from torchmetrics import Metric
+
+from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, BinnedMetrics
+from airfisheye_bench.viz import make_panel, save_png
+from models import create_model, model_task
+
+STAGES = ("val", "test")
+
+
+class BenchmarkTask(L.LightningModule):
+    """Base class of :class:`SegmentationTask`, :class:`DepthTask` and :class:`CompletionTask`.
+
+    Args:
+        model: Registry name and keyword arguments, e.g. ``{"name": "deeplabv3plus", "encoder_name": "resnet50"}``.
+        optimizer: Partial optimizer (Hydra ``_partial_: true``) called with the parameters.
+        scheduler: Optional partial LR scheduler called with the optimizer.
+        scheduler_interval: ``epoch`` or ``step``.
+        ring_edges_deg: Incidence-angle ring edges of the fisheye breakdown (degrees).
+        num_panels: Validation samples drawn into the qualitative panel each epoch (0 disables panels).
+    """
+
+    task: ClassVar[str]
+    primary_metric: ClassVar[str]
+    higher_is_better: ClassVar[bool]
+
+    def __init__(
+        self,
+        model: dict[str, Any],
+        optimizer: Callable[..., torch.optim.Optimizer] | None = None,
+        scheduler: Callable[..., Any] | None = None,
+        scheduler_interval: str = "epoch",
+        ring_edges_deg: tuple[float, ...] = DEFAULT_RING_EDGES_DEG,
+        num_panels: int = 4,
+    ) -> None:
+        super().__init__()
+        self.save_hyperparameters(ignore=["optimizer", "scheduler"], logger=False)
+        model = dict(model)
+        name = model.pop("name", None)
+        if name is None:
+            raise ValueError("model must name a registered model: {'name': ..., **kwargs}")
+        if model_task(name) != self.task:
+            raise ValueError(
+                f"model {name!r} solves task {model_task(name)!r}, not {self.task!r}; pick a {self.task} model "
+                f"(python -c 'import models; print(models.list_models(\"{self.task}\"))')"
+            )
+        if scheduler_interval not in ("epoch", "step"):
+            raise ValueError(f"scheduler_interval must be 'epoch' or 'step', got {scheduler_interval!r}")
+        self.net = create_model(name, **model)
+        self.optimizer_factory = optimizer
+        self.scheduler_factory = scheduler
+        self.metrics = nn.ModuleDict({stage: self.make_metric() for stage in STAGES})
+        self.rings = nn.ModuleDict(
+            {stage: BinnedMetrics(self.make_metric, edges=ring_edges_deg, key="theta") for stage in STAGES}
+        )
+        self._theta: Tensor | None = None
+        self._panel_rows: list[list[np.ndarray]] = []
+
+    # ------------------------------------------------------------------------------------------ hooks for subclasses
+    def make_metric(self) -> Metric:
+        raise NotImplementedError
+
+    def model_inputs(self, batch: dict) -> tuple[Tensor, ...]:
+        return (batch["image"],)
+
+    def target(self, batch: dict) -> Tensor:
+        raise NotImplementedError
+
+    def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
+        """``{"loss": total, ...parts}`` from ``forward_with_aux`` outputs."""
+        raise NotImplementedError
+
+    def prediction(self, outputs: dict[str, Tensor]) -> Tensor:
+        raise NotImplementedError
+
+    def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
+        raise NotImplementedError
+
+    # ----------------------------------------------------------------------------------------------------- model
+    def forward(self, *inputs: Tensor) -> Tensor:
+        """The primary output (logits or depth), as exported."""
+        return self.net(*inputs)
+
+    def training_step(self, batch: dict, batch_idx: int) -> Tensor | None:
+        if "image" not in batch:  # every frame of the batch was skipped (skip_bad_frames)
+            return None
+        terms = self.loss_terms(self.net.forward_with_aux(*self.model_inputs(batch)), batch)
+        size = batch["image"].shape[0]
+        parts = {f"train/{k}": v.detach() for k, v in terms.items() if k != "loss"}
+        self.log_dict(parts, batch_size=size)
+        self.log("train/loss", terms["loss"].detach(), prog_bar=True, batch_size=size)
+        self._log_skipped(batch, "train")
+        return terms["loss"]
+
+    def validation_step(self, batch: dict, batch_idx: int) -> None:
+        self._evaluate(batch, batch_idx, "val")
+
+    def test_step(self, batch: dict, batch_idx: int) -> None:
+        self._evaluate(batch, batch_idx, "test")
+
+    def _evaluate(self, batch: dict, batch_idx: int, stage: str) -> None:
+        if "image" not in batch:
+            return
+        outputs = self.net.forward_with_aux(*self.model_inputs(batch))
+        terms = self.loss_terms(outputs, batch)
+        pred = self.prediction(outputs)
+        target = self.target(batch)
+        mask = batch["valid_mask"]
+        self.metrics[stage].update(pred, target, mask=mask)
+        self.rings[stage].update(pred, target, theta=self._theta_deg(mask), mask=mask)
+        self.log(f"{stage}/loss", terms["loss"], batch_size=batch["image"].shape[0], sync_dist=True)
+        self._log_skipped(batch, stage)
+        if stage == "val" and len(self._panel_rows) < self.hparams.num_panels:
+            for i in range(min(batch["image"].shape[0], self.hparams.num_panels - len(self._panel_rows))):
+                self._panel_rows.append(self.panel_row(batch, pred, i))
+
+    def on_validation_epoch_end(self) -> None:
+        self._log_stage("val")
+        if self._panel_rows and not self.trainer.sanity_checking and self.trainer.is_global_zero:
+            self.write_panel(make_panel(self._panel_rows), f"panels/epoch_{self.current_epoch:03d}.png")
+        self._panel_rows = []
+
+    def on_test_epoch_end(self) -> None:
+        self.test_results = self._log_stage("test")
+
+    def _log_stage(self, stage: str) -> dict[str, dict[str, float]]:
+        """Log ``<stage>/<metric>`` and ``<stage>/<ring>/<metric>``; return the plain values."""
+        metrics = {k: float(v) for k, v in self.metrics[stage].compute().items()}
+        rings = {k: float(v) for k, v in self.rings[stage].compute().items()}
+        self.metrics[stage].reset()
+        self.rings[stage].reset()
+        # NaN (e.g. a class absent from the split) is logged as is; monitors use the primary metric only.
+        self.log_dict({f"{stage}/{k}": v for k, v in metrics.items()}, sync_dist=False)
+        self.log_dict({f"{stage}/{k}": v for k, v in rings.items() if math.isfinite(v)}, sync_dist=False)
+        return {"metrics": metrics, "breakdown": rings}
+
+    def write_panel(self, panel: np.ndarray, relative_path: str) -> None:
+        """Save a panel PNG under the run directory and hand it to TensorBoard when that logger is used."""
+        root = Path(self.trainer.log_dir or self.trainer.default_root_dir)
+        save_png(root / relative_path, panel)
+        for logger in self.loggers:
+            experiment = getattr(logger, "experiment", None)
+            if hasattr(experiment, "add_image"):
+                experiment.add_image("val/panel", panel, self.current_epoch, dataformats="HWC")
+
+    def _theta_deg(self, mask: Tensor) -> Tensor:
+        """Incidence angle (degrees) of every pixel of the served camera, cached on the right device."""
+        if self._theta is None or self._theta.shape != mask.shape[-2:] or self._theta.device != mask.device:
+            camera = self.trainer.datamodule.camera
+            self._theta = torch.rad2deg(camera.theta_grid()).to(mask.device)
+        return self._theta
+
+    def _log_skipped(self, batch: dict, stage: str) -> None:
+        if batch.get("num_skipped"):
+            self.log(
+                f"{stage}/skipped_frames",
+                float(batch["num_skipped"]),
+                reduce_fx="sum",
+                on_epoch=True,
+                on_step=False,
+            )
+
+    # ------------------------------------------------------------------------------------------------ optimiser
+    def configure_optimizers(self) -> Any:
+        if self.optimizer_factory is None:
+            raise ValueError("no optimizer configured: pass optimizer=partial(torch.optim.X, lr=...)")
+        optimizer = self.optimizer_factory(params=[p for p in self.parameters() if p.requires_grad])
+        if self.scheduler_factory is None:
+            return optimizer
+        kwargs: dict[str, Any] = {"optimizer": optimizer}
+        # Step-based schedules (OneCycleLR) need the run length, known only once the trainer has the data.
+        if "total_steps" in inspect.signature(
+            self.scheduler_factory
+        ).parameters and "total_steps" not in getattr(self.scheduler_factory, "keywords", {}):
+            kwargs["total_steps"] = int(self.trainer.estimated_stepping_batches)
+        scheduler = self.scheduler_factory(**kwargs)
+        return {
+            "optimizer": optimizer,
+            "lr_scheduler": {"scheduler": scheduler, "interval": self.hparams.scheduler_interval},
+        }

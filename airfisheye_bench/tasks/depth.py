@@ -1,0 +1,70 @@
+"""Monocular depth (paper IV-B): AdaBins loss (SILog + bin Chamfer), Eigen metrics up to 120 m."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from torch import Tensor
+
+from airfisheye_bench.metrics import DepthMetrics
+from airfisheye_bench.tasks.base import BenchmarkTask
+from airfisheye_bench.viz import colorize_depth, colorize_error, denormalize
+from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
+from models.losses import AdaBinsLoss
+
+
+class DepthTask(BenchmarkTask):
+    """Monocular depth with any zoo ``depth`` model (AdaBins by default).
+
+    Args:
+        model: ``{"name": "adabins", ...}``.
+        min_depth: Evaluation and loss lower bound (paper convention 1e-3 m).
+        max_depth: Evaluation and loss upper bound (paper: 120 m).
+        w_chamfer: Weight of the bins Chamfer loss (AdaBins: 0.1).
+        **kwargs: See :class:`BenchmarkTask`.
+    """
+
+    task = "depth"
+    primary_metric = "rmse"
+    higher_is_better = False
+
+    def __init__(
+        self,
+        model: dict[str, Any],
+        min_depth: float = 1e-3,
+        max_depth: float = 120.0,
+        w_chamfer: float = 0.1,
+        **kwargs: Any,
+    ) -> None:
+        self.min_depth, self.max_depth = float(min_depth), float(max_depth)
+        super().__init__(model, **kwargs)
+        self.loss = AdaBinsLoss(w_chamfer=w_chamfer, min_depth=min_depth, max_depth=max_depth)
+
+    def make_metric(self) -> DepthMetrics:
+        return DepthMetrics(min_depth=self.min_depth, max_depth=self.max_depth)
+
+    def target(self, batch: dict) -> Tensor:
+        return batch["depth"]
+
+    def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
+        return self.loss.terms(outputs, batch["depth"])
+
+    def prediction(self, outputs: dict[str, Tensor]) -> Tensor:
+        return outputs["depth"]
+
+    def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
+        return depth_panel_row(batch, prediction, index, self.max_depth)
+
+
+def depth_panel_row(batch: dict, prediction: Tensor, index: int, max_depth: float) -> list[np.ndarray]:
+    """image | ground truth | prediction | absolute error (red = 10 m or more)."""
+    gt = batch["depth"][index, 0]
+    pred = prediction[index, 0].detach() * batch["valid_mask"][index]
+    valid = gt > 0
+    return [
+        denormalize(batch["image"][index], IMAGENET_MEAN, IMAGENET_STD),
+        colorize_depth(gt, max_depth),
+        colorize_depth(pred, max_depth),
+        colorize_error((pred - gt).abs(), valid, scale=10.0),
+    ]
