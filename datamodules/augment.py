@@ -7,8 +7,9 @@
   about the principal point (the lens is radially symmetric), so dense maps are rotated in the image
   (bilinear for RGB, nearest for labels and depth) and LiDAR points are rotated *before* projection, so no sparse
   point is lost or smeared by resampling. Positive angles turn x (right) towards y (down).
-- Colour jitter (paper: "random color jitter"): brightness, contrast, saturation and hue on the RGB image only,
-  pixels outside the image circle are kept black.
+- Colour jitter (paper: "random color jitter"): brightness, contrast, saturation and hue on the RGB image only, as
+  one affine colour transform (hue as a rotation about the grey axis in YIQ); pixels outside the image circle stay
+  black.
 
 Example:
     >>> import torch
@@ -26,7 +27,6 @@ from dataclasses import dataclass
 
 import torch
 import torch.nn.functional as F
-import torchvision.transforms.v2.functional as TF
 
 
 @dataclass(frozen=True)
@@ -83,26 +83,21 @@ class FisheyeAugment:
         return AugmentParams(flip, angle, jitter)
 
 
-def apply_geometry(x: torch.Tensor, params: AugmentParams, cx: float, cy: float, mode: str) -> torch.Tensor:
+def apply_geometry(
+    x: torch.Tensor, params: AugmentParams, cx: float, cy: float, mode: str, grid: torch.Tensor | None = None
+) -> torch.Tensor:
     """Flip and rotate a dense ``[C, H, W]`` map about the principal point ``(cx, cy)``.
 
     ``mode`` is ``bilinear`` (images) or ``nearest`` (labels, depth, masks; values are copied, never blended).
-    Pixels rotated in from outside the image get 0 (callers re-apply the image-circle mask).
+    Stack maps that share a mode into one call, and pass the same ``grid`` (:func:`rotation_grid`) to every call of
+    one sample. Pixels rotated in from outside the image get 0 (callers re-apply the image-circle mask).
     """
     if params.flip:
         x = x.flip(-1)
     if params.angle_rad == 0.0:
         return x
-    h, w = x.shape[-2:]
-    # Inverse mapping: the output pixel at offset d from the principal point reads the input at R(-angle) d.
-    v, u = torch.meshgrid(
-        torch.arange(h, dtype=torch.float64), torch.arange(w, dtype=torch.float64), indexing="ij"
-    )
-    du, dv = u - cx, v - cy
-    c, s = math.cos(params.angle_rad), math.sin(params.angle_rad)
-    src_u = cx + c * du + s * dv
-    src_v = cy - s * du + c * dv
-    grid = torch.stack([2 * src_u / (w - 1) - 1, 2 * src_v / (h - 1) - 1], -1).to(torch.float32)[None]
+    if grid is None:
+        grid = rotation_grid(params.angle_rad, cx, cy, *x.shape[-2:])
     dtype = x.dtype
     out = F.grid_sample(x[None].to(torch.float32), grid, mode=mode, padding_mode="zeros", align_corners=True)[
         0
@@ -110,6 +105,31 @@ def apply_geometry(x: torch.Tensor, params: AugmentParams, cx: float, cy: float,
     if dtype.is_floating_point:
         return out.to(dtype)
     return out.round_().to(dtype)
+
+
+def rotation_grid(angle_rad: float, cx: float, cy: float, h: int, w: int) -> torch.Tensor:
+    """``[1, H, W, 2]`` sampling grid of the rotation (what ``F.affine_grid`` gives, built separably: faster)."""
+    theta = rotation_affine(angle_rad, cx, cy, h, w)
+    xs = torch.linspace(-1.0, 1.0, w)
+    ys = torch.linspace(-1.0, 1.0, h)
+    gx = theta[0, 0] * xs[None, :] + (theta[0, 1] * ys + theta[0, 2])[:, None]
+    gy = theta[1, 0] * xs[None, :] + (theta[1, 1] * ys + theta[1, 2])[:, None]
+    return torch.stack([gx, gy], -1)[None]
+
+
+def rotation_affine(angle_rad: float, cx: float, cy: float, h: int, w: int) -> torch.Tensor:
+    """``[2, 3]`` affine map (``align_corners=True`` normalised coordinates) of the inverse rotation.
+
+    The output pixel at offset ``d`` from the principal point reads the input at ``R(-angle) d``; written in
+    normalised coordinates ``x = 2u / (W-1) - 1`` so that ``F.affine_grid`` builds the sampling grid in one call.
+    """
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    sx, sy = (w - 1) / 2.0, (h - 1) / 2.0  # pixels per normalised unit
+    # Pixel-space map: src = p0 + R(-a) (dst - p0), with p0 = (cx, cy); conjugate by the normalisation.
+    a = torch.tensor([[c, s * sy / sx], [-s * sx / sy, c]], dtype=torch.float64)
+    p0 = torch.tensor([cx / sx - 1.0, cy / sy - 1.0], dtype=torch.float64)
+    b = p0 - a @ p0
+    return torch.cat([a, b[:, None]], 1).to(torch.float32)
 
 
 def rotation_about_optical_axis(angle_rad: float) -> torch.Tensor:
@@ -120,12 +140,38 @@ def rotation_about_optical_axis(angle_rad: float) -> torch.Tensor:
     return T
 
 
+# ITU-R BT.601 luma, as torchvision's rgb_to_grayscale.
+_LUMA = torch.tensor([0.299, 0.587, 0.114])
+_RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
+
+
+def color_matrix(saturation: float, hue: float) -> torch.Tensor:
+    """``[3, 3]`` linear map of a saturation change followed by a hue rotation (``hue`` in turns, +-0.5).
+
+    Saturation blends each pixel with its grey value (as torchvision); the hue shift rotates chroma about the grey
+    axis in YIQ space, a linear stand-in for HSV hue rotation that costs one matrix product instead of a colour
+    space round trip.
+    """
+    grey = torch.outer(torch.ones(3), _LUMA)
+    sat = saturation * torch.eye(3) + (1.0 - saturation) * grey
+    c, s = math.cos(2 * math.pi * hue), math.sin(2 * math.pi * hue)
+    rot = torch.tensor([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    hue_m = torch.linalg.inv(_RGB_TO_YIQ) @ rot @ _RGB_TO_YIQ
+    return hue_m @ sat
+
+
 def apply_color_jitter(image: torch.Tensor, params: AugmentParams) -> torch.Tensor:
-    """Colour-jitter a ``uint8 [3, H, W]`` image (brightness, contrast, saturation, hue in that order)."""
+    """Colour-jitter a float ``[3, H, W]`` image in ``[0, 1]``: brightness, contrast, saturation, hue, in that order.
+
+    All four are affine in the colour, so they compose into one ``3 x 3`` matrix and an offset applied in a single
+    pass (clamped once at the end rather than after every step).
+    """
     if params.jitter is None:
         return image
     brightness, contrast, saturation, hue = params.jitter
-    image = TF.adjust_brightness(image, brightness)
-    image = TF.adjust_contrast(image, contrast)
-    image = TF.adjust_saturation(image, saturation)
-    return TF.adjust_hue(image, hue)
+    mean_grey = float((_LUMA.to(image.dtype) @ image.reshape(3, -1)).mean()) * brightness
+    m = color_matrix(saturation, hue).to(image.dtype)
+    # contrast(brightness(x)) = c * b * x + (1 - c) * mean_grey; saturation and hue then apply m.
+    out = (m * (contrast * brightness)) @ image.reshape(3, -1)
+    out += m @ torch.full((3, 1), (1.0 - contrast) * mean_grey, dtype=image.dtype)
+    return out.clamp_(0.0, 1.0).reshape(image.shape)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +38,7 @@ from datamodules.augment import (
     apply_color_jitter,
     apply_geometry,
     rotation_about_optical_axis,
+    rotation_grid,
 )
 
 log = logging.getLogger(__name__)
@@ -165,7 +167,7 @@ class AirFisheyeDataset(Dataset):
     def __len__(self) -> int:
         return len(self.sample_ids)
 
-    @property
+    @cached_property
     def valid_mask(self) -> torch.Tensor:
         """``[H, W]`` pixels that carry data (inside the image circle and on a cube face)."""
         return self._remap.valid_mask if self._remap is not None else self.camera.valid_mask()
@@ -209,25 +211,41 @@ class AirFisheyeDataset(Dataset):
             out["sparse_depth"] = self._sparse_depth(sample_id, params)
 
         if params is not None:
-            cx, cy = self.camera.cx, self.camera.cy
-            rgb = apply_geometry(rgb, params, cx, cy, "bilinear")
-            valid = apply_geometry(valid[None], params, cx, cy, "nearest")[0]
-            if "label" in out:
-                label = apply_geometry(out["label"][None], params, cx, cy, "nearest")[0]
-                out["label"] = torch.where(valid, label, self.spec.ignore_index)
-            if "depth" in out:
-                out["depth"] = apply_geometry(out["depth"], params, cx, cy, "nearest") * valid
-            if "sparse_depth" in out and params.flip:
-                out["sparse_depth"] = out["sparse_depth"].flip(-1)  # rotation was applied to the points
-            rgb = apply_color_jitter(rgb, params) * valid
+            rgb, valid, out = self._augment(rgb, valid, out, params)
         if "label" in out:
             out["label"] = out["label"].long()
         if "sparse_depth" in out:
             # A point just inside FOV/2 can round to a border pixel whose centre is just outside the circle.
             out["sparse_depth"] = out["sparse_depth"] * valid
-        out["image"] = (rgb.float() / 255.0 - self._mean) / self._std
+        if rgb.dtype == torch.uint8:
+            rgb = rgb.float() / 255.0
+        out["image"] = (rgb - self._mean) / self._std
         out["valid_mask"] = valid
         return out
+
+    def _augment(self, rgb: torch.Tensor, valid: torch.Tensor, out: dict, params) -> tuple:
+        """Flip and rotate every dense map consistently (one resampling call per interpolation mode)."""
+        cx, cy = self.camera.cx, self.camera.cy
+        grid = rotation_grid(params.angle_rad, cx, cy, self.camera.height, self.camera.width)
+        rgb = apply_geometry(rgb, params, cx, cy, "bilinear", grid)
+        # Labels, depth and the valid mask are copied, never blended: stack them into one nearest resampling.
+        dense = [valid[None].float()]
+        if "label" in out:
+            dense.append(out["label"][None].float())
+        if "depth" in out:
+            dense.append(out["depth"])
+        moved = apply_geometry(torch.cat(dense), params, cx, cy, "nearest", grid)
+        valid = moved[0] > 0.5
+        i = 1
+        if "label" in out:
+            out["label"] = torch.where(valid, moved[i].round().to(out["label"].dtype), self.spec.ignore_index)
+            i += 1
+        if "depth" in out:
+            out["depth"] = moved[i : i + 1] * valid
+        if "sparse_depth" in out and params.flip:
+            out["sparse_depth"] = out["sparse_depth"].flip(-1)  # the rotation was applied to the points
+        rgb = apply_color_jitter(rgb.float() / 255.0, params) * valid
+        return rgb, valid, out
 
     def _dense(self, sample_id: str, modality: str) -> torch.Tensor:
         """One dense modality at the served camera: ``[C, H, W]`` (uint8 RGB / raw labels, float32 depth)."""
@@ -235,7 +253,10 @@ class AirFisheyeDataset(Dataset):
             faces = self._faces(sample_id, modality)
             if modality == "rgb":
                 return self._remap(faces, "bilinear")
-            return self._remap(faces, "nearest", fill=self.spec.ignore_index if modality == "seg" else 0)
+            out = self._remap(faces, "nearest", fill=self.spec.ignore_index if modality == "seg" else 0)
+            if modality == "depth":  # only the texels the fisheye sees matter
+                self._check_finite(out, sample_id, modality)
+            return out
         image = self.reader.fisheye(sample_id, modality)
         expected = (self.calibrated_camera.height, self.calibrated_camera.width)
         if image.shape[:2] != expected:
@@ -264,8 +285,6 @@ class AirFisheyeDataset(Dataset):
                 f"face_size={self.face_size}",
             )
         x = torch.from_numpy(faces)
-        if modality == "depth":
-            self._check_finite(x, sample_id, modality)
         return x.permute(0, 3, 1, 2) if x.ndim == 4 else x[:, None]
 
     def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:

@@ -15,7 +15,6 @@ OpenCV comes from the optional ``bench`` extra (``pip install -e ".[bench]"``).
 from __future__ import annotations
 
 import argparse
-import statistics
 import time
 
 import numpy as np
@@ -26,14 +25,14 @@ from airfisheye_bench.geometry.cubemap import _TABLES, direction_to_face
 
 
 def timeit(fn, repeat: int) -> float:
-    """Median wall time in ms over ``repeat`` runs after one warm-up."""
+    """Minimum wall time in ms over ``repeat`` runs after one warm-up (robust to other load on the machine)."""
     fn()
     times = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         fn()
         times.append((time.perf_counter() - t0) * 1e3)
-    return statistics.median(times)
+    return min(times)
 
 
 def cv2_atlas_maps(camera: FisheyeCamera, s: int):
