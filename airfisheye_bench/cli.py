@@ -25,4 +25,4 @@ def generate() -> None:
     """``airfisheye-generate``: the same as ``python scripts/generate_synthetic.py``."""
     from airfisheye_bench.synth.cli import main
 
-    main(sys.argv[1:])
+    sys.exit(main(sys.argv[1:]))

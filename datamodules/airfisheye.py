@@ -12,12 +12,12 @@ from typing import Any
 
 import lightning as L
 import numpy as np
-import torch
 from torch.utils.data import DataLoader
 
 from airfisheye_bench.geometry import FisheyeCamera
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD, AirFisheyeDataset, CameraConfig, collate
+from datamodules.sampling import EpochSeededSampler
 
 log = logging.getLogger(__name__)
 
@@ -123,20 +123,23 @@ class AirFisheyeDataModule(L.LightningDataModule):
             name = self.split_names[i]
             if name not in self.datasets:
                 augment = self.augment if i == 0 else None
-                self.datasets[name] = AirFisheyeDataset(root, name, augment=augment, **self.dataset_kwargs)
+                self.datasets[name] = AirFisheyeDataset(
+                    root, name, augment=augment, seed=self.seed, **self.dataset_kwargs
+                )
                 # Build the lookup tables before any worker starts: forked workers share them.
                 self.datasets[name].warm_up()
 
     def train_dataloader(self) -> DataLoader:
-        generator = torch.Generator().manual_seed(self.seed)
+        dataset = self._dataset(0)
+        sampler = EpochSeededSampler(len(dataset), self.seed)
         return DataLoader(
-            self._dataset(0),
-            batch_size=self.batch_size,
-            shuffle=True,
-            drop_last=True,
-            generator=generator,
-            **self.loader_kwargs,
+            dataset, batch_size=self.batch_size, sampler=sampler, drop_last=True, **self.loader_kwargs
         )
+
+    def set_epoch(self, epoch: int) -> None:
+        """Select the training augmentation of ``epoch`` (the task calls this at every epoch start)."""
+        if self.split_names[0] in self.datasets:
+            self.datasets[self.split_names[0]].set_epoch(epoch)
 
     def val_dataloader(self) -> DataLoader:
         return DataLoader(

@@ -40,6 +40,7 @@ from datamodules.augment import (
     rotation_about_optical_axis,
     rotation_grid,
 )
+from datamodules.sampling import SharedEpoch, draw_seed
 
 log = logging.getLogger(__name__)
 
@@ -101,7 +102,8 @@ class AirFisheyeDataset(Dataset):
         motion_compensation: Use ``T_cam_lidar`` from both sensors' poses at their own timestamps; ``False`` uses
             the static extrinsics (for comparison).
         max_depth: Ground truth and sparse depth beyond this range are invalid (paper: 120 m).
-        augment: Random augmentation, or ``None`` (evaluation).
+        augment: Random augmentation, or ``None`` (evaluation). Its draws depend only on ``(seed, epoch, index)``.
+        seed: Seed of the augmentation draws.
         skip_bad_frames: Return ``None`` for a frame that fails to load (logged) instead of raising;
             :func:`collate` drops it and counts it.
 
@@ -123,6 +125,7 @@ class AirFisheyeDataset(Dataset):
         max_depth: float = 120.0,
         augment: FisheyeAugment | None = None,
         skip_bad_frames: bool = False,
+        seed: int = 0,
     ) -> None:
         for name, value, allowed in (
             ("task", task, TASKS),
@@ -143,6 +146,8 @@ class AirFisheyeDataset(Dataset):
         self.max_depth = float(max_depth)
         self.augment = augment
         self.skip_bad_frames = skip_bad_frames
+        self.seed = int(seed)
+        self._epoch = SharedEpoch()
         self.sample_ids = self.reader.split(split)
         if not self.sample_ids:
             raise ValueError(f"split {split!r} of {root} is empty")
@@ -181,7 +186,7 @@ class AirFisheyeDataset(Dataset):
     def __getitem__(self, index: int) -> dict | None:
         sample_id = self.sample_ids[index]
         try:
-            return self._load(sample_id)
+            return self._load(sample_id, index)
         except (DatasetFormatError, OSError, ValueError) as err:
             if not self.skip_bad_frames:
                 raise
@@ -189,8 +194,15 @@ class AirFisheyeDataset(Dataset):
             return None
 
     # ------------------------------------------------------------------------------------------------ loading
-    def _load(self, sample_id: str) -> dict:
-        params = self.augment.sample() if self.augment is not None else None
+    def set_epoch(self, epoch: int) -> None:
+        """Select the augmentation draws of ``epoch`` (visible to persistent workers too)."""
+        self._epoch.set(epoch)
+
+    def _load(self, sample_id: str, index: int) -> dict:
+        params = None
+        if self.augment is not None:
+            generator = torch.Generator().manual_seed(draw_seed(self.seed, self._epoch.get(), index))
+            params = self.augment.sample(generator)
         valid = self.valid_mask
         rgb = self._dense(sample_id, "rgb")  # uint8 [3, H, W]
         out: dict = {"sample_id": sample_id}

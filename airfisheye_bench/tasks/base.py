@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import random
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
@@ -95,6 +96,33 @@ class BenchmarkTask(L.LightningModule):
     def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
         raise NotImplementedError
 
+    # ------------------------------------------------------------------------------------------ reproducibility
+    def on_train_epoch_start(self) -> None:
+        datamodule = getattr(self.trainer, "datamodule", None)
+        if hasattr(datamodule, "set_epoch"):
+            datamodule.set_epoch(self.current_epoch)
+
+    def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        # Global RNG states (dropout, ...), so a resumed run continues exactly where the killed one stopped.
+        # Stored as tensors and plain numbers: checkpoints are loaded with ``weights_only=True``.
+        kind, keys, pos, has_gauss, cached = np.random.get_state()  # noqa: NPY002 - the state libraries draw from
+        version, py_state, gauss_next = random.getstate()
+        checkpoint["rng_states"] = {
+            "torch": torch.get_rng_state(),
+            "numpy": (kind, torch.from_numpy(keys.astype(np.int64)), pos, has_gauss, cached),
+            "python": (version, torch.tensor(py_state, dtype=torch.int64), gauss_next),
+        }
+
+    def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        states = checkpoint.get("rng_states")
+        if not states:
+            return
+        torch.set_rng_state(states["torch"])
+        kind, keys, pos, has_gauss, cached = states["numpy"]
+        np.random.set_state((kind, keys.numpy().astype(np.uint32), pos, has_gauss, cached))  # noqa: NPY002
+        version, py_state, gauss_next = states["python"]
+        random.setstate((version, tuple(py_state.tolist()), gauss_next))
+
     # ----------------------------------------------------------------------------------------------------- model
     def forward(self, *inputs: Tensor) -> Tensor:
         """The primary output (logits or depth), as exported."""
@@ -148,14 +176,16 @@ class BenchmarkTask(L.LightningModule):
         rings = {k: float(v) for k, v in self.rings[stage].compute().items()}
         self.metrics[stage].reset()
         self.rings[stage].reset()
+        # The values are already synced across processes (torchmetrics); sync_dist averages identical numbers.
         # NaN (e.g. a class absent from the split) is logged as is; monitors use the primary metric only.
-        self.log_dict({f"{stage}/{k}": v for k, v in metrics.items()}, sync_dist=False)
-        self.log_dict({f"{stage}/{k}": v for k, v in rings.items() if math.isfinite(v)}, sync_dist=False)
+        self.log_dict({f"{stage}/{k}": v for k, v in metrics.items()}, sync_dist=True)
+        self.log_dict({f"{stage}/{k}": v for k, v in rings.items() if math.isfinite(v)}, sync_dist=True)
         return {"metrics": metrics, "breakdown": rings}
 
     def write_panel(self, panel: np.ndarray, relative_path: str) -> None:
         """Save a panel PNG under the run directory and hand it to TensorBoard when that logger is used."""
-        root = Path(self.trainer.log_dir or self.trainer.default_root_dir)
+        # Not trainer.log_dir: it broadcasts, and this runs on rank 0 only (a collective there would deadlock DDP).
+        root = Path(self.trainer.default_root_dir)
         save_png(root / relative_path, panel)
         for logger in self.loggers:
             experiment = getattr(logger, "experiment", None)

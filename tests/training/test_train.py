@@ -36,7 +36,6 @@ def test_fast_dev_run(task: str, tiny_dataset: Path, tmp_path: Path) -> None:
     )
     with open_dict(cfg):
         cfg.paths.output_dir = str(tmp_path)
-        cfg.callbacks = {k: v for k, v in cfg.callbacks.items() if v is not None}
     results = train(cfg)
     primary = cfg.task.primary_metric
     assert primary in results["metrics"]

@@ -1,0 +1,71 @@
+"""Reading and writing the on-disk AirFisheye layout (``DESIGN.md``), for synthetic and real releases alike.
+
+This package is the one place that knows file names and encodings; the generator writes through it and the
+datamodules read through it (:class:`DatasetReader`).
+"""
+
+from airfisheye_bench.io.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
+from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.codecs import (
+    read_depth,
+    read_label,
+    read_lidar,
+    read_pfm,
+    read_rgb,
+    read_visibility,
+    write_depth,
+    write_label,
+    write_lidar,
+    write_pfm,
+    write_rgb,
+    write_visibility,
+)
+from airfisheye_bench.io.errors import DatasetFormatError
+from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
+from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
+from airfisheye_bench.io.reader import DatasetReader
+from airfisheye_bench.io.spec import (
+    DATASET_YAML,
+    ClassDef,
+    DatasetSpec,
+    FileEncodings,
+    SplitsSpec,
+    classes_from,
+)
+from airfisheye_bench.io.splits import parse_sample_id, read_split, write_split
+
+__all__ = [
+    "DATASET_YAML",
+    "MODALITIES",
+    "Calibration",
+    "ClassDef",
+    "DatasetFormatError",
+    "DatasetLayout",
+    "DatasetReader",
+    "DatasetSpec",
+    "FileEncodings",
+    "ImuTable",
+    "PoseTable",
+    "SplitsSpec",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "camera_from_lidar",
+    "classes_from",
+    "parse_sample_id",
+    "read_depth",
+    "read_label",
+    "read_lidar",
+    "read_pfm",
+    "read_rgb",
+    "read_split",
+    "read_visibility",
+    "remove_stale_temporaries",
+    "trajectory_of",
+    "write_depth",
+    "write_label",
+    "write_lidar",
+    "write_pfm",
+    "write_rgb",
+    "write_split",
+    "write_visibility",
+]

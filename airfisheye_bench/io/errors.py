@@ -1,0 +1,30 @@
+"""The one error type raised for malformed dataset files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class DatasetFormatError(ValueError):
+    """A dataset file is missing, unreadable or does not follow the layout.
+
+    The message always names the file and, where it applies, the offending key (``classes.raw[3].color``) or
+    line, so a user can fix a hand-written ``dataset.yaml`` or a broken download without reading code.
+
+    Attributes:
+        path: The offending file.
+        key: Dotted key or ``line N`` inside the file, or ``None``.
+        message: What is wrong, without the location.
+
+    Example:
+        >>> err = DatasetFormatError("/data/dataset.yaml", "must be a mapping", key="splits")
+        >>> str(err)
+        "/data/dataset.yaml: key 'splits': must be a mapping"
+    """
+
+    def __init__(self, path: str | Path, message: str, key: str | None = None) -> None:
+        self.path = Path(path)
+        self.key = key
+        self.message = message
+        where = f"{self.path}: key '{key}': " if key is not None else f"{self.path}: "
+        super().__init__(where + message)

@@ -1,0 +1,28 @@
+"""The runnable examples in the docstrings of the segmentation / AdaBins / loss / shared model modules."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+MODULES = [
+    "models.input_checks",
+    "models.weights",
+    "models.segmentation",
+    "models.segmentation.smp_model",
+    "models.adabins",
+    "models.adabins.model",
+    "models.adabins.mini_vit",
+    "models.adabins.decoder",
+    "models.losses.depth",
+    "models.losses.segmentation",
+]
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples(name):
+    result = doctest.testmod(importlib.import_module(name), optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 0, f"{name} has no docstring example"
+    assert result.failed == 0
