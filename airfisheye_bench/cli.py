@@ -26,3 +26,10 @@ def generate() -> None:
     from airfisheye_bench.synth.cli import main
 
     sys.exit(main(sys.argv[1:]))
+
+
+def inspect() -> None:
+    """``airfisheye-inspect root=DIR [deep=true]``: report missing or malformed files of a dataset."""
+    from airfisheye_bench.io.inspect import main
+
+    sys.exit(main(sys.argv[1:]))

@@ -89,8 +89,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.preset = preset
         self.cache_dir = cache_dir
         self.seed = seed
-        self.camera_config = CameraConfig(**_camera_kwargs(camera or {}))
-        self.augment = FisheyeAugment(**_augment_kwargs(augment)) if augment is not None else None
+        self.camera_config = CameraConfig(
+            **_options("camera", camera or {}, {"size", "model", "fov_deg", "k"}, ("k",))
+        )
+        augment_kwargs = _options(
+            "augment", augment or {}, {"hflip", "rotate_deg", "color_jitter"}, ("color_jitter",)
+        )
+        self.augment = FisheyeAugment(**augment_kwargs) if augment is not None else None
         self.dataset_kwargs = dict(
             task=task,
             source=source,
@@ -195,23 +200,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
         return next(iter(self.datasets.values()))
 
 
-def _camera_kwargs(camera: dict[str, Any]) -> dict[str, Any]:
-    allowed = {"size", "model", "fov_deg", "k"}
-    unknown = set(camera) - allowed
+def _options(group: str, given: dict[str, Any], allowed: set[str], tuples: tuple[str, ...]) -> dict[str, Any]:
+    """Check a config sub-dict's keys (naming the config path on error); turn list values into float tuples."""
+    unknown = set(given) - allowed
     if unknown:
-        raise ValueError(f"unknown data.camera keys {sorted(unknown)}; expected some of {sorted(allowed)}")
-    out = dict(camera)
-    if out.get("k") is not None:
-        out["k"] = tuple(float(v) for v in out["k"])
-    return out
-
-
-def _augment_kwargs(augment: dict[str, Any]) -> dict[str, Any]:
-    allowed = {"hflip", "rotate_deg", "color_jitter"}
-    unknown = set(augment) - allowed
-    if unknown:
-        raise ValueError(f"unknown data.augment keys {sorted(unknown)}; expected some of {sorted(allowed)}")
-    out = dict(augment)
-    if out.get("color_jitter") is not None:
-        out["color_jitter"] = tuple(float(v) for v in out["color_jitter"])
+        raise ValueError(f"unknown data.{group} keys {sorted(unknown)}; expected some of {sorted(allowed)}")
+    out = dict(given)
+    for key in tuples:
+        if out.get(key) is not None:
+            out[key] = tuple(float(v) for v in out[key])
     return out

@@ -58,8 +58,11 @@ def check_sparse_depth(sparse_depth: Tensor, image: Tensor, name: str = "sparse_
     """
     if not isinstance(sparse_depth, Tensor):
         raise ValueError(f"{name} must be a torch.Tensor, got {type(sparse_depth).__name__}")
-    expected = [int(image.shape[0]), 1, int(image.shape[-2]), int(image.shape[-1])]
-    if list(sparse_depth.shape) != expected:
+    # Compare sizes without int(): that would pin a dynamic (exported) batch size to the example's.
+    same = sparse_depth.ndim == 4 and sparse_depth.shape[1] == 1
+    same = same and sparse_depth.shape[0] == image.shape[0] and sparse_depth.shape[2:] == image.shape[2:]
+    if not same:
+        expected = [image.shape[0], 1, image.shape[-2], image.shape[-1]]
         raise ValueError(
-            f"{name} must have shape {expected} (batch and size of image), got {list(sparse_depth.shape)}"
+            f"{name} must have shape {list(map(int, expected))} (batch and size of image), got {list(sparse_depth.shape)}"
         )

@@ -68,9 +68,10 @@ def main() -> None:
         root = ensure_dataset(args.preset)
     print(f"dataset: {root}; served size {args.size}^2; one process, one thread")
     print(
-        "| task | source | ms / sample (wall) | ms / sample (CPU) | samples/s per worker | RSS growth (MB) |"
+        "| task | source | ms / sample (wall) | ms / sample (CPU) | of which file decode (CPU) "
+        "| samples/s per worker (CPU) | RSS growth (MB) |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     for task in ("seg", "depth", "completion"):
         for source in ("cubemap", "fisheye"):
             wall, cpu, dec, grow = bench(root, task, source, args.size, args.samples)

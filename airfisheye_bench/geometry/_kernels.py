@@ -44,7 +44,8 @@ def blend_planar(src, pixels, index, weight, out, is_int, lo, hi):  # pragma: no
                 out[b, c, pixels[p]] = v
 
 
-@njit(cache=True, nogil=True)
+# fastmath lets LLVM reorder the four-tap sums (a last-bit difference at most, then rounded to the output dtype).
+@njit(cache=True, nogil=True, fastmath=True)
 def blend_interleaved3(src, pixels, index, weight, out, is_int, lo, hi):  # pragma: no cover - compiled
     """:func:`blend_planar` for an interleaved three-channel source ``[B, L, 3]`` (RGB), with scalar accumulators."""
     n_batch = src.shape[0]

@@ -262,6 +262,8 @@ def _bilinear_taps(
     x0, y0 = u.floor(), v.floor()
     fx, fy = u - x0, v - y0
     half, centre = s / 2.0, (s - 1) / 2.0
+    on_face = face >= 0
+    base = face.clamp_min(0) * (s * s)
     corners = (
         (x0, y0, (1 - fx) * (1 - fy)),
         (x0 + 1, y0, fx * (1 - fy)),
@@ -270,17 +272,23 @@ def _bilinear_taps(
     )
     indices, weights = [], []
     for cx, cy, w in corners:
-        tap_face, tx, ty = face.clone(), cx.clone(), cy.clone()
-        off = ((cx < 0) | (cx > s - 1) | (cy < 0) | (cy > s - 1)) & (face >= 0)
+        index = base + cy.clamp(0, s - 1).to(torch.int64) * s + cx.clamp(0, s - 1).to(torch.int64)
+        w = torch.where(on_face, w, 0.0)
+        # Only taps in the one-texel border band leave their face: re-project just those.
+        off = ((cx < 0) | (cx > s - 1) | (cy < 0) | (cy > s - 1)) & on_face
         if off.any():
+            sel = off.nonzero().squeeze(1)
             d_face = torch.stack(
-                [(cx[off] - centre) / half, (cy[off] - centre) / half, torch.ones_like(cx[off])], -1
+                [(cx[sel] - centre) / half, (cy[sel] - centre) / half, torch.ones(len(sel), dtype=cx.dtype)],
+                -1,
             )
-            d_cam = torch.einsum("nij,nj->ni", torch.from_numpy(_R_CAM_FACE)[face[off]], d_face)
+            d_cam = torch.einsum("nij,nj->ni", torch.from_numpy(_R_CAM_FACE)[face[sel]], d_face)
             nf, nu, nv = direction_to_face(d_cam, s)
-            tap_face[off], tx[off], ty[off] = nf, nu.round(), nv.round()
-        w = torch.where(tap_face < 0, 0.0, w)
-        indices.append(_flat_index(tap_face.clamp_min(0), ty.clamp(0, s - 1), tx.clamp(0, s - 1), s))
+            index[sel] = _flat_index(
+                nf.clamp_min(0), nv.round().clamp(0, s - 1), nu.round().clamp(0, s - 1), s
+            )
+            w[sel] = torch.where(nf < 0, 0.0, w[sel])
+        indices.append(index)
         weights.append(w)
     weight = torch.stack(weights)
     return torch.stack(indices), weight / weight.sum(0, keepdim=True).clamp_min(1e-12)

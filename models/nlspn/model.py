@@ -24,7 +24,7 @@ import os
 import torch
 from torch import Tensor, nn
 
-from models.input_checks import check_image
+from models.input_checks import check_image, check_sparse_depth
 from models.nlspn.blocks import conv_bn_relu, convt_bn_relu, resnet_stages
 from models.nlspn.propagation import NonLocalPropagation
 from models.weights import load_weights
@@ -164,21 +164,10 @@ class NLSPN(nn.Module):
 
     def _check_inputs(self, image: Tensor, sparse_depth: Tensor) -> None:
         check_image(image, in_channels=3)
-        # Compare sizes without int(): that would pin a dynamic (exported) batch size to the example's.
-        b, _, h, w = image.shape
-        if not isinstance(sparse_depth, Tensor) or sparse_depth.ndim != 4 or sparse_depth.shape[1] != 1:
-            raise ValueError(f"sparse_depth must have shape [B, 1, H, W], got {_shape(sparse_depth)}")
-        if sparse_depth.shape[0] != b or sparse_depth.shape[2:] != image.shape[2:]:
-            raise ValueError(
-                f"sparse_depth must have the batch size and size of image {list(image.shape)}, "
-                f"got {list(sparse_depth.shape)}"
-            )
+        check_sparse_depth(sparse_depth, image)
+        h, w = image.shape[-2:]
         if h < self.min_size or w < self.min_size:
             raise ValueError(f"image height and width must be >= {self.min_size}, got {h}x{w}")
-
-
-def _shape(x: object) -> object:
-    return list(x.shape) if isinstance(x, Tensor) else type(x).__name__
 
 
 def _crop_cat(decoded: Tensor, skip: Tensor) -> Tensor:

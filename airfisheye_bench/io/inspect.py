@@ -1,0 +1,239 @@
+"""Scan a dataset root and report what is missing or malformed, without loading everything into memory.
+
+By default only headers are read (image size and mode, ``.npy`` shape and dtype through a memory map), so a full
+release is checked in minutes; ``deep=True`` also decodes every file and checks its values (non-finite depth,
+label ids unknown to ``dataset.yaml``, empty or non-finite LiDAR scans).
+
+Command line (also ``airfisheye-inspect``)::
+
+    python -m airfisheye_bench.io.inspect root=/path/to/AirFisheye [deep=true] [limit=20]
+
+Example:
+    >>> report = inspect_dataset("/path/to/AirFisheye")   # doctest: +SKIP
+    >>> report.ok, report.samples, report.problems[:1]      # doctest: +SKIP
+    (True, 26000, [])
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from airfisheye_bench.io import codecs
+from airfisheye_bench.io.errors import DatasetFormatError
+from airfisheye_bench.io.layout import trajectory_of
+from airfisheye_bench.io.reader import DatasetReader
+from airfisheye_bench.io.spec import FACE_NAMES
+
+_IMAGE_MODES = {"rgb": ("RGB", "RGBA", "L"), "seg": ("L", "P"), "depth": ("I;16", "I;16B", "I;16L", "I")}
+
+
+@dataclass
+class InspectReport:
+    """What :func:`inspect_dataset` found.
+
+    Attributes:
+        root: The dataset root.
+        samples: Samples listed in the split files.
+        files: Files checked.
+        problems: ``(path, what is wrong)`` for every problem, in scan order.
+    """
+
+    root: Path
+    samples: int = 0
+    files: int = 0
+    problems: list[tuple[str, str]] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+    def add(self, path: Path | str, message: str) -> None:
+        self.problems.append((str(path), message))
+
+    def summary(self, limit: int = 20) -> str:
+        head = (
+            f"{self.root}: {self.samples} samples, {self.files} files checked, {len(self.problems)} problems"
+        )
+        lines = [head] + [f"  {p}: {m}" for p, m in self.problems[:limit]]
+        if len(self.problems) > limit:
+            lines.append(f"  ... and {len(self.problems) - limit} more")
+        return "\n".join(lines)
+
+
+def inspect_dataset(root: str | Path, deep: bool = False) -> InspectReport:
+    """Check every file the split files refer to against ``dataset.yaml`` and the calibration."""
+    root = Path(root)
+    report = InspectReport(root)
+    if not (root / "dataset.yaml").is_file():
+        report.add(root / "dataset.yaml", "missing: not a dataset root (no dataset.yaml)")
+        return report
+    try:
+        reader = DatasetReader(root)
+    except (DatasetFormatError, ValueError) as err:
+        report.add(root / "dataset.yaml", str(err))
+        return report
+    spec = reader.spec
+    known_ids = np.zeros(256, dtype=bool)
+    known_ids[[c.id for c in spec.raw_classes]] = True
+    known_ids[spec.ignore_index] = True
+
+    samples: list[str] = []
+    for split in reader.split_names:
+        try:
+            samples += reader.split(split)
+        except (DatasetFormatError, OSError, ValueError) as err:
+            report.add(reader.layout.split_file(spec.splits.files[split]), str(err))
+    report.samples = len(samples)
+
+    checked_trajectories: dict[str, object] = {}
+    for sid in samples:
+        traj = trajectory_of(sid)
+        if traj not in checked_trajectories:
+            checked_trajectories[traj] = _check_trajectory(reader, traj, report)
+        calib = checked_trajectories[traj]
+        if calib is None:
+            continue
+        frame = sid.rsplit("/", 1)[1]
+        try:
+            reader.poses(traj).index(frame)
+        except (ValueError, KeyError, DatasetFormatError):
+            report.add(reader.layout.poses(traj), f"no pose for frame {frame}")
+        _check_sample(reader, sid, calib, known_ids, deep, report)
+    return report
+
+
+def _check_trajectory(reader: DatasetReader, traj: str, report: InspectReport):
+    for path, load in ((reader.layout.calib(traj), reader.calib), (reader.layout.poses(traj), reader.poses)):
+        report.files += 1
+        try:
+            load(traj)
+        except (DatasetFormatError, OSError, ValueError) as err:
+            report.add(path, str(err))
+            return None
+    return reader.calib(traj)
+
+
+def _check_sample(reader, sid: str, calib, known_ids: np.ndarray, deep: bool, report: InspectReport) -> None:
+    spec = reader.spec
+    if spec.has("cubemap") and calib.face_size:
+        for face in FACE_NAMES:
+            for modality in ("rgb", "seg", "depth"):
+                path = reader.layout.cubemap(sid, face, modality)
+                _check_image(
+                    path, modality, (calib.face_size, calib.face_size), reader, known_ids, deep, report
+                )
+    if spec.has("fisheye"):
+        size = (int(calib.camera["height"]), int(calib.camera["width"]))
+        for modality in ("rgb", "seg", "depth"):
+            _check_image(
+                reader.layout.fisheye(sid, modality), modality, size, reader, known_ids, deep, report
+            )
+    n_points = None
+    if spec.has("lidar"):
+        n_points = _check_array(reader.layout.lidar(sid), 2, 4, np.floating, deep, report, "LiDAR scan")
+    if spec.has("lidar_visible"):
+        n_vis = _check_array(reader.layout.lidar_visible(sid), 1, None, np.bool_, False, report, "visibility")
+        if n_points is not None and n_vis is not None and n_points != n_vis:
+            report.add(reader.layout.lidar_visible(sid), f"{n_vis} flags for {n_points} LiDAR points")
+
+
+def _check_image(
+    path: Path, modality: str, size: tuple[int, int], reader, known_ids, deep: bool, report
+) -> None:
+    report.files += 1
+    if not path.is_file():
+        report.add(path, "missing")
+        return
+    if path.suffix in (".npy", ".pfm"):  # float depth
+        if path.suffix == ".npy":
+            shape = _check_array(path, 2, None, np.floating, False, report, "depth")
+            if shape is not None and not deep:
+                return
+        try:
+            depth = codecs.read_depth(path, scale=reader.spec.files.depth_scale)
+        except DatasetFormatError as err:
+            report.add(path, err.message)
+            return
+        _check_values(path, modality, depth, size, known_ids, report)
+        return
+    try:
+        with Image.open(path) as img:  # reads the header only
+            mode, (w, h) = img.mode, img.size
+            if (h, w) != size:
+                report.add(path, f"image is {w}x{h}, expected {size[1]}x{size[0]} (calib.yaml)")
+            if mode not in _IMAGE_MODES[modality]:
+                report.add(
+                    path, f"{modality} image has mode {mode}, expected one of {_IMAGE_MODES[modality]}"
+                )
+            if deep:
+                img.load()
+    except OSError as err:
+        report.add(path, f"unreadable image ({err})")
+        return
+    if deep and modality in ("seg", "depth"):
+        try:
+            data = reader._read(path, modality)
+        except DatasetFormatError as err:
+            report.add(path, err.message)
+            return
+        _check_values(path, modality, data, size, known_ids, report)
+
+
+def _check_values(path: Path, modality: str, data: np.ndarray, size, known_ids, report) -> None:
+    if data.shape[:2] != size:
+        report.add(
+            path, f"array is {data.shape[1]}x{data.shape[0]}, expected {size[1]}x{size[0]} (calib.yaml)"
+        )
+    if modality == "depth" and not np.isfinite(data).all():
+        report.add(path, "depth contains NaN or inf (0 marks invalid)")
+    if modality == "seg":
+        unknown = np.unique(data[~known_ids[data]])
+        if unknown.size:
+            report.add(path, f"label ids {unknown.tolist()} are not raw classes of dataset.yaml")
+
+
+def _check_array(path: Path, ndim: int, cols: int | None, kind, deep: bool, report, what: str) -> int | None:
+    """Check a ``.npy`` header (memory-mapped); returns its length or ``None`` on a problem."""
+    report.files += 1
+    if not path.is_file():
+        report.add(path, "missing")
+        return None
+    try:
+        arr = np.load(path, mmap_mode="r", allow_pickle=False)
+    except (OSError, ValueError) as err:
+        report.add(path, f"unreadable .npy ({err})")
+        return None
+    if arr.ndim != ndim or (cols is not None and arr.shape[1] != cols) or not np.issubdtype(arr.dtype, kind):
+        want = f"[N, {cols}]" if cols else ("[N]" if ndim == 1 else f"{ndim}-D")
+        report.add(
+            path,
+            f"{what} must be {want} {np.dtype(kind).name if kind is not np.floating else 'float'}, got {arr.dtype} {arr.shape}",
+        )
+        return None
+    if deep and what == "LiDAR scan":
+        if len(arr) == 0:
+            report.add(path, "the LiDAR scan is empty")
+        elif not np.isfinite(np.asarray(arr[:, :3])).all():
+            report.add(path, "the LiDAR scan has non-finite coordinates")
+    return int(arr.shape[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m airfisheye_bench.io.inspect root=DIR [deep=true] [limit=20]``; exit 1 when problems are found."""
+    args = dict(arg.split("=", 1) for arg in (sys.argv[1:] if argv is None else argv) if "=" in arg)
+    unknown = set(args) - {"root", "deep", "limit"}
+    if "root" not in args or unknown:
+        print("usage: python -m airfisheye_bench.io.inspect root=DIR [deep=true] [limit=20]", file=sys.stderr)
+        return 2
+    report = inspect_dataset(args["root"], deep=args.get("deep", "false").lower() in ("1", "true", "yes"))
+    print(report.summary(limit=int(args.get("limit", 20))))
+    return 0 if report.ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

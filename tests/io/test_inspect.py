@@ -1,0 +1,66 @@
+"""``inspect_dataset``: every kind of damage is reported with its file, nothing else is."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from airfisheye_bench.io import DatasetReader, write_label
+from airfisheye_bench.io.inspect import inspect_dataset, main
+
+
+@pytest.fixture
+def copy(tiny_dataset: Path, tmp_path: Path) -> Path:
+    root = tmp_path / "copy"
+    shutil.copytree(tiny_dataset, root)
+    return root
+
+
+def test_a_clean_dataset_has_no_problems(tiny_dataset: Path) -> None:
+    report = inspect_dataset(tiny_dataset, deep=True)
+    assert report.ok, report.summary()
+    assert report.samples == 12 and report.files > 12 * 15
+    assert main([f"root={tiny_dataset}"]) == 0
+
+
+def test_damage_is_reported_with_the_file(copy: Path) -> None:
+    reader = DatasetReader(copy)
+    sids = reader.split("train")
+    missing = reader.layout.cubemap(sids[0], "up", "rgb")
+    missing.unlink()
+    corrupt = reader.layout.cubemap(sids[1], "left", "seg")
+    corrupt.write_bytes(b"\x89PNG garbage")
+    resized = reader.layout.fisheye(sids[2], "rgb")
+    Image.fromarray(np.zeros((10, 12, 3), np.uint8)).save(resized)
+    bad_ids = reader.layout.fisheye(sids[3], "seg")
+    label = reader.fisheye(sids[3], "seg")
+    label[0, :3] = 201
+    write_label(bad_ids, label)
+    scan = reader.layout.lidar(sids[4])
+    np.save(scan, np.zeros((5, 3), np.float32))
+    flags = reader.layout.lidar_visible(sids[5])
+    np.save(flags, np.zeros(3, bool))
+
+    shallow = inspect_dataset(copy)
+    deep = inspect_dataset(copy, deep=True)
+    for report in (shallow, deep):
+        paths = [p for p, _ in report.problems]
+        assert str(missing) in paths
+        assert str(corrupt) in paths
+        assert any(p == str(resized) and "10" in m for p, m in report.problems)
+        assert any(p == str(scan) and "[N, 4]" in m for p, m in report.problems)
+        assert any(p == str(flags) for p, _ in report.problems)
+    # Label values are only read in deep mode.
+    assert not any(p == str(bad_ids) for p, _ in shallow.problems)
+    assert any(p == str(bad_ids) and "[201]" in m for p, m in deep.problems)
+    assert main([f"root={copy}"]) == 1
+
+
+def test_not_a_dataset(tmp_path: Path) -> None:
+    report = inspect_dataset(tmp_path)
+    assert not report.ok and "dataset.yaml" in report.problems[0][0]
+    assert main([]) == 2
