@@ -42,6 +42,9 @@ class AirFisheyeDataModule(L.LightningDataModule):
         persistent_workers: Keep workers alive between epochs.
         skip_bad_frames: Skip (and count) frames that fail to load instead of stopping.
         splits: Names of the train, val and test splits in ``dataset.yaml``.
+        seed: Seed of the shuffling and augmentation draws.
+        dataset_seed: Seed of the synthetic dataset itself (``root=None``); 0 is the canonical release of each
+            preset. Independent of ``seed`` so that changing the training seed never changes the data.
 
     Example:
         >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
@@ -71,6 +74,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         skip_bad_frames: bool = False,
         splits: tuple[str, str, str] = ("train", "val", "test"),
         seed: int = 0,
+        dataset_seed: int = 0,
     ) -> None:
         super().__init__()
         if batch_size < 1:
@@ -89,6 +93,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.preset = preset
         self.cache_dir = cache_dir
         self.seed = seed
+        self.dataset_seed = dataset_seed
         self.camera_config = CameraConfig(
             **_options("camera", camera or {}, {"size", "model", "fov_deg", "k"}, ("k",))
         )
@@ -163,7 +168,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             return self.root
         from airfisheye_bench.synth.writer import ensure_dataset
 
-        self.root = ensure_dataset(self.preset, root=self.cache_dir, seed=self.seed)
+        self.root = ensure_dataset(self.preset, root=self.cache_dir, seed=self.dataset_seed)
         return self.root
 
     @property
