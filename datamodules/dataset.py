@@ -161,10 +161,6 @@ class AirFisheyeDataset(Dataset):
         self.camera = (camera or CameraConfig()).resolve(self.calibrated_camera, source)
         self.face_size = first_calib.face_size
         self.label_lut = torch.from_numpy(self.spec.label_lut())
-        known = np.zeros(256, dtype=bool)
-        known[[c.id for c in self.spec.raw_classes]] = True
-        known[self.spec.ignore_index] = True  # the "outside the image circle" value
-        self.known_raw = torch.from_numpy(known)
         self._remap = CubemapToFisheye(self.camera, self.face_size) if source == "cubemap" else None
         self._mean = torch.tensor(IMAGENET_MEAN).view(3, 1, 1)
         self._std = torch.tensor(IMAGENET_STD).view(3, 1, 1)
@@ -208,11 +204,10 @@ class AirFisheyeDataset(Dataset):
         out: dict = {"sample_id": sample_id}
         if self.task == "seg":
             raw = self._dense(sample_id, "seg")[0]
-            unknown = ~self.known_raw[raw.long()]
-            if unknown.any():
-                ids = sorted(set(raw[unknown].tolist()))
+            unknown = self.spec.unknown_label_ids(raw.numpy())
+            if unknown:
                 raise DatasetFormatError(
-                    self._path(sample_id, "seg"), f"label ids {ids} are not raw classes of dataset.yaml"
+                    self._path(sample_id, "seg"), f"label ids {unknown} are not raw classes of dataset.yaml"
                 )
             label = self.label_lut[raw.long()]
             out["label"] = label

@@ -78,9 +78,6 @@ def inspect_dataset(root: str | Path, deep: bool = False) -> InspectReport:
         report.add(root / "dataset.yaml", str(err))
         return report
     spec = reader.spec
-    known_ids = np.zeros(256, dtype=bool)
-    known_ids[[c.id for c in spec.raw_classes]] = True
-    known_ids[spec.ignore_index] = True
 
     samples: list[str] = []
     for split in reader.split_names:
@@ -103,7 +100,7 @@ def inspect_dataset(root: str | Path, deep: bool = False) -> InspectReport:
             reader.poses(traj).index(frame)
         except (ValueError, KeyError, DatasetFormatError):
             report.add(reader.layout.poses(traj), f"no pose for frame {frame}")
-        _check_sample(reader, sid, calib, known_ids, deep, report)
+        _check_sample(reader, sid, calib, deep, report)
     return report
 
 
@@ -118,22 +115,19 @@ def _check_trajectory(reader: DatasetReader, traj: str, report: InspectReport):
     return reader.calib(traj)
 
 
-def _check_sample(reader, sid: str, calib, known_ids: np.ndarray, deep: bool, report: InspectReport) -> None:
+def _check_sample(reader, sid: str, calib: np.ndarray, deep: bool, report: InspectReport) -> None:
     spec = reader.spec
     if spec.has("cubemap") and calib.face_size:
         for face in FACE_NAMES:
             for modality in ("rgb", "seg", "depth"):
                 path = reader.layout.cubemap(sid, face, modality)
-                _check_image(
-                    path, modality, (calib.face_size, calib.face_size), reader, known_ids, deep, report
-                )
+                _check_image(path, modality, (calib.face_size, calib.face_size), reader, deep, report)
     if spec.has("fisheye"):
         size = (int(calib.camera["height"]), int(calib.camera["width"]))
         for modality in ("rgb", "seg", "depth"):
-            _check_image(
-                reader.layout.fisheye(sid, modality), modality, size, reader, known_ids, deep, report
-            )
+            _check_image(reader.layout.fisheye(sid, modality), modality, size, reader, deep, report)
     n_points = None
+    report.files += spec.has("lidar") + spec.has("lidar_visible")
     if spec.has("lidar"):
         n_points = _check_array(reader.layout.lidar(sid), 2, 4, np.floating, deep, report, "LiDAR scan")
     if spec.has("lidar_visible"):
@@ -142,9 +136,7 @@ def _check_sample(reader, sid: str, calib, known_ids: np.ndarray, deep: bool, re
             report.add(reader.layout.lidar_visible(sid), f"{n_vis} flags for {n_points} LiDAR points")
 
 
-def _check_image(
-    path: Path, modality: str, size: tuple[int, int], reader, known_ids, deep: bool, report
-) -> None:
+def _check_image(path: Path, modality: str, size: tuple[int, int], reader, deep: bool, report) -> None:
     report.files += 1
     if not path.is_file():
         report.add(path, "missing")
@@ -159,7 +151,7 @@ def _check_image(
         except DatasetFormatError as err:
             report.add(path, err.message)
             return
-        _check_values(path, modality, depth, size, known_ids, report)
+        _check_values(path, modality, depth, size, reader.spec, report)
         return
     try:
         with Image.open(path) as img:  # reads the header only
@@ -181,10 +173,10 @@ def _check_image(
         except DatasetFormatError as err:
             report.add(path, err.message)
             return
-        _check_values(path, modality, data, size, known_ids, report)
+        _check_values(path, modality, data, size, reader.spec, report)
 
 
-def _check_values(path: Path, modality: str, data: np.ndarray, size, known_ids, report) -> None:
+def _check_values(path: Path, modality: str, data: np.ndarray, size, spec, report) -> None:
     if data.shape[:2] != size:
         report.add(
             path, f"array is {data.shape[1]}x{data.shape[0]}, expected {size[1]}x{size[0]} (calib.yaml)"
@@ -192,14 +184,13 @@ def _check_values(path: Path, modality: str, data: np.ndarray, size, known_ids, 
     if modality == "depth" and not np.isfinite(data).all():
         report.add(path, "depth contains NaN or inf (0 marks invalid)")
     if modality == "seg":
-        unknown = np.unique(data[~known_ids[data]])
-        if unknown.size:
-            report.add(path, f"label ids {unknown.tolist()} are not raw classes of dataset.yaml")
+        unknown = spec.unknown_label_ids(data)
+        if unknown:
+            report.add(path, f"label ids {unknown} are not raw classes of dataset.yaml")
 
 
 def _check_array(path: Path, ndim: int, cols: int | None, kind, deep: bool, report, what: str) -> int | None:
     """Check a ``.npy`` header (memory-mapped); returns its length or ``None`` on a problem."""
-    report.files += 1
     if not path.is_file():
         report.add(path, "missing")
         return None

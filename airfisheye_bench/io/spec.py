@@ -217,6 +217,13 @@ class DatasetSpec:
             lut[raw] = train
         return lut
 
+    def unknown_label_ids(self, labels: np.ndarray) -> list[int]:
+        """Raw ids in ``labels`` (uint8) that are not raw classes; ``ignore_index`` (outside the circle) is allowed."""
+        known = np.zeros(256, dtype=bool)
+        known[[c.id for c in self.raw_classes]] = True
+        known[self.ignore_index] = True
+        return np.unique(labels[~known[labels]]).tolist()
+
     def train_palette(self) -> np.ndarray:
         """``uint8 [256, 3]`` colours indexed by training id (black for unused ids)."""
         pal = np.zeros((256, 3), np.uint8)

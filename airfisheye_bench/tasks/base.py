@@ -41,8 +41,6 @@ class BenchmarkTask(L.LightningModule):
     """
 
     task: ClassVar[str]
-    primary_metric: ClassVar[str]
-    higher_is_better: ClassVar[bool]
 
     def __init__(
         self,

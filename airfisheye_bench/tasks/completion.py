@@ -26,8 +26,6 @@ class CompletionTask(BenchmarkTask):
     """
 
     task = "completion"
-    primary_metric = "rmse"
-    higher_is_better = False
 
     def __init__(
         self,

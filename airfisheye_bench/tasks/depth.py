@@ -26,8 +26,6 @@ class DepthTask(BenchmarkTask):
     """
 
     task = "depth"
-    primary_metric = "rmse"
-    higher_is_better = False
 
     def __init__(
         self,

@@ -26,8 +26,6 @@ class SegmentationTask(BenchmarkTask):
     """
 
     task = "seg"
-    primary_metric = "mIoU"
-    higher_is_better = True
 
     def __init__(
         self,
