@@ -21,6 +21,15 @@ def train() -> None:
     runpy.run_path(str(PROJECT_ROOT / "train.py"), run_name="__main__")
 
 
+def evaluate() -> None:
+    """``airfisheye-evaluate``: the same as ``python scripts/evaluate.py``."""
+    import runpy
+
+    script = PROJECT_ROOT / "scripts" / "evaluate.py"
+    sys.argv[0] = str(script)
+    runpy.run_path(str(script), run_name="__main__")
+
+
 def generate() -> None:
     """``airfisheye-generate``: the same as ``python scripts/generate_synthetic.py``."""
     from airfisheye_bench.synth.cli import main
@@ -31,5 +40,19 @@ def generate() -> None:
 def inspect() -> None:
     """``airfisheye-inspect root=DIR [deep=true]``: report missing or malformed files of a dataset."""
     from airfisheye_bench.io.inspect import main
+
+    sys.exit(main(sys.argv[1:]))
+
+
+def leaderboard() -> None:
+    """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false]``."""
+    from airfisheye_bench.evaluation.leaderboard import main
+
+    sys.exit(main(sys.argv[1:]))
+
+
+def export() -> None:
+    """``airfisheye-export ckpt_path=<ckpt or run dir> out=model.onnx [...]``: ``scripts/export_onnx.py``."""
+    from airfisheye_bench.export.deploy import main
 
     sys.exit(main(sys.argv[1:]))

@@ -15,7 +15,7 @@ import lightning as L
 import torch
 from omegaconf import DictConfig, OmegaConf
 
-from airfisheye_bench.evaluation import write_results
+from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from models import list_models, model_task
 
 log = logging.getLogger(__name__)
@@ -96,7 +96,9 @@ def train(cfg: DictConfig) -> dict[str, Any]:
                 split=datamodule.split_names[2],
                 metrics=results["metrics"],
                 breakdown=results["breakdown"],
-                dataset=_dataset_identity(datamodule),
+                dataset=dataset_identity(
+                    datamodule.dataset_root(), datamodule.split_dataset("test").spec.name
+                ),
                 model={
                     "name": cfg.model.name,
                     "checkpoint": best or None,
@@ -106,14 +108,3 @@ def train(cfg: DictConfig) -> dict[str, Any]:
             )
             log.info("test results written to %s", path)
     return results
-
-
-def _dataset_identity(datamodule) -> dict[str, Any]:
-    import hashlib
-
-    root = Path(datamodule.dataset_root())
-    identity: dict[str, Any] = {"root": str(root), "name": datamodule._any_dataset().spec.name}
-    manifest = root / "manifest.json"
-    if manifest.is_file():
-        identity["manifest_sha256"] = hashlib.sha256(manifest.read_bytes()).hexdigest()
-    return identity

@@ -38,9 +38,10 @@ def denormalize(image: torch.Tensor, mean, std) -> np.ndarray:
 
 
 def colorize_labels(label: torch.Tensor | np.ndarray, palette: np.ndarray) -> np.ndarray:
-    """``[H, W]`` class ids -> ``uint8 [H, W, 3]`` with ``palette [256, 3]`` (255 = ignore is black)."""
+    """``[H, W]`` class ids -> ``uint8 [H, W, 3]`` with ``palette [N, 3]`` (255 = ignore and ids >= N are black)."""
     ids = np.asarray(label.cpu() if isinstance(label, torch.Tensor) else label).astype(np.int64).clip(0, 255)
-    pal = palette.copy()
+    pal = np.zeros((256, 3), np.uint8)
+    pal[: min(len(palette), 256)] = np.asarray(palette, np.uint8)[:256]
     pal[255] = 0
     return pal[ids]
 
@@ -96,3 +97,55 @@ def save_png(path: str | Path, image: np.ndarray) -> Path:
     path = Path(path)
     atomic_write_bytes(path, buf.getvalue())
     return path
+
+
+def panel_row(
+    task: str,
+    batch: dict,
+    prediction: torch.Tensor,
+    index: int,
+    palette: np.ndarray | None = None,
+    max_depth: float = 120.0,
+) -> list[np.ndarray]:
+    """One qualitative row for sample ``index`` of a batch: image | (sparse input) | ground truth | prediction | error.
+
+    Args:
+        task: ``seg``, ``depth`` or ``completion``.
+        batch: A collated batch (normalised ``image``, ``valid_mask``, and ``label`` or ``depth``, plus
+            ``sparse_depth`` for completion).
+        prediction: Labels ``[B, H, W]`` (seg) or depth ``[B, 1, H, W]``.
+        index: Sample of the batch to draw.
+        palette: ``uint8 [N, 3]`` class colours (seg).
+        max_depth: Far end of the depth colour map in metres.
+
+    Returns:
+        Tiles ``uint8 [H, W, 3]``. The error tile is red where a label is wrong (seg), or the absolute depth error
+        with red at 10 m or more; pixels without ground truth are dark grey.
+    """
+    from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
+
+    image = denormalize(batch["image"][index], IMAGENET_MEAN, IMAGENET_STD)
+    valid = batch["valid_mask"][index].bool().cpu()
+    if task == "seg":
+        if palette is None:
+            raise ValueError("panel_row('seg') needs the class palette")
+        gt = batch["label"][index].cpu()
+        pred = torch.where(valid, prediction[index].cpu(), 255)
+        wrong = (pred != gt).float()
+        return [
+            image,
+            colorize_labels(gt, palette),
+            colorize_labels(pred, palette),
+            colorize_error(wrong, gt != 255, scale=1.0),
+        ]
+    gt = batch["depth"][index, 0].cpu()
+    pred = prediction[index, 0].detach().cpu() * valid
+    tiles = [
+        image,
+        colorize_depth(gt, max_depth),
+        colorize_depth(pred, max_depth),
+        colorize_error((pred - gt).abs(), gt > 0, scale=10.0),
+    ]
+    if task == "completion":
+        tiles.insert(1, colorize_depth(batch["sparse_depth"][index, 0].cpu(), max_depth))
+    return tiles

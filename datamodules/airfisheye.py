@@ -17,7 +17,7 @@ from torch.utils.data import DataLoader
 from airfisheye_bench.geometry import FisheyeCamera
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD, AirFisheyeDataset, CameraConfig, collate
-from datamodules.sampling import EpochSeededSampler
+from datamodules.sampling import EpochSeededSampler, evaluation_sampler
 
 log = logging.getLogger(__name__)
 
@@ -152,13 +152,17 @@ class AirFisheyeDataModule(L.LightningDataModule):
             self.datasets[self.split_names[0]].set_epoch(epoch)
 
     def val_dataloader(self) -> DataLoader:
-        return DataLoader(
-            self._dataset(1), batch_size=self.eval_batch_size, shuffle=False, **self.loader_kwargs
-        )
+        return self._evaluation_loader(1)
 
     def test_dataloader(self) -> DataLoader:
+        return self._evaluation_loader(2)
+
+    def _evaluation_loader(self, index: int) -> DataLoader:
+        # Under DDP each rank evaluates its own frames exactly once (Lightning's default sampler pads with repeats).
+        dataset = self._dataset(index)
+        sampler = evaluation_sampler(dataset)
         return DataLoader(
-            self._dataset(2), batch_size=self.eval_batch_size, shuffle=False, **self.loader_kwargs
+            dataset, batch_size=self.eval_batch_size, shuffle=False, sampler=sampler, **self.loader_kwargs
         )
 
     # ------------------------------------------------------------------------------------ information
@@ -192,6 +196,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
     @property
     def normalization(self) -> dict[str, tuple[float, float, float]]:
         return {"mean": IMAGENET_MEAN, "std": IMAGENET_STD}
+
+    def split_dataset(self, split: str) -> AirFisheyeDataset:
+        """The dataset of split ``train``, ``val`` or ``test`` (set up on demand; only ``train`` is augmented)."""
+        stages = ("train", "val", "test")
+        if split not in stages:
+            raise ValueError(f"split must be one of {stages}, got {split!r}")
+        return self._dataset(stages.index(split))
 
     def _dataset(self, index: int) -> AirFisheyeDataset:
         name = self.split_names[index]

@@ -9,7 +9,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import torch
-from torch.utils.data import Sampler
+import torch.distributed as dist
+from torch.utils.data import DistributedSampler, Sampler
 
 
 def draw_seed(seed: int, epoch: int, index: int) -> int:
@@ -53,3 +54,32 @@ class SharedEpoch:
 
     def get(self) -> int:
         return int(self._value[0])
+
+
+class UnpaddedDistributedSampler(DistributedSampler):
+    """Evaluation shard of one rank: every ``world_size``-th frame, in order, with no frame repeated.
+
+    torch's ``DistributedSampler`` (which Lightning inserts for validation and test) pads the dataset with repeated
+    frames so all ranks get equal counts; repeated frames would be counted twice by the pooled metrics. The shards
+    here differ by at most one frame; evaluation needs no lock-step between ranks (the metrics sync their summed
+    states once, at the end).
+
+    Example:
+        >>> [list(UnpaddedDistributedSampler(range(5), num_replicas=2, rank=r)) for r in (0, 1)]
+        [[0, 2, 4], [1, 3]]
+    """
+
+    def __init__(self, dataset, num_replicas: int | None = None, rank: int | None = None) -> None:
+        super().__init__(dataset, num_replicas=num_replicas, rank=rank, shuffle=False, drop_last=False)
+        self.num_samples = len(range(self.rank, len(dataset), self.num_replicas))
+        self.total_size = len(dataset)
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(range(self.rank, self.total_size, self.num_replicas))
+
+
+def evaluation_sampler(dataset) -> Sampler[int] | None:
+    """An :class:`UnpaddedDistributedSampler` when a process group with several ranks is running, else ``None``."""
+    if dist.is_available() and dist.is_initialized() and dist.get_world_size() > 1:
+        return UnpaddedDistributedSampler(dataset)
+    return None

@@ -61,6 +61,18 @@ def write_results(
     return path
 
 
+def dataset_identity(root: str | Path, name: str) -> dict[str, Any]:
+    """Which data a result was measured on: name, root and the SHA-256 of its ``manifest.json`` when present."""
+    import hashlib
+
+    root = Path(root)
+    identity: dict[str, Any] = {"root": str(root), "name": name}
+    manifest = root / "manifest.json"
+    if manifest.is_file():
+        identity["manifest_sha256"] = hashlib.sha256(manifest.read_bytes()).hexdigest()
+    return identity
+
+
 def load_results(path: str | Path) -> dict[str, Any]:
     """Read a ``results.json``; errors name the file and what is wrong."""
     path = Path(path)

@@ -21,7 +21,8 @@ import torch
 from torch import Tensor, nn
 from torchmetrics import Metric
 
-from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, BinnedMetrics
+from airfisheye_bench.evaluation.scorer import TaskScorer
+from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG
 from airfisheye_bench.viz import make_panel, save_png
 from models import create_model, model_task
 
@@ -67,9 +68,10 @@ class BenchmarkTask(L.LightningModule):
         self.net = create_model(name, **model)
         self.optimizer_factory = optimizer
         self.scheduler_factory = scheduler
-        self.metrics = nn.ModuleDict({stage: self.make_metric() for stage in STAGES})
-        self.rings = nn.ModuleDict(
-            {stage: BinnedMetrics(self.make_metric, edges=ring_edges_deg, key="theta") for stage in STAGES}
+        # Segmentation targets carry no depth: its breakdown is by incidence angle only.
+        depth_edges = None if self.task == "seg" else DEFAULT_DEPTH_EDGES_M
+        self.scorers = nn.ModuleDict(
+            {stage: TaskScorer(self.make_metric, ring_edges_deg, depth_edges) for stage in STAGES}
         )
         self._theta: Tensor | None = None
         self._panel_rows: list[list[np.ndarray]] = []
@@ -151,8 +153,7 @@ class BenchmarkTask(L.LightningModule):
         pred = self.prediction(outputs)
         target = self.target(batch)
         mask = batch["valid_mask"]
-        self.metrics[stage].update(pred, target, mask=mask)
-        self.rings[stage].update(pred, target, theta=self._theta_deg(mask), mask=mask)
+        self.scorers[stage].update(pred, target, theta=self._theta_deg(mask), mask=mask)
         self.log(f"{stage}/loss", terms["loss"], batch_size=batch["image"].shape[0], sync_dist=True)
         self._log_skipped(batch, stage)
         if stage == "val" and len(self._panel_rows) < self.hparams.num_panels:
@@ -169,16 +170,15 @@ class BenchmarkTask(L.LightningModule):
         self.test_results = self._log_stage("test")
 
     def _log_stage(self, stage: str) -> dict[str, dict[str, float]]:
-        """Log ``<stage>/<metric>`` and ``<stage>/<ring>/<metric>``; return the plain values."""
-        metrics = {k: float(v) for k, v in self.metrics[stage].compute().items()}
-        rings = {k: float(v) for k, v in self.rings[stage].compute().items()}
-        self.metrics[stage].reset()
-        self.rings[stage].reset()
+        """Log ``<stage>/<metric>`` and ``<stage>/<ring or range>/<metric>``; return the plain values."""
+        scores = self.scorers[stage].compute()
+        self.scorers[stage].reset()
+        metrics, breakdown = scores["metrics"], scores["breakdown"]
         # The values are already synced across processes (torchmetrics); sync_dist averages identical numbers.
         # NaN (e.g. a class absent from the split) is logged as is; monitors use the primary metric only.
         self.log_dict({f"{stage}/{k}": v for k, v in metrics.items()}, sync_dist=True)
-        self.log_dict({f"{stage}/{k}": v for k, v in rings.items() if math.isfinite(v)}, sync_dist=True)
-        return {"metrics": metrics, "breakdown": rings}
+        self.log_dict({f"{stage}/{k}": v for k, v in breakdown.items() if math.isfinite(v)}, sync_dist=True)
+        return scores
 
     def write_panel(self, panel: np.ndarray, relative_path: str) -> None:
         """Save a panel PNG under the run directory and hand it to TensorBoard when that logger is used."""

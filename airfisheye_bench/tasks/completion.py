@@ -7,10 +7,10 @@ from typing import Any
 import numpy as np
 from torch import Tensor
 
+from airfisheye_bench.evaluation.scorer import task_metric
 from airfisheye_bench.metrics import CompletionMetrics
 from airfisheye_bench.tasks.base import BenchmarkTask
-from airfisheye_bench.tasks.depth import depth_panel_row
-from airfisheye_bench.viz import colorize_depth
+from airfisheye_bench.viz import panel_row
 from models.losses import L1L2Loss
 
 
@@ -40,7 +40,7 @@ class CompletionTask(BenchmarkTask):
         self.loss = L1L2Loss(max_depth=max_depth, l1_weight=l1_weight, l2_weight=l2_weight)
 
     def make_metric(self) -> CompletionMetrics:
-        return CompletionMetrics(max_depth=self.max_depth)
+        return task_metric("completion", max_depth=self.max_depth)
 
     def model_inputs(self, batch: dict) -> tuple[Tensor, ...]:
         return batch["image"], batch["sparse_depth"]
@@ -55,5 +55,4 @@ class CompletionTask(BenchmarkTask):
         return outputs["depth"]
 
     def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
-        row = depth_panel_row(batch, prediction, index, self.max_depth)
-        return [row[0], colorize_depth(batch["sparse_depth"][index, 0], self.max_depth), *row[1:]]
+        return panel_row("completion", batch, prediction, index, max_depth=self.max_depth)

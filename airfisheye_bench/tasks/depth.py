@@ -7,10 +7,10 @@ from typing import Any
 import numpy as np
 from torch import Tensor
 
+from airfisheye_bench.evaluation.scorer import task_metric
 from airfisheye_bench.metrics import DepthMetrics
 from airfisheye_bench.tasks.base import BenchmarkTask
-from airfisheye_bench.viz import colorize_depth, colorize_error, denormalize
-from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
+from airfisheye_bench.viz import panel_row
 from models.losses import AdaBinsLoss
 
 
@@ -40,7 +40,7 @@ class DepthTask(BenchmarkTask):
         self.loss = AdaBinsLoss(w_chamfer=w_chamfer, min_depth=min_depth, max_depth=max_depth)
 
     def make_metric(self) -> DepthMetrics:
-        return DepthMetrics(min_depth=self.min_depth, max_depth=self.max_depth)
+        return task_metric("depth", min_depth=self.min_depth, max_depth=self.max_depth)
 
     def target(self, batch: dict) -> Tensor:
         return batch["depth"]
@@ -52,17 +52,4 @@ class DepthTask(BenchmarkTask):
         return outputs["depth"]
 
     def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
-        return depth_panel_row(batch, prediction, index, self.max_depth)
-
-
-def depth_panel_row(batch: dict, prediction: Tensor, index: int, max_depth: float) -> list[np.ndarray]:
-    """image | ground truth | prediction | absolute error (red = 10 m or more)."""
-    gt = batch["depth"][index, 0]
-    pred = prediction[index, 0].detach() * batch["valid_mask"][index]
-    valid = gt > 0
-    return [
-        denormalize(batch["image"][index], IMAGENET_MEAN, IMAGENET_STD),
-        colorize_depth(gt, max_depth),
-        colorize_depth(pred, max_depth),
-        colorize_error((pred - gt).abs(), valid, scale=10.0),
-    ]
+        return panel_row("depth", batch, prediction, index, max_depth=self.max_depth)

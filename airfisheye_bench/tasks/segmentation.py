@@ -7,10 +7,10 @@ from typing import Any
 import numpy as np
 from torch import Tensor
 
+from airfisheye_bench.evaluation.scorer import task_metric
 from airfisheye_bench.metrics import SegmentationMetrics
 from airfisheye_bench.tasks.base import BenchmarkTask
-from airfisheye_bench.viz import colorize_labels, denormalize
-from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
+from airfisheye_bench.viz import panel_row
 from models.losses import SegmentationCELoss
 
 
@@ -45,9 +45,7 @@ class SegmentationTask(BenchmarkTask):
         self.palette = pal
 
     def make_metric(self) -> SegmentationMetrics:
-        return SegmentationMetrics(
-            len(self.class_names), ignore_index=self.ignore_index, class_names=self.class_names
-        )
+        return task_metric("seg", class_names=self.class_names, ignore_index=self.ignore_index)
 
     def target(self, batch: dict) -> Tensor:
         return batch["label"]
@@ -59,10 +57,4 @@ class SegmentationTask(BenchmarkTask):
         return outputs["logits"].argmax(1)
 
     def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
-        valid = batch["valid_mask"][index].cpu().numpy()
-        pred = np.where(valid, prediction[index].cpu().numpy(), 255)
-        return [
-            denormalize(batch["image"][index], IMAGENET_MEAN, IMAGENET_STD),
-            colorize_labels(batch["label"][index], self.palette),
-            colorize_labels(pred, self.palette),
-        ]
+        return panel_row("seg", batch, prediction, index, palette=self.palette)

@@ -1,0 +1,689 @@
+"""The leaderboard: every ``results.json`` of a task ranked by its primary metric, next to the paper's baselines.
+
+Results are grouped by dataset (name + manifest hash prefix) and split, and ranked within their group only:
+numbers measured on different data are not comparable, and the paper's baselines were measured on the real
+AirFisheye test split, which no synthetic run reproduces. Each task's table shows the headline metrics of the
+design contract plus the outermost incidence-angle ring (the fisheye rim, ``ring_80-95/<primary>`` by default),
+where fisheye distortion hurts most.
+
+Command line (also ``airfisheye-leaderboard``)::
+
+    python scripts/leaderboard.py runs=logs/[,more/ or a results.json] [out=leaderboard] [paper=true] \
+        [skip_invalid=false]
+
+It writes ``<out>/leaderboard.md`` and ``<out>/leaderboard.csv`` (atomically) and prints the markdown.
+
+Example:
+    >>> board = build_leaderboard([], paper=True)   # the paper's baselines alone
+    >>> [table.task for table in board.tables]
+    ['seg', 'depth', 'completion']
+    >>> print(board.to_markdown().splitlines()[0])
+    # AirFisheye-bench leaderboard
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+import sys
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.evaluation.results import PRIMARY_METRIC, RESULTS_VERSION, load_results
+from airfisheye_bench.io import atomic_write_text
+
+__all__ = [
+    "PAPER_BASELINES",
+    "TASK_COLUMNS",
+    "Leaderboard",
+    "LeaderboardEntry",
+    "LeaderboardError",
+    "LeaderboardGroup",
+    "TaskTable",
+    "build_leaderboard",
+    "collect_results",
+    "find_results",
+    "load_entries",
+    "load_entry",
+    "main",
+]
+
+TASKS = ("seg", "depth", "completion")
+TASK_TITLES = {"seg": "Semantic segmentation", "depth": "Monocular depth", "completion": "Depth completion"}
+#: The headline metrics of each task (DESIGN.md, "Metrics"), in the paper's column order.
+TASK_COLUMNS: dict[str, tuple[str, ...]] = {
+    "seg": ("mIoU", "pixel_acc"),
+    "depth": ("abs_rel", "sq_rel", "rmse", "rmse_log", "delta1", "delta2", "delta3"),
+    "completion": ("abs_rel", "rmse", "mae", "delta1", "delta2", "delta3"),
+}
+HIGHER_IS_BETTER = frozenset({"mIoU", "pixel_acc", "delta1", "delta2", "delta3"})
+#: Printed as percentages in the markdown (the paper writes "mIoU 51.2"); the CSV keeps fractions.
+PERCENT_METRICS = frozenset({"mIoU", "pixel_acc"})
+_LABELS = {
+    "mIoU": "mIoU (%)",
+    "pixel_acc": "pixel acc (%)",
+    "abs_rel": "AbsRel",
+    "sq_rel": "SqRel",
+    "rmse": "RMSE (m)",
+    "rmse_log": "RMSE log",
+    "mae": "MAE (m)",
+    "delta1": "δ1",
+    "delta2": "δ2",
+    "delta3": "δ3",
+}
+# Four decimals where the paper prints them (completion AbsRel 0.0834), millimetres for metres, else three.
+_DECIMALS = {"abs_rel": 4}
+_CSV_METRICS = (
+    "mIoU",
+    "pixel_acc",
+    "abs_rel",
+    "sq_rel",
+    "rmse",
+    "rmse_log",
+    "mae",
+    "delta1",
+    "delta2",
+    "delta3",
+)
+#: Header of ``leaderboard.csv``: identity columns, every task's metrics (fractions, metres), the rim ring.
+CSV_COLUMNS = (
+    *("task", "rank", "model", "source", "split", "dataset", "manifest_sha256", "run", "primary_metric"),
+    *_CSV_METRICS,
+    *("rim_key", "rim_value", "path"),
+)
+_RING = re.compile(r"^ring_(?P<lo>\d+(?:\.\d+)?)-(?P<hi>\d+(?:\.\d+)?)/(?P<metric>.+)$")
+_TEXT_COLUMNS = frozenset({"model", "source", "split", "run"})  # left-aligned; numbers are right-aligned
+MISSING = "–"
+PAPER_SOURCE = "paper (real AirFisheye)"
+PAPER_DATASET = "AirFisheye (real)"
+
+
+class LeaderboardError(ValueError):
+    """Invalid ``results.json`` files; ``problems`` holds one ``"<path>: <what is wrong>"`` per file."""
+
+    def __init__(self, problems: Sequence[str]) -> None:
+        self.problems = list(problems)
+        lines = "\n".join(f"  {p}" for p in self.problems)
+        super().__init__(f"{len(self.problems)} invalid results.json file(s):\n{lines}")
+
+
+@dataclass(frozen=True)
+class LeaderboardEntry:
+    """One row: a model evaluated on one split of one dataset.
+
+    Attributes:
+        task: ``seg``, ``depth`` or ``completion``.
+        split: The evaluated split (``test``, ``val``, ...).
+        model: Model name with its encoder, e.g. ``deeplabv3plus / resnet18``.
+        run: Short run identity (the ``results.json`` folder name, or ``model.run_name``).
+        dataset_name: ``dataset.name`` of the results (``dataset.yaml`` name).
+        manifest_sha256: SHA-256 of the dataset's ``manifest.json``, when it had one.
+        metrics: Metric values (fractions or metres); ``None`` for missing or non-finite.
+        breakdown: Ring/range breakdown values, same rules.
+        paper: True for the paper's published baselines.
+        path: The ``results.json`` the row came from (``None`` for the paper's rows).
+    """
+
+    task: str
+    split: str
+    model: str
+    run: str
+    dataset_name: str
+    manifest_sha256: str | None = None
+    metrics: Mapping[str, float | None] = field(default_factory=dict)
+    breakdown: Mapping[str, float | None] = field(default_factory=dict)
+    paper: bool = False
+    path: str | None = None
+
+    @property
+    def source(self) -> str:
+        """``paper (real AirFisheye)`` or ``ours (<dataset name>)``."""
+        return PAPER_SOURCE if self.paper else f"ours ({self.dataset_name})"
+
+    @property
+    def group_key(self) -> tuple[bool, str, str, str]:
+        """Rows with the same key were measured on the same data and may be ranked together."""
+        return (not self.paper, self.dataset_name, (self.manifest_sha256 or "")[:8], self.split)
+
+    @property
+    def group_title(self) -> str:
+        """Human-readable dataset identity of :attr:`group_key`."""
+        if self.paper:
+            return f"{PAPER_DATASET}, {self.split} split — the paper's published baselines (not re-run here)"
+        manifest = f"manifest {self.manifest_sha256[:8]}" if self.manifest_sha256 else "no manifest"
+        return f"{self.dataset_name} ({manifest}), {self.split} split"
+
+
+def _paper(task: str, model: str, run: str, **metrics: float) -> LeaderboardEntry:
+    return LeaderboardEntry(task, "test", model, run, PAPER_DATASET, metrics=metrics, paper=True)
+
+
+#: The paper's baselines (DESIGN.md "Paper baselines"), measured on the real dataset's test split. Metrics the
+#: paper does not report are simply absent (shown as "–").
+PAPER_BASELINES: tuple[LeaderboardEntry, ...] = (
+    _paper("seg", "DeepLabV3+ / ResNet50", "paper IV-A", mIoU=0.512),
+    _paper(
+        "depth",
+        "AdaBins / ResNet50",
+        "paper Table II",
+        abs_rel=0.132,
+        sq_rel=2.575,
+        rmse=13.324,
+        rmse_log=0.270,
+        delta1=0.865,
+        delta2=0.950,
+        delta3=0.972,
+    ),
+    _paper(
+        "completion",
+        "NLSPN / ResNet34",
+        "paper Table II",
+        abs_rel=0.0834,
+        rmse=6.971,
+        mae=2.377,
+        delta1=0.934,
+        delta2=0.971,
+        delta3=0.983,
+    ),
+)
+
+
+# ----------------------------------------------------------------------------------------------- collecting
+
+
+def find_results(paths: Iterable[str | Path]) -> list[Path]:
+    """Expand files and directories (searched recursively for ``results.json``) into a sorted, unique list.
+
+    Args:
+        paths: ``results.json`` files (any name is accepted when given directly) or directories.
+
+    Returns:
+        The files found, each once.
+
+    Raises:
+        FileNotFoundError: A path does not exist, or nothing was found at all.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from airfisheye_bench.evaluation import write_results
+        >>> root = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = write_results(root / "run_a" / "results.json", "seg", "test", {"mIoU": 0.4})
+        >>> [p.parent.name for p in find_results([root])]
+        ['run_a']
+    """
+    found: dict[Path, Path] = {}  # resolved -> as given: a file reached through two paths counts once
+    searched = []
+    for raw in paths:
+        path = Path(raw).expanduser()
+        if path.is_file():
+            hits = [path]
+        elif path.is_dir():
+            searched.append(str(path))
+            hits = [hit for hit in path.rglob("results.json") if hit.is_file()]
+        else:
+            raise FileNotFoundError(f"{path}: no such file or directory")
+        for hit in hits:
+            found.setdefault(hit.resolve(), hit)
+    if not found:
+        raise FileNotFoundError(f"no results.json found under {', '.join(searched) or '(no paths given)'}")
+    return sorted(found.values())
+
+
+def _number(value: Any, where: str) -> float | None:
+    """A metric value as float, ``None`` for null/NaN/inf; anything else is invalid."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where} is {value!r}, not a number or null")
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _numbers(record: Mapping[str, Any], key: str) -> dict[str, float | None]:
+    values = record.get(key, {})
+    if not isinstance(values, Mapping):
+        raise ValueError(f"'{key}' is {type(values).__name__}, not an object")
+    return {str(k): _number(v, f"{key}.{k}") for k, v in values.items()}
+
+
+def _model_label(model: Mapping[str, Any]) -> str:
+    config = model.get("config") if isinstance(model.get("config"), Mapping) else {}
+    name = str(model.get("name") or config.get("name") or "unknown model")
+    if config.get("arch"):  # smp: the architecture is what distinguishes the rows
+        name = f"{name}-{config['arch']}"
+    encoder = config.get("encoder_name") or config.get("encoder")
+    return f"{name} / {encoder}" if encoder else name
+
+
+def load_entry(path: str | Path) -> LeaderboardEntry:
+    """Read and validate one ``results.json`` as a leaderboard row.
+
+    Args:
+        path: The file.
+
+    Returns:
+        The row; non-finite and null metric values become ``None``.
+
+    Raises:
+        ValueError: The file is unreadable or not a valid ``results.json``; the message starts with the path.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from airfisheye_bench.evaluation import write_results
+        >>> p = write_results(pathlib.Path(tempfile.mkdtemp()) / "r1" / "results.json", "depth", "test",
+        ...                   {"rmse": 4.2, "abs_rel": float("nan")}, dataset={"name": "tiny"},
+        ...                   model={"name": "adabins", "config": {"encoder_name": "resnet18"}})
+        >>> e = load_entry(p)
+        >>> e.model, e.run, e.source, e.metrics["rmse"], e.metrics["abs_rel"]
+        ('adabins / resnet18', 'r1', 'ours (tiny)', 4.2, None)
+    """
+    path = Path(path)
+    try:
+        record = load_results(path)
+    except TypeError as err:  # load_results assumes a JSON object
+        raise ValueError(f"{path}: not a results.json object ({err})") from err
+    try:
+        return _entry(record, path)
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from err
+
+
+def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
+    version = record["version"]
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= RESULTS_VERSION:
+        raise ValueError(f"unsupported version {version!r} (this reader knows 1..{RESULTS_VERSION})")
+    task = record["task"]
+    if task not in PRIMARY_METRIC:
+        raise ValueError(f"unknown task {task!r}, expected one of {sorted(PRIMARY_METRIC)}")
+    if not isinstance(record["split"], str) or not record["split"]:
+        raise ValueError(f"split is {record['split']!r}, not a name")
+    dataset, model = record.get("dataset") or {}, record.get("model") or {}
+    if not isinstance(dataset, Mapping) or not isinstance(model, Mapping):
+        raise ValueError("'dataset' and 'model' must be objects")
+    manifest = dataset.get("manifest_sha256")
+    return LeaderboardEntry(
+        task=task,
+        split=record["split"],
+        model=_model_label(model),
+        run=str(model.get("run_name") or path.resolve().parent.name),
+        dataset_name=str(dataset.get("name") or "unknown dataset"),
+        manifest_sha256=str(manifest) if manifest else None,
+        metrics=_numbers(record, "metrics"),
+        breakdown=_numbers(record, "breakdown"),
+        path=str(path),
+    )
+
+
+def load_entries(files: Iterable[str | Path]) -> tuple[list[LeaderboardEntry], list[str]]:
+    """Load every file, collecting problems instead of stopping at the first.
+
+    Args:
+        files: ``results.json`` paths.
+
+    Returns:
+        ``(entries, problems)``: the valid rows, and ``"<path>: <what is wrong>"`` for each invalid file.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> bad = pathlib.Path(tempfile.mkdtemp()) / "results.json"
+        >>> _ = bad.write_text("{")
+        >>> entries, problems = load_entries([bad])
+        >>> entries, problems[0].startswith(str(bad))
+        ([], True)
+    """
+    entries, problems = [], []
+    for path in files:
+        try:
+            entries.append(load_entry(path))
+        except ValueError as err:
+            problems.append(str(err))
+    return entries, problems
+
+
+def collect_results(paths: Iterable[str | Path], skip_invalid: bool = False) -> list[LeaderboardEntry]:
+    """Find, load and validate ``results.json`` files under ``paths``.
+
+    Args:
+        paths: Files or directories (searched recursively).
+        skip_invalid: Leave invalid files out with a warning instead of raising.
+
+    Returns:
+        The valid rows.
+
+    Raises:
+        FileNotFoundError: A path is missing or no ``results.json`` was found.
+        LeaderboardError: Some files are invalid (all of them listed) and ``skip_invalid`` is false.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from airfisheye_bench.evaluation import write_results
+        >>> root = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = write_results(root / "a" / "results.json", "seg", "test", {"mIoU": 0.3})
+        >>> [e.metrics["mIoU"] for e in collect_results([root])]
+        [0.3]
+    """
+    entries, problems = load_entries(find_results(paths))
+    if problems and not skip_invalid:
+        raise LeaderboardError(problems)
+    for problem in problems:
+        warnings.warn(f"skipped invalid results.json: {problem}", stacklevel=2)
+    return entries
+
+
+# ------------------------------------------------------------------------------------------------- ranking
+
+
+@dataclass(frozen=True)
+class LeaderboardGroup:
+    """Rows measured on the same dataset and split, best first; ``rank`` is ``None`` without a primary value."""
+
+    title: str
+    rows: tuple[tuple[int | None, LeaderboardEntry], ...]
+
+
+@dataclass(frozen=True)
+class TaskTable:
+    """One task's section: its metric columns, the rim ring column (if any result has one) and its groups."""
+
+    task: str
+    primary: str
+    columns: tuple[str, ...]
+    rim_key: str | None
+    groups: tuple[LeaderboardGroup, ...]
+
+    @property
+    def higher_is_better(self) -> bool:
+        return self.primary in HIGHER_IS_BETTER
+
+
+def _rim_key(entries: Iterable[LeaderboardEntry], primary: str) -> str | None:
+    """The outermost incidence-angle ring reported for the primary metric (``ring_80-95/<primary>``)."""
+    rings = []
+    for entry in entries:
+        for key in entry.breakdown:
+            match = _RING.match(key)
+            if match and match["metric"] == primary:
+                rings.append((float(match["hi"]), float(match["lo"]), key))
+    return max(rings)[2] if rings else None
+
+
+def _rank(
+    entries: Sequence[LeaderboardEntry], primary: str
+) -> tuple[tuple[int | None, LeaderboardEntry], ...]:
+    sign = -1.0 if primary in HIGHER_IS_BETTER else 1.0
+
+    def key(e: LeaderboardEntry) -> tuple:
+        value = e.metrics.get(primary)
+        # Rows without a primary value go last; ties keep a stable, readable order.
+        return (value is None, sign * value if value is not None else 0.0, e.run, e.path or "")
+
+    ordered = sorted(entries, key=key)
+    ranked: list[tuple[int | None, LeaderboardEntry]] = []
+    for i, entry in enumerate(ordered):
+        value = entry.metrics.get(primary)
+        if value is None:
+            rank = None
+        elif i and ordered[i - 1].metrics.get(primary) == value:
+            rank = ranked[-1][0]  # equal scores share a rank (1, 1, 3)
+        else:
+            rank = i + 1
+        ranked.append((rank, entry))
+    return tuple(ranked)
+
+
+def _task_table(task: str, entries: Sequence[LeaderboardEntry]) -> TaskTable:
+    primary = PRIMARY_METRIC[task]
+    groups: dict[tuple, list[LeaderboardEntry]] = {}
+    for entry in entries:
+        groups.setdefault(entry.group_key, []).append(entry)
+    return TaskTable(
+        task=task,
+        primary=primary,
+        columns=TASK_COLUMNS[task],
+        rim_key=_rim_key(entries, primary),
+        groups=tuple(
+            LeaderboardGroup(rows[0].group_title, _rank(rows, primary))
+            for _, rows in sorted(groups.items(), key=lambda item: item[0])
+        ),
+    )
+
+
+def build_leaderboard(entries: Iterable[LeaderboardEntry], paper: bool = True) -> Leaderboard:
+    """Rank rows per task, within groups of the same dataset and split.
+
+    Args:
+        entries: Rows, e.g. from :func:`collect_results`.
+        paper: Add :data:`PAPER_BASELINES` (in their own group: the real dataset's test split).
+
+    Returns:
+        The leaderboard; tasks without any row are left out.
+
+    Example:
+        >>> mine = LeaderboardEntry("seg", "test", "deeplabv3plus / resnet18", "run1", "tiny",
+        ...                         metrics={"mIoU": 0.3})
+        >>> board = build_leaderboard([mine], paper=True)
+        >>> [[(r, e.run) for r, e in g.rows] for g in board.tables[0].groups]
+        [[(1, 'paper IV-A')], [(1, 'run1')]]
+    """
+    rows = list(entries) + (list(PAPER_BASELINES) if paper else [])
+    tables = tuple(
+        _task_table(task, [e for e in rows if e.task == task])
+        for task in TASKS
+        if any(e.task == task for e in rows)
+    )
+    return Leaderboard(tables=tables, files=sum(not e.paper for e in rows), paper=paper)
+
+
+# ------------------------------------------------------------------------------------------------ rendering
+
+
+def _format(metric: str, value: float | None) -> str:
+    if value is None:
+        return MISSING
+    if metric in PERCENT_METRICS:
+        return f"{100.0 * value:.1f}"
+    return f"{value:.{_DECIMALS.get(metric, 3)}f}"
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def _rim_label(rim_key: str) -> str:
+    match = _RING.match(rim_key)
+    assert match is not None
+    return f"rim {match['lo']}-{match['hi']}° {_LABELS.get(match['metric'], match['metric'])}"
+
+
+@dataclass(frozen=True)
+class Leaderboard:
+    """All task tables; render with :meth:`to_markdown` / :meth:`to_csv`, save with :meth:`write`.
+
+    Attributes:
+        tables: One per task that has rows, in the order seg, depth, completion.
+        files: Number of ``results.json`` rows (paper rows not counted).
+        paper: Whether the paper's baselines are included.
+    """
+
+    tables: tuple[TaskTable, ...]
+    files: int = 0
+    paper: bool = True
+
+    def to_markdown(self) -> str:
+        """The leaderboard as markdown: one section per task, one table per dataset and split.
+
+        Example:
+            >>> print(build_leaderboard([], paper=True).to_markdown())  # doctest: +ELLIPSIS
+            # AirFisheye-bench leaderboard
+            ...
+            | 1 | DeepLabV3+ / ResNet50 | paper (real AirFisheye) | test | 51.2 | – | paper IV-A |
+            ...
+        """
+        paper = " plus the paper's baselines" if self.paper else ""
+        lines = [
+            "# AirFisheye-bench leaderboard",
+            "",
+            f"{self.files} result(s){paper}. Ranks restart for every dataset (name + manifest hash prefix) and "
+            "split: results measured on different data are not comparable. Values are fractions and metres "
+            f"(mIoU and pixel accuracy printed in %); {MISSING} = not reported.",
+        ]
+        for table in self.tables:
+            lines += ["", *self._table_markdown(table)]
+        return "\n".join(lines) + "\n"
+
+    @staticmethod
+    def _table_markdown(table: TaskTable) -> list[str]:
+        order = "higher is better" if table.higher_is_better else "lower is better"
+        headers = ["rank", "model", "source", "split", *(_LABELS[c] for c in table.columns)]
+        headers += [_rim_label(table.rim_key)] if table.rim_key else []
+        headers += ["run"]
+        lines = [
+            f"## {TASK_TITLES[table.task]} ({table.task})",
+            "",
+            f"Sorted by {_LABELS[table.primary]}, {order}. Rows: each evaluated model on one split; "
+            "the rim column is the outermost incidence-angle ring, where fisheye distortion is strongest.",
+        ]
+        for group in table.groups:
+            lines += ["", f"### {group.title}", ""]
+            lines.append("| " + " | ".join(headers) + " |")
+            lines.append("|" + "|".join("---" if h in _TEXT_COLUMNS else "---:" for h in headers) + "|")
+            for rank, entry in group.rows:
+                cells = [MISSING if rank is None else str(rank), entry.model, entry.source, entry.split]
+                cells += [_format(c, entry.metrics.get(c)) for c in table.columns]
+                if table.rim_key:
+                    cells.append(_format(table.primary, entry.breakdown.get(table.rim_key)))
+                cells.append(entry.run)
+                lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+        return lines
+
+    def to_csv(self) -> str:
+        """Wide CSV, one row per result, a ``task`` column and raw values (fractions, metres, empty = missing).
+
+        Example:
+            >>> print(build_leaderboard([], paper=True).to_csv().splitlines()[1])  # doctest: +ELLIPSIS
+            seg,1,DeepLabV3+ / ResNet50,paper (real AirFisheye),test,AirFisheye (real),,paper IV-A,mIoU,0.512,...
+        """
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        writer.writerow(CSV_COLUMNS)
+        for table in self.tables:
+            for group in table.groups:
+                for rank, e in group.rows:
+                    writer.writerow(_csv_row(table, rank, e))
+        return buffer.getvalue()
+
+    def write(self, out_dir: str | Path) -> tuple[Path, Path]:
+        """Write ``leaderboard.md`` and ``leaderboard.csv`` atomically into ``out_dir`` (created if needed).
+
+        Example:
+            >>> import tempfile
+            >>> md, table = build_leaderboard([]).write(tempfile.mkdtemp())
+            >>> md.name, table.name
+            ('leaderboard.md', 'leaderboard.csv')
+        """
+        out_dir = Path(out_dir)
+        md, table = out_dir / "leaderboard.md", out_dir / "leaderboard.csv"
+        atomic_write_text(md, self.to_markdown())
+        atomic_write_text(table, self.to_csv())
+        return md, table
+
+
+def _csv_row(table: TaskTable, rank: int | None, e: LeaderboardEntry) -> list[object]:
+    rim = e.breakdown.get(table.rim_key) if table.rim_key else None
+    head = [e.task, "" if rank is None else rank, e.model, e.source, e.split, e.dataset_name]
+    head += [e.manifest_sha256 or "", e.run, table.primary]
+    return [
+        *head,
+        *(_raw(e.metrics.get(m)) for m in _CSV_METRICS),
+        table.rim_key or "",
+        _raw(rim),
+        e.path or "",
+    ]
+
+
+def _raw(value: float | None) -> str:
+    return "" if value is None else repr(value)  # repr: the CSV reads back to the same float
+
+
+# ---------------------------------------------------------------------------------------------- command line
+
+USAGE = (
+    "usage: airfisheye-leaderboard runs=DIR_OR_FILE[,DIR_OR_FILE...] [out=leaderboard] [paper=true] "
+    "[skip_invalid=false]"
+)
+_TRUE, _FALSE = ("1", "true", "yes", "on"), ("0", "false", "no", "off")
+
+
+def _flag(args: Mapping[str, str], name: str, default: bool) -> bool:
+    value = args.get(name, str(default)).strip().lower()
+    if value not in _TRUE + _FALSE:
+        raise ValueError(f"{name}={args[name]} is not a boolean (true/false)")
+    return value in _TRUE
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false]``.
+
+    Args:
+        argv: ``key=value`` arguments (default: ``sys.argv[1:]``).
+
+    Returns:
+        0 on success, 1 for missing paths, no results or invalid files, 2 for a usage error.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from airfisheye_bench.evaluation import write_results
+        >>> root = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = write_results(root / "runs" / "a" / "results.json", "seg", "test", {"mIoU": 0.3})
+        >>> main([f"runs={root / 'runs'}", f"out={root / 'board'}"])  # doctest: +ELLIPSIS
+        # AirFisheye-bench leaderboard
+        ...
+        0
+        >>> sorted(p.name for p in (root / "board").iterdir())
+        ['leaderboard.csv', 'leaderboard.md']
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    bad = [a for a in argv if "=" not in a]
+    args = dict(a.split("=", 1) for a in argv if "=" in a)
+    unknown = sorted(set(args) - {"runs", "out", "paper", "skip_invalid"})
+    if bad or unknown or not args.get("runs", "").strip():
+        problem = (
+            f"unknown argument(s): {', '.join(bad + unknown)}" if bad or unknown else "runs= is required"
+        )
+        print(f"{problem}\n{USAGE}", file=sys.stderr)
+        return 2
+    try:
+        paper, skip_invalid = _flag(args, "paper", True), _flag(args, "skip_invalid", False)
+    except ValueError as err:
+        print(f"{err}\n{USAGE}", file=sys.stderr)
+        return 2
+
+    runs = [r.strip() for r in args["runs"].split(",") if r.strip()]
+    try:
+        entries, problems = load_entries(find_results(runs))
+    except FileNotFoundError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    if problems and not skip_invalid:
+        print(f"error: {LeaderboardError(problems)}\n(skip_invalid=true leaves them out)", file=sys.stderr)
+        return 1
+    for problem in problems:
+        print(f"warning: skipped invalid results.json: {problem}", file=sys.stderr)
+    if not entries:
+        print("error: no valid results.json to rank", file=sys.stderr)
+        return 1
+
+    board = build_leaderboard(entries, paper=paper)
+    md, table = board.write(args.get("out", "leaderboard"))
+    print(board.to_markdown(), end="")
+    print(f"wrote {md} and {table}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

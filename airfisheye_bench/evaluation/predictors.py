@@ -1,0 +1,202 @@
+"""Where predictions come from: a trained checkpoint, an exported ONNX model, or a folder of prediction files.
+
+Each predictor turns a collated batch into the prediction the task's metric takes (labels ``[B, H, W]`` or range
+``[B, 1, H, W]``), so :func:`airfisheye_bench.evaluation.evaluate_predictions` scores all three the same way.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import torch
+from torch import Tensor
+from torch.utils.data import Dataset
+
+from airfisheye_bench.evaluation.submission import read_prediction, validate_submission
+
+__all__ = [
+    "CheckpointPredictor",
+    "FilePredictor",
+    "OnnxPredictor",
+    "PredictionFilesDataset",
+    "Predictor",
+    "file_sha256",
+    "to_prediction",
+]
+
+
+class Predictor(Protocol):
+    """Anything that predicts a batch for one task."""
+
+    task: str
+
+    def __call__(self, batch: dict) -> Tensor: ...
+
+    def identity(self) -> dict[str, Any]:
+        """What was evaluated, for ``results.json`` (name, file, checksum, ...)."""
+        ...
+
+
+def to_prediction(task: str, output: Tensor) -> Tensor:
+    """A model's primary output (logits or depth) as the metric input: labels ``[B, H, W]`` or depth ``[B, 1, H, W]``."""
+    if task == "seg":
+        return output.argmax(1) if output.ndim == 4 else output.long()
+    return output if output.ndim == 4 else output.unsqueeze(1)
+
+
+def file_sha256(path: str | Path, chunk: int = 1 << 20) -> str:
+    """Hex SHA-256 of a file, read in chunks."""
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as f:
+        while block := f.read(chunk):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+class CheckpointPredictor:
+    """Predictions of a trained task module (see :func:`airfisheye_bench.tasks.load_task`).
+
+    Args:
+        module: The task module, weights loaded.
+        checkpoint: Its file (recorded in the results).
+        device: Where to run the model.
+    """
+
+    def __init__(
+        self, module, checkpoint: str | Path | None = None, device: str | torch.device = "cpu"
+    ) -> None:
+        self.module = module.to(device).eval()
+        self.task = module.task
+        self.device = torch.device(device)
+        self.checkpoint = Path(checkpoint) if checkpoint else None
+
+    @torch.no_grad()
+    def __call__(self, batch: dict) -> Tensor:
+        inputs = [t.to(self.device, non_blocking=True) for t in self.module.model_inputs(batch)]
+        return to_prediction(self.task, self.module(*inputs)).cpu()
+
+    def identity(self) -> dict[str, Any]:
+        model = dict(self.module.hparams.get("model", {}))
+        out: dict[str, Any] = {"source": "checkpoint", "name": model.get("name"), "config": model}
+        if self.checkpoint is not None:
+            out.update(checkpoint=str(self.checkpoint), sha256=file_sha256(self.checkpoint))
+        return out
+
+
+class OnnxPredictor:
+    """Predictions of an exported ``.onnx`` model run by ONNX Runtime.
+
+    Args:
+        path: The model file; its deployment metadata says the task and the input names.
+        threads: Intra-op threads (``None``: ONNX Runtime's default).
+        providers: Execution providers (default CPU).
+    """
+
+    def __init__(
+        self, path: str | Path, threads: int | None = None, providers: list[str] | None = None
+    ) -> None:
+        import onnxruntime as ort
+
+        from airfisheye_bench.export.metadata import read_deployment_metadata
+
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise FileNotFoundError(f"ONNX model {self.path} does not exist")
+        self.metadata = read_deployment_metadata(self.path)
+        self.task = self.metadata["task"]
+        options = ort.SessionOptions()
+        if threads:
+            options.intra_op_num_threads = int(threads)
+        self.session = ort.InferenceSession(
+            str(self.path), sess_options=options, providers=providers or ["CPUExecutionProvider"]
+        )
+        self.input_names = [i.name for i in self.session.get_inputs()]
+        self.output_name = self.session.get_outputs()[0].name
+
+    def __call__(self, batch: dict) -> Tensor:
+        missing = [n for n in self.input_names if n not in batch]
+        if missing:
+            raise ValueError(f"{self.path}: the batch lacks the model inputs {missing} (has {sorted(batch)})")
+        feed = {n: batch[n].detach().cpu().float().numpy() for n in self.input_names}
+        output = self.session.run([self.output_name], feed)[0]
+        return to_prediction(self.task, torch.from_numpy(np.ascontiguousarray(output)))
+
+    def identity(self) -> dict[str, Any]:
+        return {
+            "source": "onnx",
+            "name": self.metadata.get("model"),
+            "onnx": str(self.path),
+            "sha256": file_sha256(self.path),
+            "config": self.metadata.get("model_config"),
+            "source_checkpoint": self.metadata.get("source_checkpoint"),
+        }
+
+
+class PredictionFilesDataset(Dataset):
+    """A split's dataset with each frame's prediction file decoded next to it (in the loader workers).
+
+    Args:
+        base: The ground-truth dataset (samples carry ``sample_id``).
+        files: Validated prediction file of every frame id (:func:`validate_submission`).
+        task: Which decoding to use.
+    """
+
+    def __init__(self, base: Dataset, files: dict[str, Path], task: str) -> None:
+        self.base, self.files, self.task = base, files, task
+
+    def __len__(self) -> int:
+        return len(self.base)  # type: ignore[arg-type]
+
+    def __getitem__(self, index: int) -> dict | None:
+        sample = self.base[index]
+        if sample is not None:
+            sample["prediction"] = read_prediction(self.files[sample["sample_id"]], self.task)
+        return sample
+
+
+class FilePredictor:
+    """Predictions read from a submission folder (validated as a whole when constructed).
+
+    Args:
+        root: The prediction folder.
+        task: ``seg``, ``depth`` or ``completion``.
+        sample_ids: Frames of the evaluated split.
+        shape: Served image size ``(H, W)``.
+        name: Label of the submission in the results (default: the folder name).
+    """
+
+    def __init__(
+        self,
+        root: str | Path,
+        task: str,
+        sample_ids: list[str],
+        shape: tuple[int, int],
+        name: str | None = None,
+    ) -> None:
+        self.root = Path(root)
+        self.task = task
+        self.files = validate_submission(self.root, task, sample_ids, shape)
+        self.name = name or self.root.resolve().name
+
+    def wrap(self, dataset: Dataset) -> PredictionFilesDataset:
+        """The dataset whose samples carry their ``prediction`` (decoded in parallel by the loader)."""
+        return PredictionFilesDataset(dataset, self.files, self.task)
+
+    def __call__(self, batch: dict) -> Tensor:
+        if "prediction" not in batch:
+            raise ValueError("FilePredictor needs batches from FilePredictor.wrap(dataset)")
+        return batch["prediction"]
+
+    def identity(self) -> dict[str, Any]:
+        digest = hashlib.sha256()
+        for sample_id in sorted(self.files):
+            digest.update(f"{sample_id}:{file_sha256(self.files[sample_id])}\n".encode())
+        return {
+            "source": "predictions",
+            "name": self.name,
+            "predictions": str(self.root),
+            "sha256": digest.hexdigest(),
+        }

@@ -1,0 +1,739 @@
+"""Deployment export: a trained run becomes one verified, self-describing ONNX file (optionally also int8).
+
+``python scripts/export_onnx.py ckpt_path=<ckpt or run dir> out=model.onnx [options] [data.<key>=<value> ...]``
+(console script ``airfisheye-export``) does, in order:
+
+1. rebuild the task from the checkpoint (:func:`~airfisheye_bench.tasks.checkpoint.load_task`) and its data
+   module from the run's ``config.yaml`` (``data.*`` overrides applied, e.g. another lens or size);
+2. export the zoo model (:func:`~airfisheye_bench.export.onnx.export_onnx`): one file, dynamic batch, fixed or
+   dynamic spatial size, named inputs/output, the metadata of :mod:`airfisheye_bench.export.metadata`;
+3. check ONNX Runtime (CPU) against PyTorch on real validation frames (no augmentation): segmentation logits
+   within 1e-4 absolute, depth within 1e-3 relative (+ 1e-4 m). The file is written under a temporary name and
+   only renamed to ``out`` once it passes, so a failed export never leaves a bad model behind;
+4. optionally quantise to int8 (``quantize=dynamic|static``, ``<out stem>.int8.onnx``) and report the change of
+   the task's metrics on the validation split (fp32 ONNX vs int8 ONNX against ground truth) with the speed-up.
+
+Exit codes of :func:`main`: 0 success, 1 export or parity failure (nothing written at ``out``), 2 bad
+arguments or inputs (checkpoint, run config, overrides), 3 the fp32 model was exported and verified but the
+requested int8 quantisation failed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import logging
+import math
+import os
+import shutil
+import sys
+import tempfile
+import warnings
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import yaml
+from omegaconf import DictConfig, OmegaConf
+from torch import Tensor
+
+from airfisheye_bench.export.metadata import TASK_INPUTS, TASK_OUTPUT, deployment_metadata
+from airfisheye_bench.export.onnx import OnnxParityError, ParityReport, _median_ms, export_onnx, verify_onnx
+
+__all__ = [
+    "QUANTIZE_MODES",
+    "TOLERANCES",
+    "DeploymentReport",
+    "ExportError",
+    "QuantizationReport",
+    "export_deployment",
+    "main",
+]
+
+log = logging.getLogger(__name__)
+
+#: Parity tolerances ``(atol, rtol)`` per task: ``|ort - torch| <= atol + rtol * |torch|`` element-wise.
+TOLERANCES: dict[str, tuple[float, float]] = {
+    "seg": (1e-4, 0.0),  # logits: absolute
+    "depth": (1e-4, 1e-3),  # metres: relative, with a small absolute floor for values near 0
+    "completion": (1e-4, 1e-3),
+}
+QUANTIZE_MODES = ("none", "dynamic", "static")
+# Metrics shown in the int8 report (every key of the task's metric is kept in the report itself).
+_HEADLINE = {
+    "seg": ("mIoU", "pixel_acc"),
+    "depth": ("rmse", "abs_rel", "delta1"),
+    "completion": ("rmse", "mae", "abs_rel", "delta1"),
+}
+_USAGE = (
+    "usage: python scripts/export_onnx.py ckpt_path=<ckpt or run dir> out=model.onnx [dynamic_spatial=false] "
+    "[batch=2] [parity_samples=4] [quantize=none|dynamic|static] [opset=20] [calib_samples=16] "
+    "[eval_samples=0] [repeats=10] [data.<key>=<value> ...]"
+)
+
+
+class ExportError(RuntimeError):
+    """The model could not be exported (the exporter's message is kept)."""
+
+
+@dataclass(frozen=True)
+class QuantizationReport:
+    """Outcome of the int8 quantisation: accuracy change on the validation split and ORT speed-up.
+
+    Attributes:
+        mode: ``dynamic`` or ``static``.
+        path: the int8 file, or ``None`` when quantisation failed.
+        error: why quantisation failed (``None`` on success).
+        frames: validation frames the metrics were computed on.
+        metrics_fp32: the task's metrics of the fp32 ONNX model against ground truth.
+        metrics_int8: the same for the int8 model.
+        fp32_ms: median ONNX Runtime latency of the fp32 model (same batch and threads as ``int8_ms``).
+        int8_ms: median ONNX Runtime latency of the int8 model.
+        fp32_bytes: size of the fp32 file.
+        int8_bytes: size of the int8 file.
+        threads: ONNX Runtime intra-op threads of both timings.
+        batch: batch size of both timings.
+        notes: remarks worth reading (pre-processing skipped, calibration frames, ...).
+    """
+
+    mode: str
+    path: Path | None = None
+    error: str | None = None
+    frames: int = 0
+    metrics_fp32: dict[str, float] = field(default_factory=dict)
+    metrics_int8: dict[str, float] = field(default_factory=dict)
+    fp32_ms: float = float("nan")
+    int8_ms: float = float("nan")
+    fp32_bytes: int = 0
+    int8_bytes: int = 0
+    threads: int = 0
+    batch: int = 0
+    notes: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        """Whether the int8 model was written and evaluated."""
+        return self.error is None and self.path is not None
+
+    @property
+    def speedup(self) -> float:
+        """fp32 latency / int8 latency (> 1 means int8 is faster)."""
+        return self.fp32_ms / self.int8_ms if self.int8_ms > 0 else float("nan")
+
+    @property
+    def metric_deltas(self) -> dict[str, float]:
+        """``int8 - fp32`` per metric."""
+        return {k: self.metrics_int8[k] - v for k, v in self.metrics_fp32.items() if k in self.metrics_int8}
+
+
+@dataclass(frozen=True)
+class DeploymentReport:
+    """What :func:`export_deployment` wrote and measured.
+
+    Attributes:
+        path: the verified fp32 ``.onnx`` file.
+        task: ``seg``, ``depth`` or ``completion``.
+        model: registry name of the model.
+        checkpoint: the source checkpoint file.
+        metadata: the ``metadata_props`` written (see :mod:`airfisheye_bench.export.metadata`).
+        parity: ONNX Runtime vs PyTorch on ``parity_frames`` validation frames (one batch).
+        parity_frames: validation frames in the parity batch.
+        atol: absolute tolerance of the parity check.
+        rtol: relative tolerance of the parity check.
+        dynamic_spatial: whether height and width are symbolic in the graph.
+        quantization: the int8 report, or ``None`` with ``quantize=none``.
+    """
+
+    path: Path
+    task: str
+    model: str
+    checkpoint: Path
+    metadata: dict[str, str]
+    parity: ParityReport
+    parity_frames: int
+    atol: float
+    rtol: float
+    dynamic_spatial: bool
+    quantization: QuantizationReport | None = None
+
+    def summary(self) -> str:
+        """A short human-readable report (a few lines)."""
+        p = self.parity
+        spatial = (
+            "dynamic H, W" if self.dynamic_spatial else f"fixed {p.output_shape[-2]}x{p.output_shape[-1]}"
+        )
+        lines = [
+            f"exported {self.path} ({_mb(self.path)}): task={self.task} model={self.model}, "
+            f"inputs {list(TASK_INPUTS[self.task])} -> {TASK_OUTPUT[self.task]}, dynamic batch, {spatial}",
+            f"parity on {self.parity_frames} validation frame(s), onnxruntime CPU vs PyTorch: "
+            f"max abs diff {p.max_abs_diff:.3g}, max rel diff {p.max_rel_diff:.3g} "
+            f"(allowed |diff| <= {self.atol:g} + {self.rtol:g}*|torch|): OK",
+            f"latency (batch {self.parity_frames}, {torch.get_num_threads()} threads): onnxruntime "
+            f"{p.ort_ms:.1f} ms, PyTorch {p.torch_ms:.1f} ms, ratio ort/torch {p.latency_ratio:.2f}",
+        ]
+        if self.quantization is not None:
+            lines.extend(_quantization_lines(self.quantization, self.task))
+        return "\n".join(lines)
+
+
+def export_deployment(
+    ckpt_path: str | os.PathLike,
+    out: str | os.PathLike,
+    *,
+    dynamic_spatial: bool = False,
+    batch: int = 2,
+    parity_samples: int = 4,
+    quantize: str = "none",
+    opset: int = 20,
+    data_overrides: Mapping[str, Any] | None = None,
+    calib_samples: int = 16,
+    eval_samples: int = 0,
+    repeats: int = 10,
+) -> DeploymentReport:
+    """Export a trained checkpoint (or run directory) to a verified ONNX file with deployment metadata.
+
+    Args:
+        ckpt_path: a ``.ckpt`` inside a run directory, or the run directory (its best, else last, checkpoint).
+            The run's ``config.yaml`` must be next to the checkpoint or one folder above it.
+        out: destination ``.onnx``; only written once the parity check passes.
+        dynamic_spatial: make height and width symbolic (default: fixed to the served camera size).
+        batch: batch size of the example used for tracing (>= 2: the batch dimension is always dynamic).
+        parity_samples: validation frames of the parity check (fewer if the split is smaller).
+        quantize: ``none``, ``dynamic`` or ``static`` (int8 via ``onnxruntime.quantization``).
+        opset: ONNX opset (>= 19 for NLSPN's ``DeformConv``).
+        data_overrides: changes to the run's ``data`` config, keys relative to it (``{"camera.size": 128}``).
+        calib_samples: validation frames fed to static calibration.
+        eval_samples: validation frames of the int8 accuracy comparison (0: the whole split).
+        repeats: timed calls of each latency median (ORT vs PyTorch, fp32 vs int8).
+
+    Returns:
+        A :class:`DeploymentReport` (``.summary()`` prints it). A failed quantisation does not raise: it is
+        reported in ``report.quantization.error`` and the verified fp32 model stays in place.
+
+    Raises:
+        FileNotFoundError: no checkpoint at ``ckpt_path``.
+        ValueError: unreadable checkpoint, no run config, bad overrides or arguments.
+        ExportError: ``torch.onnx.export`` failed.
+        OnnxParityError: ONNX Runtime differs from PyTorch beyond the tolerance (``out`` is not written).
+
+    Example:
+        >>> report = export_deployment("logs/seg/runs/2026-01-01_00-00-00", "seg.onnx")  # doctest: +SKIP
+        >>> print(report.summary())                                                    # doctest: +SKIP
+        exported seg.onnx (...): task=seg model=deeplabv3plus, inputs ['image'] -> logits, dynamic batch, ...
+    """
+    _check_arguments(batch, parity_samples, quantize, calib_samples, eval_samples, repeats)
+    out = Path(out)
+    if out.is_dir():
+        raise ValueError(
+            f"out={out} is a folder; give the .onnx file to write, e.g. out={out / 'model.onnx'}"
+        )
+    from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint
+
+    checkpoint = resolve_checkpoint(ckpt_path)
+    task = load_task(checkpoint)
+    data_cfg = _data_config(checkpoint, task.task, data_overrides or {})
+    datamodule = _datamodule(data_cfg)
+    metadata = _metadata(task, datamodule, data_cfg, checkpoint)
+    names = TASK_INPUTS[task.task]
+    frames = _val_frames(datamodule, max(parity_samples, batch), names)
+    available = int(frames["image"].shape[0])
+    if available < parity_samples:
+        log.info(
+            "the validation split has %d frame(s), fewer than parity_samples=%d", available, parity_samples
+        )
+    example = {k: _repeat_to(frames[k], batch) for k in names}
+    parity_inputs = {k: frames[k][:parity_samples] for k in names}
+    atol, rtol = TOLERANCES[task.task]
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    workdir = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        candidate = workdir / out.name
+        _export(task, example, candidate, opset, dynamic_spatial, metadata)
+        log.info("verifying against PyTorch on %d validation frame(s)", min(parity_samples, available))
+        parity = verify_onnx(candidate, task.net, parity_inputs, atol=atol, rtol=rtol, repeats=repeats)
+        os.replace(candidate, out)
+        log.info("wrote %s", out)
+        quantization = None
+        if quantize != "none":
+            quantization = _quantize(
+                out, quantize, task, datamodule, parity_inputs, workdir, calib_samples, eval_samples, repeats
+            )
+    finally:
+        shutil.rmtree(workdir, ignore_errors=True)
+    return DeploymentReport(
+        path=out,
+        task=task.task,
+        model=task.hparams["model"]["name"],
+        checkpoint=checkpoint,
+        metadata=metadata,
+        parity=parity,
+        parity_frames=int(parity_inputs["image"].shape[0]),
+        atol=atol,
+        rtol=rtol,
+        dynamic_spatial=dynamic_spatial,
+        quantization=quantization,
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line of :func:`export_deployment` (``key=value`` arguments); returns the exit code.
+
+    Example:
+        >>> main(["out=model.onnx"])  # usage and "error: ckpt_path= is required" go to stderr
+        2
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if any(a in ("-h", "--help") for a in argv):
+        print(__doc__ + "\n" + _USAGE)
+        return 0
+    # Progress of this module only: the exporter and the quantiser log pages of INFO lines.
+    logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    log.setLevel(logging.INFO)
+    try:
+        kwargs = _parse_args(argv)
+    except ValueError as err:
+        print(f"{_USAGE}\nerror: {err}", file=sys.stderr)
+        return 2
+    try:
+        report = export_deployment(**kwargs)
+    except OnnxParityError as err:
+        print(f"error: parity check failed, {kwargs['out']} was not written: {err}", file=sys.stderr)
+        return 1
+    except ExportError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    except (FileNotFoundError, ValueError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(report.summary())
+    if report.quantization is not None and not report.quantization.ok:
+        return 3
+    return 0
+
+
+# ----------------------------------------------------------------------------------------------- arguments
+def _parse_args(argv: Sequence[str]) -> dict[str, Any]:
+    """``key=value`` strings -> keyword arguments of :func:`export_deployment` (``data.*`` -> overrides)."""
+    parsers = {
+        "ckpt_path": str,
+        "out": str,
+        "dynamic_spatial": _bool,
+        "batch": int,
+        "parity_samples": int,
+        "quantize": str,
+        "opset": int,
+        "calib_samples": int,
+        "eval_samples": int,
+        "repeats": int,
+    }
+    kwargs: dict[str, Any] = {}
+    overrides: dict[str, Any] = {}
+    for arg in argv:
+        key, sep, value = arg.partition("=")
+        key = key.lstrip("+")
+        if not sep or not key:
+            raise ValueError(f"arguments must look like key=value, got {arg!r}")
+        if key.startswith("data."):
+            overrides[key[len("data.") :]] = yaml.safe_load(value) if value else None
+        elif key in parsers:
+            try:
+                kwargs[key] = parsers[key](value)
+            except ValueError:
+                raise ValueError(f"{key}={value!r}: expected {parsers[key].__name__.lstrip('_')}") from None
+        else:
+            raise ValueError(f"unknown argument {key!r}; expected one of {sorted(parsers)} or data.<key>")
+    for required in ("ckpt_path", "out"):
+        if not kwargs.get(required):
+            raise ValueError(f"{required}= is required")
+    if overrides:
+        kwargs["data_overrides"] = overrides
+    return kwargs
+
+
+def _bool(value: str) -> bool:
+    lowered = value.strip().lower()
+    if lowered in ("1", "true", "yes"):
+        return True
+    if lowered in ("0", "false", "no"):
+        return False
+    raise ValueError(value)
+
+
+def _check_arguments(
+    batch: int, parity_samples: int, quantize: str, calib_samples: int, eval_samples: int, repeats: int
+) -> None:
+    if batch < 2:
+        raise ValueError(f"batch must be >= 2 (the batch dimension is exported dynamic), got {batch}")
+    if parity_samples < 1:
+        raise ValueError(f"parity_samples must be >= 1, got {parity_samples}")
+    if quantize not in QUANTIZE_MODES:
+        raise ValueError(f"quantize must be one of {list(QUANTIZE_MODES)}, got {quantize!r}")
+    if calib_samples < 1 or eval_samples < 0 or repeats < 1:
+        raise ValueError(
+            f"need calib_samples >= 1, eval_samples >= 0 (0 = all), repeats >= 1; "
+            f"got {calib_samples}, {eval_samples}, {repeats}"
+        )
+
+
+# ---------------------------------------------------------------------------------------- run and data
+def _data_config(checkpoint: Path, task: str, overrides: Mapping[str, Any]) -> DictConfig:
+    """The run's resolved ``data`` config with ``overrides`` applied (keys must exist, or extend a dict)."""
+    from airfisheye_bench.tasks.checkpoint import run_config
+
+    cfg = run_config(checkpoint)
+    if cfg is None or "data" not in cfg:
+        raise ValueError(
+            f"{checkpoint}: no config.yaml with a 'data' section in {checkpoint.parent} or "
+            f"{checkpoint.parent.parent}; export needs the run's data config (give the run directory, or keep "
+            "the checkpoint inside it)"
+        )
+    data = OmegaConf.create(OmegaConf.to_container(cfg.data, resolve=True))
+    for key, value in overrides.items():
+        # A new key may only extend an existing section (data.camera.k); typos at the top level are errors.
+        parent = key.rpartition(".")[0]
+        node = OmegaConf.select(data, parent) if parent else data
+        if not isinstance(node, DictConfig) or (not parent and key not in data):
+            raise ValueError(
+                f"unknown override data.{key}: the run's data config has keys {sorted(data.keys())}"
+            )
+        OmegaConf.update(data, key, value, merge=False)
+    if data.get("task") != task:
+        raise ValueError(f"data.task={data.get('task')!r} but the checkpoint is a task={task} model")
+    return data
+
+
+def _datamodule(data_cfg: DictConfig):
+    """Instantiate and set up the validation split (main-process loading: a few frames only)."""
+    import hydra
+
+    loader_cfg = OmegaConf.merge(data_cfg, {"num_workers": 0, "persistent_workers": False})
+    try:
+        datamodule = hydra.utils.instantiate(loader_cfg)
+        datamodule.prepare_data()
+        datamodule.setup("validate")
+    except Exception as err:
+        raise ValueError(
+            f"cannot build the run's datamodule from its data config ({type(err).__name__}: {err}); "
+            "fix it with data.<key>=<value> overrides, e.g. data.root=/path/to/dataset"
+        ) from err
+    return datamodule
+
+
+def _val_batches(datamodule, limit: int = 0) -> Iterator[dict]:
+    """Validation batches (no augmentation), stopping after ``limit`` frames (0: all)."""
+    seen = 0
+    for batch in datamodule.val_dataloader():
+        if "image" not in batch:  # every frame of the batch was skipped (skip_bad_frames)
+            continue
+        if limit:
+            batch = {k: v[: limit - seen] for k, v in batch.items() if isinstance(v, Tensor | list)}
+        yield batch
+        seen += int(batch["image"].shape[0])
+        if limit and seen >= limit:
+            return
+
+
+def _val_frames(datamodule, count: int, names: Sequence[str]) -> dict[str, Tensor]:
+    """The first ``count`` validation frames (fewer if the split is smaller) as one batch."""
+    parts: dict[str, list[Tensor]] = {}
+    for batch in _val_batches(datamodule, count):
+        for key, value in batch.items():
+            if isinstance(value, Tensor):
+                parts.setdefault(key, []).append(value)
+    missing = [n for n in names if n not in parts]
+    if missing:
+        raise ValueError(f"the validation split gave no {missing} (data.task={datamodule.task})")
+    return {k: torch.cat(v) for k, v in parts.items()}
+
+
+def _repeat_to(x: Tensor, n: int) -> Tensor:
+    reps = math.ceil(n / x.shape[0])
+    return x.repeat(reps, *([1] * (x.ndim - 1)))[:n]
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[str, str]:
+    from airfisheye_bench.metrics.functional import COMPLETION_VALID_MIN
+
+    model_config = dict(task.hparams["model"])
+    extra: dict[str, Any] = {}
+    if task.task == "seg":
+        classes = list(task.class_names)
+        if list(datamodule.class_names) != classes:
+            raise ValueError(
+                f"the data config's classes {list(datamodule.class_names)} differ from the checkpoint's {classes}; "
+                "the logits would be scored against the wrong labels"
+            )
+        palette = task.hparams.get("palette") or datamodule.palette[: len(classes)].tolist()
+        extra = {"class_names": classes, "palette": palette, "ignore_index": task.ignore_index}
+    elif task.task == "depth":
+        extra = {"min_depth": task.min_depth, "max_depth": task.max_depth}
+    else:
+        extra = {
+            "min_depth": COMPLETION_VALID_MIN,
+            "max_depth": task.max_depth,
+            "occlusion": str(data_cfg.occlusion),
+        }
+    return deployment_metadata(
+        task=task.task,
+        model=model_config["name"],
+        model_config=model_config,
+        normalization=datamodule.normalization,
+        camera=datamodule.camera.to_dict(),
+        data_config=OmegaConf.to_container(data_cfg, resolve=True),
+        checkpoint_sha256=_sha256(checkpoint),
+        source_checkpoint=str(checkpoint.resolve()),
+        **extra,
+    )
+
+
+# ------------------------------------------------------------------------------------------------ export
+def _export(
+    task, example: dict[str, Tensor], path: Path, opset: int, dynamic_spatial: bool, metadata: dict[str, str]
+) -> None:
+    log.info(
+        "exporting %s (%s) at %s, dynamic_spatial=%s",
+        task.hparams["model"]["name"],
+        task.task,
+        tuple(example["image"].shape),
+        dynamic_spatial,
+    )
+    try:
+        export_onnx(
+            task.net,
+            example,
+            path,
+            output_name=TASK_OUTPUT[task.task],
+            opset=opset,
+            dynamic_batch=True,
+            dynamic_spatial=dynamic_spatial,
+            metadata=metadata,
+        )
+    except Exception as err:
+        hint = " (retry with dynamic_spatial=false)" if dynamic_spatial else ""
+        raise ExportError(
+            f"torch.onnx.export failed for {task.hparams['model']['name']}{hint}: "
+            f"{type(err).__name__}: {_first_line(err)}"
+        ) from err
+
+
+# ------------------------------------------------------------------------------------------ quantisation
+def _quantize(
+    fp32: Path,
+    mode: str,
+    task,
+    datamodule,
+    timing_inputs: dict[str, Tensor],
+    workdir: Path,
+    calib_samples: int,
+    eval_samples: int,
+    repeats: int,
+) -> QuantizationReport:
+    """Write ``<stem>.int8.onnx`` next to ``fp32`` and compare both on the validation split.
+
+    Failures (an op the quantiser or the CPU provider cannot handle, e.g. NLSPN's DeformConv) are caught and
+    returned as ``error``: the fp32 model is verified already and stays.
+    """
+    target = fp32.with_name(f"{fp32.stem}.int8.onnx")
+    notes: list[str] = []
+    threads = torch.get_num_threads()
+    batch = int(timing_inputs["image"].shape[0])
+    try:
+        candidate = workdir / target.name
+        source = _preprocess(fp32, workdir, notes)
+        log.info("quantising (%s int8)", mode)
+        _run_quantizer(source, candidate, mode, datamodule, task.task, calib_samples, notes)
+        _copy_metadata(fp32, candidate)
+        int8_session = _session(candidate)
+        fp32_session = _session(fp32)
+        feed = {k: v.numpy() for k, v in timing_inputs.items()}
+        fp32_ms = _median_ms(lambda: fp32_session.run(None, feed), repeats)
+        int8_ms = _median_ms(lambda: int8_session.run(None, feed), repeats)
+        log.info("evaluating fp32 vs int8 on the validation split")
+        frames, metrics_fp32, metrics_int8 = _compare_metrics(
+            task, datamodule, fp32_session, int8_session, eval_samples
+        )
+        os.replace(candidate, target)
+        notes.extend(_accuracy_notes(task.task, metrics_fp32, metrics_int8))
+        if int8_ms > fp32_ms:
+            notes.append(
+                "int8 is slower than fp32 here: onnxruntime's CPU int8 convolution kernels (ConvInteger for "
+                "dynamic, QLinearConv for static) often lose to its fp32 ones on small conv nets"
+                + ("; static quantisation usually does better" if mode == "dynamic" else "")
+            )
+    except Exception as err:  # the quantiser raises anything from KeyError to onnxruntime's Fail
+        with contextlib.suppress(FileNotFoundError):
+            target.unlink()  # an int8 file from an earlier export would no longer match the new fp32 model
+        return QuantizationReport(
+            mode=mode,
+            error=f"{mode} int8 quantisation of {task.hparams['model']['name']} failed "
+            f"({type(err).__name__}: {_first_line(err)}); the fp32 model {fp32} is unaffected",
+            notes=tuple(notes),
+        )
+    return QuantizationReport(
+        mode=mode,
+        path=target,
+        frames=frames,
+        metrics_fp32=metrics_fp32,
+        metrics_int8=metrics_int8,
+        fp32_ms=fp32_ms,
+        int8_ms=int8_ms,
+        fp32_bytes=fp32.stat().st_size,
+        int8_bytes=target.stat().st_size,
+        threads=threads,
+        batch=batch,
+        notes=tuple(notes),
+    )
+
+
+def _preprocess(fp32: Path, workdir: Path, notes: list[str]) -> Path:
+    """ORT's recommended pre-processing (graph optimisation, shape inference) of a copy without ``value_info``.
+
+    The quantisers re-run ONNX shape inference, which rejects some of the exporter's intermediate shape
+    annotations (AdaBins: "Inferred shape and existing shape differ") although ONNX Runtime runs the graph
+    correctly (parity passed); the annotations are optional, so they are dropped and inferred afresh.
+    """
+    import onnx
+    from onnxruntime.quantization import quant_pre_process
+
+    model = onnx.load(str(fp32))
+    del model.graph.value_info[:]
+    stripped = workdir / "stripped.onnx"
+    onnx.save(model, str(stripped))
+    out = workdir / "preprocessed.onnx"
+    try:
+        # Symbolic shape inference targets transformers and gives up on these graphs; ONNX inference suffices.
+        quant_pre_process(str(stripped), str(out), skip_symbolic_shape=True)
+        return out
+    except Exception as err:
+        notes.append(f"pre-processing skipped ({type(err).__name__}: {_first_line(err)})")
+        return stripped
+
+
+def _run_quantizer(
+    source: Path, target: Path, mode: str, datamodule, task: str, calib_samples: int, notes: list[str]
+) -> None:
+    from onnxruntime.quantization import QuantType, quantize_dynamic, quantize_static
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if mode == "dynamic":
+            quantize_dynamic(str(source), str(target), weight_type=QuantType.QInt8)
+            return
+        reader = _calibration_reader(datamodule, TASK_INPUTS[task], calib_samples)
+        quantize_static(str(source), str(target), reader)
+        notes.append(
+            f"static calibration on {reader.frames} validation frame(s), the split the accuracy is measured on"
+        )
+
+
+def _calibration_reader(datamodule, names: Sequence[str], limit: int):
+    """A ``CalibrationDataReader`` of validation frames, one frame per call (calibration needs no batching)."""
+    from onnxruntime.quantization import CalibrationDataReader
+
+    class ValidationReader(CalibrationDataReader):
+        def __init__(self) -> None:
+            frames = _val_frames(datamodule, limit, names)
+            self.frames = int(frames["image"].shape[0])
+            self._feeds = iter([{k: frames[k][i : i + 1].numpy() for k in names} for i in range(self.frames)])
+
+        def get_next(self) -> dict[str, np.ndarray] | None:
+            return next(self._feeds, None)
+
+    return ValidationReader()
+
+
+def _copy_metadata(source: Path, target: Path) -> None:
+    """The quantisers drop ``metadata_props``; the int8 model carries the same deployment metadata."""
+    import onnx
+
+    from airfisheye_bench.export.onnx import read_onnx_metadata
+
+    model = onnx.load(str(target))
+    del model.metadata_props[:]
+    for key, value in read_onnx_metadata(source).items():
+        model.metadata_props.add(key=key, value=value)
+    onnx.save(model, str(target))
+
+
+def _session(path: Path):
+    import onnxruntime as ort
+
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = torch.get_num_threads()
+    options.inter_op_num_threads = 1
+    return ort.InferenceSession(str(path), sess_options=options, providers=["CPUExecutionProvider"])
+
+
+def _compare_metrics(task, datamodule, fp32_session, int8_session, limit: int):
+    """The task's metrics of both ONNX models against ground truth on the validation split."""
+    names = TASK_INPUTS[task.task]
+    metric_fp32, metric_int8 = task.make_metric(), task.make_metric()
+    frames = 0
+    for batch in _val_batches(datamodule, limit):
+        feed = {k: batch[k].numpy() for k in names}
+        target, mask = task.target(batch), batch["valid_mask"]
+        metric_fp32.update(torch.from_numpy(fp32_session.run(None, feed)[0]), target, mask=mask)
+        metric_int8.update(torch.from_numpy(int8_session.run(None, feed)[0]), target, mask=mask)
+        frames += int(batch["image"].shape[0])
+    return frames, _scalars(metric_fp32.compute()), _scalars(metric_int8.compute())
+
+
+def _accuracy_notes(task: str, fp32: Mapping[str, float], int8: Mapping[str, float]) -> list[str]:
+    """Flag headline metrics that int8 moves by more than 5 % (relative): worth a look before deploying."""
+    notes = []
+    for key in _HEADLINE[task]:
+        before, after = fp32.get(key, math.nan), int8.get(key, math.nan)
+        if (
+            math.isfinite(before)
+            and math.isfinite(after)
+            and abs(after - before) > 0.05 * max(abs(before), 1e-6)
+        ):
+            notes.append(
+                f"int8 moves {key} by {100 * (after - before) / max(abs(before), 1e-6):+.0f}% "
+                f"({before:.4g} -> {after:.4g}): check the int8 model before deploying it"
+            )
+    return notes
+
+
+def _scalars(values: Mapping[str, Tensor]) -> dict[str, float]:
+    return {k: float(v) for k, v in values.items()}
+
+
+# ------------------------------------------------------------------------------------------------- report
+def _quantization_lines(q: QuantizationReport, task: str) -> list[str]:
+    if not q.ok:
+        return [f"int8: FAILED: {q.error}", *(f"  note: {n}" for n in q.notes)]
+    lines = [f"int8 ({q.mode}) {q.path} ({_mb(q.path)}), on {q.frames} validation frame(s), fp32 -> int8:"]
+    parts = [
+        f"{k} {q.metrics_fp32[k]:.4f} -> {q.metrics_int8[k]:.4f} ({q.metric_deltas[k]:+.4f})"
+        for k in _HEADLINE[task]
+        if k in q.metrics_fp32
+    ]
+    lines.append("  " + ", ".join(parts))
+    lines.append(
+        f"  latency (batch {q.batch}, {q.threads} threads, median): fp32 {q.fp32_ms:.1f} ms, int8 "
+        f"{q.int8_ms:.1f} ms, speed-up x{q.speedup:.2f}"
+    )
+    lines.extend(f"  note: {n}" for n in q.notes)
+    return lines
+
+
+def _first_line(err: BaseException) -> str:
+    text = str(err).strip()
+    return text.splitlines()[0] if text else ""
+
+
+def _mb(path: Path | None) -> str:
+    return f"{path.stat().st_size / 1e6:.1f} MB" if path is not None and path.exists() else "?"

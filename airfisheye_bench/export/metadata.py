@@ -1,0 +1,329 @@
+"""The metadata contract of a deployed ONNX model (``airfisheye-export`` writes it, evaluation reads it).
+
+Every key lives in the model's ``metadata_props`` with an ``airfisheye.`` prefix; every value is a string,
+JSON where the value is structured (lists, dicts, numbers). A consumer needs nothing else to feed the model and
+to interpret its output.
+
+Every task:
+
+- ``airfisheye.format_version``: ``"1"`` (this contract; bumped on an incompatible change).
+- ``airfisheye.task``: ``seg`` | ``depth`` | ``completion``.
+- ``airfisheye.model``: registry name of the zoo model (``deeplabv3plus``, ``adabins``, ``nlspn``, ...).
+- ``airfisheye.model_config``: JSON of the checkpoint's ``hyper_parameters.model`` dict.
+- ``airfisheye.inputs``: JSON list of graph input names, ``["image"]`` or ``["image", "sparse_depth"]``.
+- ``airfisheye.output``: graph output name, ``logits`` (seg) or ``depth``.
+- ``airfisheye.normalization``: JSON ``{"mean": [r, g, b], "std": [r, g, b]}``, meaning
+  ``image = (rgb / 255 - mean) / std``, RGB order, NCHW float32.
+- ``airfisheye.camera``: JSON ``FisheyeCamera.to_dict()`` of the served camera (lens model, FOV, width, height,
+  principal point, focal).
+- ``airfisheye.image_size``: JSON ``[H, W]`` the model was trained and verified at.
+- ``airfisheye.data_config``: JSON of the run's resolved ``data`` config (with the export-time overrides), enough
+  to rebuild the same datamodule (``hydra.utils.instantiate``).
+- ``airfisheye.checkpoint_sha256``: SHA-256 of the source ``.ckpt`` file.
+- ``airfisheye.source_checkpoint``: path of the source ``.ckpt`` file.
+
+Segmentation (``seg``) only:
+
+- ``airfisheye.class_names``: JSON list of training class names; logits channel ``c`` is class ``c``.
+- ``airfisheye.palette``: JSON list of ``[r, g, b]`` per class.
+- ``airfisheye.ignore_index``: JSON int, the label of unlabelled pixels (255, incl. outside the image circle).
+
+Depth (``depth``) and completion (``completion``) only:
+
+- ``airfisheye.min_depth``: JSON float, metres: lower bound of valid ground truth in evaluation (depth: the Eigen
+  ``min_depth``, 1e-3 by default; completion: ``1e-4``).
+- ``airfisheye.max_depth``: JSON float, metres: upper bound of valid depth (120 by default).
+
+Completion only:
+
+- ``airfisheye.occlusion``: occlusion correction of the sparse input (``ordering`` | ``zbuffer`` | ``none``).
+  ``sparse_depth`` is range in metres, float32 ``[B, 1, H, W]``, 0 = no LiDAR point.
+
+Outputs: ``logits`` ``[B, C, H, W]`` (argmax over ``C`` gives the class id), ``depth`` ``[B, 1, H, W]`` range in
+metres. The keys of one task are exactly the common keys plus that task's keys (``TASK_KEYS``):
+:func:`deployment_metadata` writes them, :func:`parse_deployment_metadata` checks and decodes them.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+__all__ = [
+    "COMMON_KEYS",
+    "FORMAT_VERSION",
+    "KEY_CAMERA",
+    "KEY_CHECKPOINT_SHA256",
+    "KEY_CLASS_NAMES",
+    "KEY_DATA_CONFIG",
+    "KEY_FORMAT_VERSION",
+    "KEY_IGNORE_INDEX",
+    "KEY_IMAGE_SIZE",
+    "KEY_INPUTS",
+    "KEY_MAX_DEPTH",
+    "KEY_MIN_DEPTH",
+    "KEY_MODEL",
+    "KEY_MODEL_CONFIG",
+    "KEY_NORMALIZATION",
+    "KEY_OCCLUSION",
+    "KEY_OUTPUT",
+    "KEY_PALETTE",
+    "KEY_SOURCE_CHECKPOINT",
+    "KEY_TASK",
+    "PREFIX",
+    "TASK_INPUTS",
+    "TASK_KEYS",
+    "TASK_OUTPUT",
+    "deployment_metadata",
+    "parse_deployment_metadata",
+    "read_deployment_metadata",
+]
+
+PREFIX = "airfisheye."
+FORMAT_VERSION = "1"
+
+KEY_FORMAT_VERSION = "airfisheye.format_version"
+KEY_TASK = "airfisheye.task"
+KEY_MODEL = "airfisheye.model"
+KEY_MODEL_CONFIG = "airfisheye.model_config"
+KEY_INPUTS = "airfisheye.inputs"
+KEY_OUTPUT = "airfisheye.output"
+KEY_NORMALIZATION = "airfisheye.normalization"
+KEY_CAMERA = "airfisheye.camera"
+KEY_IMAGE_SIZE = "airfisheye.image_size"
+KEY_DATA_CONFIG = "airfisheye.data_config"
+KEY_CHECKPOINT_SHA256 = "airfisheye.checkpoint_sha256"
+KEY_SOURCE_CHECKPOINT = "airfisheye.source_checkpoint"
+KEY_CLASS_NAMES = "airfisheye.class_names"
+KEY_PALETTE = "airfisheye.palette"
+KEY_IGNORE_INDEX = "airfisheye.ignore_index"
+KEY_MIN_DEPTH = "airfisheye.min_depth"
+KEY_MAX_DEPTH = "airfisheye.max_depth"
+KEY_OCCLUSION = "airfisheye.occlusion"
+
+COMMON_KEYS: tuple[str, ...] = (
+    KEY_FORMAT_VERSION,
+    KEY_TASK,
+    KEY_MODEL,
+    KEY_MODEL_CONFIG,
+    KEY_INPUTS,
+    KEY_OUTPUT,
+    KEY_NORMALIZATION,
+    KEY_CAMERA,
+    KEY_IMAGE_SIZE,
+    KEY_DATA_CONFIG,
+    KEY_CHECKPOINT_SHA256,
+    KEY_SOURCE_CHECKPOINT,
+)
+#: The complete key set of each task (no other ``airfisheye.`` key is written).
+TASK_KEYS: dict[str, tuple[str, ...]] = {
+    "seg": (*COMMON_KEYS, KEY_CLASS_NAMES, KEY_PALETTE, KEY_IGNORE_INDEX),
+    "depth": (*COMMON_KEYS, KEY_MIN_DEPTH, KEY_MAX_DEPTH),
+    "completion": (*COMMON_KEYS, KEY_MIN_DEPTH, KEY_MAX_DEPTH, KEY_OCCLUSION),
+}
+TASK_INPUTS: dict[str, tuple[str, ...]] = {
+    "seg": ("image",),
+    "depth": ("image",),
+    "completion": ("image", "sparse_depth"),
+}
+TASK_OUTPUT: dict[str, str] = {"seg": "logits", "depth": "depth", "completion": "depth"}
+
+# Values stored as plain strings; every other key holds JSON.
+_STRING_KEYS = frozenset(
+    {
+        KEY_FORMAT_VERSION,
+        KEY_TASK,
+        KEY_MODEL,
+        KEY_OUTPUT,
+        KEY_CHECKPOINT_SHA256,
+        KEY_SOURCE_CHECKPOINT,
+        KEY_OCCLUSION,
+    }
+)
+
+
+def deployment_metadata(
+    *,
+    task: str,
+    model: str,
+    model_config: Mapping[str, Any],
+    normalization: Mapping[str, Sequence[float]],
+    camera: Mapping[str, Any],
+    data_config: Mapping[str, Any],
+    checkpoint_sha256: str,
+    source_checkpoint: str | os.PathLike,
+    class_names: Sequence[str] | None = None,
+    palette: Sequence[Sequence[int]] | None = None,
+    ignore_index: int | None = None,
+    min_depth: float | None = None,
+    max_depth: float | None = None,
+    occlusion: str | None = None,
+) -> dict[str, str]:
+    """Encode the deployment metadata of one model as ``metadata_props`` strings (see the module docstring).
+
+    ``inputs``, ``output`` and ``image_size`` follow from ``task`` and ``camera``. The task-specific arguments
+    are required for their task and must be left ``None`` for the others, so the key set is always exactly
+    ``TASK_KEYS[task]``.
+
+    Args:
+        task: ``seg``, ``depth`` or ``completion``.
+        model: registry name of the zoo model.
+        model_config: the checkpoint's model hyperparameters (``{"name": ..., **kwargs}``).
+        normalization: ``{"mean": [3 floats], "std": [3 floats]}`` applied to ``rgb / 255``.
+        camera: :meth:`FisheyeCamera.to_dict` of the served camera (needs ``width`` and ``height``).
+        data_config: the run's resolved ``data`` config as plain containers.
+        checkpoint_sha256: hex digest of the checkpoint file.
+        source_checkpoint: path of the checkpoint file.
+        class_names: seg: training class names, in logits channel order.
+        palette: seg: ``[r, g, b]`` per class.
+        ignore_index: seg: the ignored label.
+        min_depth: depth / completion: lower bound of valid ground truth (metres).
+        max_depth: depth / completion: upper bound (metres).
+        occlusion: completion: occlusion correction method of the sparse input.
+
+    Returns:
+        ``{key: str}`` with exactly the keys of ``TASK_KEYS[task]``.
+
+    Raises:
+        ValueError: unknown task, a missing or superfluous task-specific value, or a malformed value.
+
+    Example:
+        >>> meta = deployment_metadata(
+        ...     task="depth", model="adabins", model_config={"name": "adabins"},
+        ...     normalization={"mean": [0.485, 0.456, 0.406], "std": [0.229, 0.224, 0.225]},
+        ...     camera={"model": "equidistant", "width": 64, "height": 48, "fov_deg": 190.0},
+        ...     data_config={"task": "depth"}, checkpoint_sha256="0" * 64, source_checkpoint="run/last.ckpt",
+        ...     min_depth=1e-3, max_depth=120.0)
+        >>> meta["airfisheye.image_size"], meta["airfisheye.inputs"], meta["airfisheye.output"]
+        ('[48, 64]', '["image"]', 'depth')
+        >>> parse_deployment_metadata(meta)["max_depth"]
+        120.0
+    """
+    if task not in TASK_KEYS:
+        raise ValueError(f"task must be one of {sorted(TASK_KEYS)}, got {task!r}")
+    specific = {
+        KEY_CLASS_NAMES: class_names,
+        KEY_PALETTE: palette,
+        KEY_IGNORE_INDEX: ignore_index,
+        KEY_MIN_DEPTH: min_depth,
+        KEY_MAX_DEPTH: max_depth,
+        KEY_OCCLUSION: occlusion,
+    }
+    wanted = set(TASK_KEYS[task])
+    missing = [k for k, v in specific.items() if k in wanted and v is None]
+    extra = [k for k, v in specific.items() if k not in wanted and v is not None]
+    if missing or extra:
+        raise ValueError(
+            f"task={task} needs {_short(missing) or 'no more'} and takes no {_short(extra) or 'other'} metadata"
+        )
+    if "width" not in camera or "height" not in camera:
+        raise ValueError(
+            f"camera must describe 'width' and 'height' (FisheyeCamera.to_dict()), got {dict(camera)}"
+        )
+    values: dict[str, Any] = {
+        KEY_FORMAT_VERSION: FORMAT_VERSION,
+        KEY_TASK: task,
+        KEY_MODEL: model,
+        KEY_MODEL_CONFIG: dict(model_config),
+        KEY_INPUTS: list(TASK_INPUTS[task]),
+        KEY_OUTPUT: TASK_OUTPUT[task],
+        KEY_NORMALIZATION: {
+            "mean": [float(v) for v in normalization["mean"]],
+            "std": [float(v) for v in normalization["std"]],
+        },
+        KEY_CAMERA: dict(camera),
+        KEY_IMAGE_SIZE: [int(camera["height"]), int(camera["width"])],
+        KEY_DATA_CONFIG: dict(data_config),
+        KEY_CHECKPOINT_SHA256: checkpoint_sha256,
+        KEY_SOURCE_CHECKPOINT: str(source_checkpoint),
+        KEY_CLASS_NAMES: None if class_names is None else [str(n) for n in class_names],
+        KEY_PALETTE: None if palette is None else [[int(c) for c in rgb] for rgb in palette],
+        KEY_IGNORE_INDEX: None if ignore_index is None else int(ignore_index),
+        KEY_MIN_DEPTH: None if min_depth is None else float(min_depth),
+        KEY_MAX_DEPTH: None if max_depth is None else float(max_depth),
+        KEY_OCCLUSION: occlusion,
+    }
+    out = {key: _encode(key, values[key]) for key in TASK_KEYS[task]}
+    parse_deployment_metadata(out)  # the writer never produces what the reader would reject
+    return out
+
+
+def parse_deployment_metadata(props: Mapping[str, str]) -> dict[str, Any]:
+    """Check and decode deployment metadata (``metadata_props`` as a dict); other keys are ignored.
+
+    Returns:
+        The decoded values keyed by the name without the ``airfisheye.`` prefix, e.g. ``"task"`` (str),
+        ``"inputs"`` (list), ``"image_size"`` (``[H, W]``), ``"class_names"`` (seg), ``"max_depth"`` (float).
+        String-valued keys (``format_version``, ``task``, ``model``, ``output``, ``occlusion``,
+        ``checkpoint_sha256``, ``source_checkpoint``) stay strings; the others are JSON-decoded.
+
+    Raises:
+        ValueError: no or an unsupported ``airfisheye.format_version``, an unknown task, missing keys for the
+            task, or a value that is not valid JSON (the message names the key).
+
+    Example:
+        >>> parse_deployment_metadata({"airfisheye.format_version": "2"})
+        Traceback (most recent call last):
+        ...
+        ValueError: airfisheye.format_version is '2'; this reader understands '1' (re-export the model ...)
+    """
+    version = props.get(KEY_FORMAT_VERSION)
+    if version is None:
+        raise ValueError(
+            f"no {KEY_FORMAT_VERSION} in the ONNX metadata: not a model written by airfisheye-export"
+        )
+    if version != FORMAT_VERSION:
+        raise ValueError(
+            f"{KEY_FORMAT_VERSION} is {version!r}; this reader understands {FORMAT_VERSION!r} "
+            "(re-export the model with this version of airfisheye-export)"
+        )
+    task = props.get(KEY_TASK)
+    if task not in TASK_KEYS:
+        raise ValueError(f"{KEY_TASK} must be one of {sorted(TASK_KEYS)}, got {task!r}")
+    missing = [k for k in TASK_KEYS[task] if k not in props]
+    if missing:
+        raise ValueError(f"ONNX metadata of a task={task} model lacks {missing}")
+    decoded: dict[str, Any] = {}
+    for key in TASK_KEYS[task]:
+        value = props[key]
+        if key not in _STRING_KEYS:
+            try:
+                value = json.loads(value)
+            except json.JSONDecodeError as err:
+                raise ValueError(f"ONNX metadata {key} is not valid JSON ({err}): {value[:80]!r}") from None
+        decoded[key[len(PREFIX) :]] = value
+    return decoded
+
+
+def read_deployment_metadata(path: str | os.PathLike) -> dict[str, Any]:
+    """:func:`parse_deployment_metadata` of an ``.onnx`` file (the weights are not loaded).
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist.
+        ValueError: see :func:`parse_deployment_metadata` (the message names the file).
+    """
+    from airfisheye_bench.export.onnx import read_onnx_metadata
+
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"ONNX model {path} does not exist")
+    try:
+        return parse_deployment_metadata(read_onnx_metadata(path))
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from None
+
+
+def _encode(key: str, value: Any) -> str:
+    if key in _STRING_KEYS:
+        if not isinstance(value, str) or not value:
+            raise ValueError(f"{key} must be a non-empty string, got {value!r}")
+        return value
+    try:
+        return json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{key} is not JSON-serialisable ({err}): {value!r}") from None
+
+
+def _short(keys: list[str]) -> str:
+    return ", ".join(k[len(PREFIX) :] for k in keys)

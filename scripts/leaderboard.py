@@ -1,0 +1,12 @@
+"""Rank every results.json by task next to the paper's baselines (thin wrapper of the leaderboard module).
+
+python scripts/leaderboard.py runs=logs/[,other/,path/to/results.json] [out=leaderboard] [paper=true] \
+    [skip_invalid=false]
+"""
+
+import sys
+
+from airfisheye_bench.evaluation.leaderboard import main
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,185 @@
+"""``scripts/evaluate.py``: a checkpoint and its prediction files give the training run's test metrics."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import lightning as L
+import pytest
+from hydra import compose, initialize_config_dir
+from omegaconf import DictConfig, open_dict
+
+from airfisheye_bench.evaluation import SubmissionError
+from airfisheye_bench.evaluation.command import evaluate
+from airfisheye_bench.training import train
+from tests.training.test_configs import CONFIG_DIR, compose_train
+
+
+def compose_eval(overrides: list[str], output_dir: Path) -> DictConfig:
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+        cfg = compose(config_name="evaluate", overrides=overrides)
+    with open_dict(cfg):
+        cfg.output_dir = str(output_dir)
+    return cfg
+
+
+@pytest.fixture(scope="module")
+def depth_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A one-epoch AdaBins run on tiny data, tested on its test split (``results.json``)."""
+    run_dir = tmp_path_factory.mktemp("depth_run")
+    cfg = compose_train(
+        [
+            "task=depth",
+            "trainer=debug",
+            f"data.root={tiny_dataset}",
+            "data.camera.size=64",
+            "data.batch_size=2",
+            "data.num_workers=0",
+            "data.persistent_workers=false",
+            "callbacks.rich_progress_bar=null",
+            "model.encoder_name=resnet18",
+            "model.patch_size=2",
+            "model.n_bins=32",
+        ]
+    )
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(run_dir)
+    train(cfg)
+    return run_dir
+
+
+def _assert_same_metrics(a: dict, b: dict, abs_tol: float = 1e-6) -> None:
+    assert a.keys() == b.keys()
+    for key, value in a.items():
+        if value is None:
+            assert b[key] is None, key
+        else:
+            assert b[key] == pytest.approx(value, abs=abs_tol), key
+
+
+def test_checkpoint_then_prediction_files(depth_run: Path, tmp_path: Path) -> None:
+    trained = json.loads((depth_run / "results.json").read_text())
+    preds = tmp_path / "preds"
+    record = evaluate(
+        compose_eval(
+            [f"ckpt_path={depth_run}", "num_workers=0", f"save_predictions={preds}", "prediction_format=npy"],
+            tmp_path / "ckpt",
+        ),
+    )
+    # The same checkpoint, data and metric code as the training run's test stage.
+    _assert_same_metrics(trained["metrics"], record["metrics"])
+    assert record["model"]["source"] == "checkpoint" and record["model"]["sha256"]
+    assert record["config"]["data"]["camera"]["size"] == 64  # the run's data configuration was used
+    assert any(k.startswith("range_0-10/") for k in record["breakdown"])
+    assert any(k.startswith("ring_80-95/") for k in record["breakdown"])
+    assert len(list((tmp_path / "ckpt" / "panels").glob("*.png"))) == record["config"]["num_frames"] == 2
+    assert json.loads((tmp_path / "ckpt" / "results.json").read_text())["metrics"] == record["metrics"]
+
+    # The saved predictions, scored as a submission against the same data, give identical numbers.
+    data = [f"data.root={record['config']['data']['root']}", "data.camera.size=64"]
+    files = evaluate(
+        compose_eval(["task=depth", f"predictions={preds}", "num_workers=1", *data], tmp_path / "files")
+    )
+    _assert_same_metrics(record["metrics"], files["metrics"])
+    _assert_same_metrics(record["breakdown"], files["breakdown"])
+    assert files["model"]["source"] == "predictions" and files["model"]["name"] == "preds"
+
+
+def test_png_predictions_within_quantisation(depth_run: Path, tmp_path: Path) -> None:
+    preds = tmp_path / "preds"
+    record = evaluate(
+        compose_eval([f"ckpt_path={depth_run}", "num_workers=0", f"save_predictions={preds}"], tmp_path / "a")
+    )
+    data = [f"data.root={record['config']['data']['root']}", "data.camera.size=64"]
+    files = evaluate(
+        compose_eval(["task=depth", f"predictions={preds}", "num_workers=0", *data], tmp_path / "b")
+    )
+    assert files["metrics"]["rmse"] == pytest.approx(record["metrics"]["rmse"], abs=2e-3)
+    assert files["metrics"]["abs_rel"] == pytest.approx(record["metrics"]["abs_rel"], abs=1e-3)
+
+
+def test_checkpoint_without_run_directory(tiny_dataset: Path, tmp_path: Path) -> None:
+    """A bare checkpoint (no config.yaml next to it) is evaluated on the configured data."""
+    from airfisheye_bench.tasks import SegmentationTask
+    from datamodules import AirFisheyeDataModule
+
+    dm = AirFisheyeDataModule("seg", root=tiny_dataset, camera={"size": 64})
+    module = SegmentationTask(
+        {"name": "deeplabv3plus", "encoder_name": "resnet18"},
+        class_names=dm.class_names,
+        palette=dm.palette[:13].tolist(),
+    )
+    trainer = L.Trainer(logger=False, enable_progress_bar=False, enable_model_summary=False)
+    trainer.strategy.connect(module)
+    ckpt = tmp_path / "bare.ckpt"
+    trainer.save_checkpoint(ckpt)
+    record = evaluate(
+        compose_eval(
+            [
+                f"ckpt_path={ckpt}",
+                f"data.root={tiny_dataset}",
+                "data.camera.size=64",
+                "num_workers=0",
+                "num_panels=1",
+                "name=untrained",
+            ],
+            tmp_path / "out",
+        )
+    )
+    assert record["task"] == "seg" and record["model"]["name"] == "untrained"
+    assert 0.0 <= record["metrics"]["mIoU"] <= 1.0
+    assert any(k.startswith("IoU/") for k in record["metrics"])
+    assert not any(k.startswith("range_") for k in record["breakdown"])  # seg: rings only
+    assert len(list((tmp_path / "out" / "panels").glob("*.png"))) == 1
+
+
+def test_source_and_task_errors(depth_run: Path, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="exactly one of"):
+        evaluate(compose_eval([], tmp_path))
+    with pytest.raises(ValueError, match="exactly one of"):
+        evaluate(compose_eval([f"ckpt_path={depth_run}", f"predictions={tmp_path}"], tmp_path))
+    with pytest.raises(ValueError, match="needs task="):
+        evaluate(compose_eval([f"predictions={tmp_path}"], tmp_path))
+    with pytest.raises(ValueError, match=r"task=seg was requested but checkpoint .* is a depth model"):
+        evaluate(compose_eval(["task=seg", f"ckpt_path={depth_run}"], tmp_path))
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        evaluate(compose_eval([f"ckpt_path={tmp_path / 'nope.ckpt'}"], tmp_path))
+    bad = tmp_path / "bad.ckpt"
+    bad.write_bytes(b"not a checkpoint")
+    with pytest.raises(ValueError, match=r"bad\.ckpt: not a readable checkpoint"):
+        evaluate(compose_eval([f"ckpt_path={bad}"], tmp_path))
+
+
+def test_incomplete_submission_lists_missing_frames(tiny_dataset: Path, tmp_path: Path) -> None:
+    (tmp_path / "preds").mkdir()
+    cfg = compose_eval(
+        [
+            "task=depth",
+            f"predictions={tmp_path / 'preds'}",
+            f"data.root={tiny_dataset}",
+            "data.camera.size=64",
+        ],
+        tmp_path / "out",
+    )
+    with pytest.raises(SubmissionError, match=r"\(2 problems\)") as err:
+        evaluate(cfg)
+    assert all("missing" in p for p in err.value.problems)
+    assert not (tmp_path / "out" / "results.json").exists()
+
+
+def test_onnx_export_gives_checkpoint_metrics(depth_run: Path, tmp_path: Path) -> None:
+    from airfisheye_bench.export.deploy import export_deployment
+
+    onnx_path = tmp_path / "depth.onnx"
+    export_deployment(depth_run, onnx_path, parity_samples=2, repeats=1)
+    ckpt = evaluate(
+        compose_eval([f"ckpt_path={depth_run}", "num_workers=0", "num_panels=0"], tmp_path / "ckpt")
+    )
+    onnx = evaluate(
+        compose_eval([f"onnx_path={onnx_path}", "num_workers=0", "num_panels=0"], tmp_path / "onnx")
+    )
+    assert onnx["model"]["source"] == "onnx" and onnx["config"]["data"] == ckpt["config"]["data"]
+    # Within the export's parity tolerance (depth relative 1e-3).
+    for key, value in ckpt["metrics"].items():
+        assert onnx["metrics"][key] == pytest.approx(value, rel=1e-3, abs=1e-4), key

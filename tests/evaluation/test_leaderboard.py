@@ -1,0 +1,390 @@
+"""The leaderboard: collection, validation, ranking, paper rows, rendering, files and the command line."""
+
+from __future__ import annotations
+
+import csv
+import doctest
+import io
+import json
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+import airfisheye_bench.evaluation.leaderboard as lb
+from airfisheye_bench.evaluation import (
+    PAPER_BASELINES,
+    LeaderboardError,
+    build_leaderboard,
+    collect_results,
+    find_results,
+    load_entry,
+    write_results,
+)
+
+HASH_A = "a1b2c3d4" + "0" * 56
+HASH_B = "ffee0011" + "1" * 56
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+
+
+def _write(root: Path, run: str, task: str, metrics: dict, **kw) -> Path:
+    """A results.json in ``root/run/`` on dataset ``synth`` (manifest HASH_A) unless told otherwise."""
+    kw.setdefault("dataset", {"root": "/data/synth", "name": "synth", "manifest_sha256": HASH_A})
+    kw.setdefault("model", {"name": "deeplabv3plus", "config": {"encoder_name": "resnet18"}})
+    return write_results(root / run / "results.json", task, kw.pop("split", "test"), metrics, **kw)
+
+
+def _groups(board, task: str) -> list[list[tuple[int | None, str]]]:
+    table = next(t for t in board.tables if t.task == task)
+    return [[(rank, e.run) for rank, e in g.rows] for g in table.groups]
+
+
+def _csv_rows(text: str) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(text)))
+
+
+# ------------------------------------------------------------------------------------------------ ranking
+
+
+def test_segmentation_is_ranked_by_miou_higher_first_with_shared_ranks(tmp_path: Path) -> None:
+    _write(tmp_path, "low", "seg", {"mIoU": 0.21, "pixel_acc": 0.6})
+    _write(tmp_path, "high", "seg", {"mIoU": 0.45, "pixel_acc": 0.8})
+    _write(tmp_path, "tie_a", "seg", {"mIoU": 0.30, "pixel_acc": 0.7})
+    _write(tmp_path, "tie_b", "seg", {"mIoU": 0.30, "pixel_acc": 0.7})
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert _groups(board, "seg") == [[(1, "high"), (2, "tie_a"), (2, "tie_b"), (4, "low")]]
+    assert board.tables[0].primary == "mIoU" and board.tables[0].higher_is_better
+
+
+@pytest.mark.parametrize("task", ["depth", "completion"])
+def test_depth_tasks_are_ranked_by_rmse_lower_first(tmp_path: Path, task: str) -> None:
+    for run, rmse, abs_rel in (("mid", 8.0, 0.05), ("best", 4.5, 0.30), ("worst", 15.0, 0.01)):
+        _write(tmp_path, run, task, {"rmse": rmse, "abs_rel": abs_rel})
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    # Sorted by RMSE, not by AbsRel (which would give the reverse order).
+    assert _groups(board, task) == [[(1, "best"), (2, "mid"), (3, "worst")]]
+    assert not board.tables[0].higher_is_better
+
+
+def test_results_on_different_datasets_or_splits_are_ranked_apart(tmp_path: Path) -> None:
+    _write(tmp_path, "a_good", "seg", {"mIoU": 0.5})
+    _write(tmp_path, "a_bad", "seg", {"mIoU": 0.1})
+    # Same dataset name, regenerated (other manifest): a different dataset.
+    other = {"name": "synth", "manifest_sha256": HASH_B}
+    _write(tmp_path, "b_only", "seg", {"mIoU": 0.3}, dataset=other)
+    _write(tmp_path, "a_val", "seg", {"mIoU": 0.9}, split="val")
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert _groups(board, "seg") == [[(1, "a_good"), (2, "a_bad")], [(1, "a_val")], [(1, "b_only")]]
+    titles = [g.title for g in board.tables[0].groups]
+    assert titles == [
+        "synth (manifest a1b2c3d4), test split",
+        "synth (manifest a1b2c3d4), val split",
+        "synth (manifest ffee0011), test split",
+    ]
+    md = board.to_markdown()
+    assert all(f"### {title}" in md for title in titles)
+
+
+# ------------------------------------------------------------------------------------------------ paper rows
+
+
+def test_paper_rows_are_included_by_default_in_their_own_group(tmp_path: Path) -> None:
+    _write(tmp_path, "mine", "seg", {"mIoU": 0.9})
+    board = build_leaderboard(collect_results([tmp_path]))
+    assert [t.task for t in board.tables] == ["seg", "depth", "completion"]
+    seg = board.tables[0]
+    # Even a higher mIoU on synthetic data does not outrank the paper: each is first in its own group.
+    assert _groups(board, "seg") == [[(1, "paper IV-A")], [(1, "mine")]]
+    assert seg.groups[0].title.startswith("AirFisheye (real), test split")
+    paper_row = seg.groups[0].rows[0][1]
+    assert paper_row.paper and paper_row.source == "paper (real AirFisheye)" and paper_row.split == "test"
+
+    md = board.to_markdown()
+    assert "| 1 | DeepLabV3+ / ResNet50 | paper (real AirFisheye) | test | 51.2 | – |" in md
+    assert (
+        "| AdaBins / ResNet50 | paper (real AirFisheye) | test | 0.1320 | 2.575 | 13.324 | 0.270 | 0.865 |"
+        in md
+    )
+    assert "| NLSPN / ResNet34 | paper (real AirFisheye) | test | 0.0834 | 6.971 | 2.377 | 0.934 |" in md
+    assert "| 1 | deeplabv3plus / resnet18 | ours (synth) | test | 90.0 |" in md
+
+
+def test_paper_rows_hold_the_design_table_as_fractions() -> None:
+    by_task = {e.task: e for e in PAPER_BASELINES}
+    assert dict(by_task["seg"].metrics) == {"mIoU": 0.512}
+    assert by_task["depth"].metrics["rmse"] == 13.324 and by_task["depth"].metrics["delta3"] == 0.972
+    assert (
+        by_task["completion"].metrics["abs_rel"] == 0.0834 and by_task["completion"].metrics["mae"] == 2.377
+    )
+    # Not reported by the paper: absent, not zero.
+    assert "pixel_acc" not in by_task["seg"].metrics and "sq_rel" not in by_task["completion"].metrics
+    assert all(e.paper and e.path is None for e in PAPER_BASELINES)
+
+
+def test_paper_rows_can_be_left_out(tmp_path: Path) -> None:
+    _write(tmp_path, "mine", "depth", {"rmse": 3.0})
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert [t.task for t in board.tables] == ["depth"]
+    assert not any(e.paper for t in board.tables for g in t.groups for _, e in g.rows)
+    assert "paper (real AirFisheye)" not in board.to_markdown() + board.to_csv()
+    assert "plus the paper's baselines" not in board.to_markdown()
+
+
+# ------------------------------------------------------------------------------------------ NaN and null
+
+
+def test_nan_and_null_values_are_missing_and_rank_last(tmp_path: Path) -> None:
+    _write(tmp_path, "ok", "depth", {"rmse": 9.0, "abs_rel": 0.2, "delta1": float("nan")})
+    _write(tmp_path, "no_rmse", "depth", {"rmse": float("nan"), "abs_rel": 0.1})
+    # A hand-written file with JSON's non-standard NaN / Infinity literals is read the same way.
+    hand = tmp_path / "hand" / "results.json"
+    hand.parent.mkdir()
+    record = json.loads((tmp_path / "ok" / "results.json").read_text())
+    hand.write_text(
+        json.dumps(record)
+        .replace('"rmse": 9.0', '"rmse": NaN')
+        .replace('"abs_rel": 0.2', '"abs_rel": Infinity')
+    )
+
+    assert json.loads((tmp_path / "no_rmse" / "results.json").read_text())["metrics"]["rmse"] is None
+    entry = load_entry(hand)
+    assert entry.metrics["rmse"] is None and entry.metrics["abs_rel"] is None
+
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert _groups(board, "depth") == [[(1, "ok"), (None, "hand"), (None, "no_rmse")]]
+    md = board.to_markdown()
+    assert "| 1 | deeplabv3plus / resnet18 | ours (synth) | test | 0.2000 | – | 9.000 | – | – | – | – |" in md
+    assert "| – | deeplabv3plus / resnet18 | ours (synth) | test | 0.1000 | – | – |" in md
+    rows = {r["run"]: r for r in _csv_rows(board.to_csv())}
+    assert rows["no_rmse"]["rank"] == "" and rows["no_rmse"]["rmse"] == "" and rows["ok"]["delta1"] == ""
+
+
+# ------------------------------------------------------------------------------------------- invalid files
+
+
+def _bad_files(root: Path) -> list[Path]:
+    bad = {
+        "truncated": "{",
+        "missing_keys": json.dumps({"version": 1, "task": "seg"}),
+        "unknown_task": json.dumps({"version": 1, "task": "pose", "split": "test", "metrics": {}}),
+        "text_metric": json.dumps(
+            {"version": 1, "task": "seg", "split": "test", "metrics": {"mIoU": "high"}}
+        ),
+        "future_version": json.dumps({"version": 99, "task": "seg", "split": "test", "metrics": {}}),
+        "not_an_object": json.dumps([{"version": 1}]),
+    }
+    paths = []
+    for name, text in bad.items():
+        path = root / name / "results.json"
+        path.parent.mkdir(parents=True)
+        path.write_text(text)
+        paths.append(path)
+    return paths
+
+
+def test_invalid_files_are_all_listed_in_one_error(tmp_path: Path) -> None:
+    _write(tmp_path, "good", "seg", {"mIoU": 0.4})
+    bad = _bad_files(tmp_path)
+    with pytest.raises(LeaderboardError) as info:
+        collect_results([tmp_path])
+    assert len(info.value.problems) == len(bad)
+    message = str(info.value)
+    assert message.startswith(f"{len(bad)} invalid results.json file(s)")
+    for path in bad:
+        assert str(path) in message
+    assert "'pose'" in message and "metrics.mIoU is 'high'" in message and "unsupported version 99" in message
+
+
+def test_invalid_files_can_be_skipped_with_a_warning(tmp_path: Path) -> None:
+    _write(tmp_path, "good", "seg", {"mIoU": 0.4})
+    bad = _bad_files(tmp_path)
+    with pytest.warns(UserWarning) as caught:
+        entries = collect_results([tmp_path], skip_invalid=True)
+    assert [e.run for e in entries] == ["good"]
+    warned = " ".join(str(w.message) for w in caught)
+    assert all(str(path) in warned for path in bad)
+
+
+# ---------------------------------------------------------------------------------------------- collection
+
+
+def test_files_and_directories_are_collected_recursively_once(tmp_path: Path) -> None:
+    deep = _write(tmp_path / "logs" / "seg" / "runs", "2025-01-01_00-00-00", "seg", {"mIoU": 0.2})
+    other = _write(tmp_path / "elsewhere", "x", "depth", {"rmse": 3.0})
+    (tmp_path / "logs" / "notes.json").write_text("{}")  # only results.json files are picked up in folders
+    found = find_results([tmp_path / "logs", deep, other])
+    assert found == sorted([deep, other])
+
+
+def test_missing_paths_and_empty_folders_are_clear_errors(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="nope: no such file or directory"):
+        find_results([tmp_path / "nope"])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match=r"no results\.json found under .*empty"):
+        find_results([tmp_path / "empty"])
+
+
+def test_model_label_and_run_identity(tmp_path: Path) -> None:
+    smp = {"name": "smp", "config": {"name": "smp", "arch": "unet", "encoder_name": "resnet34"}}
+    assert load_entry(_write(tmp_path, "r1", "seg", {"mIoU": 0.1}, model=smp)).model == "smp-unet / resnet34"
+    named = {"name": "nlspn", "run_name": "nlspn-18steps", "config": {}}
+    entry = load_entry(_write(tmp_path, "r2", "completion", {"rmse": 1.0}, model=named))
+    assert (entry.model, entry.run) == ("nlspn", "nlspn-18steps")
+    bare = load_entry(_write(tmp_path, "r3", "depth", {"rmse": 1.0}, model={}, dataset={}))
+    assert (bare.model, bare.run, bare.source, bare.manifest_sha256) == (
+        "unknown model",
+        "r3",
+        "ours (unknown dataset)",
+        None,
+    )
+
+
+def test_rim_column_is_the_outermost_ring_of_the_primary_metric(tmp_path: Path) -> None:
+    rings = {"ring_0-30/rmse": 1.0, "ring_60-80/rmse": 2.0, "ring_80-95/rmse": 7.25, "ring_80-95/mae": 5.0}
+    _write(tmp_path, "ringed", "depth", {"rmse": 3.0}, breakdown={**rings, "range_0-10/rmse": 0.5})
+    board = build_leaderboard(collect_results([tmp_path]))
+    depth = next(t for t in board.tables if t.task == "depth")
+    assert depth.rim_key == "ring_80-95/rmse"
+    assert "rim 80-95° RMSE (m)" in board.to_markdown() and "| 7.250 | ringed |" in board.to_markdown()
+    # Tasks whose results have no ring breakdown get no rim column.
+    assert next(t for t in board.tables if t.task == "seg").rim_key is None
+    headers = [line for line in board.to_markdown().splitlines() if line.startswith("| rank")]
+    assert [("rim" in h) for h in headers] == [False, True, True, False]  # seg, depth x2, completion
+
+
+# ------------------------------------------------------------------------------------------------- outputs
+
+
+def test_markdown_has_one_section_per_task_with_order_and_units(tmp_path: Path) -> None:
+    _write(tmp_path, "s", "seg", {"mIoU": 0.2441, "pixel_acc": 0.6937})
+    md = build_leaderboard(collect_results([tmp_path])).to_markdown()
+    assert md.startswith("# AirFisheye-bench leaderboard\n")
+    assert "1 result(s) plus the paper's baselines" in md and "printed in %" in md
+    sections = [line for line in md.splitlines() if line.startswith("## ")]
+    assert sections == [
+        "## Semantic segmentation (seg)",
+        "## Monocular depth (depth)",
+        "## Depth completion (completion)",
+    ]
+    assert "Sorted by mIoU (%), higher is better." in md and "Sorted by RMSE (m), lower is better." in md
+    assert "| 24.4 | 69.4 |" in md  # fractions printed as percentages, one decimal like the paper
+    header = "| rank | model | source | split | mIoU (%) | pixel acc (%) | run |"
+    assert header in md and "|---:|---|---|---|---:|---:|---|" in md
+
+
+def test_csv_round_trips_every_value(tmp_path: Path) -> None:
+    metrics = {
+        "abs_rel": 0.28213456789,
+        "sq_rel": 3.1,
+        "rmse": 15.512345678901234,
+        "rmse_log": 0.41,
+        "delta1": 0.516,
+        "delta2": 0.7,
+        "delta3": 0.81,
+    }
+    _write(tmp_path, "d", "depth", metrics, breakdown={"ring_80-95/rmse": 21.5})
+    _write(tmp_path, "s", "seg", {"mIoU": 0.3, "pixel_acc": 0.7, "IoU/sky": 0.9})
+    board = build_leaderboard(collect_results([tmp_path]))
+    text = board.to_csv()
+    assert text.splitlines()[0] == ",".join(lb.CSV_COLUMNS)
+    assert set(lb.CSV_COLUMNS) >= {m for cols in lb.TASK_COLUMNS.values() for m in cols}
+    rows = _csv_rows(text)
+    assert [r["task"] for r in rows] == ["seg", "seg", "depth", "depth", "completion"]
+    mine = next(r for r in rows if r["run"] == "d")
+    assert {k: float(mine[k]) for k in metrics} == metrics  # exact floats, no rounding
+    assert (mine["rim_key"], float(mine["rim_value"])) == ("ring_80-95/rmse", 21.5)
+    assert (mine["rank"], mine["dataset"], mine["manifest_sha256"]) == ("1", "synth", HASH_A)
+    assert mine["primary_metric"] == "rmse" and mine["path"].endswith("results.json")
+    paper = next(r for r in rows if r["task"] == "completion")
+    assert paper["source"] == "paper (real AirFisheye)" and float(paper["abs_rel"]) == 0.0834
+    assert paper["sq_rel"] == "" and paper["path"] == ""
+
+
+def test_write_is_atomic_and_leaves_no_temporaries(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    _write(tmp_path / "runs", "s", "seg", {"mIoU": 0.3})
+    board = build_leaderboard(collect_results([tmp_path / "runs"]))
+    out = tmp_path / "out" / "nested"
+    md, table = board.write(out)
+    assert sorted(p.name for p in out.iterdir()) == ["leaderboard.csv", "leaderboard.md"]
+    assert md.read_text() == board.to_markdown() and table.read_text() == board.to_csv()
+
+    # A write that fails half-way keeps the previous files whole and leaves no temporary behind.
+    def fail(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", fail)
+    with pytest.raises(OSError, match="disk full"):
+        build_leaderboard([], paper=True).write(out)
+    assert sorted(p.name for p in out.iterdir()) == ["leaderboard.csv", "leaderboard.md"]
+    assert md.read_text() == board.to_markdown()
+
+
+# -------------------------------------------------------------------------------------------- command line
+
+
+def test_main_writes_both_files_and_prints_the_markdown(tmp_path: Path, capsys) -> None:
+    _write(tmp_path / "a", "s", "seg", {"mIoU": 0.3})
+    other = _write(tmp_path / "b", "d", "depth", {"rmse": 4.0})
+    out = tmp_path / "board"
+    assert lb.main([f"runs={tmp_path / 'a'},{other}", f"out={out}"]) == 0
+    printed = capsys.readouterr()
+    assert printed.out == (out / "leaderboard.md").read_text()
+    assert "| 1 | deeplabv3plus / resnet18 | ours (synth) | test | 30.0 |" in printed.out
+    assert "paper IV-A" in printed.out and str(out / "leaderboard.csv") in printed.err
+    assert {r["run"] for r in _csv_rows((out / "leaderboard.csv").read_text())} >= {"s", "d"}
+
+    assert lb.main([f"runs={tmp_path / 'a'}", f"out={out}", "paper=false"]) == 0
+    assert "paper (real AirFisheye)" not in (out / "leaderboard.md").read_text()
+
+
+def test_main_errors(tmp_path: Path, capsys) -> None:
+    assert lb.main([]) == 2 and "runs= is required" in capsys.readouterr().err
+    assert lb.main(["runs=x", "colour=red"]) == 2 and "unknown argument(s): colour" in capsys.readouterr().err
+    assert (
+        lb.main(["runs=x", "paper=maybe"]) == 2 and "paper=maybe is not a boolean" in capsys.readouterr().err
+    )
+    assert lb.main([f"runs={tmp_path / 'missing'}"]) == 1
+    assert "missing: no such file or directory" in capsys.readouterr().err
+    (tmp_path / "empty").mkdir()
+    assert lb.main([f"runs={tmp_path / 'empty'}"]) == 1
+    assert "no results.json found" in capsys.readouterr().err
+
+    _write(tmp_path / "runs", "good", "seg", {"mIoU": 0.3})
+    bad = _bad_files(tmp_path / "runs")
+    out = tmp_path / "board"
+    assert lb.main([f"runs={tmp_path / 'runs'}", f"out={out}"]) == 1
+    err = capsys.readouterr().err
+    assert all(str(p) in err for p in bad) and "skip_invalid=true" in err
+    assert not out.exists()  # nothing written when the input is rejected
+
+    assert lb.main([f"runs={tmp_path / 'runs'}", f"out={out}", "skip_invalid=true"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err.count("warning: skipped invalid results.json") == len(bad)
+    assert "| good |" in captured.out
+
+    only_bad = tmp_path / "only_bad"
+    _bad_files(only_bad)
+    assert lb.main([f"runs={only_bad}", "skip_invalid=true", f"out={out}"]) == 1
+    assert "no valid results.json" in capsys.readouterr().err
+
+
+def test_console_script_is_declared_and_runs(tmp_path: Path, monkeypatch, capsys) -> None:
+    # Python 3.10 has no tomllib: the [project.scripts] line is checked as text.
+    pyproject = (PROJECT_ROOT / "pyproject.toml").read_text()
+    assert 'airfisheye-leaderboard = "airfisheye_bench.cli:leaderboard"' in pyproject
+    from airfisheye_bench import cli
+
+    _write(tmp_path / "runs", "s", "seg", {"mIoU": 0.3})
+    monkeypatch.setattr(
+        sys, "argv", ["airfisheye-leaderboard", f"runs={tmp_path / 'runs'}", f"out={tmp_path / 'o'}"]
+    )
+    with pytest.raises(SystemExit) as info:
+        cli.leaderboard()
+    assert info.value.code == 0 and (tmp_path / "o" / "leaderboard.md").is_file()
+    assert "# AirFisheye-bench leaderboard" in capsys.readouterr().out
+
+
+def test_docstring_examples() -> None:
+    result = doctest.testmod(lb, optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 10 and result.failed == 0
