@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Re-run every number of docs/results.md: train the three (scaled) recipes and the occlusion ablation on the
+# synthetic quickstart dataset, evaluate each checkpoint, export it to ONNX, evaluate the ONNX model, and build the
+# leaderboard, the ring plot and the occlusion study.
+#
+#   bash scripts/reproduce_report.sh [OUT=runs/report]
+#
+# Steps whose output already exists are skipped, so an interrupted run can simply be started again.
+# On a 2-core CPU the five trainings take about 50 minutes on an otherwise idle machine.
+set -euo pipefail
+OUT=${1:-runs/report}
+mkdir -p "$OUT/eval"
+
+train() {  # name, overrides...
+  local name=$1; shift
+  [ -f "$OUT/$name/results.json" ] || python train.py "$@" hydra.run.dir="$OUT/$name" callbacks.rich_progress_bar=null
+}
+evaluate_and_export() {  # name
+  local name=$1
+  [ -f "$OUT/eval/${name}_ckpt/results.json" ] || \
+    python scripts/evaluate.py ckpt_path="$OUT/$name" name="$name" hydra.run.dir="$OUT/eval/${name}_ckpt"
+  [ -f "$OUT/$name/model.onnx" ] || python scripts/export_onnx.py ckpt_path="$OUT/$name" out="$OUT/$name/model.onnx"
+  [ -f "$OUT/eval/${name}_onnx/results.json" ] || \
+    python scripts/evaluate.py onnx_path="$OUT/$name/model.onnx" name="$name (onnx)" hydra.run.dir="$OUT/eval/${name}_onnx"
+}
+
+train seg task=seg
+train depth task=depth
+train completion_ordering task=completion data.occlusion=ordering
+train completion_zbuffer task=completion data.occlusion=zbuffer
+train completion_none task=completion data.occlusion=none
+for name in seg depth completion_ordering completion_zbuffer completion_none; do
+  evaluate_and_export "$name"
+done
+
+python scripts/leaderboard.py runs="$OUT/eval" out="$OUT/leaderboard"
+python scripts/plot_rings.py "$OUT/eval/depth_ckpt/results.json" "$OUT/eval/completion_ordering_ckpt/results.json" \
+  "$OUT/eval/completion_none_ckpt/results.json" --labels "AdaBins (image only),NLSPN + LiDAR (ordering),NLSPN + LiDAR (no correction)" \
+  --metric rmse --title "Depth RMSE (m) by incidence angle, synthetic quickstart test split" --out "$OUT/rmse_by_ring.svg"
+python scripts/plot_rings.py "$OUT/eval/seg_ckpt/results.json" --labels "DeepLabV3+ / ResNet18" --metric mIoU \
+  --title "mIoU by incidence angle, synthetic quickstart test split" --out "$OUT/miou_by_ring.svg"
+python scripts/occlusion_study.py --preset quickstart --split test --json "$OUT/occlusion_study.json" \
+  --figure "$OUT/occlusion_overlay.png"
