@@ -10,6 +10,8 @@ centre is known analytically (a ray-box test), so each method's precision and re
 
 Timings are the minimum over ``--repeats`` runs of the full ``occlusion_mask`` call (projection, organisation
 and the test), single-threaded: wall clock, and CPU time of the process (the better figure on a shared machine).
+The methods take turns within each repeat, so a busy machine slows them alike. ``ordering`` runs the compiled
+kernels; ``ordering (numpy)`` the previous vectorised numpy solver (the same mask), for comparison.
 
     python scripts/bench_lidar.py                       # 1536^2 and 512^2, prints a markdown table
     python scripts/bench_lidar.py --sizes 512 --check   # also check ordering == ordering_reference
@@ -27,7 +29,7 @@ import torch
 
 from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_reference
+from airfisheye_bench.geometry.occlusion import _ordering, occlusion_mask, ordering_reference
 
 
 def ray_box_entry(origin: np.ndarray, dirs: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -98,12 +100,26 @@ def visible(points: np.ndarray, centre: np.ndarray, boxes: np.ndarray) -> np.nda
 
 def min_time_ms(fn, repeats: int) -> tuple[float, float]:
     """Minimum wall-clock and process CPU time of ``fn`` in ms (CPU time is robust to a busy machine)."""
-    wall = cpu = math.inf
+    return min_times_ms({"fn": fn}, repeats)["fn"]
+
+
+def min_times_ms(fns: dict, repeats: int) -> dict[str, tuple[float, float]]:
+    """:func:`min_time_ms` of several functions, taking turns within each repeat (a fair side-by-side)."""
+    best = {name: (math.inf, math.inf) for name in fns}
     for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
-    return wall * 1e3, cpu * 1e3
+        for name, fn in fns.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn()
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            best[name] = (min(best[name][0], wall), min(best[name][1], cpu))
+    return {name: (wall * 1e3, cpu * 1e3) for name, (wall, cpu) in best.items()}
+
+
+def mask_fn(points, T, camera, spec, method: str):
+    """The mask of one table row: an ``occlusion_mask`` method, or the numpy solver (``ordering (numpy)``)."""
+    if method == "ordering (numpy)":
+        return lambda: _ordering(points, T, camera, spec, "vectorised")
+    return lambda: occlusion_mask(points, T, camera, spec, method)
 
 
 def main() -> None:
@@ -132,12 +148,16 @@ def main() -> None:
     for size in args.sizes:
         camera = FisheyeCamera(size, size, fov_deg=190.0)
         truth = occlusion_mask(points, T, camera, spec, "none") & visible(points, centre, boxes)
+        fns = {
+            m: mask_fn(points, T, camera, spec, m)
+            for m in ("ordering", "ordering (numpy)", "zbuffer", "none")
+        }
+        masks = {method: fn() for method, fn in fns.items()}  # also compiles / warms up
+        times = min_times_ms(fns, args.repeats)
         rows = {}
-        for method in ("ordering", "zbuffer", "none"):
-            mask = occlusion_mask(points, T, camera, spec, method)
-            ms = min_time_ms(lambda m=method, c=camera: occlusion_mask(points, T, c, spec, m), args.repeats)
+        for method, mask in masks.items():
             tp = int((mask & truth).sum())
-            rows[method] = (ms, tp / max(int(mask.sum()), 1), tp / max(int(truth.sum()), 1), mask)
+            rows[method] = (times[method], tp / max(int(mask.sum()), 1), tp / max(int(truth.sum()), 1), mask)
         for method, ((wall, cpu), precision, recall, mask) in rows.items():
             ratio = cpu / rows["zbuffer"][0][1]
             print(
@@ -145,8 +165,9 @@ def main() -> None:
                 f"| {int(mask.sum())} | {int((mask & ~truth).sum())} |"
             )
         if args.check:
-            same = np.array_equal(ordering_reference(points, T, camera, spec), rows["ordering"][3])
-            print(f"\n{size}^2: ordering == ordering_reference: {same}\n")
+            reference = ordering_reference(points, T, camera, spec)
+            same = [np.array_equal(reference, rows[m][3]) for m in ("ordering", "ordering (numpy)")]
+            print(f"\n{size}^2: ordering == ordering (numpy) == ordering_reference: {same[0] and same[1]}\n")
     if args.variants:
         measure_variants(points, boxes, spec, FisheyeCamera(args.sizes[0], args.sizes[0]), args.repeats)
 

@@ -9,8 +9,10 @@ import pytest
 import torch
 
 from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
-from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.lidar import LidarSpec, cells_from_angles, spherical_coordinates
 from airfisheye_bench.geometry.occlusion import (
+    _cells_numba,
+    _ordering,
     lidar_depth_map,
     occlusion_mask,
     ordering_reference,
@@ -193,6 +195,17 @@ def random_scan(spec: LidarSpec, rng: np.random.Generator, collisions: bool) -> 
     return points
 
 
+def with_strays(points: np.ndarray, spec: LidarSpec, rng: np.random.Generator) -> np.ndarray:
+    """Add points no ordering test may keep: outside the sensor's vertical FOV and at the LiDAR origin."""
+    n = max(len(points) // 20, 4)
+    az = rng.uniform(-math.pi, math.pi, n)
+    el = np.radians(rng.choice([spec.vfov_deg[0] - 10.0, spec.vfov_deg[1] + 10.0], n))
+    r = rng.uniform(1.0, 20.0, n)
+    outside = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1) * r[:, None]
+    strays = np.concatenate([outside, np.zeros((2, 3))])
+    return rng.permutation(np.concatenate([points, strays]))
+
+
 OPTION_SETS = [
     {},
     {"azimuth_window": 3, "elevation_window": 2},
@@ -200,10 +213,22 @@ OPTION_SETS = [
     {"elevation_tolerance": -0.25},
     {"azimuth_window": 0, "elevation_window": 0, "elevation_tolerance": 0.5},
 ]
+# The compiled kernels (what ``method="ordering"`` runs) and the vectorised numpy solver (the previous one).
+FAST = ("numba", "vectorised")
+
+
+def assert_fast_equals_reference(points, T, camera, spec, options) -> np.ndarray:
+    expected = ordering_reference(points, T, camera, spec, **options)
+    np.testing.assert_array_equal(occlusion_mask(points, T, camera, spec, "ordering", **options), expected)
+    for implementation in FAST:
+        np.testing.assert_array_equal(
+            _ordering(points, T, camera, spec, implementation, **options), expected, err_msg=implementation
+        )
+    return expected
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_vectorised_equals_reference_on_random_scans(seed: int) -> None:
+def test_fast_equals_reference_on_random_scans(seed: int) -> None:
     rng = np.random.default_rng(seed)
     spec = LidarSpec(
         channels=int(rng.integers(2, 16)),
@@ -212,23 +237,82 @@ def test_vectorised_equals_reference_on_random_scans(seed: int) -> None:
         vfov_deg=(-30.0, 20.0),
     )
     camera = FisheyeCamera(96, 96, fov_deg=float(rng.choice([150.0, 190.0, 240.0])))
-    points = random_scan(spec, rng, collisions=seed % 2 == 0)
+    points = with_strays(random_scan(spec, rng, collisions=seed % 2 == 0), spec, rng)
     _, T = rig(rng.normal(0.0, 0.5, 3), float(rng.uniform(-30.0, 30.0)))
     for options in OPTION_SETS:
-        fast = occlusion_mask(points, T, camera, spec, "ordering", **options)
-        np.testing.assert_array_equal(fast, ordering_reference(points, T, camera, spec, **options))
+        assert_fast_equals_reference(points, T, camera, spec, options)
     literal = occlusion_mask(points, T, camera, spec, "ordering")
     assert 0 < literal.sum() < 0.9 * occlusion_mask(points, T, camera, spec, "none").sum()  # non-trivial
 
 
+@pytest.mark.parametrize("hfov", [270.0, 360.0])
+def test_fast_equals_reference_across_bitset_words(hfov: float) -> None:
+    """Lines longer than one 64-bit word (200 columns, 70 channels), windows that cross word boundaries."""
+    rng = np.random.default_rng(7)
+    spec = LidarSpec(channels=70, points_per_channel=200, hfov_deg=hfov, vfov_deg=(-40.0, 25.0))
+    points = with_strays(random_scan(spec, rng, collisions=True), spec, rng)
+    _, T = rig((0.2, -0.4, 0.3), 10.0)
+    for options in (OPTION_SETS[0], {"azimuth_window": 70, "elevation_window": 66}, OPTION_SETS[2]):
+        expected = assert_fast_equals_reference(points, T, CAMERA, spec, options)
+        assert 0 < expected.sum() < len(points)
+
+
 @pytest.mark.parametrize(("offset", "pitch"), [((0.0, 0.5, 0.0), 0.0), ((0.1, 0.3, -0.4), 20.0)])
-def test_vectorised_equals_reference_on_structured_scans(offset, pitch) -> None:
+def test_fast_equals_reference_on_structured_scans(offset, pitch) -> None:
     spec = LidarSpec(channels=24, points_per_channel=256)
     points = cast_scan(spec, structured_scene(1))
+    rng = np.random.default_rng(2)
     _, T = rig(offset, pitch)
-    for options in OPTION_SETS[:3]:
-        fast = occlusion_mask(points, T, CAMERA, spec, "ordering", **options)
-        np.testing.assert_array_equal(fast, ordering_reference(points, T, CAMERA, spec, **options))
+    for scan in (points, points[rng.random(len(points)) < 0.7]):  # full, then with dropped returns
+        for options in [*OPTION_SETS[:3], OPTION_SETS[3]]:
+            assert_fast_equals_reference(scan, T, CAMERA, spec, options)
+
+
+def test_numba_equals_vectorised_on_a_paper_size_scan() -> None:
+    """The full 64 x 2048 scan (32-word rows); a narrow image, so that most points fall outside it.
+
+    The two fast implementations are compared here (the Python reference takes seconds at this size); each
+    equals the reference on the smaller scans above.
+    """
+    spec = LidarSpec()
+    points = cast_scan(spec, structured_scene(4))
+    points = points[np.random.default_rng(3).random(len(points)) < 0.9]  # dropped returns
+    _, T = rig((0.1, 0.3, -0.4), 20.0)
+    camera = FisheyeCamera(256, 256, fov_deg=100.0)
+    for options in (OPTION_SETS[2], OPTION_SETS[3], OPTION_SETS[0]):  # the literal reading last
+        expected = _ordering(points, T, camera, spec, "vectorised", **options)
+        np.testing.assert_array_equal(
+            occlusion_mask(points, T, camera, spec, "ordering", **options), expected
+        )
+    projects = occlusion_mask(points, T, camera, spec, "none")
+    assert 0 < expected.sum() < projects.sum() < 0.6 * len(points)
+
+
+@pytest.mark.parametrize("hfov", [90.0, 270.0, 360.0])
+def test_numba_cells_equal_numpy_cells(hfov: float) -> None:
+    """Step 1 (cells and collision winners) of the compiled path is bit-identical to ``cells_from_angles``."""
+    rng = np.random.default_rng(int(hfov))
+    spec = LidarSpec(channels=16, points_per_channel=100, hfov_deg=hfov, vfov_deg=(-20.0, 10.0))
+    beams = spec.beam_directions(torch.float64).reshape(-1, 3).numpy()
+    beams = beams[rng.random(len(beams)) < 0.9]  # dropped returns: empty cells
+    jitter = rng.normal(0.0, 0.004, beams.shape)  # ~ a cell size: many points per cell, many strays
+    points = np.concatenate([beams + jitter, beams[:50], beams[:50] * 2.0, np.zeros((3, 3))])  # ties, origin
+    r, az, el = spherical_coordinates(points * rng.uniform(1.0, 50.0, (len(points), 1)))
+    # angles exactly half a cell off the beams (rounding ties) and at the FOV's edges
+    half_v, half_h = spec.vertical_resolution / 2, spec.horizontal_resolution / 2
+    el = np.concatenate([el, spec.channel_elevations()[[0, -1]] + [-half_v, half_v]])
+    az = np.concatenate([az, spec.column_azimuths()[[0, -1]] + [-half_h, half_h]])
+    r = np.concatenate([r, [5.0, 5.0]])
+    expected_cell, expected_index = cells_from_angles(r, az, el, spec)
+    cell, index = _cells_numba(r, az, el, spec)
+    np.testing.assert_array_equal(cell, expected_cell)
+    np.testing.assert_array_equal(index, expected_index)
+    assert (cell == -1).sum() >= 3 and (index == -1).any() and (np.bincount(cell[cell >= 0]) > 1).any()
+
+
+def test_unknown_implementation_raises() -> None:
+    with pytest.raises(ValueError, match="implementation"):
+        _ordering(np.ones((1, 3)), np.eye(4), CAMERA, SPEC, "gpu")
 
 
 def test_result_does_not_depend_on_the_order_of_the_points() -> None:

@@ -137,3 +137,84 @@ def test_atomic_write_leaves_no_partial_file(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.bin"]  # the temporary was cleaned up
     (tmp_path / ".g.bin.abc.tmp").write_bytes(b"x")  # as left by a killed process
     assert remove_stale_temporaries(tmp_path) == 1
+
+
+# -------------------- fast decoding (torchvision.io) == PIL
+def pil_pixels(path, rgb: bool = False) -> np.ndarray:
+    """What the readers returned before the fast path: PIL's pixels (converted to RGB if ``rgb``)."""
+    from PIL import Image
+
+    with Image.open(path) as img:
+        return np.asarray(img.convert("RGB") if rgb else img)
+
+
+def test_fast_decoders_are_used_and_bit_exact(tmp_path, rng):
+    from airfisheye_bench.io import codecs
+
+    assert codecs._torchvision_io() is not None  # the fast path is what these checks exercise
+    smooth = np.linspace(0, 255, 64 * 48 * 3).reshape(64, 48, 3).astype(np.uint8)
+    img = np.where(rng.random((64, 48, 1)) < 0.2, rng.integers(0, 256, (64, 48, 3)), smooth).astype(np.uint8)
+    write_rgb(tmp_path / "a.png", img)
+    write_rgb(tmp_path / "a.jpg", img)
+    for name in ("a.png", "a.jpg"):
+        out = read_rgb(tmp_path / name)
+        assert out.dtype == np.uint8 and out.shape == (64, 48, 3) and out.flags.writeable
+        np.testing.assert_array_equal(out, pil_pixels(tmp_path / name, rgb=True), err_msg=name)
+    from PIL import Image
+
+    for subsampling in (1, 2):  # 4:2:2 and 4:2:0 JPEGs: the same chroma upsampling as PIL
+        Image.fromarray(img).save(tmp_path / f"s{subsampling}.jpg", quality=90, subsampling=subsampling)
+        np.testing.assert_array_equal(
+            read_rgb(tmp_path / f"s{subsampling}.jpg"), pil_pixels(tmp_path / f"s{subsampling}.jpg", rgb=True)
+        )
+    label = rng.integers(0, 23, (31, 17), dtype=np.uint8)
+    write_label(tmp_path / "l.png", label)
+    np.testing.assert_array_equal(read_label(tmp_path / "l.png"), label)
+    depth = rng.uniform(0.0, 300.0, (31, 17)).astype(np.float32)
+    for scale in (256.0, 100.0):
+        write_depth(tmp_path / "d.png", depth, scale=scale)
+        expected = (pil_pixels(tmp_path / "d.png").astype(np.float32) / np.float32(scale)).astype(np.float32)
+        back = read_depth(tmp_path / "d.png", scale=scale)
+        assert back.dtype == np.float32
+        np.testing.assert_array_equal(back, expected)
+
+
+def test_other_layouts_fall_back_to_pil(tmp_path, rng):
+    """Grey, RGBA, palette and transparent-colour PNGs, grey and CMYK JPEGs: converted (or refused) as by PIL."""
+    from PIL import Image
+
+    rgb = rng.integers(0, 256, (12, 10, 3), dtype=np.uint8)
+    rgb[0, 0] = 0
+    files = {  # name: (image, save options)
+        "grey.png": (Image.fromarray(rgb[..., 0]), {}),
+        "rgba.png": (Image.fromarray(np.dstack([rgb, rgb[..., :1]]), mode="RGBA"), {}),
+        "palette.png": (Image.fromarray(rgb).convert("P"), {}),
+        "trns.png": (Image.fromarray(rgb), {"transparency": (0, 0, 0)}),  # an RGB PNG with a tRNS chunk
+        "grey.jpg": (Image.fromarray(rgb[..., 0]), {}),
+        "cmyk.jpg": (Image.fromarray(rgb).convert("CMYK"), {}),
+    }
+    for name, (img, options) in files.items():
+        img.save(tmp_path / name, **options)
+        out = read_rgb(tmp_path / name)
+        assert out.dtype == np.uint8 and out.shape == (12, 10, 3)
+        np.testing.assert_array_equal(out, pil_pixels(tmp_path / name, rgb=True), err_msg=name)
+    np.testing.assert_array_equal(read_label(tmp_path / "palette.png"), pil_pixels(tmp_path / "palette.png"))
+    with pytest.raises(DatasetFormatError, match=r"grey\.png.*16-bit"):  # an 8-bit depth PNG
+        read_depth(tmp_path / "grey.png")
+    Image.fromarray(rgb[..., 0].astype(np.uint16) * 200).save(tmp_path / "d16.png")
+    with pytest.raises(DatasetFormatError, match=r"d16\.png.*single-channel 8-bit"):  # a 16-bit label
+        read_label(tmp_path / "d16.png")
+
+
+def test_corrupt_images_name_the_file(tmp_path):
+    write_rgb(tmp_path / "ok.png", np.zeros((16, 16, 3), np.uint8))
+    write_rgb(tmp_path / "ok.jpg", np.full((16, 16, 3), 128, np.uint8))
+    for name in ("ok.png", "ok.jpg"):
+        data = (tmp_path / name).read_bytes()
+        (tmp_path / f"cut-{name}").write_bytes(data[: len(data) // 2])  # a valid header, truncated data
+        with pytest.raises(DatasetFormatError, match=rf"cut-ok\.{name[-3:]}.*cannot decode"):
+            read_rgb(tmp_path / f"cut-{name}")
+    with pytest.raises(DatasetFormatError, match=r"missing\.jpg.*does not exist"):
+        read_rgb(tmp_path / "missing.jpg")
+    with pytest.raises(DatasetFormatError, match=r"missing\.png.*does not exist"):
+        read_label(tmp_path / "missing.png")
