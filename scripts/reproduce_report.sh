@@ -15,27 +15,36 @@ train() {  # name, overrides...
   local name=$1; shift
   [ -f "$OUT/$name/results.json" ] || python train.py "$@" hydra.run.dir="$OUT/$name" callbacks.rich_progress_bar=null
 }
-evaluate_and_export() {  # name
+evaluate_checkpoint() {  # name
   local name=$1
   [ -f "$OUT/eval/${name}_ckpt/results.json" ] || \
     python scripts/evaluate.py ckpt_path="$OUT/$name" name="$name" hydra.run.dir="$OUT/eval/${name}_ckpt"
+}
+export_and_evaluate_onnx() {  # name
+  local name=$1
   [ -f "$OUT/$name/model.onnx" ] || python scripts/export_onnx.py ckpt_path="$OUT/$name" out="$OUT/$name/model.onnx"
   [ -f "$OUT/eval/${name}_onnx/results.json" ] || \
-    python scripts/evaluate.py onnx_path="$OUT/$name/model.onnx" name="$name (onnx)" hydra.run.dir="$OUT/eval/${name}_onnx"
+    python scripts/evaluate.py onnx_path="$OUT/$name/model.onnx" name="${name}-onnx" hydra.run.dir="$OUT/eval/${name}_onnx"
 }
 
 train seg task=seg
 train depth task=depth
 train completion_ordering task=completion data.occlusion=ordering
-train completion_zbuffer task=completion data.occlusion=zbuffer
-train completion_none task=completion data.occlusion=none
-for name in seg depth completion_ordering completion_zbuffer completion_none; do
-  evaluate_and_export "$name"
+# Occlusion ablation: one epoch each (the 1-epoch ordering run is the same training state as the first epoch of
+# completion_ordering: same seed, data order and learning rate).
+for method in ordering zbuffer none; do
+  train "ablation_${method}_1ep" task=completion data.occlusion=$method trainer.max_epochs=1
+done
+for name in seg depth completion_ordering ablation_ordering_1ep ablation_zbuffer_1ep ablation_none_1ep; do
+  evaluate_checkpoint "$name"
+done
+for name in seg depth completion_ordering; do
+  export_and_evaluate_onnx "$name"
 done
 
 python scripts/leaderboard.py runs="$OUT/eval" out="$OUT/leaderboard"
 python scripts/plot_rings.py "$OUT/eval/depth_ckpt/results.json" "$OUT/eval/completion_ordering_ckpt/results.json" \
-  "$OUT/eval/completion_none_ckpt/results.json" --labels "AdaBins (image only),NLSPN + LiDAR (ordering),NLSPN + LiDAR (no correction)" \
+  --labels "AdaBins (image only),NLSPN + LiDAR (ordering)" \
   --metric rmse --title "Depth RMSE (m) by incidence angle, synthetic quickstart test split" --out "$OUT/rmse_by_ring.svg"
 python scripts/plot_rings.py "$OUT/eval/seg_ckpt/results.json" --labels "DeepLabV3+ / ResNet18" --metric mIoU \
   --title "mIoU by incidence angle, synthetic quickstart test split" --out "$OUT/miou_by_ring.svg"

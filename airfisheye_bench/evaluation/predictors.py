@@ -16,6 +16,7 @@ from torch import Tensor
 from torch.utils.data import Dataset
 
 from airfisheye_bench.evaluation.submission import read_prediction, validate_submission
+from airfisheye_bench.io import file_sha256
 
 __all__ = [
     "CheckpointPredictor",
@@ -23,7 +24,6 @@ __all__ = [
     "OnnxPredictor",
     "PredictionFilesDataset",
     "Predictor",
-    "file_sha256",
     "to_prediction",
 ]
 
@@ -45,15 +45,6 @@ def to_prediction(task: str, output: Tensor) -> Tensor:
     if task == "seg":
         return output.argmax(1) if output.ndim == 4 else output.long()
     return output if output.ndim == 4 else output.unsqueeze(1)
-
-
-def file_sha256(path: str | Path, chunk: int = 1 << 20) -> str:
-    """Hex SHA-256 of a file, read in chunks."""
-    digest = hashlib.sha256()
-    with Path(path).open("rb") as f:
-        while block := f.read(chunk):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 class CheckpointPredictor:

@@ -21,7 +21,6 @@ requested int8 quantisation failed.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import logging
 import math
 import os
@@ -42,6 +41,7 @@ from torch import Tensor
 
 from airfisheye_bench.export.metadata import TASK_INPUTS, TASK_OUTPUT, deployment_metadata
 from airfisheye_bench.export.onnx import OnnxParityError, ParityReport, _median_ms, export_onnx, verify_onnx
+from airfisheye_bench.io import file_sha256
 
 __all__ = [
     "QUANTIZE_MODES",
@@ -455,14 +455,6 @@ def _repeat_to(x: Tensor, n: int) -> Tensor:
     return x.repeat(reps, *([1] * (x.ndim - 1)))[:n]
 
 
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
 def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[str, str]:
     from airfisheye_bench.metrics.functional import COMPLETION_VALID_MIN
 
@@ -492,7 +484,7 @@ def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[
         normalization=datamodule.normalization,
         camera=datamodule.camera.to_dict(),
         data_config=OmegaConf.to_container(data_cfg, resolve=True),
-        checkpoint_sha256=_sha256(checkpoint),
+        checkpoint_sha256=file_sha256(checkpoint),
         source_checkpoint=str(checkpoint.resolve()),
         **extra,
     )

@@ -6,6 +6,7 @@ datamodules read through it (:class:`DatasetReader`).
 
 from airfisheye_bench.io.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.checksum import file_sha256
 from airfisheye_bench.io.codecs import (
     read_depth,
     read_label,
@@ -51,6 +52,7 @@ __all__ = [
     "atomic_write_text",
     "camera_from_lidar",
     "classes_from",
+    "file_sha256",
     "parse_sample_id",
     "read_depth",
     "read_label",
