@@ -202,7 +202,8 @@ def _write(
     for sample_id, tiles in result.panels:
         save_png(panels / f"{sample_id.replace('/', '_')}.png", make_panel([tiles]))
     identity = predictor.identity()
-    identity["name"] = cfg.get("name") or identity.get("name")
+    if cfg.get("name"):
+        identity["run_name"] = cfg.name  # the leaderboard's run label; "name" stays the architecture
     split_name = datamodule.split_names[("train", "val", "test").index(cfg.split)]
     path = write_results(
         output_dir / "results.json",

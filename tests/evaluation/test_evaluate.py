@@ -127,7 +127,8 @@ def test_checkpoint_without_run_directory(tiny_dataset: Path, tmp_path: Path) ->
             tmp_path / "out",
         )
     )
-    assert record["task"] == "seg" and record["model"]["name"] == "untrained"
+    assert record["task"] == "seg" and record["model"]["run_name"] == "untrained"
+    assert record["model"]["name"] == "deeplabv3plus"
     assert 0.0 <= record["metrics"]["mIoU"] <= 1.0
     assert any(k.startswith("IoU/") for k in record["metrics"])
     assert not any(k.startswith("range_") for k in record["breakdown"])  # seg: rings only
