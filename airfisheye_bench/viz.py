@@ -49,16 +49,17 @@ def colorize_labels(label: torch.Tensor | np.ndarray, palette: np.ndarray) -> np
 def colorize_depth(depth: torch.Tensor | np.ndarray, max_depth: float) -> np.ndarray:
     """``[H, W]`` or ``[1, H, W]`` range in metres -> ``uint8 [H, W, 3]``; 0 (invalid) is black.
 
-    Uses inverse depth so near structure keeps contrast, as depth papers usually show.
+    The colour follows log range from 1 m (light yellow) to ``max_depth`` (dark purple): a drone sees most of its scene
+    between 10 and 120 m, where an inverse-depth scale would put everything in the last few colours.
     """
     d = np.asarray(
         depth.detach().cpu() if isinstance(depth, torch.Tensor) else depth, dtype=np.float64
     ).squeeze()
     valid = d > 0
-    inv = np.zeros_like(d)
-    inv[valid] = 1.0 / np.clip(d[valid], 1.0, max_depth)
-    t = 1.0 - (inv - 1.0 / max_depth) / (1.0 - 1.0 / max_depth)  # 0 near, 1 far
-    out = DEPTH_COLORMAP[(t.clip(0, 1) * 255).astype(np.int64)]
+    t = np.zeros_like(d)
+    t[valid] = np.log(np.clip(d[valid], 1.0, max_depth)) / np.log(max(max_depth, 1.0 + 1e-9))  # 0 near, 1 far
+    # The far end stops short of the map's black, which marks pixels without depth.
+    out = DEPTH_COLORMAP[(t.clip(0, 1) * 0.85 * 255).astype(np.int64)]
     out[~valid] = 0
     return out
 
