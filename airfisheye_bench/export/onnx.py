@@ -22,8 +22,8 @@ import contextlib
 import inspect
 import io
 import os
-import tempfile
 import time
+import uuid
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -156,8 +156,8 @@ def export_onnx(
         raise ValueError(f"model must return exactly one tensor to export, got outputs {outputs}")
     program.model.metadata_props.update(metadata)
 
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    # Not mkstemp: its 0600 mode would survive the rename, and a model is meant to be shared.
+    tmp_name = str(path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"))
     try:
         program.save(tmp_name, external_data=False)
         os.replace(tmp_name, path)

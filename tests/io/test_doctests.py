@@ -7,7 +7,19 @@ import importlib
 
 import pytest
 
-MODULES = ["atomic", "calib", "checksum", "codecs", "errors", "layout", "poses", "reader", "spec", "splits", "yamlio"]
+MODULES = [
+    "atomic",
+    "calib",
+    "checksum",
+    "codecs",
+    "errors",
+    "layout",
+    "poses",
+    "reader",
+    "spec",
+    "splits",
+    "yamlio",
+]
 
 
 @pytest.mark.parametrize("name", MODULES)
