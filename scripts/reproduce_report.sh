@@ -42,10 +42,12 @@ for name in seg depth completion_ordering; do
   export_and_evaluate_onnx "$name"
 done
 
-python scripts/leaderboard.py runs="$OUT/eval" out="$OUT/leaderboard"
+E="$OUT/eval"
+python scripts/leaderboard.py out="$OUT/leaderboard" \
+  runs="$E/seg_ckpt,$E/seg_onnx,$E/depth_ckpt,$E/depth_onnx,$E/completion_ordering_ckpt,$E/completion_ordering_onnx"
 python scripts/plot_rings.py "$OUT/eval/depth_ckpt/results.json" "$OUT/eval/completion_ordering_ckpt/results.json" \
   --labels "AdaBins (image only),NLSPN + LiDAR (ordering)" \
-  --metric rmse --title "Depth RMSE (m) by incidence angle, synthetic quickstart test split" --out "$OUT/rmse_by_ring.svg"
+  --metric abs_rel --title "Depth AbsRel by incidence angle, synthetic quickstart test split" --out "$OUT/absrel_by_ring.svg"
 python scripts/plot_rings.py "$OUT/eval/seg_ckpt/results.json" --labels "DeepLabV3+ / ResNet18" --metric mIoU \
   --title "mIoU by incidence angle, synthetic quickstart test split" --out "$OUT/miou_by_ring.svg"
 python scripts/occlusion_study.py --preset quickstart --split test --json "$OUT/occlusion_study.json" \

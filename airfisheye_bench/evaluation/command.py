@@ -155,15 +155,11 @@ def _predictor(cfg: DictConfig, source: str, task: str, module, dataset, camera)
         return CheckpointPredictor(module, module_checkpoint(cfg), device=device)
     if source == "onnx_path":
         predictor = OnnxPredictor(cfg.onnx_path, threads=cfg.get("threads"))
-        size = predictor.metadata.get("image_size")
-        if (
-            size
-            and tuple(size) != (camera.height, camera.width)
-            and not predictor.metadata.get("dynamic_spatial")
-        ):
+        size = predictor.fixed_size
+        if size is not None and size != (camera.height, camera.width):
             raise ValueError(
                 f"ONNX model {cfg.onnx_path} takes {size[0]}x{size[1]} images but the data serves "
-                f"{camera.height}x{camera.width}; drop the data.camera overrides"
+                f"{camera.height}x{camera.width}; drop the data.camera overrides (or export with dynamic_spatial=true)"
             )
         return predictor
     return FilePredictor(

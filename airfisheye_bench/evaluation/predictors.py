@@ -106,6 +106,9 @@ class OnnxPredictor:
         )
         self.input_names = [i.name for i in self.session.get_inputs()]
         self.output_name = self.session.get_outputs()[0].name
+        # ``(H, W)`` when the graph fixes the image size, ``None`` when exported with dynamic spatial dims.
+        spatial = self.session.get_inputs()[0].shape[-2:]
+        self.fixed_size = tuple(spatial) if all(isinstance(d, int) for d in spatial) else None
 
     def __call__(self, batch: dict) -> Tensor:
         missing = [n for n in self.input_names if n not in batch]

@@ -184,3 +184,9 @@ def test_onnx_export_gives_checkpoint_metrics(depth_run: Path, tmp_path: Path) -
     # Within the export's parity tolerance (depth relative 1e-3).
     for key, value in ckpt["metrics"].items():
         assert onnx["metrics"][key] == pytest.approx(value, rel=1e-3, abs=1e-4), key
+    # A fixed-size export refuses data served at another size, naming both.
+    with pytest.raises(ValueError, match="takes 64x64 images but the data serves 32x32"):
+        evaluate(
+            compose_eval([f"onnx_path={onnx_path}", "data.camera.size=32"], tmp_path / "other"),
+            ["data.camera.size=32"],
+        )
