@@ -30,8 +30,21 @@ class PerImageAverage(Metric):
         self.add_state("sum_values", torch.zeros(len(self.keys), dtype=torch.float64), dist_reduce_fx="sum")
         self.add_state("num_images", torch.zeros((), dtype=torch.int64), dist_reduce_fx="sum")
 
-    def _errors(self, preds: Tensor, target: Tensor, mask: Tensor | None) -> tuple[dict[str, Tensor], Tensor]:
+    def _errors(
+        self,
+        preds: Tensor,
+        target: Tensor,
+        mask: Tensor | None,
+        groups: Tensor | None = None,
+        num_groups: int = 1,
+    ) -> tuple[dict[str, Tensor], Tensor]:
+        """Per-image values ``{key: [B]}`` and valid counts ``[B]`` (``[B, G]`` for both with ``groups``)."""
         raise NotImplementedError
+
+    def settings(self) -> tuple:
+        """What besides the class decides the values (evaluation bounds): metrics with equal settings can share
+        one grouped :meth:`_errors` call (see :class:`~airfisheye_bench.metrics.BinnedMetrics`)."""
+        return ()
 
     def update(self, preds: Tensor, target: Tensor, mask: Tensor | None = None) -> None:
         """Add a batch.
@@ -41,7 +54,10 @@ class PerImageAverage(Metric):
             target: Ground-truth depth, same shape (0 = no ground truth).
             mask: Optional bool ``[H, W]``, ``[B, H, W]`` or ``[B, 1, H, W]``: evaluate only where True.
         """
-        errors, num_valid = self._errors(preds, target, mask)
+        self._accumulate(*self._errors(preds, target, mask))
+
+    def _accumulate(self, errors: dict[str, Tensor], num_valid: Tensor) -> None:
+        """Add per-image values ``{key: [B]}`` with their valid-pixel counts ``[B]`` (images without one are skipped)."""
         has_pixels = num_valid > 0
         per_image = torch.stack([errors[k] for k in self.keys], dim=1)  # [B, K]
         self.sum_values += per_image[has_pixels].sum(dim=0).to(self.sum_values)

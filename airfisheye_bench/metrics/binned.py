@@ -18,6 +18,7 @@ from torch import Tensor, nn
 from torchmetrics import Metric
 from torchmetrics.wrappers.abstract import WrapperMetric
 
+from airfisheye_bench.metrics._per_image import PerImageAverage
 from airfisheye_bench.metrics.functional import _check_mask
 
 __all__ = ["DEFAULT_DEPTH_EDGES_M", "DEFAULT_RING_EDGES_DEG", "BinnedMetrics", "bin_index"]
@@ -118,6 +119,11 @@ class BinnedMetrics(WrapperMetric):
         self.key = key
         self.edges = edges
         self.include_lowest = key == "theta"
+        # Children that compute per-image values with equal settings can be evaluated for all bins at once.
+        first = children[0]
+        self._grouped = isinstance(first, PerImageAverage) and all(
+            type(c) is type(first) and c.settings() == first.settings() for c in children
+        )
         self.bin_names = [
             f"{_PREFIX[key]}_{_edge_label(lo)}-{_edge_label(hi)}" for lo, hi in itertools.pairwise(edges)
         ]
@@ -176,6 +182,22 @@ class BinnedMetrics(WrapperMetric):
                 holds labels). Ignored for ``key="theta"``.
             mask: Optional bool mask further restricting every bin.
         """
+        if self._grouped:
+            # Per-image depth metrics of every bin from one pass over the pixels, not one full pass per bin.
+            index = self._bin_index_map(target, theta, depth)
+            shape = torch.Size((target.shape[0], *target.shape[-2:]))
+            mask = _check_mask(mask, shape, index.device)
+            index = index.expand(shape) if mask is None else torch.where(mask, index, -1)
+            errors, num_valid = self.bins[0]._errors(
+                preds, target, None, groups=index, num_groups=len(self.bins)
+            )
+            for k, child in enumerate(self.bins):
+                child._accumulate({key: value[:, k] for key, value in errors.items()}, num_valid[:, k])
+                child._update_count += (
+                    1  # what Metric.update records; compute() warns for a metric never updated
+                )
+                child._computed = None
+            return
         for child, bin_mask in zip(self.bins, self._child_masks(target, theta, depth, mask), strict=True):
             child.update(preds, target, mask=bin_mask)
 

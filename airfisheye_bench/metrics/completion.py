@@ -54,5 +54,17 @@ class CompletionMetrics(PerImageAverage):
         super().__init__(**kwargs)
         self.max_depth = float(max_depth)
 
-    def _errors(self, preds: Tensor, target: Tensor, mask: Tensor | None) -> tuple[dict[str, Tensor], Tensor]:
-        return completion_errors(preds, target, self.max_depth, mask=mask)
+    def _errors(
+        self,
+        preds: Tensor,
+        target: Tensor,
+        mask: Tensor | None,
+        groups: Tensor | None = None,
+        num_groups: int = 1,
+    ) -> tuple[dict[str, Tensor], Tensor]:
+        return completion_errors(
+            preds, target, self.max_depth, mask=mask, groups=groups, num_groups=num_groups
+        )
+
+    def settings(self) -> tuple:
+        return (self.max_depth,)

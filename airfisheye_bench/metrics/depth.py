@@ -53,5 +53,17 @@ class DepthMetrics(PerImageAverage):
         self.min_depth = float(min_depth)
         self.max_depth = float(max_depth)
 
-    def _errors(self, preds: Tensor, target: Tensor, mask: Tensor | None) -> tuple[dict[str, Tensor], Tensor]:
-        return depth_errors(preds, target, self.min_depth, self.max_depth, mask=mask)
+    def _errors(
+        self,
+        preds: Tensor,
+        target: Tensor,
+        mask: Tensor | None,
+        groups: Tensor | None = None,
+        num_groups: int = 1,
+    ) -> tuple[dict[str, Tensor], Tensor]:
+        return depth_errors(
+            preds, target, self.min_depth, self.max_depth, mask=mask, groups=groups, num_groups=num_groups
+        )
+
+    def settings(self) -> tuple:
+        return (self.min_depth, self.max_depth)

@@ -116,6 +116,7 @@ def _by_chunks(
     pred: Tensor,
     gt: Tensor,
     mask: Tensor | None,
+    groups: Tensor | None = None,
     **kwargs: float,
 ) -> tuple[dict[str, Tensor], Tensor]:
     """Run a per-image function on slices of the batch of about ``_CHUNK_PIXELS`` pixels and concatenate.
@@ -127,18 +128,55 @@ def _by_chunks(
     batch = gt.shape[0]
     step = max(1, _CHUNK_PIXELS // max(1, gt[0].numel())) if batch else 1
     if step >= batch:
-        return fn(pred, gt, mask, **kwargs)
+        return fn(pred, gt, mask, groups, **kwargs)
     parts = [
-        fn(pred[i : i + step], gt[i : i + step], None if mask is None else mask[i : i + step], **kwargs)
+        fn(
+            pred[i : i + step],
+            gt[i : i + step],
+            None if mask is None else mask[i : i + step],
+            None if groups is None else groups[i : i + step],
+            **kwargs,
+        )
         for i in range(0, batch, step)
     ]
     errors = {k: torch.cat([p[0][k] for p in parts]) for k in parts[0][0]}
     return errors, torch.cat([p[1] for p in parts])
 
 
-def _per_image_mean(x: Tensor, n: Tensor) -> Tensor:
+def _check_groups(
+    groups: Tensor | None, num_groups: int, shape: torch.Size, device: torch.device
+) -> Tensor | None:
+    """``groups`` as int64 ``[B, H, W]`` on ``device`` (an ``[H, W]`` map is shared by the batch)."""
+    if groups is None:
+        return None
+    if num_groups < 1:
+        raise ValueError(f"`num_groups` must be >= 1, got {num_groups}")
+    if groups.shape not in (shape, shape[1:]) or groups.is_floating_point():
+        raise ValueError(
+            f"`groups` must be an integer [H, W] or [B, H, W] map like {tuple(shape)}, got {groups.dtype} {tuple(groups.shape)}"
+        )
+    return groups.to(device=device, dtype=torch.int64).expand(shape)
+
+
+def _spatial_sum(x: Tensor, groups: Tensor | None, num_groups: int) -> Tensor:
+    """Sum over H, W per image (``[B]``), or per image and group (``[B, G]``) with a group label per pixel.
+
+    ``x`` must be zero where ``groups`` is negative (the callers fold ``groups >= 0`` into the valid mask).
+    """
+    if groups is None:
+        return x.sum(dim=(1, 2))
+    batch = x.shape[0]
+    index = groups.clamp(min=0) + num_groups * torch.arange(batch, device=x.device).view(batch, 1, 1)
+    out = torch.zeros(
+        batch * num_groups, dtype=torch.float64 if x.is_floating_point() else torch.int64, device=x.device
+    )
+    out.index_add_(0, index.reshape(-1), x.reshape(-1).to(out.dtype))
+    return out.view(batch, num_groups)
+
+
+def _per_image_mean(x: Tensor, n: Tensor, groups: Tensor | None = None, num_groups: int = 1) -> Tensor:
     """Mean over the spatial axes of ``x`` (zero at invalid pixels) given the valid count ``n`` (NaN if 0)."""
-    return x.sum(dim=(1, 2)) / n
+    return _spatial_sum(x, groups, num_groups) / n
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -296,9 +334,11 @@ def pixel_accuracy_from_confusion(confmat: Tensor) -> Tensor:
 # --------------------------------------------------------------------------------------------------------------
 # depth
 # --------------------------------------------------------------------------------------------------------------
-def _deltas(ratio: Tensor, valid: Tensor, n: Tensor) -> list[Tensor]:
+def _deltas(
+    ratio: Tensor, valid: Tensor, n: Tensor, groups: Tensor | None = None, num_groups: int = 1
+) -> list[Tensor]:
     # Count in int64, divide in float64 (int / int would give float32).
-    return [((ratio < t) & valid).sum(dim=(1, 2)).double() / n for t in _DELTA_THRESHOLDS]
+    return [_spatial_sum((ratio < t) & valid, groups, num_groups).double() / n for t in _DELTA_THRESHOLDS]
 
 
 def depth_errors(
@@ -307,6 +347,8 @@ def depth_errors(
     min_depth: float = 1e-3,
     max_depth: float = 120.0,
     mask: Tensor | None = None,
+    groups: Tensor | None = None,
+    num_groups: int = 1,
 ) -> tuple[dict[str, Tensor], Tensor]:
     """Per-image Eigen depth errors, as AdaBins/BTS ``compute_errors``.
 
@@ -328,11 +370,15 @@ def depth_errors(
         min_depth: Lower evaluation bound (exclusive for the ground truth).
         max_depth: Upper evaluation bound (inclusive for the ground truth).
         mask: Optional bool ``[H, W]`` / ``[B, H, W]`` restricting the evaluated pixels further.
+        groups: Optional integer ``[H, W]`` / ``[B, H, W]`` label in ``[0, num_groups)`` per pixel (negative: in no
+            group). The errors are then computed per image *and group* in one pass, as if each group were the
+            mask (this is how the fisheye breakdown evaluates all its bins at once).
+        num_groups: Number of groups.
 
     Returns:
         ``(errors, num_valid)``: ``errors[key]`` is a float64 ``[B]`` tensor per key of
         :data:`DEPTH_METRIC_KEYS` (NaN for an image without a valid pixel), ``num_valid`` the int64 ``[B]``
-        count of valid pixels.
+        count of valid pixels; ``[B, num_groups]`` for both with ``groups``.
 
     Example:
         >>> gt = torch.tensor([[[2.0, 4.0], [0.0, 8.0]]])
@@ -343,18 +389,37 @@ def depth_errors(
     if not 0 < min_depth < max_depth:
         raise ValueError(f"need 0 < min_depth < max_depth, got min_depth={min_depth}, max_depth={max_depth}")
     pred, gt, mask = _depth_pair(preds, target, mask)
-    return _by_chunks(_depth_errors_chunk, pred, gt, mask, min_depth=min_depth, max_depth=max_depth)
+    groups = _check_groups(groups, num_groups, gt.shape, gt.device)
+    return _by_chunks(
+        _depth_errors_chunk,
+        pred,
+        gt,
+        mask,
+        groups,
+        num_groups=num_groups,
+        min_depth=min_depth,
+        max_depth=max_depth,
+    )
 
 
 def _depth_errors_chunk(
-    pred: Tensor, gt: Tensor, mask: Tensor | None, min_depth: float, max_depth: float
+    pred: Tensor,
+    gt: Tensor,
+    mask: Tensor | None,
+    groups: Tensor | None,
+    num_groups: int,
+    min_depth: float,
+    max_depth: float,
 ) -> tuple[dict[str, Tensor], Tensor]:
     # float64 throughout: ~15% slower on CPU, keeps silog's E[d^2] - E[d]^2 free of cancellation noise.
     pred, gt = pred.double(), gt.double()
     valid = (gt > min_depth) & (gt <= max_depth)
     if mask is not None:
         valid &= mask
-    n = valid.sum(dim=(1, 2))
+    if groups is not None:
+        valid &= groups >= 0
+    n = _spatial_sum(valid, groups, num_groups)
+    g = {"groups": groups, "num_groups": num_groups}
     pred = torch.nan_to_num(pred, nan=min_depth, posinf=max_depth, neginf=min_depth).clamp_(
         min_depth, max_depth
     )
@@ -367,17 +432,17 @@ def _depth_errors_chunk(
     inv_gt = gt.reciprocal()
     rel = pred / gt  # exact 1 for a perfect prediction (pred * inv_gt is not)
     d = rel.log()  # ln(pred) - ln(gt) with one log instead of two
-    mean_d = _per_image_mean(d, n)
-    mean_d2 = _per_image_mean(d.square(), n)
+    mean_d = _per_image_mean(d, n, **g)
+    mean_d2 = _per_image_mean(d.square(), n, **g)
     ratio = torch.maximum(rel, rel.reciprocal())  # max(pred/gt, gt/pred)
     values = [
-        _per_image_mean(diff.abs() * inv_gt, n),
-        _per_image_mean(sq * inv_gt, n),
-        _per_image_mean(sq, n).sqrt(),
+        _per_image_mean(diff.abs() * inv_gt, n, **g),
+        _per_image_mean(sq * inv_gt, n, **g),
+        _per_image_mean(sq, n, **g).sqrt(),
         mean_d2.sqrt(),
-        _per_image_mean(d.abs(), n) / math.log(10.0),  # |log10 a - log10 b| = |ln a - ln b| / ln 10
+        _per_image_mean(d.abs(), n, **g) / math.log(10.0),  # |log10 a - log10 b| = |ln a - ln b| / ln 10
         (mean_d2 - mean_d.square()).clamp(min=0).sqrt() * 100.0,
-        *_deltas(ratio, valid, n),
+        *_deltas(ratio, valid, n, **g),
     ]
     return dict(zip(DEPTH_METRIC_KEYS, values, strict=True)), n
 
@@ -387,6 +452,8 @@ def completion_errors(
     target: Tensor,
     max_depth: float = 120.0,
     mask: Tensor | None = None,
+    groups: Tensor | None = None,
+    num_groups: int = 1,
 ) -> tuple[dict[str, Tensor], Tensor]:
     """Per-image depth-completion errors, as NLSPN ``NLSPNMetric`` (metres; inverse metrics in 1/m).
 
@@ -405,6 +472,8 @@ def completion_errors(
         target: Ground-truth depth, same shape; 0 = no ground truth.
         max_depth: Upper evaluation bound (inclusive for the ground truth) and prediction clamp.
         mask: Optional bool ``[H, W]`` / ``[B, H, W]`` restricting the evaluated pixels further.
+        groups: Optional per-pixel group label, as :func:`depth_errors`.
+        num_groups: Number of groups.
 
     Returns:
         ``(errors, num_valid)`` as :func:`depth_errors`, keys :data:`COMPLETION_METRIC_KEYS`.
@@ -418,17 +487,23 @@ def completion_errors(
     if not max_depth > COMPLETION_VALID_MIN:
         raise ValueError(f"`max_depth` must be > {COMPLETION_VALID_MIN}, got {max_depth}")
     pred, gt, mask = _depth_pair(preds, target, mask)
-    return _by_chunks(_completion_errors_chunk, pred, gt, mask, max_depth=max_depth)
+    groups = _check_groups(groups, num_groups, gt.shape, gt.device)
+    return _by_chunks(
+        _completion_errors_chunk, pred, gt, mask, groups, num_groups=num_groups, max_depth=max_depth
+    )
 
 
 def _completion_errors_chunk(
-    pred: Tensor, gt: Tensor, mask: Tensor | None, max_depth: float
+    pred: Tensor, gt: Tensor, mask: Tensor | None, groups: Tensor | None, num_groups: int, max_depth: float
 ) -> tuple[dict[str, Tensor], Tensor]:
     pred, gt = pred.double(), gt.double()
     valid = (gt > COMPLETION_VALID_MIN) & (gt <= max_depth)
     if mask is not None:
         valid &= mask
-    n = valid.sum(dim=(1, 2))
+    if groups is not None:
+        valid &= groups >= 0
+    n = _spatial_sum(valid, groups, num_groups)
+    g = {"groups": groups, "num_groups": num_groups}
     pred = torch.nan_to_num(pred, nan=0.0, posinf=max_depth, neginf=0.0).clamp_(0.0, max_depth)
     gt = torch.where(valid, gt, 1.0)
     pred = torch.where(valid, pred, 1.0)
@@ -438,11 +513,11 @@ def _completion_errors_chunk(
     inv_diff = inv_pred - 1.0 / (gt + _NLSPN_EPS)  # gt > 1e-4 wherever it counts
     ratio = torch.maximum(gt / (pred + _NLSPN_EPS), pred / (gt + _NLSPN_EPS))
     values = [
-        _per_image_mean(diff.abs() / (gt + _NLSPN_EPS), n),
-        _per_image_mean(diff.square(), n).sqrt(),
-        _per_image_mean(diff.abs(), n),
-        _per_image_mean(inv_diff.square(), n).sqrt(),
-        _per_image_mean(inv_diff.abs(), n),
-        *_deltas(ratio, valid, n),
+        _per_image_mean(diff.abs() / (gt + _NLSPN_EPS), n, **g),
+        _per_image_mean(diff.square(), n, **g).sqrt(),
+        _per_image_mean(diff.abs(), n, **g),
+        _per_image_mean(inv_diff.square(), n, **g).sqrt(),
+        _per_image_mean(inv_diff.abs(), n, **g),
+        *_deltas(ratio, valid, n, **g),
     ]
     return dict(zip(COMPLETION_METRIC_KEYS, values, strict=True)), n

@@ -186,3 +186,36 @@ def test_bad_arguments_raise():
     shared = DepthMetrics()
     with pytest.raises(ValueError, match="new metric"):
         BinnedMetrics(lambda: shared)
+
+
+@pytest.mark.parametrize("metric_cls", [DepthMetrics, CompletionMetrics])
+@pytest.mark.parametrize("key", ["theta", "depth"])
+def test_grouped_pass_equals_one_metric_per_bin(metric_cls, key: str) -> None:
+    """The one-pass evaluation of all bins gives what a separately masked metric per bin gives."""
+    gen = torch.Generator().manual_seed(3)
+    binned = BinnedMetrics(metric_cls, key=key)
+    assert binned._grouped
+    edges = binned.edges
+    theta = torch.rand(24, 32, generator=gen) * 100.0  # some pixels beyond 95 deg: in no ring
+    singles = [metric_cls() for _ in range(len(edges) - 1)]
+    for step in range(3):
+        gt = torch.rand(3, 1, 24, 32, generator=gen) * 130.0
+        gt[gt < 5.0] = 0.0  # no ground truth
+        pred = gt * (1 + 0.3 * torch.randn(3, 1, 24, 32, generator=gen))
+        mask = torch.rand(3, 24, 32, generator=gen) > 0.2
+        if step == 1:
+            gt[1] = 0.0  # an image without any valid pixel
+        binned.update(pred, gt, theta=theta, mask=mask)
+        values = theta.expand(3, 24, 32).contiguous() if key == "theta" else gt[:, 0].contiguous()
+        index = bin_index(values, edges, include_lowest=key == "theta")
+        for k, single in enumerate(singles):
+            single.update(pred, gt, mask=mask & (index == k))
+        # compute() between updates must see every update (no stale cached value).
+        out = binned.compute()
+        for name, single in zip(binned.bin_names, singles, strict=True):
+            for metric_key, value in single.compute().items():
+                got = out[f"{name}/{metric_key}"]
+                if torch.isnan(value):
+                    assert torch.isnan(got), (name, metric_key)
+                else:
+                    assert got.item() == pytest.approx(value.item(), rel=1e-12, abs=1e-12), (name, metric_key)
