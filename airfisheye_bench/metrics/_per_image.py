@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import ClassVar
 
 import torch
@@ -12,8 +13,8 @@ from torchmetrics import Metric
 class PerImageAverage(Metric):
     """Average of per-image metric values over the images seen, DDP-exact.
 
-    Subclasses set :attr:`keys` and implement :meth:`_errors` (returning per-image values and valid-pixel
-    counts). The states are one float64 vector of per-image sums and an image count, both sum-reduced, so a
+    Subclasses set :attr:`keys` and :attr:`errors_fn` (the functional core returning per-image values and
+    valid-pixel counts) and return its bounds from :meth:`settings`. The states are one float64 vector of per-image sums and an image count, both sum-reduced, so a
     distributed run gives the same numbers as one process. Images without a valid pixel are skipped; if no
     image was valid, :meth:`compute` returns NaN for every key.
     """
@@ -30,6 +31,14 @@ class PerImageAverage(Metric):
         self.add_state("sum_values", torch.zeros(len(self.keys), dtype=torch.float64), dist_reduce_fx="sum")
         self.add_state("num_images", torch.zeros((), dtype=torch.int64), dist_reduce_fx="sum")
 
+    #: The functional core: ``fn(preds, target, mask=..., groups=..., num_groups=..., **settings())``.
+    errors_fn: ClassVar[Callable[..., tuple[dict[str, Tensor], Tensor]]]
+
+    def settings(self) -> dict[str, float]:
+        """The evaluation bounds passed to :attr:`errors_fn`; metrics of one class with equal settings can share one
+        grouped call (see :class:`~airfisheye_bench.metrics.BinnedMetrics`)."""
+        return {}
+
     def _errors(
         self,
         preds: Tensor,
@@ -39,12 +48,9 @@ class PerImageAverage(Metric):
         num_groups: int = 1,
     ) -> tuple[dict[str, Tensor], Tensor]:
         """Per-image values ``{key: [B]}`` and valid counts ``[B]`` (``[B, G]`` for both with ``groups``)."""
-        raise NotImplementedError
-
-    def settings(self) -> tuple:
-        """What besides the class decides the values (evaluation bounds): metrics with equal settings can share
-        one grouped :meth:`_errors` call (see :class:`~airfisheye_bench.metrics.BinnedMetrics`)."""
-        return ()
+        return type(self).errors_fn(
+            preds, target, mask=mask, groups=groups, num_groups=num_groups, **self.settings()
+        )
 
     def update(self, preds: Tensor, target: Tensor, mask: Tensor | None = None) -> None:
         """Add a batch.

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from torch import Tensor
-
 from airfisheye_bench.metrics._per_image import PerImageAverage
 from airfisheye_bench.metrics.functional import (
     COMPLETION_METRIC_KEYS,
@@ -41,6 +39,7 @@ class CompletionMetrics(PerImageAverage):
     """
 
     keys: ClassVar[tuple[str, ...]] = COMPLETION_METRIC_KEYS
+    errors_fn = staticmethod(completion_errors)
     #: The key a leaderboard ranks by.
     primary: ClassVar[str] = "rmse"
     higher_is_better = False  # of the primary key
@@ -54,17 +53,5 @@ class CompletionMetrics(PerImageAverage):
         super().__init__(**kwargs)
         self.max_depth = float(max_depth)
 
-    def _errors(
-        self,
-        preds: Tensor,
-        target: Tensor,
-        mask: Tensor | None,
-        groups: Tensor | None = None,
-        num_groups: int = 1,
-    ) -> tuple[dict[str, Tensor], Tensor]:
-        return completion_errors(
-            preds, target, self.max_depth, mask=mask, groups=groups, num_groups=num_groups
-        )
-
-    def settings(self) -> tuple:
-        return (self.max_depth,)
+    def settings(self) -> dict[str, float]:
+        return {"max_depth": self.max_depth}

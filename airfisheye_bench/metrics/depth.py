@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from torch import Tensor
-
 from airfisheye_bench.metrics._per_image import PerImageAverage
 from airfisheye_bench.metrics.functional import DEPTH_METRIC_KEYS, depth_errors
 
@@ -39,6 +37,7 @@ class DepthMetrics(PerImageAverage):
     """
 
     keys: ClassVar[tuple[str, ...]] = DEPTH_METRIC_KEYS
+    errors_fn = staticmethod(depth_errors)
     #: The key a leaderboard ranks by.
     primary: ClassVar[str] = "rmse"
     higher_is_better = False  # of the primary key
@@ -53,17 +52,5 @@ class DepthMetrics(PerImageAverage):
         self.min_depth = float(min_depth)
         self.max_depth = float(max_depth)
 
-    def _errors(
-        self,
-        preds: Tensor,
-        target: Tensor,
-        mask: Tensor | None,
-        groups: Tensor | None = None,
-        num_groups: int = 1,
-    ) -> tuple[dict[str, Tensor], Tensor]:
-        return depth_errors(
-            preds, target, self.min_depth, self.max_depth, mask=mask, groups=groups, num_groups=num_groups
-        )
-
-    def settings(self) -> tuple:
-        return (self.min_depth, self.max_depth)
+    def settings(self) -> dict[str, float]:
+        return {"min_depth": self.min_depth, "max_depth": self.max_depth}
