@@ -65,7 +65,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     if cfg.split not in ("val", "test"):
         raise ValueError(f"split must be 'val' or 'test', got {cfg.split!r}")
 
-    module, source_data = None, None
+    module, checkpoint, source_data = None, None, None
     task = cfg.task.name if cfg.get("task") else None
     if source == "ckpt_path":
         from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint, run_config
@@ -93,7 +93,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     datamodule, data_config = _datamodule(cfg, task, source_data, data_overrides or [])
     dataset = datamodule.split_dataset(cfg.split)
     camera = datamodule.camera
-    predictor = _predictor(cfg, source, task, module, dataset, camera)
+    predictor = _predictor(cfg, source, task, module, checkpoint, dataset, camera)
 
     max_depth = float(data_config.get("max_depth", 120.0))
     if module is not None:
@@ -149,10 +149,12 @@ def _datamodule(
     return datamodule, OmegaConf.to_container(data)
 
 
-def _predictor(cfg: DictConfig, source: str, task: str, module, dataset, camera) -> Predictor:
+def _predictor(
+    cfg: DictConfig, source: str, task: str, module, checkpoint: Path | None, dataset, camera
+) -> Predictor:
     if source == "ckpt_path":
         device = cfg.device if cfg.device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu")
-        return CheckpointPredictor(module, module_checkpoint(cfg), device=device)
+        return CheckpointPredictor(module, checkpoint, device=device)
     if source == "onnx_path":
         predictor = OnnxPredictor(cfg.onnx_path, threads=cfg.get("threads"))
         size = predictor.fixed_size
@@ -165,12 +167,6 @@ def _predictor(cfg: DictConfig, source: str, task: str, module, dataset, camera)
     return FilePredictor(
         cfg.predictions, task, list(dataset.sample_ids), (camera.height, camera.width), name=cfg.get("name")
     )
-
-
-def module_checkpoint(cfg: DictConfig) -> Path:
-    from airfisheye_bench.tasks.checkpoint import resolve_checkpoint
-
-    return resolve_checkpoint(cfg.ckpt_path)
 
 
 def _prediction_writer(cfg: DictConfig, source: str, task: str) -> SubmissionWriter | None:

@@ -23,6 +23,7 @@ from torchmetrics.utilities.data import dim_zero_sum
 
 from airfisheye_bench.evaluation.predictors import FilePredictor, Predictor
 from airfisheye_bench.evaluation.scorer import TaskScorer
+from airfisheye_bench.metrics._state import record_update
 from airfisheye_bench.viz import panel_row
 
 __all__ = ["EvaluationResult", "evaluate_predictions", "format_results_table"]
@@ -160,8 +161,7 @@ def _can_score_in_workers(scorer: TaskScorer, theta_deg: torch.Tensor) -> bool:
 def _merge_states(metrics: list[Metric], states: list[dict[str, torch.Tensor]]) -> None:
     for metric, state in zip(metrics, states, strict=True):
         metric.merge_state(state)
-        metric._update_count += 1  # what update() records (compute() warns about a metric never updated)
-        metric._computed = None
+        record_update(metric)
 
 
 class _ScoringCollate:

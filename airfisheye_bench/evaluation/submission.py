@@ -13,6 +13,7 @@ read without decoding, and ``.npy`` files are loaded with ``allow_pickle=False``
 
 from __future__ import annotations
 
+import io
 import shutil
 import tempfile
 from collections.abc import Iterable, Sequence
@@ -147,8 +148,6 @@ def write_prediction(path: str | Path, prediction: np.ndarray | torch.Tensor, ta
     array = array.reshape(array.shape[-2:])
     if path.suffix not in _SUFFIXES.get(task, ()):
         raise ValueError(f"{path}: a {task} prediction is written as {' or '.join(_SUFFIXES[task])}")
-    import io
-
     buf = io.BytesIO()
     if path.suffix == ".npy":
         np.save(buf, array.astype(np.float32), allow_pickle=False)

@@ -19,6 +19,7 @@ from torchmetrics import Metric
 from torchmetrics.wrappers.abstract import WrapperMetric
 
 from airfisheye_bench.metrics._per_image import PerImageAverage
+from airfisheye_bench.metrics._state import record_update
 from airfisheye_bench.metrics.functional import _check_mask
 
 __all__ = ["DEFAULT_DEPTH_EDGES_M", "DEFAULT_RING_EDGES_DEG", "BinnedMetrics", "bin_index"]
@@ -155,12 +156,17 @@ class BinnedMetrics(WrapperMetric):
             )
         return bin_index(values.to(target.device), self.edges, self.include_lowest)
 
-    def _child_masks(self, target: Tensor, theta: Tensor | None, depth: Tensor | None, mask: Tensor | None):
+    def _masked_bin_index(
+        self, target: Tensor, theta: Tensor | None, depth: Tensor | None, mask: Tensor | None
+    ) -> Tensor:
+        """Bin of every pixel (``[H, W]`` or ``[B, H, W]``), -1 where ``mask`` is False or outside every bin."""
         index = self._bin_index_map(target, theta, depth)
         batch_shape = torch.Size((target.shape[0], *target.shape[-2:]))  # [B, H, W] of labels or depth
         mask = _check_mask(mask, batch_shape, index.device)
-        if mask is not None:
-            index = torch.where(mask, index, -1)
+        return index if mask is None else torch.where(mask, index, -1)
+
+    def _child_masks(self, target: Tensor, theta: Tensor | None, depth: Tensor | None, mask: Tensor | None):
+        index = self._masked_bin_index(target, theta, depth, mask)
         return [index == i for i in range(len(self.bins))]
 
     def update(
@@ -184,19 +190,14 @@ class BinnedMetrics(WrapperMetric):
         """
         if self._grouped:
             # Per-image depth metrics of every bin from one pass over the pixels, not one full pass per bin.
-            index = self._bin_index_map(target, theta, depth)
-            shape = torch.Size((target.shape[0], *target.shape[-2:]))
-            mask = _check_mask(mask, shape, index.device)
-            index = index.expand(shape) if mask is None else torch.where(mask, index, -1)
+            index = self._masked_bin_index(target, theta, depth, mask)
+            index = index.expand(target.shape[0], *target.shape[-2:])
             errors, num_valid = self.bins[0]._errors(
                 preds, target, None, groups=index, num_groups=len(self.bins)
             )
             for k, child in enumerate(self.bins):
                 child._accumulate({key: value[:, k] for key, value in errors.items()}, num_valid[:, k])
-                child._update_count += (
-                    1  # what Metric.update records; compute() warns for a metric never updated
-                )
-                child._computed = None
+                record_update(child)
             return
         for child, bin_mask in zip(self.bins, self._child_masks(target, theta, depth, mask), strict=True):
             child.update(preds, target, mask=bin_mask)

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import doctest
-import importlib
 
 import pytest
+
+from tests.doctests import assert_doctests_pass
 
 MODULES = [
     "airfisheye_bench.evaluation.scorer",
     "airfisheye_bench.evaluation.submission",
-    "airfisheye_bench.evaluation.leaderboard",
     "airfisheye_bench.tasks.checkpoint",
     "datamodules.sampling",
 ]
@@ -18,8 +18,4 @@ MODULES = [
 
 @pytest.mark.parametrize("name", MODULES)
 def test_docstring_examples(name: str) -> None:
-    result = doctest.testmod(
-        importlib.import_module(name), optionflags=doctest.ELLIPSIS | doctest.IGNORE_EXCEPTION_DETAIL
-    )
-    assert result.attempted > 0
-    assert result.failed == 0
+    assert_doctests_pass(name, doctest.IGNORE_EXCEPTION_DETAIL)

@@ -14,6 +14,7 @@ from airfisheye_bench.evaluation import SubmissionError
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.training import train
 from tests.training.test_configs import CONFIG_DIR, compose_train
+from tests.training.test_train import SMALL
 
 
 def compose_eval(overrides: list[str], output_dir: Path) -> DictConfig:
@@ -38,9 +39,7 @@ def depth_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> P
             "data.num_workers=0",
             "data.persistent_workers=false",
             "callbacks.rich_progress_bar=null",
-            "model.encoder_name=resnet18",
-            "model.patch_size=2",
-            "model.n_bins=32",
+            *SMALL["depth"],
         ]
     )
     with open_dict(cfg):

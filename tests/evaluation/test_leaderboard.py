@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import doctest
 import io
 import json
 import os
@@ -22,6 +21,7 @@ from airfisheye_bench.evaluation import (
     load_entry,
     write_results,
 )
+from tests.doctests import assert_doctests_pass
 
 HASH_A = "a1b2c3d4" + "0" * 56
 HASH_B = "ffee0011" + "1" * 56
@@ -386,5 +386,4 @@ def test_console_script_is_declared_and_runs(tmp_path: Path, monkeypatch, capsys
 
 
 def test_docstring_examples() -> None:
-    result = doctest.testmod(lb, optionflags=doctest.ELLIPSIS)
-    assert result.attempted > 10 and result.failed == 0
+    assert_doctests_pass(lb, min_examples=11)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import doctest
 import hashlib
 import io
 import json
@@ -31,6 +30,7 @@ from airfisheye_bench.export.metadata import (
 from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint
 from airfisheye_bench.training import build, train
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
+from tests.doctests import assert_doctests_pass
 from tests.training.test_configs import compose_train
 from tests.training.test_train import SMALL
 
@@ -381,8 +381,7 @@ def test_read_names_the_file(tmp_path: Path) -> None:
 
 def test_docstring_examples() -> None:
     for module in (metadata_module, deploy):
-        result = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
-        assert result.attempted > 0 and result.failed == 0
+        assert_doctests_pass(module)
 
 
 # ---------------------------------------------------------------------------------------------- slow
