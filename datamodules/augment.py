@@ -11,6 +11,9 @@
   one affine colour transform (hue as a rotation about the grey axis in YIQ); pixels outside the image circle stay
   black.
 
+:func:`augment_sample` does all three in one fused CPU pass (what ``AirFisheyeDataset`` uses);
+:func:`apply_geometry` and :func:`apply_color_jitter` are the device-agnostic torch versions it is tested against.
+
 Example:
     >>> import torch
     >>> aug = FisheyeAugment(hflip=1.0, rotate_deg=0.0, color_jitter=None)
@@ -23,10 +26,14 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 import torch.nn.functional as F
+
+from datamodules import _kernels
 
 
 @dataclass(frozen=True)
@@ -81,6 +88,79 @@ class FisheyeAugment:
                 h * (2 * u[5] - 1),
             )
         return AugmentParams(flip, angle, jitter)
+
+
+def augment_sample(
+    rgb: torch.Tensor,
+    valid: torch.Tensor,
+    maps: torch.Tensor,
+    fills: Sequence[float],
+    params: AugmentParams,
+    cx: float,
+    cy: float,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """A sample's whole augmentation in one fused CPU pass: flip, rotation and colour jitter.
+
+    The same as :func:`apply_geometry` on every map followed by :func:`apply_color_jitter` and masking, except
+    that the contrast's mean grey is taken before the rotation (the image circle turns into itself, so only the
+    interpolation differs).
+
+    Args:
+        rgb: ``uint8 [3, H, W]`` image.
+        valid: ``bool [H, W]`` pixels that carry data.
+        maps: ``float32 [D, H, W]`` maps that are copied, never blended (labels, depth); ``D`` may be 0.
+        fills: Value of each map where the moved ``valid`` is False (255 for labels, 0 for depth).
+        params: The sample's draw.
+        cx, cy: Principal point.
+
+    Returns:
+        ``(image, valid, maps)``: ``float32 [3, H, W]`` in ``[0, 1]`` (0 outside ``valid``), the moved mask and
+        the moved maps.
+
+    Example:
+        >>> rgb = torch.full((3, 4, 4), 200, dtype=torch.uint8)
+        >>> valid = torch.ones(4, 4, dtype=torch.bool)
+        >>> image, moved, maps = augment_sample(
+        ...     rgb, valid, torch.zeros(0, 4, 4), [], AugmentParams(True, 0.0, None), 1.5, 1.5
+        ... )
+        >>> round(float(image[0, 0, 0]), 4), bool(moved.all()), tuple(maps.shape)
+        (0.7843, True, (0, 4, 4))
+    """
+    h, w = valid.shape
+    if rgb.shape != (3, h, w) or rgb.dtype != torch.uint8:
+        raise ValueError(f"rgb must be uint8 [3, {h}, {w}], got {rgb.dtype} {tuple(rgb.shape)}")
+    if maps.ndim != 3 or maps.shape[1:] != (h, w) or len(fills) != maps.shape[0]:
+        raise ValueError(f"maps must be [D, {h}, {w}] with D fill values, got {tuple(maps.shape)}, {len(fills)}")
+    colour = torch.eye(3) / 255.0
+    offset = torch.zeros(3)
+    if params.jitter is not None:
+        brightness, contrast, saturation, hue = params.jitter
+        mean_rgb = rgb.reshape(3, -1).sum(1, dtype=torch.float64) / (255.0 * h * w)
+        mean_grey = float(_LUMA.double() @ mean_rgb) * brightness
+        m = color_matrix(saturation, hue)
+        # contrast(brightness(x)) = c * b * x + (1 - c) * mean_grey; saturation and hue then apply m.
+        colour = m * (contrast * brightness / 255.0)
+        offset = m @ torch.full((3,), (1.0 - contrast) * mean_grey)
+    image = torch.empty(3, h, w)
+    moved = torch.empty(h, w, dtype=torch.bool)
+    moved_maps = torch.empty(maps.shape)
+    _kernels.warp_and_colour(
+        rgb.contiguous().numpy(),
+        valid.contiguous().numpy(),
+        maps.to(torch.float32).contiguous().numpy(),
+        np.asarray(fills, dtype=np.float32),
+        bool(params.flip),
+        math.cos(params.angle_rad),
+        math.sin(params.angle_rad),
+        float(cx),
+        float(cy),
+        colour.to(torch.float32).numpy(),
+        offset.to(torch.float32).numpy(),
+        image.numpy(),
+        moved.numpy(),
+        moved_maps.numpy(),
+    )
+    return image, moved, moved_maps
 
 
 def apply_geometry(

@@ -33,13 +33,7 @@ from torch.utils.data import Dataset
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.occlusion import lidar_depth_map
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
-from datamodules.augment import (
-    FisheyeAugment,
-    apply_color_jitter,
-    apply_geometry,
-    rotation_about_optical_axis,
-    rotation_grid,
-)
+from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
 from datamodules.sampling import SharedEpoch, draw_seed
 
 log = logging.getLogger(__name__)
@@ -231,27 +225,22 @@ class AirFisheyeDataset(Dataset):
         return out
 
     def _augment(self, rgb: torch.Tensor, valid: torch.Tensor, out: dict, params) -> tuple:
-        """Flip and rotate every dense map consistently (one resampling call per interpolation mode)."""
-        cx, cy = self.camera.cx, self.camera.cy
-        grid = rotation_grid(params.angle_rad, cx, cy, self.camera.height, self.camera.width)
-        rgb = apply_geometry(rgb, params, cx, cy, "bilinear", grid)
-        # Labels, depth and the valid mask are copied, never blended: stack them into one nearest resampling.
-        dense = [valid[None].float()]
+        """Flip, rotate and colour-jitter every map of a sample consistently, in one fused pass."""
+        maps, fills = [], []
         if "label" in out:
-            dense.append(out["label"][None].float())
+            maps.append(out["label"][None].float())
+            fills.append(float(self.spec.ignore_index))
         if "depth" in out:
-            dense.append(out["depth"])
-        moved = apply_geometry(torch.cat(dense), params, cx, cy, "nearest", grid)
-        valid = moved[0] > 0.5
-        i = 1
+            maps.append(out["depth"])
+            fills.append(0.0)
+        stacked = torch.cat(maps) if maps else torch.empty(0, *valid.shape)
+        rgb, valid, moved = augment_sample(rgb, valid, stacked, fills, params, self.camera.cx, self.camera.cy)
         if "label" in out:
-            out["label"] = torch.where(valid, moved[i].round().to(out["label"].dtype), self.spec.ignore_index)
-            i += 1
+            out["label"] = moved[0].to(out["label"].dtype)
         if "depth" in out:
-            out["depth"] = moved[i : i + 1] * valid
+            out["depth"] = moved[-1:]
         if "sparse_depth" in out and params.flip:
             out["sparse_depth"] = out["sparse_depth"].flip(-1)  # the rotation was applied to the points
-        rgb = apply_color_jitter(rgb.float() / 255.0, params) * valid
         return rgb, valid, out
 
     def _dense(self, sample_id: str, modality: str) -> torch.Tensor:

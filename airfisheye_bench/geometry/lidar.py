@@ -190,9 +190,15 @@ def like(result: np.ndarray, reference: Any) -> ArrayLike:
 
 def spherical_coordinates(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Range, azimuth ``atan2(y, x)`` and elevation ``atan2(z, hypot(x, y))`` of float64 points ``[N, 3]``."""
-    x, y, z = points[:, 0], points[:, 1], points[:, 2]
-    rho = np.hypot(x, y)
-    return np.sqrt(rho * rho + z * z), np.arctan2(y, x), np.arctan2(z, rho)
+    # Contiguous coordinates let numpy's SIMD arctan2 run (3x faster than on strided columns); sqrt(x^2 + y^2)
+    # instead of np.hypot (a scalar libm call, 10x slower): no overflow is possible at LiDAR ranges.
+    x, y, z = np.ascontiguousarray(points.T)
+    rho = x * x
+    rho += y * y
+    r = z * z
+    r += rho
+    np.sqrt(rho, out=rho)
+    return np.sqrt(r, out=r), np.arctan2(y, x), np.arctan2(z, rho)
 
 
 # ---------------------------------------------------------------------- organisation (step 1 of III-C)

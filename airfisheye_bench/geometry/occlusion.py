@@ -344,10 +344,15 @@ class _Projection:
 def _project(points: np.ndarray, T: np.ndarray, camera: FisheyeCamera) -> _Projection:
     if len(points) == 0:
         return _Projection(np.empty((0, 2)), np.empty(0), np.empty(0, dtype=bool))
-    # Written out per coordinate: numpy's matmul of an [N, 3] by a 3 x 3 matrix is ~50x slower than this.
-    p_cam = np.stack([points @ T[k, :3] + T[k, 3] for k in range(3)], axis=1)
-    uv, valid = camera.project(p_cam)
-    return _Projection(np.asarray(uv), np.sqrt(np.einsum("ij,ij->i", p_cam, p_cam)), np.asarray(valid))
+    # Camera-frame coordinates as contiguous rows [3, N], written out per coordinate: numpy's matmul of an
+    # [N, 3] by a 3 x 3 matrix is ~50x slower than three matrix-vector products. Rows keep the element-wise
+    # maths below (and in camera.project, which gets the transposed view) on contiguous vectors.
+    x, y, z = (points @ T[k, :3] + T[k, 3] for k in range(3))
+    uv, valid = camera.project(np.stack([x, y, z]).T)
+    rng = x * x
+    rng += y * y
+    rng += z * z
+    return _Projection(np.asarray(uv), np.sqrt(rng, out=rng), np.asarray(valid))
 
 
 def _pixel_index(uv: np.ndarray, camera: FisheyeCamera) -> np.ndarray:

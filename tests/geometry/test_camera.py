@@ -82,8 +82,14 @@ def test_points_beyond_half_fov_are_invalid_not_wrapped() -> None:
     _, valid = cam.project(pts)
     assert valid.tolist() == [True, False, False, False, False]
     # A point straight behind the camera is invalid too, and so is the origin and any non-finite point.
-    _, valid = cam.project(np.array([[0, 0, -1.0], [0, 0, 0.0], [np.nan, 0, 1.0], [np.inf, 0, 1.0]]))
+    _, valid = cam.project(
+        np.array([[0, 0, -1.0], [0, 0, 0.0], [np.nan, 0, 1.0], [np.inf, 0, 1.0], [0, 1.0, np.inf]])
+    )
     assert not valid.any()
+    # An infinite z would pass the angle test (theta 0, or pi for a full-sphere lens) if nothing caught it.
+    full_sphere = FisheyeCamera(256, 256, fov_deg=360.0)
+    _, valid = full_sphere.project(np.array([[0.5, 0, np.inf], [0.5, 0, -np.inf], [0, 0, 0.0], [0.5, 0, -1.0]]))
+    assert valid.tolist() == [False, False, False, True]
 
 
 def test_orthographic_rays_beyond_the_model_are_nan() -> None:
