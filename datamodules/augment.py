@@ -130,7 +130,9 @@ def augment_sample(
     if rgb.shape != (3, h, w) or rgb.dtype != torch.uint8:
         raise ValueError(f"rgb must be uint8 [3, {h}, {w}], got {rgb.dtype} {tuple(rgb.shape)}")
     if maps.ndim != 3 or maps.shape[1:] != (h, w) or len(fills) != maps.shape[0]:
-        raise ValueError(f"maps must be [D, {h}, {w}] with D fill values, got {tuple(maps.shape)}, {len(fills)}")
+        raise ValueError(
+            f"maps must be [D, {h}, {w}] with D fill values, got {tuple(maps.shape)}, {len(fills)}"
+        )
     colour = torch.eye(3) / 255.0
     offset = torch.zeros(3)
     if params.jitter is not None:

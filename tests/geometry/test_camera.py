@@ -88,7 +88,9 @@ def test_points_beyond_half_fov_are_invalid_not_wrapped() -> None:
     assert not valid.any()
     # An infinite z would pass the angle test (theta 0, or pi for a full-sphere lens) if nothing caught it.
     full_sphere = FisheyeCamera(256, 256, fov_deg=360.0)
-    _, valid = full_sphere.project(np.array([[0.5, 0, np.inf], [0.5, 0, -np.inf], [0, 0, 0.0], [0.5, 0, -1.0]]))
+    _, valid = full_sphere.project(
+        np.array([[0.5, 0, np.inf], [0.5, 0, -np.inf], [0, 0, 0.0], [0.5, 0, -1.0]])
+    )
     assert valid.tolist() == [False, False, False, True]
 
 
