@@ -217,10 +217,10 @@ class AirFisheyeDataset(Dataset):
             out["label"] = out["label"].long()
         if "sparse_depth" in out:
             # A point just inside FOV/2 can round to a border pixel whose centre is just outside the circle.
-            out["sparse_depth"] = out["sparse_depth"] * valid
+            out["sparse_depth"].mul_(valid)
         if rgb.dtype == torch.uint8:
-            rgb = rgb.float() / 255.0
-        out["image"] = (rgb - self._mean) / self._std
+            rgb = rgb.float().div_(255.0)
+        out["image"] = rgb.sub_(self._mean).div_(self._std)  # rgb is this sample's own buffer: in place
         out["valid_mask"] = valid
         return out
 
@@ -318,7 +318,8 @@ class AirFisheyeDataset(Dataset):
         return np.asarray(self.reader.calib(sample_id).T_cam_lidar_static, dtype=np.float64)
 
     def _clip_depth(self, depth: torch.Tensor) -> torch.Tensor:
-        return torch.where((depth > 0) & (depth <= self.max_depth), depth, 0.0).float()
+        depth = depth.float()
+        return depth.masked_fill_(~((depth > 0) & (depth <= self.max_depth)), 0.0)
 
     def _check_finite(self, x: torch.Tensor, sample_id: str, modality: str) -> None:
         if not torch.isfinite(x).all():
