@@ -1,9 +1,8 @@
 """Fused CPU kernel (numba) for the training augmentation of one sample.
 
 The torch composition (flip, rotation grid, two ``grid_sample`` calls, colour transform, clamp, mask) makes about a
-dozen passes over the image and costs ~6 ms per 512^2 sample on one core; this single pass over the output pixels
-does the same work in about a quarter of that (``scripts/bench_loader.py``). Compiled on first use and cached on
-disk (``cache=True``).
+dozen passes over the image and cost 5.9 ms per 512^2 completion sample on one core; this single pass over the output
+pixels costs ~2 ms (``docs/benchmarks.md``, data loading). Compiled on first use and cached on disk (``cache=True``).
 """
 
 from __future__ import annotations
