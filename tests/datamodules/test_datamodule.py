@@ -222,6 +222,44 @@ def test_loaders_are_deterministic_for_a_seed(tiny_dataset: Path) -> None:
         torch.testing.assert_close(x["label"], y["label"])
 
 
+def test_draws_follow_the_epoch_whatever_the_workers(tiny_dataset: Path) -> None:
+    """A batch depends on (seed, epoch, index) only: no workers, workers, and persistent workers (which must see
+    the epoch the main process sets) give the same batches, epoch after epoch."""
+
+    def epochs(workers: int, persistent: bool) -> list[list[dict]]:
+        dm = AirFisheyeDataModule(
+            "completion",
+            root=tiny_dataset,
+            camera={"size": 32},
+            batch_size=2,
+            augment={"rotate_deg": 30},
+            num_workers=workers,
+            persistent_workers=persistent,
+            seed=7,
+        )
+        dm.setup("fit")
+        loader = dm.train_dataloader()
+        out = []
+        for epoch in range(2):  # what Lightning and BenchmarkTask do at every epoch start
+            loader.sampler.set_epoch(epoch)
+            dm.set_epoch(epoch)
+            out.append(list(loader))
+        return out
+
+    reference = epochs(0, False)
+    by_id = [
+        {sid: b["image"][i] for b in batches for i, sid in enumerate(b["sample_id"])} for batches in reference
+    ]
+    shared = by_id[0].keys() & by_id[1].keys()
+    assert shared and all(not torch.equal(by_id[0][s], by_id[1][s]) for s in shared)  # a new draw per epoch
+    for other in (epochs(2, False), epochs(2, True)):
+        for ours, theirs in zip(reference, other, strict=True):
+            for x, y in zip(ours, theirs, strict=True):
+                assert x["sample_id"] == y["sample_id"]
+                for key in ("image", "depth", "sparse_depth", "valid_mask"):
+                    torch.testing.assert_close(x[key], y[key], rtol=0, atol=0)
+
+
 def test_fisheye_source_resizes_and_rejects_lens_changes(tiny_dataset: Path) -> None:
     ds = AirFisheyeDataset(tiny_dataset, "val", "depth", source="fisheye", camera=CameraConfig(size=32))
     assert ds[0]["depth"].shape == (1, 32, 32)
