@@ -21,7 +21,6 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import hydra
 import torch
 from omegaconf import DictConfig, OmegaConf, open_dict
 
@@ -137,16 +136,15 @@ def _datamodule(
     cfg: DictConfig, task: str, source_data: DictConfig | None, overrides: list[str]
 ) -> tuple[Any, dict[str, Any]]:
     """The datamodule to evaluate on, and its configuration (recorded in ``results.json``)."""
-    chosen = source_data if source_data is not None else cfg.data
-    data = OmegaConf.create(OmegaConf.to_container(chosen, resolve=True))
-    if source_data is not None and overrides:
-        data = OmegaConf.merge(data, OmegaConf.from_dotlist([o.removeprefix("data.") for o in overrides]))
-    data.task = task
+    from datamodules.config import apply_data_overrides, instantiate_datamodule, parse_data_overrides
+
+    if source_data is not None:  # the model's own data config, command-line data.* on top
+        data = apply_data_overrides(source_data, parse_data_overrides(overrides), task=task)
+    else:  # configs/evaluate.yaml's data group, overrides already composed in by Hydra
+        data = apply_data_overrides(cfg.data, task=task)
     data.num_workers = 0  # the evaluation loop makes its own loader (cfg.num_workers)
     data.persistent_workers = False
-    datamodule = hydra.utils.instantiate(data, _convert_="partial")
-    datamodule.prepare_data()
-    return datamodule, OmegaConf.to_container(data)
+    return instantiate_datamodule(data), OmegaConf.to_container(data)
 
 
 def _predictor(

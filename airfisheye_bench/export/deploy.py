@@ -234,8 +234,10 @@ def export_deployment(
 
     checkpoint = resolve_checkpoint(ckpt_path)
     task = load_task(checkpoint)
-    data_cfg = _data_config(checkpoint, task.task, data_overrides or {})
-    datamodule = _datamodule(data_cfg)
+    from datamodules.config import apply_data_overrides, instantiate_datamodule
+
+    data_cfg = apply_data_overrides(_run_data(checkpoint), data_overrides, task=task.task)
+    datamodule = instantiate_datamodule(data_cfg, "validate")  # a few frames: main-process loading
     metadata = _metadata(task, datamodule, data_cfg, checkpoint)
     names = TASK_INPUTS[task.task]
     frames = _val_frames(datamodule, max(parity_samples, batch), names)
@@ -380,8 +382,8 @@ def _check_arguments(
 
 
 # ---------------------------------------------------------------------------------------- run and data
-def _data_config(checkpoint: Path, task: str, overrides: Mapping[str, Any]) -> DictConfig:
-    """The run's resolved ``data`` config with ``overrides`` applied (keys must exist, or extend a dict)."""
+def _run_data(checkpoint: Path) -> DictConfig:
+    """The ``data`` section of the run that wrote ``checkpoint``."""
     from airfisheye_bench.tasks.checkpoint import run_config
 
     cfg = run_config(checkpoint)
@@ -391,36 +393,7 @@ def _data_config(checkpoint: Path, task: str, overrides: Mapping[str, Any]) -> D
             f"{checkpoint.parent.parent}; export needs the run's data config (give the run directory, or keep "
             "the checkpoint inside it)"
         )
-    data = OmegaConf.create(OmegaConf.to_container(cfg.data, resolve=True))
-    for key, value in overrides.items():
-        # A new key may only extend an existing section (data.camera.k); typos at the top level are errors.
-        parent = key.rpartition(".")[0]
-        node = OmegaConf.select(data, parent) if parent else data
-        if not isinstance(node, DictConfig) or (not parent and key not in data):
-            raise ValueError(
-                f"unknown override data.{key}: the run's data config has keys {sorted(data.keys())}"
-            )
-        OmegaConf.update(data, key, value, merge=False)
-    if data.get("task") != task:
-        raise ValueError(f"data.task={data.get('task')!r} but the checkpoint is a task={task} model")
-    return data
-
-
-def _datamodule(data_cfg: DictConfig):
-    """Instantiate and set up the validation split (main-process loading: a few frames only)."""
-    import hydra
-
-    loader_cfg = OmegaConf.merge(data_cfg, {"num_workers": 0, "persistent_workers": False})
-    try:
-        datamodule = hydra.utils.instantiate(loader_cfg)
-        datamodule.prepare_data()
-        datamodule.setup("validate")
-    except Exception as err:
-        raise ValueError(
-            f"cannot build the run's datamodule from its data config ({type(err).__name__}: {err}); "
-            "fix it with data.<key>=<value> overrides, e.g. data.root=/path/to/dataset"
-        ) from err
-    return datamodule
+    return cfg.data
 
 
 def _val_batches(datamodule, limit: int = 0) -> Iterator[dict]:

@@ -29,6 +29,7 @@ from airfisheye_bench.export.metadata import (
 )
 from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint
 from airfisheye_bench.training import build, train
+from datamodules.config import apply_data_overrides, instantiate_datamodule
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
 from tests.doctests import assert_doctests_pass
 from tests.training.test_configs import compose_train
@@ -300,7 +301,8 @@ def test_failed_quantization_keeps_the_fp32_model(
 
     monkeypatch.setattr(deploy, "_run_quantizer", unsupported)
     task = load_task(seg_run)
-    datamodule = deploy._datamodule(deploy._data_config(resolve_checkpoint(seg_run), "seg", {}))
+    data = apply_data_overrides(deploy._run_data(resolve_checkpoint(seg_run)), task="seg")
+    datamodule = instantiate_datamodule(data, "validate")
     workdir = tmp_path / "work"
     workdir.mkdir()
     image = torch.zeros(2, 3, SIZE, SIZE)
