@@ -44,6 +44,13 @@ def inspect() -> None:
     sys.exit(main(sys.argv[1:]))
 
 
+def transcode() -> None:
+    """``airfisheye-transcode src=DIR dst=DIR [rgb=jpg] [depth=npy] [workers=N]``: re-encode a dataset's files."""
+    from airfisheye_bench.io.transcode import main
+
+    sys.exit(main(sys.argv[1:]))
+
+
 def leaderboard() -> None:
     """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false]``."""
     from airfisheye_bench.evaluation.leaderboard import main

@@ -28,3 +28,8 @@ class DatasetFormatError(ValueError):
         self.message = message
         where = f"{self.path}: key '{key}': " if key is not None else f"{self.path}: "
         super().__init__(where + message)
+
+    def __reduce__(self):
+        # Pickle by the constructor's arguments (the default re-calls __init__ with the formatted message only),
+        # so the error crosses process boundaries intact (worker pools, DataLoader workers).
+        return type(self), (self.path, self.message, self.key)

@@ -17,6 +17,7 @@ MODULES = [
     "reader",
     "spec",
     "splits",
+    "transcode",
     "yamlio",
 ]
 

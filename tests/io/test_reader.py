@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pathlib
 import pickle
 import shutil
 
@@ -54,3 +55,16 @@ def test_layout_templates_come_from_dataset_yaml(tiny_dataset, tmp_path):
     assert reader.lidar(sid).shape[1] == 4
     with pytest.raises(DatasetFormatError, match="does not exist"):
         reader.lidar(reader.split("train")[0])  # not moved
+
+
+def test_format_errors_cross_process_boundaries() -> None:
+    """Worker pools pickle exceptions: the path, key and message must survive."""
+    err = pickle.loads(
+        pickle.dumps(DatasetFormatError("/data/a/calib.yaml", "must be a mapping", key="camera"))
+    )
+    assert (err.path, err.key, err.message) == (
+        pathlib.Path("/data/a/calib.yaml"),
+        "camera",
+        "must be a mapping",
+    )
+    assert str(err) == "/data/a/calib.yaml: key 'camera': must be a mapping"
