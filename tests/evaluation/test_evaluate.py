@@ -14,7 +14,7 @@ from airfisheye_bench.evaluation import SubmissionError
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.training import train
 from tests.training.test_configs import CONFIG_DIR, compose_train
-from tests.training.test_train import SMALL
+from tests.training.test_train import tiny_run_overrides
 
 
 def compose_eval(overrides: list[str], output_dir: Path) -> DictConfig:
@@ -29,19 +29,7 @@ def compose_eval(overrides: list[str], output_dir: Path) -> DictConfig:
 def depth_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A one-epoch AdaBins run on tiny data, tested on its test split (``results.json``)."""
     run_dir = tmp_path_factory.mktemp("depth_run")
-    cfg = compose_train(
-        [
-            "task=depth",
-            "trainer=debug",
-            f"data.root={tiny_dataset}",
-            "data.camera.size=64",
-            "data.batch_size=2",
-            "data.num_workers=0",
-            "data.persistent_workers=false",
-            "callbacks.rich_progress_bar=null",
-            *SMALL["depth"],
-        ]
-    )
+    cfg = compose_train(tiny_run_overrides("depth", tiny_dataset))
     with open_dict(cfg):
         cfg.paths.output_dir = str(run_dir)
     train(cfg)

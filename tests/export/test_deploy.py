@@ -33,24 +33,13 @@ from datamodules.config import apply_data_overrides, instantiate_datamodule
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
 from tests.doctests import assert_doctests_pass
 from tests.training.test_configs import compose_train
-from tests.training.test_train import SMALL
+from tests.training.test_train import tiny_run_overrides
 
 SIZE = 64
 
 
 def _overrides(task: str, tiny_dataset: Path) -> list[str]:
-    return [
-        f"task={task}",
-        "trainer=debug",
-        "logger=csv",
-        f"data.root={tiny_dataset}",
-        f"data.camera.size={SIZE}",
-        "data.batch_size=2",
-        "data.num_workers=0",
-        "data.persistent_workers=false",
-        "callbacks.rich_progress_bar=null",
-        *SMALL[task],
-    ]
+    return [*tiny_run_overrides(task, tiny_dataset, SIZE), "logger=csv"]
 
 
 def trained_run(task: str, tiny_dataset: Path, run_dir: Path) -> Path:

@@ -18,22 +18,24 @@ SMALL = {
 }
 
 
+def tiny_run_overrides(task: str, root: Path, size: int = 64) -> list[str]:
+    """Overrides of a seconds-long run: debug trainer, the tiny dataset at ``size``^2, one process, small model."""
+    return [
+        f"task={task}",
+        "trainer=debug",
+        f"data.root={root}",
+        f"data.camera.size={size}",
+        "data.batch_size=2",
+        "data.num_workers=0",
+        "data.persistent_workers=false",
+        "callbacks.rich_progress_bar=null",
+        *SMALL[task],
+    ]
+
+
 @pytest.mark.parametrize("task", ["seg", "depth", "completion"])
 def test_fast_dev_run(task: str, tiny_dataset: Path, tmp_path: Path) -> None:
-    cfg = compose_train(
-        [
-            f"task={task}",
-            "trainer=debug",
-            "logger=csv",
-            f"data.root={tiny_dataset}",
-            "data.camera.size=64",
-            "data.batch_size=2",
-            "data.num_workers=0",
-            "data.persistent_workers=false",
-            "callbacks.rich_progress_bar=null",
-            *SMALL[task],
-        ]
-    )
+    cfg = compose_train([*tiny_run_overrides(task, tiny_dataset), "logger=csv"])
     with open_dict(cfg):
         cfg.paths.output_dir = str(tmp_path)
     results = train(cfg)
