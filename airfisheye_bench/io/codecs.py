@@ -152,12 +152,12 @@ def _decode_png_as(data: np.ndarray, layout: tuple[int, int], channels: int) -> 
     return x if x is not None and x.shape[0] == channels else None
 
 
-def _pil_bytes(img: Image.Image, fmt: str) -> bytes:
+def _pil_bytes(img: Image.Image, fmt: str, jpeg_quality: int = JPEG_QUALITY) -> bytes:
     buf = io.BytesIO()
     if fmt == "PNG":
         img.save(buf, format="PNG", compress_level=PNG_COMPRESS_LEVEL, optimize=False)
     else:
-        img.save(buf, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
+        img.save(buf, format="JPEG", quality=jpeg_quality, subsampling=0)
     return buf.getvalue()
 
 
@@ -180,11 +180,11 @@ def load_npy(path: str | Path) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------------- RGB
-def encode_rgb(rgb: np.ndarray, suffix: str = ".png") -> bytes:
-    """Encode ``uint8 [H, W, 3]`` as PNG or JPEG bytes (by ``suffix``)."""
+def encode_rgb(rgb: np.ndarray, suffix: str = ".png", jpeg_quality: int = JPEG_QUALITY) -> bytes:
+    """Encode ``uint8 [H, W, 3]`` as PNG or JPEG bytes (by ``suffix``; JPEG with 4:4:4 chroma at ``jpeg_quality``)."""
     _check_array("rgb", rgb, 3, np.uint8, 3)
     fmt = _RGB_SUFFIXES[_suffix(Path("x" + suffix), _RGB_SUFFIXES, "RGB")]
-    return _pil_bytes(Image.fromarray(np.ascontiguousarray(rgb), mode="RGB"), fmt)
+    return _pil_bytes(Image.fromarray(np.ascontiguousarray(rgb), mode="RGB"), fmt, jpeg_quality)
 
 
 def write_rgb(path: str | Path, rgb: np.ndarray) -> None:

@@ -32,7 +32,6 @@ Example:
 from __future__ import annotations
 
 import fnmatch
-import io
 import multiprocessing as mp
 import os
 import re
@@ -43,9 +42,6 @@ import uuid
 from concurrent.futures import BrokenExecutor, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-
-import numpy as np
-from PIL import Image
 
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.atomic import TEMP_GLOB
@@ -313,7 +309,7 @@ def _encode_file(job: _Job) -> tuple[int, int]:
     """Decode ``job.src``, write it encoded as ``job.suffix`` to ``job.dst``; returns both sizes in bytes."""
     src, dst = Path(job.src), Path(job.dst)
     if job.modality == "rgb":
-        data = _encode_rgb(codecs.read_rgb(src), job.suffix, job.jpeg_quality)
+        data = codecs.encode_rgb(codecs.read_rgb(src), job.suffix, job.jpeg_quality)
     else:
         data = codecs.encode_depth(codecs.read_depth(src, scale=job.depth_scale), job.suffix, job.depth_scale)
     dst.parent.mkdir(parents=True, exist_ok=True)
@@ -321,22 +317,15 @@ def _encode_file(job: _Job) -> tuple[int, int]:
     return src.stat().st_size, len(data)
 
 
-def _encode_rgb(rgb: np.ndarray, suffix: str, quality: int) -> bytes:
-    """PNG through :func:`codecs.encode_rgb`; JPEG at ``quality`` with 4:4:4 chroma (as ``codecs`` writes it)."""
-    if suffix == ".png":
-        return codecs.encode_rgb(rgb, suffix)
-    buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(rgb)).save(buf, format="JPEG", quality=quality, subsampling=0)
-    return buf.getvalue()
-
-
 def _human(n: int) -> str:
-    size = float(n)
-    for unit in ("B", "KB", "MB", "GB"):
-        if size < 1000 or unit == "GB":
-            return f"{size:.0f} {unit}" if unit == "B" else f"{size:.1f} {unit}"
+    if n < 1000:
+        return f"{n} B"
+    size = n / 1000
+    for unit in ("KB", "MB"):
+        if size < 1000:
+            return f"{size:.1f} {unit}"
         size /= 1000
-    return f"{size:.1f} TB"  # unreachable
+    return f"{size:.1f} GB"
 
 
 # ------------------------------------------------------------------------------------------ command line
