@@ -133,16 +133,11 @@ def augment_sample(
         raise ValueError(
             f"maps must be [D, {h}, {w}] with D fill values, got {tuple(maps.shape)}, {len(fills)}"
         )
-    colour = torch.eye(3) / 255.0
-    offset = torch.zeros(3)
+    colour, offset = torch.eye(3), torch.zeros(3)
     if params.jitter is not None:
-        brightness, contrast, saturation, hue = params.jitter
         mean_rgb = rgb.reshape(3, -1).sum(1, dtype=torch.float64) / (255.0 * h * w)
-        mean_grey = float(_LUMA.double() @ mean_rgb) * brightness
-        m = color_matrix(saturation, hue)
-        # contrast(brightness(x)) = c * b * x + (1 - c) * mean_grey; saturation and hue then apply m.
-        colour = m * (contrast * brightness / 255.0)
-        offset = m @ torch.full((3,), (1.0 - contrast) * mean_grey)
+        colour, offset = jitter_affine(params.jitter, float(_LUMA.double() @ mean_rgb))
+    colour = colour / 255.0  # the kernel reads 0-255 values
     image = torch.empty(3, h, w)
     moved = torch.empty(h, w, dtype=torch.bool)
     moved_maps = torch.empty(maps.shape)
@@ -250,10 +245,23 @@ def apply_color_jitter(image: torch.Tensor, params: AugmentParams) -> torch.Tens
     """
     if params.jitter is None:
         return image
-    brightness, contrast, saturation, hue = params.jitter
-    mean_grey = float((_LUMA.to(image.dtype) @ image.reshape(3, -1)).mean()) * brightness
-    m = color_matrix(saturation, hue).to(image.dtype)
-    # contrast(brightness(x)) = c * b * x + (1 - c) * mean_grey; saturation and hue then apply m.
-    out = (m * (contrast * brightness)) @ image.reshape(3, -1)
-    out += m @ torch.full((3, 1), (1.0 - contrast) * mean_grey, dtype=image.dtype)
+    mean_grey = float((_LUMA.to(image.dtype) @ image.reshape(3, -1)).mean())
+    matrix, offset = jitter_affine(params.jitter, mean_grey)
+    out = matrix.to(image.dtype) @ image.reshape(3, -1)
+    out += offset.to(image.dtype)[:, None]
     return out.clamp_(0.0, 1.0).reshape(image.shape)
+
+
+def jitter_affine(
+    jitter: tuple[float, float, float, float], mean_grey: float
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The colour jitter ``(brightness, contrast, saturation, hue)`` as ``x -> matrix @ x + offset``.
+
+    ``mean_grey`` is the image's mean luma (colours in ``[0, 1]``) before the jitter, which contrast blends towards.
+    Returns ``float32 [3, 3]`` and ``[3]``.
+    """
+    brightness, contrast, saturation, hue = jitter
+    m = color_matrix(saturation, hue)
+    # contrast(brightness(x)) = c * b * x + (1 - c) * b * mean_grey; saturation and hue then apply m.
+    offset = m @ torch.full((3,), (1.0 - contrast) * brightness * mean_grey)
+    return m * (contrast * brightness), offset

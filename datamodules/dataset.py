@@ -233,8 +233,10 @@ class AirFisheyeDataset(Dataset):
         if "depth" in out:
             maps.append(out["depth"])
             fills.append(0.0)
-        stacked = torch.cat(maps) if maps else torch.empty(0, *valid.shape)
-        rgb, valid, moved = augment_sample(rgb, valid, stacked, fills, params, self.camera.cx, self.camera.cy)
+        # Every task has a label or a depth map.
+        rgb, valid, moved = augment_sample(
+            rgb, valid, torch.cat(maps), fills, params, self.camera.cx, self.camera.cy
+        )
         if "label" in out:
             out["label"] = moved[0].to(out["label"].dtype)
         if "depth" in out:
