@@ -35,7 +35,6 @@ from typing import Any
 
 import numpy as np
 import torch
-import yaml
 from omegaconf import DictConfig, OmegaConf
 from torch import Tensor
 
@@ -332,6 +331,8 @@ def _parse_args(argv: Sequence[str]) -> dict[str, Any]:
         "eval_samples": int,
         "repeats": int,
     }
+    from datamodules.config import parse_data_overrides
+
     kwargs: dict[str, Any] = {}
     overrides: dict[str, Any] = {}
     for arg in argv:
@@ -340,7 +341,7 @@ def _parse_args(argv: Sequence[str]) -> dict[str, Any]:
         if not sep or not key:
             raise ValueError(f"arguments must look like key=value, got {arg!r}")
         if key.startswith("data."):
-            overrides[key[len("data.") :]] = yaml.safe_load(value) if value else None
+            overrides.update(parse_data_overrides([arg]))
         elif key in parsers:
             try:
                 kwargs[key] = parsers[key](value)
