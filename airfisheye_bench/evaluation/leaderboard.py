@@ -40,6 +40,7 @@ from airfisheye_bench.evaluation.results import PRIMARY_METRIC, RESULTS_VERSION,
 from airfisheye_bench.io import atomic_write_text
 
 __all__ = [
+    "METRIC_LABELS",
     "PAPER_BASELINES",
     "TASK_COLUMNS",
     "Leaderboard",
@@ -51,9 +52,11 @@ __all__ = [
     "build_leaderboard",
     "collect_results",
     "find_results",
+    "format_value",
     "load_entries",
     "load_entry",
     "main",
+    "rim_label",
 ]
 
 TASKS = ("seg", "depth", "completion")
@@ -67,7 +70,8 @@ TASK_COLUMNS: dict[str, tuple[str, ...]] = {
 HIGHER_IS_BETTER = frozenset({"mIoU", "pixel_acc", "delta1", "delta2", "delta3"})
 #: Printed as percentages in the markdown (the paper writes "mIoU 51.2"); the CSV keeps fractions.
 PERCENT_METRICS = frozenset({"mIoU", "pixel_acc"})
-_LABELS = {
+#: Column titles of the metrics (units and percent markers included).
+METRIC_LABELS = {
     "mIoU": "mIoU (%)",
     "pixel_acc": "pixel acc (%)",
     "abs_rel": "AbsRel",
@@ -512,7 +516,13 @@ def build_leaderboard(
 # ------------------------------------------------------------------------------------------------ rendering
 
 
-def _format(metric: str, value: float | None) -> str:
+def format_value(metric: str, value: float | None) -> str:
+    """A metric value as the tables print it: percent for mIoU and pixel accuracy, the paper's decimals.
+
+    Example:
+        >>> format_value("mIoU", 0.512), format_value("abs_rel", 0.0834), format_value("rmse", None)
+        ('51.2', '0.0834', '–')
+    """
     if value is None:
         return MISSING
     if metric in PERCENT_METRICS:
@@ -524,10 +534,11 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def _rim_label(rim_key: str) -> str:
+def rim_label(rim_key: str) -> str:
+    """The column title of a rim ring key, e.g. ``ring_80-95/rmse`` -> ``rim 80-95° RMSE (m)``."""
     match = _BIN.match(rim_key)
     assert match is not None
-    return f"rim {match['lo']}-{match['hi']}° {_LABELS.get(match['metric'], match['metric'])}"
+    return f"rim {match['lo']}-{match['hi']}° {METRIC_LABELS.get(match['metric'], match['metric'])}"
 
 
 @dataclass(frozen=True)
@@ -574,13 +585,13 @@ class Leaderboard:
     @staticmethod
     def _table_markdown(table: TaskTable) -> list[str]:
         order = "higher is better" if table.higher_is_better else "lower is better"
-        headers = ["rank", "model", "source", "split", *(_LABELS[c] for c in table.columns)]
-        headers += [_rim_label(table.rim_key)] if table.rim_key else []
+        headers = ["rank", "model", "source", "split", *(METRIC_LABELS[c] for c in table.columns)]
+        headers += [rim_label(table.rim_key)] if table.rim_key else []
         headers += ["run"]
         lines = [
             f"## {TASK_TITLES[table.task]} ({table.task})",
             "",
-            f"Sorted by {_LABELS[table.primary]}, {order}. Rows: each evaluated model on one split; "
+            f"Sorted by {METRIC_LABELS[table.primary]}, {order}. Rows: each evaluated model on one split; "
             "the rim column is the outermost incidence-angle ring, where fisheye distortion is strongest.",
         ]
         for group in table.groups:
@@ -589,9 +600,9 @@ class Leaderboard:
             lines.append("|" + "|".join("---" if h in _TEXT_COLUMNS else "---:" for h in headers) + "|")
             for rank, entry in group.rows:
                 cells = [MISSING if rank is None else str(rank), entry.model, entry.source, entry.split]
-                cells += [_format(c, entry.metrics.get(c)) for c in table.columns]
+                cells += [format_value(c, entry.metrics.get(c)) for c in table.columns]
                 if table.rim_key:
-                    cells.append(_format(table.primary, entry.breakdown.get(table.rim_key)))
+                    cells.append(format_value(table.primary, entry.breakdown.get(table.rim_key)))
                 cells.append(entry.run)
                 lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
         return lines

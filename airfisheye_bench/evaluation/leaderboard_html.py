@@ -30,17 +30,17 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.evaluation.leaderboard import (
-    _LABELS,
     HIGHER_IS_BETTER,
+    METRIC_LABELS,
     MISSING,
     PERCENT_METRICS,
     TASK_TITLES,
     Leaderboard,
     LeaderboardEntry,
     TaskTable,
-    _format,
-    _rim_label,
     breakdown_bins,
+    format_value,
+    rim_label,
 )
 from airfisheye_bench.evaluation.leaderboard_charts import bar_chart, binned_chart
 from airfisheye_bench.evaluation.results import load_results
@@ -146,7 +146,7 @@ def _task_section(table: TaskTable, panels: int, panel_width: int) -> str:
     out = [
         f'<section id="task-{task}" aria-labelledby="title-{task}">',
         f'<h2 id="title-{task}">{escape(TASK_TITLES[task])} ({task})</h2>',
-        f"<p>Ranked by {escape(_LABELS[table.primary])}, {order}; the rim column is the outermost "
+        f"<p>Ranked by {escape(METRIC_LABELS[table.primary])}, {order}; the rim column is the outermost "
         "incidence-angle ring, where fisheye distortion is strongest. Paper rows were measured on the real "
         f"AirFisheye test split and are not re-run here. Values are fractions and metres (mIoU and pixel "
         f"accuracy in %); {MISSING} = not reported.</p>",
@@ -194,9 +194,9 @@ def _header(table: TaskTable, columns: Sequence[str]) -> str:
         th("source", "text"),
         th("split", "text"),
     ]
-    cells += [th(_LABELS.get(c, c), "number", first(c)) for c in columns]
+    cells += [th(METRIC_LABELS.get(c, c), "number", first(c)) for c in columns]
     if table.rim_key:
-        cells.append(th(_rim_label(table.rim_key), "number", first(table.primary)))
+        cells.append(th(rim_label(table.rim_key), "number", first(table.primary)))
     cells.append(th("run", "text"))
     return f"<thead><tr>{''.join(cells)}</tr></thead>"
 
@@ -206,7 +206,7 @@ def _row(
 ) -> str:
     def number(metric: str, value: float | None) -> str:
         raw = "" if value is None else repr(value)  # sorted by the raw value, shown rounded
-        return f'<td class="num" data-value="{raw}">{escape(_format(metric, value))}</td>'
+        return f'<td class="num" data-value="{raw}">{escape(format_value(metric, value))}</td>'
 
     model = escape(e.model)
     model = f'<a href="#{anchor}">{model}</a>' if anchor else model
@@ -235,7 +235,7 @@ def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardE
             series[f"{e.model} ({e.run})"] = bins
     if not series:
         return ""
-    label = f"{_LABELS[table.primary]} by incidence-angle ring, every entry of this group"
+    label = f"{METRIC_LABELS[table.primary]} by incidence-angle ring, every entry of this group"
     return _figure(_binned(series, table.primary, _RING_AXIS, f"group-{key}", label), label)
 
 
@@ -265,7 +265,7 @@ def _detail(table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, pan
         bins = breakdown_bins(e.breakdown, kind, table.primary)
         if bins:
             what = "incidence-angle ring" if kind == "ring" else "depth range"
-            label = f"{_LABELS[table.primary]} by {what}, {e.run}"
+            label = f"{METRIC_LABELS[table.primary]} by {what}, {e.run}"
             charts.append(
                 _figure(_binned({e.run: bins}, table.primary, axis, f"{anchor}-{kind}", label), label)
             )
@@ -305,8 +305,8 @@ def _identity(e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str
 
 def _metrics_table(e: LeaderboardEntry) -> str:
     names = [k for k in e.metrics if "/" not in k]
-    head = "".join(f'<th scope="col">{escape(_LABELS.get(k, k))}</th>' for k in names)
-    cells = "".join(f'<td class="num">{escape(_format(k, e.metrics[k]))}</td>' for k in names)
+    head = "".join(f'<th scope="col">{escape(METRIC_LABELS.get(k, k))}</th>' for k in names)
+    cells = "".join(f'<td class="num">{escape(format_value(k, e.metrics[k]))}</td>' for k in names)
     return f'<div class="scroll"><table class="metrics"><thead><tr>{head}</tr></thead><tbody><tr>{cells}</tr></tbody></table></div>'
 
 
@@ -314,7 +314,7 @@ def _binned(series: Mapping[str, list], metric: str, axis: str, key: str, label:
     percent = metric in PERCENT_METRICS
     return binned_chart(
         series,
-        metric=_LABELS.get(metric, metric),
+        metric=METRIC_LABELS.get(metric, metric),
         axis=axis,
         key=key,
         label=label,
@@ -332,15 +332,19 @@ def _panels(e: LeaderboardEntry, count: int, width: int) -> str:
     files = sorted(folder.glob("*.png"))[:count] if folder and folder.is_dir() and count > 0 else []
     if not files:
         return ""
-    images = "".join(
-        f'<figure class="panel"><img src="{_data_uri(f, width)}" alt="qualitative panel {escape(f.stem)}">'
-        f"<figcaption>{escape(f.stem)}</figcaption></figure>"
-        for f in files
-    )
+    images = "".join(_panel(f, width) for f in files)
     return (
         "<h4>Qualitative panels</h4><p class=muted>image | (sparse input) | ground truth | prediction | error"
         f"</p><div class=panels>{images}</div>"
     )
+
+
+def _panel(path: Path, width: int) -> str:
+    try:
+        image = f'<img src="{_data_uri(path, width)}" alt="qualitative panel {escape(path.stem)}">'
+    except OSError as err:  # a damaged PNG costs its picture, not the page
+        image = f"<p class=muted>unreadable panel: {escape(str(err))}</p>"
+    return f'<figure class="panel">{image}<figcaption>{escape(path.stem)}</figcaption></figure>'
 
 
 def _data_uri(path: Path, width: int) -> str:

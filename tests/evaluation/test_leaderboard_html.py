@@ -278,7 +278,7 @@ def test_command_writes_the_page(runs: Path, tmp_path: Path, capsys) -> None:
     assert "html=board.txt is not an .html file name" in capsys.readouterr().err
 
 
-def test_paper_only_page_and_missing_panels(tmp_path: Path) -> None:
+def test_paper_only_page_and_missing_or_damaged_panels(tmp_path: Path) -> None:
     path = write_html(build_leaderboard([], paper=True), tmp_path / "paper.html")
     text = path.read_text()
     assert len(_tables(text)) == 3 and '<details id="entry' not in text and 'id="invalid"' not in text
@@ -286,6 +286,10 @@ def test_paper_only_page_and_missing_panels(tmp_path: Path) -> None:
     entries, _ = load_entries([bare])
     text = render_html(build_leaderboard(entries, paper=False))
     assert 'id="entry-depth-0"' in text and "<img" not in text and "<svg" not in text
+    (bare.parent / "panels").mkdir()
+    (bare.parent / "panels" / "frame.png").write_bytes(b"not a png")
+    text = render_html(build_leaderboard(entries, paper=False))
+    assert "unreadable panel" in text and "<img" not in text
 
 
 @pytest.mark.parametrize("module", [page_module, charts])
