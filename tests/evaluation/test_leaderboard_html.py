@@ -361,3 +361,18 @@ def test_page_in_headless_chromium(board: lb.Leaderboard, tmp_path: Path) -> Non
         leaving = [u for u in browser.requested_urls() if not u.startswith(("file:", "data:"))]
         assert leaving == []
         assert not any(e["method"] == "Page.javascriptDialogOpening" for e in browser.events)
+
+
+@needs_browser
+def test_the_browser_checks_catch_a_request_leaving_the_file(board: lb.Leaderboard, tmp_path: Path) -> None:
+    """The checks above are not vacuous: an external image is blocked and reported, or seen when unblocked."""
+    page = render_html(board, panels=0).replace("</main>", '<img src="http://127.0.0.1:9/x.png"></main>')
+    with_policy, without_policy = tmp_path / "with.html", tmp_path / "without.html"
+    with_policy.write_text(page)
+    without_policy.write_text(re.sub(r'<meta http-equiv="Content-Security-Policy"[^>]*>', "", page))
+    with Page(CHROMIUM) as browser:
+        browser.open(with_policy.as_uri())
+        assert any("Content Security Policy" in e for e in browser.console_errors())
+        browser.events.clear()
+        browser.open(without_policy.as_uri())
+        assert "http://127.0.0.1:9/x.png" in browser.requested_urls()
