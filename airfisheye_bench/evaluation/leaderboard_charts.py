@@ -29,6 +29,8 @@ _INK = "#010203"  # placeholder for text, axes and grid: replaced by currentColo
 _STYLE = {
     "svg.fonttype": "none",  # text stays text: small, selectable, in the page's font
     "font.family": "sans-serif",
+    # Laid out with DejaVu Sans (shipped with matplotlib); similar fallbacks where a browser lacks it.
+    "font.sans-serif": ["DejaVu Sans", "Arial", "Helvetica"],
     "font.size": 9,
     "text.color": _INK,
     "axes.edgecolor": _INK,

@@ -214,7 +214,7 @@ def _row(
         model += ' <span class="badge">paper</span>'
     source = "paper" if e.paper else _PREDICTOR_LABELS.get(e.predictor, e.predictor or MISSING)
     cells = [
-        f'<td class="num" data-value="{"" if rank is None else rank}">{MISSING if rank is None else rank}</td>',
+        f'<td class="num" data-value="{"" if rank is None else rank}">{rank or MISSING}</td>',
         f"<td>{model}</td>",
         f"<td>{escape(source)}</td>",
         f"<td>{escape(e.split)}</td>",
@@ -232,7 +232,10 @@ def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardE
     for _, e in rows:
         bins = breakdown_bins(e.breakdown, "ring", table.primary)
         if bins:
-            series[f"{e.model} ({e.run})"] = bins
+            name = f"{e.model} ({e.run})"
+            while name in series:  # same model and run name (e.g. one folder given twice under two paths)
+                name += "'"
+            series[name] = bins
     if not series:
         return ""
     label = f"{METRIC_LABELS[table.primary]} by incidence-angle ring, every entry of this group"
@@ -307,7 +310,8 @@ def _metrics_table(e: LeaderboardEntry) -> str:
     names = [k for k in e.metrics if "/" not in k]
     head = "".join(f'<th scope="col">{escape(METRIC_LABELS.get(k, k))}</th>' for k in names)
     cells = "".join(f'<td class="num">{escape(format_value(k, e.metrics[k]))}</td>' for k in names)
-    return f'<div class="scroll"><table class="metrics"><thead><tr>{head}</tr></thead><tbody><tr>{cells}</tr></tbody></table></div>'
+    table = f"<thead><tr>{head}</tr></thead><tbody><tr>{cells}</tr></tbody>"
+    return f'<div class="scroll"><table class="metrics">{table}</table></div>'
 
 
 def _binned(series: Mapping[str, list], metric: str, axis: str, key: str, label: str) -> str:

@@ -46,13 +46,10 @@ class Page:
         commands_r, self._commands = os.pipe()
         self._replies, replies_w = os.pipe()
 
-        def child_fds() -> (
-            None
-        ):  # the protocol's fixed descriptors; F_DUPFD first so neither clobbers the other
-            high_r, high_w = (
-                fcntl.fcntl(commands_r, fcntl.F_DUPFD, 10),
-                fcntl.fcntl(replies_w, fcntl.F_DUPFD, 10),
-            )
+        def child_fds() -> None:
+            # The protocol's fixed descriptors; copied above 10 first so that neither dup2 clobbers the other.
+            high_r = fcntl.fcntl(commands_r, fcntl.F_DUPFD, 10)
+            high_w = fcntl.fcntl(replies_w, fcntl.F_DUPFD, 10)
             os.dup2(high_r, 3)
             os.dup2(high_w, 4)
 
@@ -81,17 +78,16 @@ class Page:
         self._buffer = b""
         self._next_id = 0
         self._session: str | None = None
-        target = self.call("Target.createTarget", url="about:blank")["targetId"]
-        self._session = self.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
-        for domain in ("Page", "Runtime", "Log", "Network"):
-            self.call(f"{domain}.enable")
-        self.call(
-            "Emulation.setDeviceMetricsOverride",
-            width=width,
-            height=height,
-            deviceScaleFactor=1,
-            mobile=False,
-        )
+        try:
+            target = self.call("Target.createTarget", url="about:blank")["targetId"]
+            self._session = self.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
+            for domain in ("Page", "Runtime", "Log", "Network"):
+                self.call(f"{domain}.enable")
+            size = {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False}
+            self.call("Emulation.setDeviceMetricsOverride", **size)
+        except BaseException:
+            self.close()
+            raise
 
     # ------------------------------------------------------------------------------------------- protocol
 
