@@ -84,6 +84,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     _results(root, "evil", "seg", 0.10, name=EVIL)
     _results(root, "depth_test", "depth", 6.0)
     _results(root, "depth_better", "depth", 4.0)
+    _results(root, "depth_failed", "depth", float("nan"))  # written as null: no rank, listed last
     _results(root, "depth_val", "depth", 3.0, split="val")
     _results(root, "depth_other_data", "depth", 1.0, manifest=HASH_B)
     (root / "broken").mkdir()
@@ -149,7 +150,7 @@ def _tables(html: str) -> list[dict]:
 
 def test_tables_follow_the_leaderboard_groups_and_ranks(board: lb.Leaderboard, page: str) -> None:
     expected = [
-        (group.title, [(str(rank), e.run) for rank, e in group.rows])
+        (group.title, [(str(rank or "–"), e.run) for rank, e in group.rows])
         for table in board.tables
         for group in table.groups
     ]
@@ -162,7 +163,7 @@ def test_tables_follow_the_leaderboard_groups_and_ranks(board: lb.Leaderboard, p
         "synth (manifest a1b2c3d4), val split",
         "synth (manifest ffee0011), test split",
     ]
-    assert found[3][1] == [("1", "depth_better"), ("2", "depth_test")]
+    assert found[3][1] == [("1", "depth_better"), ("2", "depth_test"), ("–", "depth_failed")]
     assert found[4][1] == [("1", "depth_val")] and found[5][1] == [("1", "depth_other_data")]
 
 
@@ -192,7 +193,7 @@ def test_rows_show_source_split_and_every_metric(page: str) -> None:
     ]
     assert seg["rows"][1][2] == "ONNX"
     depth = _tables(page)[3]
-    assert [row[2:4] for row in depth["rows"]] == [["checkpoint", "test"]] * 2
+    assert [row[2:4] for row in depth["rows"]] == [["checkpoint", "test"]] * 3
 
 
 def test_paper_rows_are_marked_and_have_no_detail_view(page: str) -> None:
@@ -338,6 +339,17 @@ def test_page_in_headless_chromium(board: lb.Leaderboard, tmp_path: Path) -> Non
         # A text column sorts alphabetically.
         browser.press_enter_on(f"#{seg} thead th:nth-child({run_column + 1}) button")
         assert _column(browser, seg, run_column) == sorted(_column(browser, seg, run_column))
+
+        # Lower is better for RMSE (3rd metric column): best first, then reversed; the missing value stays last.
+        depth, rmse = "table-depth-1", 6
+        assert _column(browser, depth, rmse) == ["4.000", "6.000", "–"]
+        browser.press_enter_on(f"#{depth} thead th:nth-child({rmse + 1}) button")
+        assert _column(browser, depth, rmse) == ["4.000", "6.000", "–"]
+        browser.press_enter_on(f"#{depth} thead th:nth-child({rmse + 1}) button")
+        assert _column(browser, depth, rmse) == ["6.000", "4.000", "–"]
+        assert browser.evaluate(
+            f"document.querySelector('#{depth} thead th:nth-child({rmse + 1})').ariaSort"
+        ) == ("descending")
 
         # Clicking a model opens its detail view, charts and panels rendered.
         browser.click(f"#{seg} tbody tr:first-child a")
