@@ -52,7 +52,7 @@ def transcode() -> None:
 
 
 def leaderboard() -> None:
-    """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false]``."""
+    """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false] [html=FILE]``."""
     from airfisheye_bench.evaluation.leaderboard import main
 
     sys.exit(main(sys.argv[1:]))

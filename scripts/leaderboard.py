@@ -1,7 +1,7 @@
 """Rank every results.json by task next to the paper's baselines (thin wrapper of the leaderboard module).
 
 python scripts/leaderboard.py runs=logs/[,other/,path/to/results.json] [out=leaderboard] [paper=true] \
-    [skip_invalid=false]
+    [skip_invalid=false] [html=leaderboard/leaderboard.html]
 """
 
 import sys

@@ -43,7 +43,7 @@ for name in seg depth completion_ordering; do
 done
 
 E="$OUT/eval"
-python scripts/leaderboard.py out="$OUT/leaderboard" \
+python scripts/leaderboard.py out="$OUT/leaderboard" html="$OUT/leaderboard/leaderboard.html" \
   runs="$E/seg_ckpt,$E/seg_onnx,$E/depth_ckpt,$E/depth_onnx,$E/completion_ordering_ckpt,$E/completion_ordering_onnx"
 python scripts/plot_rings.py "$OUT/eval/depth_ckpt/results.json" "$OUT/eval/completion_ordering_ckpt/results.json" \
   --labels "AdaBins (image only),NLSPN + LiDAR (ordering)" \

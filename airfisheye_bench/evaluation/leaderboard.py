@@ -9,9 +9,11 @@ where fisheye distortion hurts most.
 Command line (also ``airfisheye-leaderboard``)::
 
     python scripts/leaderboard.py runs=logs/[,more/ or a results.json] [out=leaderboard] [paper=true] \
-        [skip_invalid=false]
+        [skip_invalid=false] [html=leaderboard.html]
 
-It writes ``<out>/leaderboard.md`` and ``<out>/leaderboard.csv`` (atomically) and prints the markdown.
+It writes ``<out>/leaderboard.md`` and ``<out>/leaderboard.csv`` (atomically) and prints the markdown; ``html=``
+also writes the same tables as one self-contained, sortable HTML page with a detail view per entry
+(:mod:`airfisheye_bench.evaluation.leaderboard_html`).
 
 Example:
     >>> board = build_leaderboard([], paper=True)   # the paper's baselines alone
@@ -38,6 +40,7 @@ from airfisheye_bench.evaluation.results import PRIMARY_METRIC, RESULTS_VERSION,
 from airfisheye_bench.io import atomic_write_text
 
 __all__ = [
+    "METRIC_LABELS",
     "PAPER_BASELINES",
     "TASK_COLUMNS",
     "Leaderboard",
@@ -45,12 +48,15 @@ __all__ = [
     "LeaderboardError",
     "LeaderboardGroup",
     "TaskTable",
+    "breakdown_bins",
     "build_leaderboard",
     "collect_results",
     "find_results",
+    "format_value",
     "load_entries",
     "load_entry",
     "main",
+    "rim_label",
 ]
 
 TASKS = ("seg", "depth", "completion")
@@ -64,7 +70,8 @@ TASK_COLUMNS: dict[str, tuple[str, ...]] = {
 HIGHER_IS_BETTER = frozenset({"mIoU", "pixel_acc", "delta1", "delta2", "delta3"})
 #: Printed as percentages in the markdown (the paper writes "mIoU 51.2"); the CSV keeps fractions.
 PERCENT_METRICS = frozenset({"mIoU", "pixel_acc"})
-_LABELS = {
+#: Column titles of the metrics (units and percent markers included).
+METRIC_LABELS = {
     "mIoU": "mIoU (%)",
     "pixel_acc": "pixel acc (%)",
     "abs_rel": "AbsRel",
@@ -96,7 +103,7 @@ CSV_COLUMNS = (
     *_CSV_METRICS,
     *("rim_key", "rim_value", "path"),
 )
-_RING = re.compile(r"^ring_(?P<lo>\d+(?:\.\d+)?)-(?P<hi>\d+(?:\.\d+)?)/(?P<metric>.+)$")
+_BIN = re.compile(r"^(?P<kind>ring|range)_(?P<lo>\d+(?:\.\d+)?)-(?P<hi>\d+(?:\.\d+)?)/(?P<metric>.+)$")
 _TEXT_COLUMNS = frozenset({"model", "source", "split", "run"})  # left-aligned; numbers are right-aligned
 MISSING = "–"
 PAPER_SOURCE = "paper (real AirFisheye)"
@@ -127,6 +134,8 @@ class LeaderboardEntry:
         breakdown: Ring/range breakdown values, same rules.
         paper: True for the paper's published baselines.
         path: The ``results.json`` the row came from (``None`` for the paper's rows).
+        predictor: What produced the predictions: ``checkpoint``, ``onnx`` or ``predictions`` (``model.source``
+            of the results; empty when unknown or for the paper's rows).
     """
 
     task: str
@@ -139,6 +148,7 @@ class LeaderboardEntry:
     breakdown: Mapping[str, float | None] = field(default_factory=dict)
     paper: bool = False
     path: str | None = None
+    predictor: str = ""
 
     @property
     def source(self) -> str:
@@ -316,6 +326,7 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         metrics=_numbers(record, "metrics"),
         breakdown=_numbers(record, "breakdown"),
         path=str(path),
+        predictor=str(model.get("source") or ""),
     )
 
 
@@ -401,13 +412,30 @@ class TaskTable:
         return self.primary in HIGHER_IS_BETTER
 
 
+def breakdown_bins(
+    breakdown: Mapping[str, float | None], kind: str, metric: str
+) -> list[tuple[float, float, float | None]]:
+    """``(lo, hi, value)`` of ``metric`` in each ``ring`` (incidence angle) or ``range`` (depth) bin, in order.
+
+    Example:
+        >>> breakdown_bins({"ring_30-60/rmse": 5.0, "ring_0-30/rmse": 4.0, "range_0-10/rmse": 1.0}, "ring", "rmse")
+        [(0.0, 30.0, 4.0), (30.0, 60.0, 5.0)]
+    """
+    bins = []
+    for key, value in breakdown.items():
+        match = _BIN.match(key)
+        if match and match["kind"] == kind and match["metric"] == metric:
+            bins.append((float(match["lo"]), float(match["hi"]), value))
+    return sorted(bins, key=lambda b: (b[0], b[1]))
+
+
 def _rim_key(entries: Iterable[LeaderboardEntry], primary: str) -> str | None:
     """The outermost incidence-angle ring reported for the primary metric (``ring_80-95/<primary>``)."""
     rings = []
     for entry in entries:
         for key in entry.breakdown:
-            match = _RING.match(key)
-            if match and match["metric"] == primary:
+            match = _BIN.match(key)
+            if match and match["kind"] == "ring" and match["metric"] == primary:
                 rings.append((float(match["hi"]), float(match["lo"]), key))
     return max(rings)[2] if rings else None
 
@@ -453,12 +481,16 @@ def _task_table(task: str, entries: Sequence[LeaderboardEntry]) -> TaskTable:
     )
 
 
-def build_leaderboard(entries: Iterable[LeaderboardEntry], paper: bool = True) -> Leaderboard:
+def build_leaderboard(
+    entries: Iterable[LeaderboardEntry], paper: bool = True, invalid: Sequence[str] = ()
+) -> Leaderboard:
     """Rank rows per task, within groups of the same dataset and split.
 
     Args:
         entries: Rows, e.g. from :func:`collect_results`.
         paper: Add :data:`PAPER_BASELINES` (in their own group: the real dataset's test split).
+        invalid: ``"<path>: <reason>"`` of the files that failed validation (:func:`load_entries`); the
+            renderings list them under the tables rather than dropping them silently.
 
     Returns:
         The leaderboard; tasks without any row are left out.
@@ -476,13 +508,21 @@ def build_leaderboard(entries: Iterable[LeaderboardEntry], paper: bool = True) -
         for task in TASKS
         if any(e.task == task for e in rows)
     )
-    return Leaderboard(tables=tables, files=sum(not e.paper for e in rows), paper=paper)
+    return Leaderboard(
+        tables=tables, files=sum(not e.paper for e in rows), paper=paper, invalid=tuple(invalid)
+    )
 
 
 # ------------------------------------------------------------------------------------------------ rendering
 
 
-def _format(metric: str, value: float | None) -> str:
+def format_value(metric: str, value: float | None) -> str:
+    """A metric value as the tables print it: percent for mIoU and pixel accuracy, the paper's decimals.
+
+    Example:
+        >>> format_value("mIoU", 0.512), format_value("abs_rel", 0.0834), format_value("rmse", None)
+        ('51.2', '0.0834', '–')
+    """
     if value is None:
         return MISSING
     if metric in PERCENT_METRICS:
@@ -494,10 +534,11 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def _rim_label(rim_key: str) -> str:
-    match = _RING.match(rim_key)
+def rim_label(rim_key: str) -> str:
+    """The column title of a rim ring key, e.g. ``ring_80-95/rmse`` -> ``rim 80-95° RMSE (m)``."""
+    match = _BIN.match(rim_key)
     assert match is not None
-    return f"rim {match['lo']}-{match['hi']}° {_LABELS.get(match['metric'], match['metric'])}"
+    return f"rim {match['lo']}-{match['hi']}° {METRIC_LABELS.get(match['metric'], match['metric'])}"
 
 
 @dataclass(frozen=True)
@@ -508,11 +549,13 @@ class Leaderboard:
         tables: One per task that has rows, in the order seg, depth, completion.
         files: Number of ``results.json`` rows (paper rows not counted).
         paper: Whether the paper's baselines are included.
+        invalid: ``"<path>: <reason>"`` of each ``results.json`` that failed validation (not ranked).
     """
 
     tables: tuple[TaskTable, ...]
     files: int = 0
     paper: bool = True
+    invalid: tuple[str, ...] = ()
 
     def to_markdown(self) -> str:
         """The leaderboard as markdown: one section per task, one table per dataset and split.
@@ -534,18 +577,21 @@ class Leaderboard:
         ]
         for table in self.tables:
             lines += ["", *self._table_markdown(table)]
+        if self.invalid:
+            lines += ["", "## Invalid results.json (not ranked)", ""]
+            lines += [f"- {_cell(problem)}" for problem in self.invalid]
         return "\n".join(lines) + "\n"
 
     @staticmethod
     def _table_markdown(table: TaskTable) -> list[str]:
         order = "higher is better" if table.higher_is_better else "lower is better"
-        headers = ["rank", "model", "source", "split", *(_LABELS[c] for c in table.columns)]
-        headers += [_rim_label(table.rim_key)] if table.rim_key else []
+        headers = ["rank", "model", "source", "split", *(METRIC_LABELS[c] for c in table.columns)]
+        headers += [rim_label(table.rim_key)] if table.rim_key else []
         headers += ["run"]
         lines = [
             f"## {TASK_TITLES[table.task]} ({table.task})",
             "",
-            f"Sorted by {_LABELS[table.primary]}, {order}. Rows: each evaluated model on one split; "
+            f"Sorted by {METRIC_LABELS[table.primary]}, {order}. Rows: each evaluated model on one split; "
             "the rim column is the outermost incidence-angle ring, where fisheye distortion is strongest.",
         ]
         for group in table.groups:
@@ -554,9 +600,9 @@ class Leaderboard:
             lines.append("|" + "|".join("---" if h in _TEXT_COLUMNS else "---:" for h in headers) + "|")
             for rank, entry in group.rows:
                 cells = [MISSING if rank is None else str(rank), entry.model, entry.source, entry.split]
-                cells += [_format(c, entry.metrics.get(c)) for c in table.columns]
+                cells += [format_value(c, entry.metrics.get(c)) for c in table.columns]
                 if table.rim_key:
-                    cells.append(_format(table.primary, entry.breakdown.get(table.rim_key)))
+                    cells.append(format_value(table.primary, entry.breakdown.get(table.rim_key)))
                 cells.append(entry.run)
                 lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
         return lines
@@ -614,7 +660,7 @@ def _raw(value: float | None) -> str:
 
 USAGE = (
     "usage: airfisheye-leaderboard runs=DIR_OR_FILE[,DIR_OR_FILE...] [out=leaderboard] [paper=true] "
-    "[skip_invalid=false]"
+    "[skip_invalid=false] [html=FILE.html]"
 )
 _TRUE, _FALSE = ("1", "true", "yes", "on"), ("0", "false", "no", "off")
 
@@ -627,7 +673,10 @@ def _flag(args: Mapping[str, str], name: str, default: bool) -> bool:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false]``.
+    """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false] [html=FILE]``.
+
+    ``html=`` also writes the leaderboard as a self-contained HTML page (sortable tables, a detail view per
+    entry); with ``skip_invalid=true`` the invalid files are listed in the markdown and the page.
 
     Args:
         argv: ``key=value`` arguments (default: ``sys.argv[1:]``).
@@ -650,7 +699,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     bad = [a for a in argv if "=" not in a]
     args = dict(a.split("=", 1) for a in argv if "=" in a)
-    unknown = sorted(set(args) - {"runs", "out", "paper", "skip_invalid"})
+    unknown = sorted(set(args) - {"runs", "out", "paper", "skip_invalid", "html"})
     if bad or unknown or not args.get("runs", "").strip():
         problem = (
             f"unknown argument(s): {', '.join(bad + unknown)}" if bad or unknown else "runs= is required"
@@ -661,6 +710,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         paper, skip_invalid = _flag(args, "paper", True), _flag(args, "skip_invalid", False)
     except ValueError as err:
         print(f"{err}\n{USAGE}", file=sys.stderr)
+        return 2
+    html = args.get("html", "").strip()
+    if "html" in args and not html.endswith((".html", ".htm")):
+        print(f"html={args['html']} is not an .html file name\n{USAGE}", file=sys.stderr)
         return 2
 
     runs = [r.strip() for r in args["runs"].split(",") if r.strip()]
@@ -678,10 +731,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("error: no valid results.json to rank", file=sys.stderr)
         return 1
 
-    board = build_leaderboard(entries, paper=paper)
-    md, table = board.write(args.get("out", "leaderboard"))
+    board = build_leaderboard(entries, paper=paper, invalid=problems)
+    written = list(board.write(args.get("out", "leaderboard")))
+    if html:
+        from airfisheye_bench.evaluation.leaderboard_html import write_html
+
+        written.append(write_html(board, html))
     print(board.to_markdown(), end="")
-    print(f"wrote {md} and {table}", file=sys.stderr)
+    print(f"wrote {', '.join(map(str, written))}", file=sys.stderr)
     return 0
 
 
