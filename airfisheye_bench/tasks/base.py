@@ -236,7 +236,9 @@ class BenchmarkTask(L.LightningModule):
         for name, param in self.named_parameters():
             if not param.requires_grad:
                 continue
-            name = name.removeprefix("net.").removeprefix("_orig_mod.")  # the model's names (torch.compile wraps)
+            name = name.removeprefix("net.").removeprefix(
+                "_orig_mod."
+            )  # the model's names (torch.compile wraps)
             key = next((k for k in factors if name == k or name.startswith(k + ".")), "default")
             members[key].append(param)
         empty = [k for k in factors if not members[k]]
