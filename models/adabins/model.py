@@ -168,7 +168,8 @@ class UnetAdaptiveBins(nn.Module):
         return {"depth": depth, "depth_lowres": depth_lowres, "bin_edges": bin_edges}
 
     def get_1x_lr_params(self) -> Iterator[nn.Parameter]:
-        """Encoder parameters (the official recipe trains them at lr / 10)."""
+        """Encoder parameters: the official recipe trains them at lr / 10 (``experiment=paper/depth`` does, with
+        ``task.module.lr_multipliers: {encoder: 0.1}``, which selects exactly these)."""
         return self.encoder.parameters()
 
     def get_10x_lr_params(self) -> Iterator[nn.Parameter]:
