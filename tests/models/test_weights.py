@@ -174,3 +174,26 @@ def test_disabled_pretrained_weights_fetch_nothing(offline):
         for name in sorted(TINY):
             model = models.create_model(name, encoder_weights="imagenet", **TINY[name])
             assert model.weights_identity["encoder_weights"] is None
+
+
+@pytest.mark.parametrize("name", ["deeplabv3plus", "adabins"])
+def test_imagenet_reads_the_hugging_face_cache_offline(offline, resnet_files, name):
+    """smp's ImageNet weights come from the Hugging Face cache when they are there, with no network."""
+    from safetensors.torch import save_file
+    from segmentation_models_pytorch.encoders import encoders
+
+    settings = encoders["resnet18"]["pretrained_settings"]["imagenet"]
+    snapshot = offline / "hf" / "models--smp-hub--resnet18.imagenet" / "snapshots" / settings["revision"]
+    snapshot.mkdir(parents=True)
+    _, state = resnet_files["torchvision"]
+    save_file(
+        {k: v.contiguous() for k, v in state.items() if not k.startswith("fc.")},
+        snapshot / "model.safetensors",
+    )
+    (snapshot / "config.json").write_text("{}")
+    model = models.create_model(name, encoder_weights="imagenet", **TINY[name])
+    for key, value in encoder_tensors(name, model).items():
+        assert torch.equal(value, state[key]), key
+    record = model.weights_identity["encoder_weights"]
+    assert record["source"] == f"hf:smp-hub/resnet18.imagenet@{settings['revision']}"
+    assert record["sha256"] == hashlib.sha256((snapshot / "model.safetensors").read_bytes()).hexdigest()
