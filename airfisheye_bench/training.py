@@ -103,6 +103,7 @@ def train(cfg: DictConfig) -> dict[str, Any]:
                     "name": cfg.model.name,
                     "checkpoint": best or None,
                     "config": OmegaConf.to_container(cfg.model, resolve=True),
+                    "weights": module.hparams.get("weights"),  # what training started from
                 },
                 config=OmegaConf.to_container(cfg, resolve=True),
             )

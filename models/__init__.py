@@ -8,6 +8,8 @@ Calling convention shared by every model:
   in metres at the input resolution. This is what is exported to ONNX.
 - ``forward_with_aux(...)`` returns a dict holding the primary output (``"logits"`` or ``"depth"``) and any auxiliary
   outputs the training loss needs (e.g. AdaBins ``"bin_edges"``).
+- constructors take ``encoder_weights`` (``None``, ``"imagenet"`` or a local file) and ``weights_path``, and keep
+  ``weights_identity``, the record of what was loaded (see :mod:`models.weights`).
 """
 
 from models.registry import create_model, list_models, model_task, register_model

@@ -9,8 +9,10 @@ Exactly one source is given:
 The data configuration is the one the model was trained with (the run's ``config.yaml``, or the ONNX metadata),
 so the model sees the camera it expects; ``data.*`` overrides on the command line still apply on top. A
 prediction folder is evaluated with the ``data`` group of ``configs/evaluate.yaml`` (synthetic ``quickstart`` by
-default). The output folder receives ``results.json`` (the leaderboard format) and ``panels/``; the table is
-printed.
+default). ``tta=flip`` averages a checkpoint's or ONNX model's prediction with the mirrored prediction of the
+mirrored input (:func:`~airfisheye_bench.evaluation.predictors.flip_tta`). The output folder receives
+``results.json`` (the leaderboard format; ``model`` records the weights the model started from and the TTA) and
+``panels/``; the table is printed.
 """
 
 from __future__ import annotations
@@ -150,11 +152,12 @@ def _datamodule(
 def _predictor(
     cfg: DictConfig, source: str, task: str, module, checkpoint: Path | None, dataset, camera
 ) -> Predictor:
+    tta = cfg.get("tta")
     if source == "ckpt_path":
         device = cfg.device if cfg.device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu")
-        return CheckpointPredictor(module, checkpoint, device=device)
+        return CheckpointPredictor(module, checkpoint, device=device, tta=tta)
     if source == "onnx_path":
-        predictor = OnnxPredictor(cfg.onnx_path, threads=cfg.get("threads"))
+        predictor = OnnxPredictor(cfg.onnx_path, threads=cfg.get("threads"), tta=tta)
         size = predictor.fixed_size
         if size is not None and size != (camera.height, camera.width):
             raise ValueError(
@@ -162,6 +165,8 @@ def _predictor(
                 f"{camera.height}x{camera.width}; drop the data.camera overrides (or export with dynamic_spatial=true)"
             )
         return predictor
+    if tta is not None:
+        raise ValueError("tta= only applies to ckpt_path= or onnx_path= (prediction files are final)")
     return FilePredictor(
         cfg.predictions, task, list(dataset.sample_ids), (camera.height, camera.width), name=cfg.get("name")
     )

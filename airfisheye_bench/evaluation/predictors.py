@@ -7,6 +7,7 @@ Each predictor turns a collated batch into the prediction the task's metric take
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -19,13 +20,19 @@ from airfisheye_bench.evaluation.submission import read_prediction, validate_sub
 from airfisheye_bench.io import file_sha256
 
 __all__ = [
+    "TTA_MODES",
     "CheckpointPredictor",
     "FilePredictor",
     "OnnxPredictor",
     "PredictionFilesDataset",
     "Predictor",
+    "check_tta",
+    "flip_tta",
     "to_prediction",
 ]
+
+#: Test-time augmentations of model predictions: ``None`` (off) or ``"flip"`` (see :func:`flip_tta`).
+TTA_MODES = (None, "flip")
 
 
 class Predictor(Protocol):
@@ -47,6 +54,43 @@ def to_prediction(task: str, output: Tensor) -> Tensor:
     return output if output.ndim == 4 else output.unsqueeze(1)
 
 
+def check_tta(tta: str | None) -> str | None:
+    """``tta`` if it is one of :data:`TTA_MODES`.
+
+    Example:
+        >>> check_tta("flip")
+        'flip'
+        >>> check_tta("rotate")
+        Traceback (most recent call last):
+        ...
+        ValueError: tta must be null or 'flip', got 'rotate'
+    """
+    if tta not in TTA_MODES:
+        raise ValueError(f"tta must be null or 'flip', got {tta!r}")
+    return tta
+
+
+def flip_tta(run: Callable[[list[Tensor]], Tensor], inputs: Sequence[Tensor]) -> Tensor:
+    """Horizontal-flip test-time augmentation: the mean of the model output and the mirrored output of the
+    mirrored inputs, as AdaBins' evaluation (logits for segmentation, depth otherwise).
+
+    Every input (image and, for completion, sparse depth) is mirrored along its width: the served fisheye image is
+    symmetric about its vertical centre line, the assumption training's horizontal-flip augmentation makes too.
+
+    Args:
+        run: the model, called with the list of input tensors ``[B, C, H, W]``, returning ``[B, C', H, W]``.
+        inputs: the model inputs.
+
+    Example:
+        >>> x = torch.arange(4.0).view(1, 1, 1, 4)
+        >>> flip_tta(lambda xs: xs[0] * torch.tensor([1.0, 0.0, 0.0, 0.0]), [x]).tolist()
+        [[[[0.0, 0.0, 0.0, 1.5]]]]
+    """
+    inputs = list(inputs)
+    mirrored = run([t.flip(-1) for t in inputs]).flip(-1)
+    return 0.5 * (run(inputs) + mirrored)
+
+
 class CheckpointPredictor:
     """Predictions of a trained task module (see :func:`airfisheye_bench.tasks.load_task`).
 
@@ -54,26 +98,37 @@ class CheckpointPredictor:
         module: The task module, weights loaded.
         checkpoint: Its file (recorded in the results).
         device: Where to run the model.
+        tta: Test-time augmentation, one of :data:`TTA_MODES`.
     """
 
     def __init__(
-        self, module, checkpoint: str | Path | None = None, device: str | torch.device = "cpu"
+        self,
+        module,
+        checkpoint: str | Path | None = None,
+        device: str | torch.device = "cpu",
+        tta: str | None = None,
     ) -> None:
         self.module = module.to(device).eval()
         self.task = module.task
         self.device = torch.device(device)
         self.checkpoint = Path(checkpoint) if checkpoint else None
+        self.tta = check_tta(tta)
 
     @torch.no_grad()
     def __call__(self, batch: dict) -> Tensor:
         inputs = [t.to(self.device, non_blocking=True) for t in self.module.model_inputs(batch)]
-        return to_prediction(self.task, self.module(*inputs)).cpu()
+        output = flip_tta(self._run, inputs) if self.tta == "flip" else self._run(inputs)
+        return to_prediction(self.task, output).cpu()
+
+    def _run(self, inputs: list[Tensor]) -> Tensor:
+        return self.module(*inputs)
 
     def identity(self) -> dict[str, Any]:
         model = dict(self.module.hparams.get("model", {}))
         out: dict[str, Any] = {"source": "checkpoint", "name": model.get("name"), "config": model}
         if self.checkpoint is not None:
             out.update(checkpoint=str(self.checkpoint), sha256=file_sha256(self.checkpoint))
+        out.update(weights=self.module.hparams.get("weights"), tta=self.tta)
         return out
 
 
@@ -84,16 +139,22 @@ class OnnxPredictor:
         path: The model file; its deployment metadata says the task and the input names.
         threads: Intra-op threads (``None``: ONNX Runtime's default).
         providers: Execution providers (default CPU).
+        tta: Test-time augmentation, one of :data:`TTA_MODES`.
     """
 
     def __init__(
-        self, path: str | Path, threads: int | None = None, providers: list[str] | None = None
+        self,
+        path: str | Path,
+        threads: int | None = None,
+        providers: list[str] | None = None,
+        tta: str | None = None,
     ) -> None:
         import onnxruntime as ort
 
         from airfisheye_bench.export.metadata import read_deployment_metadata
 
         self.path = Path(path)
+        self.tta = check_tta(tta)
         if not self.path.is_file():
             raise FileNotFoundError(f"ONNX model {self.path} does not exist")
         self.metadata = read_deployment_metadata(self.path)
@@ -114,9 +175,14 @@ class OnnxPredictor:
         missing = [n for n in self.input_names if n not in batch]
         if missing:
             raise ValueError(f"{self.path}: the batch lacks the model inputs {missing} (has {sorted(batch)})")
-        feed = {n: batch[n].detach().cpu().float().numpy() for n in self.input_names}
+        inputs = [batch[n].detach().cpu().float() for n in self.input_names]
+        output = flip_tta(self._run, inputs) if self.tta == "flip" else self._run(inputs)
+        return to_prediction(self.task, output)
+
+    def _run(self, inputs: list[Tensor]) -> Tensor:
+        feed = {n: np.ascontiguousarray(t.numpy()) for n, t in zip(self.input_names, inputs, strict=True)}
         output = self.session.run([self.output_name], feed)[0]
-        return to_prediction(self.task, torch.from_numpy(np.ascontiguousarray(output)))
+        return torch.from_numpy(np.ascontiguousarray(output))
 
     def identity(self) -> dict[str, Any]:
         return {
@@ -126,6 +192,8 @@ class OnnxPredictor:
             "sha256": file_sha256(self.path),
             "config": self.metadata.get("model_config"),
             "source_checkpoint": self.metadata.get("source_checkpoint"),
+            "weights": self.metadata.get("weights"),
+            "tta": self.tta,
         }
 
 

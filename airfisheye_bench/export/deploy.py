@@ -460,6 +460,7 @@ def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[
         data_config=OmegaConf.to_container(data_cfg, resolve=True),
         checkpoint_sha256=file_sha256(checkpoint),
         source_checkpoint=str(checkpoint.resolve()),
+        weights=task.hparams.get("weights"),
         **extra,
     )
 

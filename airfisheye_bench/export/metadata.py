@@ -22,6 +22,11 @@ Every task:
 - ``airfisheye.checkpoint_sha256``: SHA-256 of the source ``.ckpt`` file.
 - ``airfisheye.source_checkpoint``: path of the source ``.ckpt`` file.
 
+Optional, every task (read when present; models exported before it lack it):
+
+- ``airfisheye.weights``: JSON of the weights the model started from before training
+  (``models.weights.weights_identity``: ``encoder_weights`` such as ``imagenet`` with source, file and SHA-256).
+
 Segmentation (``seg``) only:
 
 - ``airfisheye.class_names``: JSON list of training class names; logits channel ``c`` is class ``c``.
@@ -40,7 +45,8 @@ Completion only:
   ``sparse_depth`` is range in metres, float32 ``[B, 1, H, W]``, 0 = no LiDAR point.
 
 Outputs: ``logits`` ``[B, C, H, W]`` (argmax over ``C`` gives the class id), ``depth`` ``[B, 1, H, W]`` range in
-metres. The keys of one task are exactly the common keys plus that task's keys (``TASK_KEYS``):
+metres. The keys of one task are exactly the common keys plus that task's keys (``TASK_KEYS``) plus the optional
+keys given (``OPTIONAL_KEYS``):
 :func:`deployment_metadata` writes them, :func:`parse_deployment_metadata` checks and decodes them.
 """
 
@@ -72,6 +78,8 @@ __all__ = [
     "KEY_PALETTE",
     "KEY_SOURCE_CHECKPOINT",
     "KEY_TASK",
+    "KEY_WEIGHTS",
+    "OPTIONAL_KEYS",
     "PREFIX",
     "TASK_INPUTS",
     "TASK_KEYS",
@@ -102,6 +110,7 @@ KEY_IGNORE_INDEX = "airfisheye.ignore_index"
 KEY_MIN_DEPTH = "airfisheye.min_depth"
 KEY_MAX_DEPTH = "airfisheye.max_depth"
 KEY_OCCLUSION = "airfisheye.occlusion"
+KEY_WEIGHTS = "airfisheye.weights"
 
 COMMON_KEYS: tuple[str, ...] = (
     KEY_FORMAT_VERSION,
@@ -123,6 +132,8 @@ TASK_KEYS: dict[str, tuple[str, ...]] = {
     "depth": (*COMMON_KEYS, KEY_MIN_DEPTH, KEY_MAX_DEPTH),
     "completion": (*COMMON_KEYS, KEY_MIN_DEPTH, KEY_MAX_DEPTH, KEY_OCCLUSION),
 }
+#: Keys written when their value is known, decoded when present.
+OPTIONAL_KEYS: tuple[str, ...] = (KEY_WEIGHTS,)
 TASK_INPUTS: dict[str, tuple[str, ...]] = {
     "seg": ("image",),
     "depth": ("image",),
@@ -160,6 +171,7 @@ def deployment_metadata(
     min_depth: float | None = None,
     max_depth: float | None = None,
     occlusion: str | None = None,
+    weights: Mapping[str, Any] | None = None,
 ) -> dict[str, str]:
     """Encode the deployment metadata of one model as ``metadata_props`` strings (see the module docstring).
 
@@ -182,9 +194,10 @@ def deployment_metadata(
         min_depth: depth / completion: lower bound of valid ground truth (metres).
         max_depth: depth / completion: upper bound (metres).
         occlusion: completion: occlusion correction method of the sparse input.
+        weights: optional record of the weights the model started from (``airfisheye.weights``).
 
     Returns:
-        ``{key: str}`` with exactly the keys of ``TASK_KEYS[task]``.
+        ``{key: str}`` with exactly the keys of ``TASK_KEYS[task]``, plus ``airfisheye.weights`` when given.
 
     Raises:
         ValueError: unknown task, a missing or superfluous task-specific value, or a malformed value.
@@ -246,6 +259,8 @@ def deployment_metadata(
         KEY_OCCLUSION: occlusion,
     }
     out = {key: _encode(key, values[key]) for key in TASK_KEYS[task]}
+    if weights is not None:
+        out[KEY_WEIGHTS] = _encode(KEY_WEIGHTS, dict(weights))
     parse_deployment_metadata(out)  # the writer never produces what the reader would reject
     return out
 
@@ -286,7 +301,7 @@ def parse_deployment_metadata(props: Mapping[str, str]) -> dict[str, Any]:
     if missing:
         raise ValueError(f"ONNX metadata of a task={task} model lacks {missing}")
     decoded: dict[str, Any] = {}
-    for key in TASK_KEYS[task]:
+    for key in (*TASK_KEYS[task], *(k for k in OPTIONAL_KEYS if k in props)):
         value = props[key]
         if key not in _STRING_KEYS:
             try:

@@ -34,9 +34,14 @@ class BenchmarkTask(L.LightningModule):
 
     Args:
         model: Registry name and keyword arguments, e.g. ``{"name": "deeplabv3plus", "encoder_name": "resnet50"}``.
-        optimizer: Partial optimizer (Hydra ``_partial_: true``) called with the parameters.
+        optimizer: Partial optimizer (Hydra ``_partial_: true``) called with the parameter groups.
         scheduler: Optional partial LR scheduler called with the optimizer.
         scheduler_interval: ``epoch`` or ``step``.
+        lr_multipliers: ``{submodule: factor}``: the parameters under that submodule of the model (e.g.
+            ``encoder``) train at ``factor`` x the optimizer's ``lr`` (and a scheduler's ``max_lr``); the rest at
+            the ``lr``. AdaBins trains its encoder at lr / 10 (see :meth:`parameter_groups`).
+        weights: What the model's weights started from (``models.weights.weights_identity``); recorded from the
+            model when ``None``, and kept from the checkpoint when a trained task is rebuilt.
         ring_edges_deg: Incidence-angle ring edges of the fisheye breakdown (degrees).
         num_panels: Validation samples drawn into the qualitative panel each epoch (0 disables panels).
     """
@@ -51,6 +56,8 @@ class BenchmarkTask(L.LightningModule):
         scheduler_interval: str = "epoch",
         ring_edges_deg: tuple[float, ...] = DEFAULT_RING_EDGES_DEG,
         num_panels: int = 4,
+        lr_multipliers: dict[str, float] | None = None,
+        weights: dict[str, Any] | None = None,
     ) -> None:
         super().__init__()
         self.save_hyperparameters(ignore=["optimizer", "scheduler"], logger=False)
@@ -66,6 +73,10 @@ class BenchmarkTask(L.LightningModule):
         if scheduler_interval not in ("epoch", "step"):
             raise ValueError(f"scheduler_interval must be 'epoch' or 'step', got {scheduler_interval!r}")
         self.net = create_model(name, **model)
+        # Saved with the hyperparameters, so results.json and the ONNX metadata say which weights a run started from.
+        self.hparams["weights"] = (
+            weights if weights is not None else getattr(self.net, "weights_identity", None)
+        )
         self.optimizer_factory = optimizer
         self.scheduler_factory = scheduler
         # Segmentation targets carry no depth: its breakdown is by incidence angle only.
@@ -208,18 +219,65 @@ class BenchmarkTask(L.LightningModule):
             )
 
     # ------------------------------------------------------------------------------------------------ optimiser
+    def parameter_groups(self, lr: float | None) -> list[dict[str, Any]]:
+        """The trainable parameters as optimizer groups: one per ``lr_multipliers`` entry, then the rest.
+
+        Each group carries its ``name`` (the submodule, or ``"default"``) and ``lr_factor``; with a base ``lr``
+        it also gets ``lr = lr * lr_factor``.
+
+        Raises:
+            ValueError: a multiplier names no submodule with trainable parameters, or a multiplier is set but
+                the optimizer has no ``lr`` to scale.
+        """
+        factors = {str(k): float(v) for k, v in (self.hparams.get("lr_multipliers") or {}).items()}
+        if factors and lr is None:
+            raise ValueError("lr_multipliers needs the optimizer's lr (optimizer.lr) to scale")
+        members: dict[str, list[nn.Parameter]] = {key: [] for key in (*factors, "default")}
+        for name, param in self.named_parameters():
+            if not param.requires_grad:
+                continue
+            name = name.removeprefix("net.").removeprefix(
+                "_orig_mod."
+            )  # the model's names (torch.compile wraps)
+            key = next((k for k in factors if name == k or name.startswith(k + ".")), "default")
+            members[key].append(param)
+        empty = [k for k in factors if not members[k]]
+        if empty:
+            children = sorted(n for n, _ in self.net.named_children())
+            raise ValueError(
+                f"lr_multipliers {empty} match no trainable parameter of {type(self.net).__name__}; "
+                f"use submodule names such as {children}"
+            )
+        groups = []
+        for key, params in members.items():
+            if not params:
+                continue
+            factor = factors.get(key, 1.0)
+            group: dict[str, Any] = {"params": params, "name": key, "lr_factor": factor}
+            if lr is not None:
+                group["lr"] = lr * factor
+            groups.append(group)
+        return groups
+
     def configure_optimizers(self) -> Any:
         if self.optimizer_factory is None:
             raise ValueError("no optimizer configured: pass optimizer=partial(torch.optim.X, lr=...)")
-        optimizer = self.optimizer_factory(params=[p for p in self.parameters() if p.requires_grad])
+        lr = getattr(self.optimizer_factory, "keywords", {}).get("lr")
+        groups = self.parameter_groups(lr)
+        optimizer = self.optimizer_factory(params=groups)
         if self.scheduler_factory is None:
             return optimizer
         kwargs: dict[str, Any] = {"optimizer": optimizer}
+        keywords = getattr(self.scheduler_factory, "keywords", {})
         # Step-based schedules (OneCycleLR) need the run length, known only once the trainer has the data.
-        if "total_steps" in inspect.signature(
-            self.scheduler_factory
-        ).parameters and "total_steps" not in getattr(self.scheduler_factory, "keywords", {}):
+        if (
+            "total_steps" in inspect.signature(self.scheduler_factory).parameters
+            and "total_steps" not in keywords
+        ):
             kwargs["total_steps"] = int(self.trainer.estimated_stepping_batches)
+        # OneCycleLR sets every group's lr from max_lr: a single value would undo the multipliers.
+        if isinstance(keywords.get("max_lr"), (int, float)):
+            kwargs["max_lr"] = [keywords["max_lr"] * g["lr_factor"] for g in groups]
         scheduler = self.scheduler_factory(**kwargs)
         return {
             "optimizer": optimizer,

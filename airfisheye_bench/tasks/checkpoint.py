@@ -18,6 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.tasks.base import BenchmarkTask
 from models import list_models, model_task
+from models.weights import pretrained_weights_disabled
 
 __all__ = ["load_task", "resolve_checkpoint", "run_config"]
 
@@ -103,6 +104,7 @@ def load_task(path: str | Path, map_location: str | torch.device = "cpu") -> Ben
             f"(expected 'state_dict' and hyper_parameters.model.name among the registered models)"
         )
     task_cls = TASKS[model_task(name)]
-    module = task_cls(**hparams)
+    with pretrained_weights_disabled():  # the state dict restores every weight: fetch and read nothing else
+        module = task_cls(**hparams)
     module.load_state_dict(state["state_dict"])
     return module.to(map_location).eval()

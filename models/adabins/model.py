@@ -14,7 +14,14 @@ from torch import Tensor, nn
 from models.adabins.decoder import DecoderBN
 from models.adabins.mini_vit import BIN_NORMS, MiniViT
 from models.input_checks import check_image
-from models.weights import load_weights
+from models.weights import (
+    file_identity,
+    load_weights,
+    resolve_encoder_weights,
+    resolve_weights_path,
+    smp_pretrained,
+    weights_identity,
+)
 
 
 class UnetAdaptiveBins(nn.Module):
@@ -33,9 +40,10 @@ class UnetAdaptiveBins(nn.Module):
         max_depth: upper end of the depth range in metres (last edge).
         norm: bin-width normalisation, ``"linear"``, ``"softmax"`` or ``"sigmoid"``.
         in_channels: input channels.
-        encoder_weights: smp pretrained tag; downloads, so ``None`` by default.
+        encoder_weights: ``None`` (random), ``"imagenet"`` (fetched through smp into the Hugging Face cache; the
+            official code starts from an ImageNet EfficientNet-B5) or a local file with encoder weights, e.g. a
+            torchvision/timm ResNet50 ``state_dict``; see :mod:`models.weights`.
         weights_path: local file with weights for the whole model (state dict or Lightning checkpoint).
-        encoder_weights_path: local file with weights for the encoder only (e.g. torchvision ResNet50).
         decoder_features: decoder width after the bottleneck (halved 4 times); default: the encoder's deepest
             channel count (2048 for ResNet50, as the official 2048).
         decoder_out_channels: decoder output channels = mini-ViT input (128).
@@ -46,6 +54,9 @@ class UnetAdaptiveBins(nn.Module):
         dim_feedforward: transformer MLP width (1024).
         n_query_channels: number of range-attention maps (128); needs ``(H/2/patch) * (W/2/patch) > n_query``.
         pos_grid_size: side of the learned positional grid, resized to the patch grid (16 = 512x512 input).
+
+    Attributes:
+        weights_identity: what the weights started from (:func:`models.weights.weights_identity`).
 
     Example:
         >>> net = UnetAdaptiveBins("resnet18", n_bins=16, decoder_features=64, decoder_out_channels=16,
@@ -64,9 +75,8 @@ class UnetAdaptiveBins(nn.Module):
         max_depth: float = 120.0,
         norm: str = "linear",
         in_channels: int = 3,
-        encoder_weights: str | None = None,
+        encoder_weights: str | os.PathLike | None = None,
         weights_path: str | os.PathLike | None = None,
-        encoder_weights_path: str | os.PathLike | None = None,
         decoder_features: int | None = None,
         decoder_out_channels: int = 128,
         patch_size: int = 16,
@@ -93,7 +103,18 @@ class UnetAdaptiveBins(nn.Module):
         self.max_depth = float(max_depth)
         self.in_channels = in_channels
 
-        self.encoder = get_encoder(encoder_name, in_channels=in_channels, depth=5, weights=encoder_weights)
+        def build_encoder(weights: str | bool | None) -> nn.Module:
+            return get_encoder(encoder_name, in_channels=in_channels, depth=5, weights=weights)
+
+        tag, encoder_file = resolve_encoder_weights(encoder_weights)
+        encoder_record = None
+        if tag is not None:
+            self.encoder, encoder_record = smp_pretrained(build_encoder, encoder_name, tag)
+        else:
+            self.encoder = build_encoder(None)
+        if encoder_file is not None:
+            load_weights(self.encoder, encoder_file, what="encoder_weights")
+            encoder_record = file_identity(encoder_file, encoder_weights=str(encoder_weights))
         channels = list(self.encoder.out_channels)
         self.decoder = DecoderBN(channels, decoder_features or channels[-1], decoder_out_channels)
         self.adaptive_bins_layer = MiniViT(
@@ -112,10 +133,10 @@ class UnetAdaptiveBins(nn.Module):
         # The encoder needs multiples of its stride; the mini-ViT needs whole patches on the 1/2-res features.
         self.output_stride = math.lcm(int(self.encoder.output_stride), 2 * patch_size)
 
-        if encoder_weights_path is not None:
-            load_weights(self.encoder, encoder_weights_path)
+        weights_path = resolve_weights_path(weights_path)
         if weights_path is not None:
-            load_weights(self, weights_path)
+            load_weights(self, weights_path, what="weights_path")
+        self.weights_identity = weights_identity(encoder_record, weights_path)
 
     def forward(self, image: Tensor) -> Tensor:
         """Depth ``[B, 1, H, W]`` in metres, within ``[min_depth, max_depth]``."""
@@ -147,7 +168,8 @@ class UnetAdaptiveBins(nn.Module):
         return {"depth": depth, "depth_lowres": depth_lowres, "bin_edges": bin_edges}
 
     def get_1x_lr_params(self) -> Iterator[nn.Parameter]:
-        """Encoder parameters (the official recipe trains them at lr / 10)."""
+        """Encoder parameters: the official recipe trains them at lr / 10 (``experiment=paper/depth`` does, with
+        ``task.module.lr_multipliers: {encoder: 0.1}``, which selects exactly these)."""
         return self.encoder.parameters()
 
     def get_10x_lr_params(self) -> Iterator[nn.Parameter]:

@@ -8,11 +8,18 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from pathlib import Path
+from typing import Any
 
-import torch
 import torchvision
-from torch import nn
+from torch import Tensor, nn
+
+from models.weights import (
+    IMAGENET,
+    file_identity,
+    read_state_dict,
+    resolve_encoder_weights,
+    torchvision_imagenet_state,
+)
 
 __all__ = ["ENCODERS", "conv_bn_relu", "convt_bn_relu", "resnet_stages"]
 
@@ -75,7 +82,9 @@ def convt_bn_relu(in_channels: int, out_channels: int, kernel_size: int = 3) -> 
     )
 
 
-def resnet_stages(name: str = "resnet34", weights: str | os.PathLike | None = None) -> list[nn.Sequential]:
+def resnet_stages(
+    name: str = "resnet34", weights: str | os.PathLike | None = None
+) -> tuple[list[nn.Sequential], dict[str, Any] | None]:
     """The four residual stages (``layer1`` .. ``layer4``) of a torchvision ResNet, without its stem.
 
     NLSPN feeds its own full-resolution stem (64 channels) into ``layer1``, so the stages run at strides
@@ -83,45 +92,50 @@ def resnet_stages(name: str = "resnet34", weights: str | os.PathLike | None = No
 
     Args:
         name: ``"resnet18"`` or ``"resnet34"`` (the official choices; ``resnet34`` is the paper's).
-        weights: optional path to a local torchvision ResNet ``state_dict`` (e.g. ImageNet weights saved with
-            ``torch.save(resnet34(weights=...).state_dict(), path)``). Nothing is ever downloaded.
+        weights: ``None`` (random), ``"imagenet"`` (torchvision's ImageNet weights through the torch hub cache,
+            as upstream's ``pretrained/resnet34.pth``) or a local torchvision/timm ResNet ``state_dict`` file;
+            see :mod:`models.weights`.
 
     Returns:
-        ``[layer1, layer2, layer3, layer4]``.
+        ``([layer1, layer2, layer3, layer4], record)``, the record of the weights read (``None`` if random).
 
     Raises:
         ValueError: unknown ``name``, or a weight file without the stage parameters (or with wrong shapes).
 
     Example:
-        >>> [s[0].conv1.out_channels for s in resnet_stages("resnet18")]
-        [64, 128, 256, 512]
+        >>> stages, record = resnet_stages("resnet18")
+        >>> [s[0].conv1.out_channels for s in stages], record
+        ([64, 128, 256, 512], None)
     """
     if name not in ENCODERS:
         raise ValueError(f"encoder must be one of {sorted(ENCODERS)}, got {name!r}")
     net = ENCODERS[name](weights=None)
-    if weights is not None:
-        _load_stage_weights(net, Path(weights), name)
-    return [net.layer1, net.layer2, net.layer3, net.layer4]
+    tag, path = resolve_encoder_weights(weights)
+    record = None
+    if tag is not None:
+        if tag != IMAGENET:
+            raise ValueError(f"encoder_weights must be null, 'imagenet' or a local file, got {tag!r}")
+        state, record = torchvision_imagenet_state(name)
+        _load_stages(net, state, f"torchvision's ImageNet {name}", name)
+    elif path is not None:
+        _load_stages(net, read_state_dict(path, "encoder_weights"), f"encoder_weights {str(path)!r}", name)
+        record = file_identity(path, encoder_weights=str(weights))
+    return [net.layer1, net.layer2, net.layer3, net.layer4], record
 
 
-def _load_stage_weights(net: nn.Module, path: Path, name: str) -> None:
-    if not path.is_file():
-        raise ValueError(f"encoder weights file {str(path)!r} does not exist")
-    state = torch.load(path, map_location="cpu", weights_only=True)
-    if isinstance(state, dict) and "state_dict" in state:  # a checkpoint wrapping the state dict
-        state = state["state_dict"]
+def _load_stages(net: nn.Module, state: dict[str, Tensor], what: str, name: str) -> None:
     # Only the stages are used; the stem and fc may be missing or absent without harm.
-    stages = {k: v for k, v in state.items() if k.split(".")[0] in ("layer1", "layer2", "layer3", "layer4")}
-    expected = {k for k in net.state_dict() if k.split(".")[0] in ("layer1", "layer2", "layer3", "layer4")}
+    layers = ("layer1", "layer2", "layer3", "layer4")
+    stages = {k: v for k, v in state.items() if k.split(".")[0] in layers}
+    expected = {k for k in net.state_dict() if k.split(".")[0] in layers}
     missing, unexpected = sorted(expected - set(stages)), sorted(set(stages) - expected)
     if missing or unexpected:
         example = (missing or unexpected)[0]
         raise ValueError(
-            f"encoder weights {str(path)!r} do not fit the {name} stages: {len(missing)} missing and "
-            f"{len(unexpected)} unexpected tensors (e.g. {example!r}); expected a torchvision ResNet state_dict "
-            "of the same depth"
+            f"{what} do not fit the {name} stages: {len(missing)} missing and {len(unexpected)} unexpected "
+            f"tensors (e.g. {example!r}); expected a torchvision ResNet state_dict of the same depth"
         )
     try:
         net.load_state_dict(stages, strict=False)
     except RuntimeError as err:  # shape mismatch, e.g. resnet18 weights for resnet34
-        raise ValueError(f"encoder weights {str(path)!r} do not fit this encoder: {err}") from None
+        raise ValueError(f"{what} do not fit this encoder: {err}") from None

@@ -27,7 +27,7 @@ from torch import Tensor, nn
 from models.input_checks import check_image, check_sparse_depth
 from models.nlspn.blocks import conv_bn_relu, convt_bn_relu, resnet_stages
 from models.nlspn.propagation import NonLocalPropagation
-from models.weights import load_weights
+from models.weights import load_weights, resolve_weights_path, weights_identity
 
 __all__ = ["NLSPN"]
 
@@ -41,8 +41,9 @@ class NLSPN(nn.Module):
 
     Args:
         encoder_name: ``"resnet34"`` (paper) or ``"resnet18"``.
-        encoder_weights_path: optional local torchvision ResNet ``state_dict`` for the encoder stages (ImageNet
-            weights, as upstream ``pretrained/resnet34.pth``); ``None`` trains from scratch. Nothing is downloaded.
+        encoder_weights: ``None`` (random), ``"imagenet"`` (torchvision's, through the torch hub cache, as
+            upstream's ``pretrained/resnet34.pth``) or a local torchvision/timm ResNet ``state_dict`` file for the
+            encoder stages; see :mod:`models.weights`.
         weights_path: optional local file with weights for the whole model (state dict or Lightning checkpoint).
         prop_steps: propagation steps (paper: 18).
         prop_kernel: neighbourhood size ``k``; ``k*k - 1`` non-local neighbours (paper: 3 -> 8).
@@ -50,9 +51,9 @@ class NLSPN(nn.Module):
         affinity_gamma: TGASS initial ``gamma / (k*k - 1)``.
         conf_prop: confidence branch, used to weight the affinities (upstream default True).
         preserve_input: replace valid sparse pixels before every propagation step (upstream ``--preserve_input``,
-            used with its released NYU and KITTI models).
-        confidence_sampling: ``"neighbour"`` (default), ``"offset"`` (upstream non-legacy) or ``"legacy"``; see
-            :mod:`models.nlspn.propagation` and upstream issue #46.
+            off by default as upstream; used with its released NYU and KITTI models).
+        confidence_sampling: ``"offset"`` (default, upstream non-legacy), ``"neighbour"`` (the paper's text,
+            upstream issue #46) or ``"legacy"``; see :mod:`models.nlspn.propagation`.
         propagation_impl: ``"grid_sample"`` (default) or ``"deform_conv"`` (torchvision DCN, ONNX opset >= 19).
 
     Example:
@@ -71,15 +72,15 @@ class NLSPN(nn.Module):
     def __init__(
         self,
         encoder_name: str = "resnet34",
-        encoder_weights_path: str | os.PathLike | None = None,
+        encoder_weights: str | os.PathLike | None = None,
         weights_path: str | os.PathLike | None = None,
         prop_steps: int = 18,
         prop_kernel: int = 3,
         affinity: str = "TGASS",
         affinity_gamma: float = 0.5,
         conf_prop: bool = True,
-        preserve_input: bool = True,
-        confidence_sampling: str = "neighbour",
+        preserve_input: bool = False,
+        confidence_sampling: str = "offset",
         propagation_impl: str = "grid_sample",
     ) -> None:
         super().__init__()
@@ -89,7 +90,8 @@ class NLSPN(nn.Module):
         # Encoder. Names and strides as upstream: conv2..conv5 are the ResNet stages at 1, 1/2, 1/4, 1/8.
         self.conv1_rgb = conv_bn_relu(3, 48, bn=False)
         self.conv1_dep = conv_bn_relu(1, 16, bn=False)
-        self.conv2, self.conv3, self.conv4, self.conv5 = resnet_stages(encoder_name, encoder_weights_path)
+        stages, encoder_record = resnet_stages(encoder_name, encoder_weights)
+        self.conv2, self.conv3, self.conv4, self.conv5 = stages
         self.conv6 = conv_bn_relu(512, 512, stride=2)  # 1/16
 
         # Shared decoder (input channels = decoder + skip).
@@ -118,8 +120,10 @@ class NLSPN(nn.Module):
             confidence_sampling=confidence_sampling,
             impl=propagation_impl,
         )
+        weights_path = resolve_weights_path(weights_path)
         if weights_path is not None:
-            load_weights(self, weights_path)
+            load_weights(self, weights_path, what="weights_path")
+        self.weights_identity = weights_identity(encoder_record, weights_path)
 
     def forward(self, image: Tensor, sparse_depth: Tensor) -> Tensor:
         """Completed depth ``[B, 1, H, W]`` (metres, >= 0) from ``image`` ``[B, 3, H, W]`` (ImageNet-normalised)

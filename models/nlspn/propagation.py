@@ -35,17 +35,22 @@ upstream samples the confidence with a 1x1 deformable convolution whose offsets 
 released ECCV checkpoints were trained with ``--legacy``, which adds ``t_j`` in place on a view of the offsets
 and therefore also shifts the propagation to ``p + 2 t_j + o_j`` (a dilated kernel at initialisation).
 
-- ``"neighbour"`` (default, our choice): read the confidence at ``p + t_j + o_j``, the pixel whose depth the
-  affinity weights — what the paper describes and what #46 asks for; propagation as upstream (non-legacy).
-- ``"offset"``: upstream non-legacy behaviour, confidence at ``p + o_j``.
+- ``"offset"`` (default, upstream without ``--legacy``): confidence at ``p + o_j``.
+- ``"neighbour"``: confidence at ``p + t_j + o_j``, the pixel whose depth the affinity weights — what the paper
+  describes and what #46 asks for; propagation as upstream. An option to ablate, not upstream's training code.
 - ``"legacy"``: upstream ``--legacy`` (confidence at ``p + t_j + o_j``, propagation at ``p + 2 t_j + o_j``), only
   for the released checkpoints.
 
 As upstream, the offsets are detached where the confidence is sampled (no gradient through that path).
 
-``preserve_input`` replaces the current estimate by the sparse input at valid pixels (``sparse > 0``) *before
-every step* (upstream since commit abb87d8, the form used by the paper's released training code). The last
-step therefore still mixes neighbours into the valid pixels: the output is not bit-equal to the input there.
+``preserve_input`` (default off, as upstream's ``--preserve_input`` flag) replaces the current estimate by the
+sparse input at valid pixels (``sparse > 0``) *before every step* (upstream since commit abb87d8). The last step
+therefore still mixes neighbours into the valid pixels: the output is not bit-equal to the input there. Turn it
+on to anchor the propagation to the measurements (upstream's option, used with its released models).
+
+Precision: the propagation always runs in float32, whatever the autocast context. Under ``16-mixed`` the
+sampling positions ``p + t_j + o_j`` normalised to [-1, 1] would be half precision, i.e. quantised to 1/8-1/4
+pixel at 512 pixels wide, and the 18 repeated steps would accumulate rounding; upstream trains in float32.
 """
 
 from __future__ import annotations
@@ -195,9 +200,10 @@ class NonLocalPropagation(nn.Module):
         affinity: normalisation, one of :data:`AFFINITY_TYPES` (paper: ``"TGASS"``).
         affinity_gamma: TGASS initial ``gamma / n`` (upstream default 0.5).
         conf_prop: weight affinities by the neighbours' confidence (needs ``confidence`` in ``forward``).
-        preserve_input: reset valid sparse pixels before every step (needs ``sparse_depth`` in ``forward``).
-        confidence_sampling: where neighbour confidences are read, one of :data:`CONFIDENCE_SAMPLING`
-            (see the module docstring and upstream issue #46).
+        preserve_input: reset valid sparse pixels before every step (needs ``sparse_depth`` in ``forward``);
+            off by default, as upstream.
+        confidence_sampling: where neighbour confidences are read, one of :data:`CONFIDENCE_SAMPLING`;
+            ``"offset"`` (upstream) by default (see the module docstring and upstream issue #46).
         impl: propagation implementation, one of :data:`PROPAGATION_IMPLS`.
 
     Example:
@@ -219,8 +225,8 @@ class NonLocalPropagation(nn.Module):
         affinity: str = "TGASS",
         affinity_gamma: float = 0.5,
         conf_prop: bool = True,
-        preserve_input: bool = True,
-        confidence_sampling: str = "neighbour",
+        preserve_input: bool = False,
+        confidence_sampling: str = "offset",
         impl: str = "grid_sample",
     ) -> None:
         super().__init__()
@@ -273,15 +279,32 @@ class NonLocalPropagation(nn.Module):
         confidence: Tensor | None = None,
         sparse_depth: Tensor | None = None,
     ) -> PropagationOutput:
-        """Refine ``init_depth`` ``[B, 1, H, W]`` guided by ``guidance`` ``[B, C_g, H, W]``.
+        """Refine ``init_depth`` ``[B, 1, H, W]`` guided by ``guidance`` ``[B, C_g, H, W]``, in float32.
 
         Args:
             init_depth: initial dense depth.
             guidance: guidance features (affinity/offset logits come from a 3x3 conv on them).
             confidence: ``[B, 1, H, W]`` in [0, 1]; required when ``conf_prop``.
             sparse_depth: ``[B, 1, H, W]``, 0 = no measurement; required when ``preserve_input``.
+
+        Returns:
+            float32 outputs, also under autocast (see the module docstring).
         """
         self._check_inputs(init_depth, guidance, confidence, sparse_depth)
+        device = guidance.device.type
+        if torch.is_autocast_enabled(device):
+            # Only entered under autocast, so exported graphs (traced without it) carry no autocast node.
+            with torch.autocast(device, enabled=False):
+                return self._propagate(*(_fp32(t) for t in (init_depth, guidance, confidence, sparse_depth)))
+        return self._propagate(*(_fp32(t) for t in (init_depth, guidance, confidence, sparse_depth)))
+
+    def _propagate(
+        self,
+        init_depth: Tensor,
+        guidance: Tensor,
+        confidence: Tensor | None,
+        sparse_depth: Tensor | None,
+    ) -> PropagationOutput:
         b, _, h, w = guidance.shape
         n = self.num_neighbours
         taps = self.taps.to(guidance.dtype).view(1, n, 2, 1, 1)
@@ -349,6 +372,11 @@ class NonLocalPropagation(nn.Module):
         for name, t in named.items():
             if tuple(t.shape) != expected:
                 raise ValueError(f"{name} must have shape {expected} (like guidance), got {tuple(t.shape)}")
+
+
+def _fp32(t: Tensor | None) -> Tensor | None:
+    """``t`` as float32 (a no-op for float32 input, so it leaves exported graphs unchanged)."""
+    return t if t is None or t.dtype == torch.float32 else t.float()
 
 
 def _sampling_grid(displacement: Tensor) -> Tensor:

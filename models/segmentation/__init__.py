@@ -3,7 +3,8 @@
 Registered names:
 
 - ``smp``: generic, ``create_model("smp", arch="unet", encoder_name="resnet34", num_classes=13)``.
-- ``deeplabv3plus``: the paper baseline (ResNet50 encoder, output stride 16, ASPP rates 12/24/36).
+- ``deeplabv3plus``: the paper baseline (ResNet50 encoder, output stride 16; ``experiment=paper/seg`` sets the
+  DeepLabV3+ paper's ASPP rates 6/12/18).
 """
 
 from __future__ import annotations
@@ -33,8 +34,13 @@ def smp_model(
 def deeplabv3plus(
     encoder_name: str = "resnet50", num_classes: int = 13, encoder_output_stride: int = 16, **kwargs
 ) -> SmpSegmentationModel:
-    """DeepLabV3+ as in the paper: ResNet50 encoder, output stride 16, smp's default decoder (256 channels,
-    separable ASPP with rates 12/24/36).
+    """DeepLabV3+ as in the paper: ResNet50 encoder, output stride 16, smp's decoder (256 channels, separable
+    ASPP; ``decoder_atrous_rates`` and the other smp arguments pass through ``kwargs``).
+
+    smp's default ASPP rates (12, 24, 36) are DeepLabV3's for output stride 8; at stride 16 the DeepLabV3+ paper
+    (Chen et al., ECCV 2018) uses (6, 12, 18): on a 512x512 input the stride-16 map is 32x32 and dilations of 24
+    and 36 read mostly padding. ``experiment=paper/seg`` sets (6, 12, 18); the quick start keeps smp's default,
+    with which its published numbers were measured.
 
     Example:
         >>> import models

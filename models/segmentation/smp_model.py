@@ -8,7 +8,14 @@ import segmentation_models_pytorch as smp
 from torch import Tensor, nn
 
 from models.input_checks import check_image
-from models.weights import load_weights
+from models.weights import (
+    file_identity,
+    load_weights,
+    resolve_encoder_weights,
+    resolve_weights_path,
+    smp_pretrained,
+    weights_identity,
+)
 
 
 class SmpSegmentationModel(nn.Module):
@@ -24,11 +31,14 @@ class SmpSegmentationModel(nn.Module):
         encoder_name: smp encoder (``"resnet50"``, ...) or any timm model as ``"tu-<name>"``.
         num_classes: output channels (training classes; 13 in the paper).
         in_channels: input channels.
-        encoder_weights: smp pretrained tag (e.g. ``"imagenet"``); downloads, so ``None`` by default.
+        encoder_weights: ``None`` (random), ``"imagenet"`` (fetched through smp into the Hugging Face cache) or
+            a local file with encoder weights, e.g. a torchvision/timm ImageNet ResNet ``state_dict`` (smp's
+            ResNet encoders drop the ``fc.*`` keys); see :mod:`models.weights`.
         weights_path: local file with weights for the whole model (state dict or Lightning checkpoint).
-        encoder_weights_path: local file with weights for the encoder only, e.g. a torchvision/timm ImageNet
-            ResNet state dict (smp's ResNet encoders drop the ``fc.*`` keys).
         **arch_kwargs: passed to the smp architecture (e.g. ``encoder_output_stride``, ``decoder_channels``).
+
+    Attributes:
+        weights_identity: what the weights started from (:func:`models.weights.weights_identity`).
 
     Example:
         >>> import torch
@@ -43,9 +53,8 @@ class SmpSegmentationModel(nn.Module):
         encoder_name: str = "resnet50",
         num_classes: int = 13,
         in_channels: int = 3,
-        encoder_weights: str | None = None,
+        encoder_weights: str | os.PathLike | None = None,
         weights_path: str | os.PathLike | None = None,
-        encoder_weights_path: str | os.PathLike | None = None,
         **arch_kwargs,
     ) -> None:
         super().__init__()
@@ -56,18 +65,32 @@ class SmpSegmentationModel(nn.Module):
         self.arch = arch.lower()
         self.num_classes = num_classes
         self.in_channels = in_channels
-        self.net = smp.create_model(
-            self.arch,
-            encoder_name=encoder_name,
-            encoder_weights=encoder_weights,
-            in_channels=in_channels,
-            classes=num_classes,
-            **arch_kwargs,
-        )
-        if encoder_weights_path is not None:
-            load_weights(self.net.encoder, encoder_weights_path)
+        if "decoder_atrous_rates" in arch_kwargs:  # a YAML list; smp documents a tuple
+            arch_kwargs["decoder_atrous_rates"] = tuple(arch_kwargs["decoder_atrous_rates"])
+
+        def build(weights: str | bool | None) -> nn.Module:
+            return smp.create_model(
+                self.arch,
+                encoder_name=encoder_name,
+                encoder_weights=weights,
+                in_channels=in_channels,
+                classes=num_classes,
+                **arch_kwargs,
+            )
+
+        tag, encoder_file = resolve_encoder_weights(encoder_weights)
+        encoder_record = None
+        if tag is not None:
+            self.net, encoder_record = smp_pretrained(build, encoder_name, tag)
+        else:
+            self.net = build(None)
+        if encoder_file is not None:
+            load_weights(self.net.encoder, encoder_file, what="encoder_weights")
+            encoder_record = file_identity(encoder_file, encoder_weights=str(encoder_weights))
+        weights_path = resolve_weights_path(weights_path)
         if weights_path is not None:
-            load_weights(self, weights_path)
+            load_weights(self, weights_path, what="weights_path")
+        self.weights_identity = weights_identity(encoder_record, weights_path)
 
     @property
     def output_stride(self) -> int:

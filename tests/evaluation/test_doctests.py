@@ -9,6 +9,7 @@ import pytest
 from tests.doctests import assert_doctests_pass
 
 MODULES = [
+    "airfisheye_bench.evaluation.predictors",
     "airfisheye_bench.evaluation.scorer",
     "airfisheye_bench.evaluation.submission",
     "airfisheye_bench.tasks.checkpoint",

@@ -171,6 +171,21 @@ def test_onnx_export_gives_checkpoint_metrics(depth_run: Path, tmp_path: Path) -
     # Within the export's parity tolerance (depth relative 1e-3).
     for key, value in ckpt["metrics"].items():
         assert onnx["metrics"][key] == pytest.approx(value, rel=1e-3, abs=1e-4), key
+    # Flip TTA on both paths: recorded in results.json, and the two still agree.
+    ckpt_tta, onnx_tta = (
+        evaluate(
+            compose_eval([f"{key}={path}", "num_workers=0", "num_panels=0", "tta=flip"], tmp_path / name)
+        )
+        for key, path, name in (("ckpt_path", depth_run, "ckpt_tta"), ("onnx_path", onnx_path, "onnx_tta"))
+    )
+    for record in (ckpt_tta, onnx_tta):
+        assert record["model"]["tta"] == "flip" and record["config"]["evaluation"]["tta"] == "flip"
+    assert ckpt["model"]["tta"] is None and ckpt_tta["metrics"]["rmse"] != ckpt["metrics"]["rmse"]
+    for key, value in ckpt_tta["metrics"].items():
+        assert onnx_tta["metrics"][key] == pytest.approx(value, rel=1e-3, abs=1e-4), key
+    # Which weights training started from travels through the checkpoint and the ONNX metadata.
+    weights = {"encoder_weights": None, "weights_path": None}  # the quick start: random initialisation
+    assert ckpt["model"]["weights"] == onnx["model"]["weights"] == weights
     # A fixed-size export refuses data served at another size, naming both.
     with pytest.raises(ValueError, match="takes 64x64 images but the data serves 32x32"):
         evaluate(

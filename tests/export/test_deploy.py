@@ -22,6 +22,7 @@ import airfisheye_bench.export.deploy as deploy
 import airfisheye_bench.export.metadata as metadata_module
 from airfisheye_bench.export import read_onnx_metadata, verify_onnx
 from airfisheye_bench.export.metadata import (
+    KEY_WEIGHTS,
     TASK_KEYS,
     deployment_metadata,
     parse_deployment_metadata,
@@ -136,12 +137,13 @@ def test_seg_export_has_a_dynamic_batch(seg_export, seg_run: Path, tiny_dataset:
 def test_seg_metadata_round_trip(seg_export, seg_run: Path) -> None:
     _, _, out, _ = seg_export
     props = read_onnx_metadata(out)
-    assert set(props) == set(TASK_KEYS["seg"])
+    assert set(props) == {*TASK_KEYS["seg"], KEY_WEIGHTS}
     assert all(isinstance(v, str) for v in props.values())
     meta = read_deployment_metadata(out)
     task = load_task(seg_run)
     assert meta["format_version"] == "1" and meta["task"] == "seg" and meta["model"] == "deeplabv3plus"
     assert meta["model_config"] == dict(task.hparams["model"])
+    assert meta["weights"] == task.hparams["weights"] == {"encoder_weights": None, "weights_path": None}
     assert meta["inputs"] == ["image"] and meta["output"] == "logits"
     assert meta["normalization"] == {"mean": list(IMAGENET_MEAN), "std": list(IMAGENET_STD)}
     assert meta["class_names"] == task.class_names and len(meta["palette"]) == len(task.class_names)
@@ -214,7 +216,7 @@ def test_depth_tasks_export_through_the_cli(task: str, tiny_dataset: Path, tmp_p
             feed["sparse_depth"] = np.zeros((batch, 1, SIZE, SIZE), np.float32)
         assert session.run(["depth"], feed)[0].shape == (batch, 1, SIZE, SIZE)
     meta = read_deployment_metadata(out)
-    assert set(read_onnx_metadata(out)) == set(TASK_KEYS[task])
+    assert set(read_onnx_metadata(out)) == {*TASK_KEYS[task], KEY_WEIGHTS}
     assert meta["output"] == "depth" and meta["inputs"] == names and meta["max_depth"] == 120.0
     assert meta["min_depth"] == (1e-3 if task == "depth" else 1e-4)
     if task == "completion":

@@ -114,16 +114,17 @@ def test_paper_architecture_matches_upstream_layer_by_layer():
     assert not prop.conv_offset_aff.weight.any() and not prop.conv_offset_aff.bias.any()  # zero init
 
 
-def test_encoder_weights_path_loads_torchvision_stages(tmp_path):
+def test_encoder_weights_file_loads_torchvision_stages(tmp_path):
     resnet = torchvision.models.resnet18(weights=None)
     torch.save(resnet.state_dict(), tmp_path / "resnet18.pth")
-    model = NLSPN(encoder_name="resnet18", encoder_weights_path=tmp_path / "resnet18.pth")
+    model = NLSPN(encoder_name="resnet18", encoder_weights=tmp_path / "resnet18.pth")
     assert torch.equal(model.conv2[0].conv1.weight, resnet.layer1[0].conv1.weight)
     assert torch.equal(model.conv5[1].bn2.running_var, resnet.layer4[1].bn2.running_var)
+    assert model.weights_identity["encoder_weights"]["file"] == str((tmp_path / "resnet18.pth").resolve())
     with pytest.raises(ValueError, match="resnet34"):  # resnet18 weights lack resnet34's extra blocks
-        NLSPN(encoder_name="resnet34", encoder_weights_path=tmp_path / "resnet18.pth")
+        NLSPN(encoder_name="resnet34", encoder_weights=tmp_path / "resnet18.pth")
     with pytest.raises(ValueError, match="does not exist"):
-        NLSPN(encoder_name="resnet18", encoder_weights_path=tmp_path / "missing.pth")
+        NLSPN(encoder_name="resnet18", encoder_weights=tmp_path / "missing.pth")
     with pytest.raises(ValueError, match="encoder"):
         NLSPN(encoder_name="resnet50")
 
@@ -300,13 +301,14 @@ def upstream_propagation(prop: NonLocalPropagation, inputs: dict[str, Tensor], l
 
 @pytest.mark.parametrize("confidence_sampling", ["offset", "legacy"])
 def test_upstream_modes_reproduce_upstream_code(confidence_sampling):
-    prop = NonLocalPropagation(steps=4, confidence_sampling=confidence_sampling)
+    # The reference below is upstream with --preserve_input.
+    prop = NonLocalPropagation(steps=4, confidence_sampling=confidence_sampling, preserve_input=True)
     perturb_propagation(prop)
     inputs = propagation_inputs(h=12, w=15, seed=1)
     with torch.no_grad():
         ours = prop(**inputs).depth
         theirs = upstream_propagation(prop, inputs, legacy=confidence_sampling == "legacy")
-        neighbour = NonLocalPropagation(steps=4, confidence_sampling="neighbour")
+        neighbour = NonLocalPropagation(steps=4, confidence_sampling="neighbour", preserve_input=True)
         neighbour.load_state_dict(prop.state_dict())
         other = neighbour(**inputs).depth
     torch.testing.assert_close(ours, theirs, rtol=1e-5, atol=1e-4)
@@ -359,7 +361,7 @@ def test_sample_neighbours_borders(impl):
 
 def test_preserve_input_resets_valid_pixels_before_every_step():
     inputs = propagation_inputs(h=10, w=12)
-    prop = NonLocalPropagation(steps=3)
+    prop = NonLocalPropagation(steps=3, preserve_input=True)
     perturb_propagation(prop)
     valid = inputs["sparse_depth"] > 0
     with torch.no_grad():
@@ -370,7 +372,7 @@ def test_preserve_input_resets_valid_pixels_before_every_step():
         )
         assert torch.equal(prop(**changed).depth, out)
         # Three steps = three single steps, each starting from the sparse input at valid pixels.
-        one = NonLocalPropagation(steps=1)
+        one = NonLocalPropagation(steps=1, preserve_input=True)
         one.load_state_dict(prop.state_dict())
         depth = inputs["init_depth"]
         for _ in range(3):
@@ -385,7 +387,7 @@ def test_preserve_input_resets_valid_pixels_before_every_step():
 def test_zero_initialised_propagation_is_identity_with_preserved_input():
     inputs = propagation_inputs()
     with torch.no_grad():
-        out = NonLocalPropagation(steps=5)(**inputs).depth
+        out = NonLocalPropagation(steps=5, preserve_input=True)(**inputs).depth
     valid = inputs["sparse_depth"] > 0
     # Upstream's zero init: all neighbour affinities 0, centre 1; the output is the initial depth with the
     # sparse input written in, exactly.
@@ -431,7 +433,7 @@ def test_propagation_argument_errors():
         NonLocalPropagation(confidence_sampling="center")
     with pytest.raises(ValueError, match="kernel_size"):
         NonLocalPropagation(kernel_size=4)
-    prop = NonLocalPropagation(steps=1)
+    prop = NonLocalPropagation(steps=1, preserve_input=True)
     inputs = propagation_inputs()
     with pytest.raises(ValueError, match="confidence"):
         prop(**dict(inputs, confidence=None))
@@ -519,3 +521,30 @@ def test_l1_l2_loss_gradients_and_edge_cases():
         L1L2Loss(reduction="avg")
     with pytest.raises(ValueError, match="pred"):
         L1L2Loss()(torch.zeros(1, 2, 3, 3), torch.zeros(1, 2, 3, 3))
+
+
+def test_propagation_is_fp32_under_bf16_autocast():
+    """Mixed precision leaves the propagation in float32: the output under CPU bf16 autocast equals the float32
+    one to float32 tolerance (run in bf16, 18 steps at 512 wide drift by metres)."""
+    prop = NonLocalPropagation(steps=18)
+    perturb_propagation(prop)
+    inputs = {k: v * 10 if k == "init_depth" else v for k, v in propagation_inputs(b=1, h=16, w=512).items()}
+    with torch.no_grad():
+        reference = prop(**inputs).depth
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            mixed = prop(**inputs).depth
+            unguarded = prop._propagate(**inputs).depth  # what autocast would do without the float32 guard
+            half_inputs = prop(**{k: v.bfloat16() for k, v in inputs.items()}).depth
+    assert mixed.dtype == torch.float32 and half_inputs.dtype == torch.float32
+    torch.testing.assert_close(mixed, reference, rtol=1e-5, atol=1e-5)
+    assert (unguarded.float() - reference).abs().max() > 1e-2  # so the comparison above discriminates
+
+
+def test_nlspn_output_is_fp32_under_bf16_autocast():
+    model = NLSPN(encoder_name="resnet18", prop_steps=3).eval()
+    image, sparse = torch.randn(1, 3, 32, 48), torch.zeros(1, 1, 32, 48)
+    sparse[..., ::5, ::3] = 20.0
+    with torch.no_grad(), torch.autocast("cpu", dtype=torch.bfloat16):
+        out = model.forward_with_aux(image, sparse)
+    assert out["guidance"].dtype == torch.bfloat16  # the network itself does run in bf16
+    assert out["depth"].dtype == torch.float32 and torch.isfinite(out["depth"]).all()

@@ -62,7 +62,7 @@ def test_weights_path_round_trip(tmp_path):
         assert torch.equal(a, b), name
 
 
-def test_encoder_weights_path_accepts_torchvision_resnet(tmp_path):
+def test_encoder_weights_file_accepts_torchvision_resnet(tmp_path):
     import torchvision
 
     resnet = torchvision.models.resnet18(weights=None)  # random weights; the fc.* keys must be dropped
@@ -71,7 +71,7 @@ def test_encoder_weights_path_accepts_torchvision_resnet(tmp_path):
         "deeplabv3plus",
         encoder_name="resnet18",
         num_classes=4,
-        encoder_weights_path=tmp_path / "resnet18.pth",
+        encoder_weights=str(tmp_path / "resnet18.pth"),
     )
     assert torch.equal(net.net.encoder.conv1.weight, resnet.conv1.weight)
     assert torch.equal(net.net.encoder.layer4[1].bn2.running_var, resnet.layer4[1].bn2.running_var)

@@ -10,6 +10,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig, open_dict
 
 from airfisheye_bench.training import check_config
+from models.weights import pretrained_weights_disabled
 
 CONFIG_DIR = str(Path(__file__).resolve().parents[2] / "configs")
 EXPERIMENTS = sorted(
@@ -43,12 +44,13 @@ def test_every_experiment_composes_and_instantiates(experiment: str) -> None:
     assert cfg.data.camera.size == 512 and cfg.trainer.max_epochs == 25  # the paper's recipe
     trainer = hydra.utils.instantiate(cfg.trainer, logger=False, enable_checkpointing=False)
     assert trainer.max_epochs == 25
-    module = hydra.utils.instantiate(
-        cfg.task.module,
-        model=dict(cfg.model),
-        **({"class_names": [f"c{i}" for i in range(13)]} if cfg.task.name == "seg" else {}),
-        _convert_="partial",
-    )
+    with pretrained_weights_disabled():  # the paper recipes start from ImageNet weights: no download in tests
+        module = hydra.utils.instantiate(
+            cfg.task.module,
+            model=dict(cfg.model),
+            **({"class_names": [f"c{i}" for i in range(13)]} if cfg.task.name == "seg" else {}),
+            _convert_="partial",
+        )
     assert module.task == cfg.task.name
 
 
@@ -65,6 +67,26 @@ def test_paper_recipes_follow_the_paper() -> None:
     )
     for cfg in (seg, depth, comp):
         assert cfg.data.augment.hflip > 0 and cfg.data.augment.color_jitter is not None
+        assert cfg.model.encoder_weights == "imagenet"  # fine-tuned from ImageNet, as the paper and upstream
+
+
+def test_paper_recipes_follow_upstream() -> None:
+    seg = compose_train(["experiment=paper/seg"])
+    assert seg.model.encoder_output_stride == 16 and list(seg.model.decoder_atrous_rates) == [6, 12, 18]
+    depth = compose_train(["experiment=paper/depth"])
+    assert depth.trainer.gradient_clip_val == 0.1 and dict(depth.task.module.lr_multipliers) == {
+        "encoder": 0.1
+    }
+    module = depth.task.module
+    assert module.optimizer.lr == 3.57e-4 and module.optimizer.weight_decay == 0.1
+    assert (module.scheduler.div_factor, module.scheduler.final_div_factor) == (25, 100)
+    comp = compose_train(["experiment=paper/completion"])
+    assert comp.model.preserve_input is False and comp.model.confidence_sampling == "offset"
+
+
+def test_quick_start_downloads_nothing() -> None:
+    for task in ("seg", "depth", "completion"):
+        assert compose_train([f"task={task}"]).model.encoder_weights is None
 
 
 def test_incompatible_task_and_model_stop_early_with_advice() -> None:

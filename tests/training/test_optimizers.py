@@ -1,0 +1,65 @@
+"""Optimiser set-up of the tasks: parameter groups with their own learning rates, scaled schedules."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import pytest
+import torch
+
+from airfisheye_bench.tasks import DepthTask
+from tests.models.test_weights import TINY
+
+LR = 3.57e-4
+
+
+def adabins_task(**kwargs) -> DepthTask:
+    return DepthTask(
+        {"name": "adabins", **TINY["adabins"]},
+        optimizer=partial(torch.optim.AdamW, lr=LR, weight_decay=0.1),
+        scheduler_interval="step",
+        **kwargs,
+    )
+
+
+def ids(params) -> set[int]:
+    return {id(p) for p in params}
+
+
+def test_adabins_encoder_trains_at_a_tenth_of_the_lr_through_the_one_cycle():
+    schedule = partial(
+        torch.optim.lr_scheduler.OneCycleLR, max_lr=LR, div_factor=25, final_div_factor=100, total_steps=20
+    )
+    task = adabins_task(scheduler=schedule, lr_multipliers={"encoder": 0.1})
+    config = task.configure_optimizers()
+    optimizer, scheduler = config["optimizer"], config["lr_scheduler"]["scheduler"]
+    groups = {g["name"]: g for g in optimizer.param_groups}
+    assert set(groups) == {"encoder", "default"}
+    # The groups are upstream's get_1x_lr_params (encoder) and get_10x_lr_params (everything else).
+    assert ids(groups["encoder"]["params"]) == ids(task.net.get_1x_lr_params())
+    assert ids(groups["default"]["params"]) == ids(task.net.get_10x_lr_params())
+    assert groups["encoder"]["max_lr"] == pytest.approx(LR / 10)
+    assert groups["default"]["max_lr"] == pytest.approx(LR)
+    lrs = []
+    for _ in range(20):
+        lrs.append((groups["encoder"]["lr"], groups["default"]["lr"]))
+        optimizer.step()
+        scheduler.step()
+    assert lrs[0][1] == pytest.approx(LR / 25)  # div_factor
+    assert max(d for _, d in lrs) == pytest.approx(LR, rel=1e-3)
+    assert lrs[-1][1] == pytest.approx(LR / 25 / 100, rel=1e-2)  # final_div_factor
+    for encoder_lr, default_lr in lrs:
+        assert encoder_lr == pytest.approx(default_lr / 10)
+
+
+def test_without_multipliers_one_group_at_the_lr():
+    task = adabins_task()
+    optimizer = task.configure_optimizers()
+    assert len(optimizer.param_groups) == 1 and optimizer.param_groups[0]["lr"] == LR
+    assert ids(optimizer.param_groups[0]["params"]) == ids(task.net.parameters())
+
+
+def test_unknown_multiplier_names_the_submodules():
+    task = adabins_task(lr_multipliers={"backbone": 0.1})
+    with pytest.raises(ValueError, match=r"backbone.*encoder"):
+        task.configure_optimizers()
