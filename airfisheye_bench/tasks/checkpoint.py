@@ -22,6 +22,13 @@ from models.weights import pretrained_weights_disabled
 
 __all__ = ["load_task", "resolve_checkpoint", "run_config"]
 
+#: Model defaults that changed when checkpoints started to record their initial weights (the ``weights``
+#: hyperparameter): NLSPN then moved to upstream's confidence sampling. An older checkpoint that did not name the
+#: option was trained with the old default, and must be rebuilt with it.
+_DEFAULTS_BEFORE_WEIGHTS: dict[str, dict[str, Any]] = {
+    "nlspn": {"preserve_input": True, "confidence_sampling": "neighbour"},
+}
+
 
 def resolve_checkpoint(path: str | Path) -> Path:
     """The checkpoint file for ``path``: the file itself, or a run directory's best (else last) checkpoint.
@@ -104,6 +111,8 @@ def load_task(path: str | Path, map_location: str | torch.device = "cpu") -> Ben
             f"(expected 'state_dict' and hyper_parameters.model.name among the registered models)"
         )
     task_cls = TASKS[model_task(name)]
+    if "weights" not in hparams:  # written before models recorded their weights: the defaults of that time
+        hparams = {**hparams, "model": {**_DEFAULTS_BEFORE_WEIGHTS.get(name, {}), **hparams["model"]}}
     with pretrained_weights_disabled():  # the state dict restores every weight: fetch and read nothing else
         module = task_cls(**hparams)
     module.load_state_dict(state["state_dict"])
