@@ -86,8 +86,8 @@ visible around it.
 Three implementations of steps 1 and 4 return the same mask (the tests compare them):
 
 * ``numba`` (used by :func:`occlusion_mask`): step 1 in O(N) (a counting sort into (ring, sector) buckets
-  instead of a lexsort), step 4 as the sequential loop itself, made cheap by looking up only the *nearest* kept entry on each side
-  (kept entries increase along a row / column; see ``_kernels.ordering_keep``). Angles (``np.arctan2``, a
+  instead of a lexsort), step 4 as the sequential loop itself, made cheap by looking up only the *nearest*
+  kept entry on each side (kept entries increase along a row / column; see ``_kernels.ordering_keep``). Angles (``np.arctan2``, a
   SIMD routine whose last bits a compiled ``atan2`` does not reproduce) and the visiting order
   (``np.argsort``) stay in numpy, shared with the other implementations, so all of them see the same inputs.
 * ``vectorised`` (:class:`_OrderingSolver`, numpy): a point's fate depends only on *kept* nearer points that
