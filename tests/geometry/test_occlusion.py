@@ -354,6 +354,27 @@ def test_zbuffer_known_answers() -> None:
     np.testing.assert_array_equal(mask, [True, False, False, True, True, False, True, True])
 
 
+def test_zbuffer_derived_window_and_margin() -> None:
+    """Defaults: window radius = half the LiDAR's vertical spacing in pixels at the point's pixel, relative
+    margin = tan(87 deg) x the window's half-angle. Hand-computed for a 512^2 190 deg equidistant camera
+    (focal 154.4 px/rad on the axis) and a 2 deg vertical spacing: radius rint(2.69) = 3 px, margin 43 %."""
+    spec = LidarSpec(channels=2, points_per_channel=2048, vfov_deg=(0.0, 2.0))  # columns 0.13 deg apart
+    T = make_transform(CAM_FROM_FLU, np.zeros(3))
+    c = CAMERA.width // 2  # whole pixels: no rounding ties
+    pixels = [(c, c), (c + 3, c), (c, c - 4), (c - 3, c + 3), (c - 2, c - 1)]
+    pts = points_on_rays(pixels, [5.0, 10.0, 10.0, 6.0, 8.0])
+    mask = occlusion_mask(pts, T, CAMERA, spec, "zbuffer")
+    # 3 px away and twice as far: hidden; 4 px away: outside the first point's window (but 10 m is within 43 %
+    # of the 8 m point's range); 6 m is within 43 % of 5 m, 8 m is not
+    np.testing.assert_array_equal(mask, [True, False, True, True, False])
+    scale = CAMERA.focal  # px/rad on the axis
+    assert round(0.5 * math.radians(2.0) * scale) == 3
+    assert 6.0 < 5.0 * (1 + math.tan(math.radians(87.0)) * 3.5 / scale) < 8.0
+    # a gentler surface limit (45 deg: margin 2.3 %) keeps only the nearest point
+    mask = occlusion_mask(pts, T, CAMERA, spec, "zbuffer", max_incidence_deg=45.0)
+    np.testing.assert_array_equal(mask, [True, False, False, False, False])
+
+
 # -------------------- depth map
 def test_depth_map_nearest_wins_and_is_camera_range() -> None:
     rng = np.random.default_rng(0)
