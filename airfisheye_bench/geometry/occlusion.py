@@ -87,9 +87,10 @@ Three implementations of steps 1 and 4 return the same mask (the tests compare t
 
 * ``numba`` (used by :func:`occlusion_mask`): step 1 in O(N) (a counting sort into (ring, sector) buckets
   instead of a lexsort), step 4 as the sequential loop itself, made cheap by looking up only the *nearest*
-  kept entry on each side (kept entries increase along a row / column; see ``_kernels.ordering_keep``). Angles (``np.arctan2``, a
-  SIMD routine whose last bits a compiled ``atan2`` does not reproduce) and the visiting order
-  (``np.argsort``) stay in numpy, shared with the other implementations, so all of them see the same inputs.
+  kept entry on each side (kept entries increase along a row / column; see ``_kernels.ordering_keep``).
+  Angles (``np.arctan2``, a SIMD routine whose last bits a compiled ``atan2`` does not reproduce) and the
+  visiting order (``np.argsort``) stay in numpy, shared with the other implementations, so all of them see
+  the same inputs.
 * ``vectorised`` (:class:`_OrderingSolver`, numpy): a point's fate depends only on *kept* nearer points that
   conflict with it (same row/column, order broken); most points conflict with none, and the few that do are
   resolved by splitting them by distance (see the class docstring). Kept as a cross-check and for the
@@ -173,9 +174,9 @@ def occlusion_mask(
             ``zbuffer``: ``kernel`` (odd window size in pixels; default ``None``: derived per pixel from the
             LiDAR's angular spacing and the image scale), ``threshold`` (margin; default ``None``: derived,
             relative), ``relative`` (``threshold`` is a fraction of the window's nearest range rather than
-            metres; default True), ``max_incidence_deg`` (steepest surface the derived margin accepts,
-            default 87). ``hpr``: ``radius`` (flipping sphere radius as a multiple of the farthest point's
-            range from the camera, > 1; default 1000).
+            metres; default True; False needs a ``threshold``), ``max_incidence_deg`` (steepest surface
+            the derived margin accepts, default 87). ``hpr``: ``radius`` (flipping sphere radius as a
+            multiple of the farthest point's range from the camera, > 1; default 1000).
 
     Returns:
         ``bool [N]`` mask, numpy or torch like ``points_lidar``.
@@ -381,6 +382,10 @@ def check_occlusion_options(method: str, options: dict[str, Any]) -> dict[str, A
         )
     if "relative" in opts and not isinstance(opts["relative"], bool):
         raise ValueError(f"relative must be a bool, got {opts['relative']!r}")
+    if method == "zbuffer" and opts["threshold"] is None and not opts["relative"]:
+        raise ValueError(
+            "relative=False needs a threshold in metres (threshold=None derives a relative margin)"
+        )
     return opts
 
 
@@ -427,15 +432,15 @@ def _pixel_index(uv: np.ndarray, camera: FisheyeCamera) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------- z-buffer
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=4)  # a few cameras at a time (the served one, a benchmark's sizes)
 def _pixels_per_radian(camera: FisheyeCamera) -> np.ndarray:
-    """Image scale ``[H * W]`` (float64, pixels per radian) at every pixel: the larger of the lens's radial
+    """Image scale ``[H * W]`` (float32, pixels per radian) at every pixel: the larger of the lens's radial
     scale ``f r'(theta)`` and tangential scale ``f r(theta) / sin(theta)`` (both ``f r'(0)`` on the axis)."""
     theta = camera._theta64.reshape(-1).nan_to_num(0.0).clamp(1e-6, math.pi - 1e-6)
     step = 1e-6
     radial = (camera._radius_unit(theta + step) - camera._radius_unit(theta - step)) / (2.0 * step)
     tangential = camera._radius_unit(theta) / torch.sin(theta)
-    return (camera.focal * torch.maximum(radial, tangential)).numpy()
+    return (camera.focal * torch.maximum(radial, tangential)).to(torch.float32).numpy()
 
 
 def _zbuffer_mask(
@@ -461,7 +466,6 @@ def _zbuffer_mask(
     if threshold is None:  # a surface up to the grazing incidence, across the window's half-angle
         slope = math.tan(math.radians(max_incidence_deg))
         margin = (slope * (radius + 0.5) / scale).astype(np.float32)
-        relative = True
     else:
         margin = np.full(len(ids), threshold, dtype=np.float32)
     keep = np.empty(len(ids), dtype=bool)
@@ -652,9 +656,9 @@ class _KeptCells:
 
     Cells are keyed ``line * line_len + position`` (rows for row-major keys, columns for column-major keys)
     and held as sorted keys, so a neighbour is one binary search away. A key may be added more than once
-    (a column cell holding several points of a ring); its neighbours are the nearest *other* kept cells. Large batches are merged through a
-    dense occupancy mask; small ones go to a short second sorted array, so adding them does not copy the
-    long one.
+    (a column cell holding several points of a ring); its neighbours are the nearest *other* kept cells.
+    Large batches are merged through a dense occupancy mask; small ones go to a short second sorted array,
+    so adding them does not copy the long one.
     """
 
     def __init__(self, n_lines: int, line_len: int) -> None:

@@ -458,6 +458,7 @@ def test_empty_scan(method: str) -> None:
         ({"method": "hpr", "radius": 0.5}, "radius"),
         ({"method": "zbuffer", "max_incidence_deg": 90.0}, "max_incidence_deg"),
         ({"method": "zbuffer", "kernel": None, "threshold": "1"}, "threshold"),
+        ({"method": "zbuffer", "relative": False}, "needs a threshold"),
         ({"azimuth_window": -1}, "azimuth_window"),
         ({"elevation_window": 1.5}, "elevation_window"),
         ({"elevation_tolerance": float("nan")}, "elevation_tolerance"),
