@@ -15,6 +15,7 @@ import numpy as np
 from torch.utils.data import DataLoader
 
 from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.occlusion import check_occlusion_options
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD, AirFisheyeDataset, CameraConfig, collate
 from datamodules.sampling import EpochSeededSampler, evaluation_sampler
@@ -32,7 +33,11 @@ class AirFisheyeDataModule(L.LightningDataModule):
         cache_dir: Where synthetic datasets are cached (default: ``$AIRFISHEYE_DATA`` or ``~/.cache/airfisheye-bench``).
         source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
         camera: Served camera: ``{"size": 512, "model": ..., "fov_deg": ..., "k": ...}``; unset keys follow the release.
-        occlusion: LiDAR occlusion correction for completion: ``ordering`` | ``zbuffer`` | ``none``.
+        occlusion: LiDAR occlusion correction for completion: ``ordering`` | ``zbuffer`` | ``hpr`` | ``none``.
+        occlusion_options: Options of that method, e.g. ``{"elevation_tolerance": -0.25}`` for ``ordering``,
+            ``{"kernel": 5, "threshold": 1.0, "relative": False}`` for ``zbuffer``, ``{"radius": 100}`` for
+            ``hpr`` (all in :data:`~airfisheye_bench.geometry.occlusion.OCCLUSION_OPTIONS`); unset ones take
+            their defaults.
         motion_compensation: Per-frame ``T_cam_lidar`` from both sensors' poses at their own timestamps.
         max_depth: Depth beyond this is invalid (paper: 120 m).
         augment: ``{"hflip": 0.5, "rotate_deg": 0, "color_jitter": [b, c, s, h] | None}`` for training, or ``None``.
@@ -63,6 +68,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         source: str = "cubemap",
         camera: dict[str, Any] | None = None,
         occlusion: str = "ordering",
+        occlusion_options: dict[str, Any] | None = None,
         motion_compensation: bool = True,
         max_depth: float = 120.0,
         augment: dict[str, Any] | None = None,
@@ -106,6 +112,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             source=source,
             camera=self.camera_config,
             occlusion=occlusion,
+            occlusion_options=_occlusion_options(occlusion, occlusion_options),
             motion_compensation=motion_compensation,
             max_depth=max_depth,
             skip_bad_frames=skip_bad_frames,
@@ -214,6 +221,16 @@ class AirFisheyeDataModule(L.LightningDataModule):
         if not self.datasets:
             self.setup(None)
         return next(iter(self.datasets.values()))
+
+
+def _occlusion_options(method: str, given: dict[str, Any] | None) -> dict[str, Any]:
+    """``data.occlusion_options`` checked against ``data.occlusion`` (naming both keys on error)."""
+    given = dict(given or {})
+    try:
+        check_occlusion_options(method, given)
+    except ValueError as err:
+        raise ValueError(f"data.occlusion_options (data.occlusion={method}): {err}") from None
+    return given
 
 
 def _options(group: str, given: dict[str, Any], allowed: set[str], tuples: tuple[str, ...]) -> dict[str, Any]:

@@ -31,7 +31,7 @@ import torch.nn.functional as F
 from torch.utils.data import Dataset
 
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
-from airfisheye_bench.geometry.occlusion import lidar_depth_map
+from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
 from datamodules.sampling import SharedEpoch, draw_seed
@@ -40,7 +40,6 @@ log = logging.getLogger(__name__)
 
 TASKS = ("seg", "depth", "completion")
 SOURCES = ("cubemap", "fisheye")
-OCCLUSION_METHODS = ("ordering", "zbuffer", "none")
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
 
@@ -92,7 +91,10 @@ class AirFisheyeDataset(Dataset):
         task: ``seg``, ``depth`` or ``completion``.
         source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
         camera: The served camera (see :class:`CameraConfig`).
-        occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer`` or ``none``.
+        occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``
+            or ``none``.
+        occlusion_options: That method's options (see :func:`~airfisheye_bench.geometry.occlusion_mask`);
+            unset options take their defaults.
         motion_compensation: Use ``T_cam_lidar`` from both sensors' poses at their own timestamps; ``False`` uses
             the static extrinsics (for comparison).
         max_depth: Ground truth and sparse depth beyond this range are invalid (paper: 120 m).
@@ -115,6 +117,7 @@ class AirFisheyeDataset(Dataset):
         source: str = "cubemap",
         camera: CameraConfig | None = None,
         occlusion: str = "ordering",
+        occlusion_options: dict | None = None,
         motion_compensation: bool = True,
         max_depth: float = 120.0,
         augment: FisheyeAugment | None = None,
@@ -136,6 +139,7 @@ class AirFisheyeDataset(Dataset):
         self.task = task
         self.source = source
         self.occlusion = occlusion
+        self.occlusion_options = check_occlusion_options(occlusion, dict(occlusion_options or {}))
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -306,6 +310,7 @@ class AirFisheyeDataset(Dataset):
             calib.lidar_spec(),
             method=self.occlusion,
             max_depth=self.max_depth,
+            **self.occlusion_options,
         )
         return torch.from_numpy(depth)[None]
 

@@ -8,13 +8,21 @@ centre is known analytically (a ray-box test), so each method's precision and re
 * precision = kept points that are visible / kept points,
 * recall = kept points that are visible / visible points that project into the image.
 
-Timings are the minimum over ``--repeats`` runs of the full ``occlusion_mask`` call (projection, organisation
-and the test), single-threaded: wall clock, and CPU time of the process (the better figure on a shared machine).
-The methods take turns within each repeat, so a busy machine slows them alike. ``ordering`` runs the compiled
-kernels; ``ordering (numpy)`` the previous vectorised numpy solver (the same mask), for comparison.
+Timings are the minimum (and median) over ``--repeats`` runs of the full ``occlusion_mask`` call (projection,
+organisation and the test), single-threaded: wall clock, and CPU time of the process (the better figure on a
+shared machine). The methods take turns within each repeat, so a busy machine slows them alike. ``ordering``
+runs the compiled kernels; ``ordering (numpy)`` the vectorised numpy solver (the same mask), for comparison;
+``zbuffer (5 px, 1 m)`` is the z-buffer with the fixed window and absolute margin it had before they were
+derived from the LiDAR's spacing.
+
+``--scans`` measures every method on scans whose beams do not sit on the spec's column centres, as a real
+spinning LiDAR's: ``boundary`` (every beam half a column off), ``ring phase`` (a random azimuth phase per ring),
+``jitter`` (ring phase plus 0.1 cell of noise per beam in azimuth and elevation, 5% of returns dropped) and
+``shuffled`` (the nominal beams in a random order).
 
     python scripts/bench_lidar.py                       # 1536^2 and 512^2, prints a markdown table
     python scripts/bench_lidar.py --sizes 512 --check   # also check ordering == ordering_reference
+    python scripts/bench_lidar.py --scans               # also precision / recall on realistic scans
     python scripts/bench_lidar.py --variants            # also the readings of III-C offered as options
 """
 
@@ -75,9 +83,47 @@ def structured_scene(seed: int = 0) -> np.ndarray:
     return np.asarray(boxes, dtype=np.float64)
 
 
-def scan(spec: LidarSpec, boxes: np.ndarray) -> np.ndarray:
-    """Points hit by the spec's beams (LiDAR at the origin), within its range."""
-    dirs = spec.beam_directions(torch.float64).reshape(-1, 3).numpy()
+#: The issue's analytic scene: a wall 20 m ahead, three boxes 5-14 m ahead, the ground 3 m below the LiDAR.
+BOXES_AND_WALL = np.array(
+    [
+        [(20.0, -30.0, -10.0), (21.0, 30.0, 20.0)],
+        [(8.0, -2.0, -3.0), (10.0, 2.0, 1.0)],
+        [(5.0, 3.0, -3.0), (6.0, 4.5, 2.0)],
+        [(12.0, -8.0, -3.0), (14.0, -5.0, 3.0)],
+        [(-50.0, -50.0, -4.0), (50.0, 50.0, -3.0)],
+    ]
+)
+#: scene -> (boxes, camera offset from the LiDAR in metres, camera pitch in degrees)
+SCENES = {
+    "structured": (None, (0.1, 0.3, -0.4), 20.0),
+    "boxes": (BOXES_AND_WALL, (0.0, 0.6, 0.4), 0.0),  # camera 0.6 m beside and 0.4 m above the LiDAR
+}
+
+
+def scan(spec: LidarSpec, boxes: np.ndarray, variant: str = "nominal", seed: int = 0) -> np.ndarray:
+    """Points hit by the spec's beams (LiDAR at the origin), within its range; ``variant`` moves the beams
+    as a real sensor's (see the module docstring: ``nominal``, ``boundary``, ``ring phase``, ``jitter``,
+    ``shuffled``)."""
+    if variant == "nominal":
+        dirs = spec.beam_directions(torch.float64).reshape(-1, 3).numpy()
+    else:
+        rng = np.random.default_rng(seed)
+        shape = (spec.channels, spec.points_per_channel)
+        el = np.broadcast_to(spec.channel_elevations()[:, None], shape).copy()
+        az = np.broadcast_to(spec.column_azimuths()[None, :], shape).copy()
+        h, v = spec.horizontal_resolution, spec.vertical_resolution
+        if variant == "boundary":
+            az += 0.5 * h
+        elif variant in ("ring phase", "jitter"):
+            az += rng.uniform(-0.5, 0.5, (spec.channels, 1)) * h
+        if variant == "jitter":
+            az += rng.normal(0.0, 0.1, shape) * h
+            el += rng.normal(0.0, 0.1, shape) * v
+        dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], -1).reshape(-1, 3)
+        if variant == "jitter":
+            dirs = dirs[rng.random(len(dirs)) >= 0.05]
+        if variant == "shuffled":
+            dirs = dirs[rng.permutation(len(dirs))]
     t = ray_box_entry(np.zeros(3), dirs, boxes)
     hit = t <= spec.max_range
     return dirs[hit] * t[hit, None]
@@ -100,26 +146,43 @@ def visible(points: np.ndarray, centre: np.ndarray, boxes: np.ndarray) -> np.nda
 
 def min_time_ms(fn, repeats: int) -> tuple[float, float]:
     """Minimum wall-clock and process CPU time of ``fn`` in ms (CPU time is robust to a busy machine)."""
-    return min_times_ms({"fn": fn}, repeats)["fn"]
+    return min_times_ms({"fn": fn}, repeats)["fn"][:2]
 
 
-def min_times_ms(fns: dict, repeats: int) -> dict[str, tuple[float, float]]:
-    """:func:`min_time_ms` of several functions, taking turns within each repeat (a fair side-by-side)."""
-    best = {name: (math.inf, math.inf) for name in fns}
+def min_times_ms(fns: dict, repeats: int) -> dict[str, tuple[float, float, float]]:
+    """Minimum wall-clock, minimum and median CPU ms of several functions, taking turns within each repeat
+    (a fair side-by-side)."""
+    walls = {name: [] for name in fns}
+    cpus = {name: [] for name in fns}
     for _ in range(repeats):
         for name, fn in fns.items():
             t0, c0 = time.perf_counter(), time.process_time()
             fn()
-            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-            best[name] = (min(best[name][0], wall), min(best[name][1], cpu))
-    return {name: (wall * 1e3, cpu * 1e3) for name, (wall, cpu) in best.items()}
+            walls[name].append(time.perf_counter() - t0)
+            cpus[name].append(time.process_time() - c0)
+    return {
+        name: (min(walls[name]) * 1e3, min(cpus[name]) * 1e3, float(np.median(cpus[name])) * 1e3)
+        for name in fns
+    }
 
 
-def mask_fn(points, T, camera, spec, method: str):
-    """The mask of one table row: an ``occlusion_mask`` method, or the numpy solver (``ordering (numpy)``)."""
-    if method == "ordering (numpy)":
+#: Table rows: name -> (``occlusion_mask`` method, options); ``ordering (numpy)`` is the numpy solver.
+METHODS = {
+    "ordering": ("ordering", {}),
+    "ordering (numpy)": ("ordering", {}),
+    "zbuffer": ("zbuffer", {}),
+    "zbuffer (5 px, 1 m)": ("zbuffer", {"kernel": 5, "threshold": 1.0, "relative": False}),
+    "hpr": ("hpr", {}),
+    "none": ("none", {}),
+}
+
+
+def mask_fn(points, T, camera, spec, name: str):
+    """The mask of one table row (see :data:`METHODS`)."""
+    if name == "ordering (numpy)":
         return lambda: _ordering(points, T, camera, spec, "vectorised")
-    return lambda: occlusion_mask(points, T, camera, spec, method)
+    method, options = METHODS[name]
+    return lambda: occlusion_mask(points, T, camera, spec, method, **options)
 
 
 def main() -> None:
@@ -127,42 +190,45 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[1536, 512])
     parser.add_argument("--repeats", type=int, default=10)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--scene", choices=sorted(SCENES), default="structured")
     parser.add_argument("--check", action="store_true", help="also check ordering against ordering_reference")
     parser.add_argument(
         "--variants", action="store_true", help="also measure the ordering options (first size)"
+    )
+    parser.add_argument(
+        "--scans", action="store_true", help="also every method on realistic scans (last size)"
     )
     args = parser.parse_args()
     torch.set_num_threads(1)
 
     spec = LidarSpec()  # 64 x 2048, 270 x (-45..15) deg
-    boxes = structured_scene(args.seed)
+    boxes, offset, pitch = SCENES[args.scene]
+    boxes = structured_scene(args.seed) if boxes is None else boxes
     points = scan(spec, boxes)
-    centre, T = camera_rig()
+    centre, T = camera_rig(offset, pitch)
     print(
         f"scene: {len(boxes)} boxes, {len(points)} LiDAR points; camera {centre.tolist()} m from the LiDAR\n"
     )
     print(
-        "| image | method | ms (wall) | ms (CPU) | x zbuffer (CPU) | precision | recall | kept | hidden kept |"
+        "| image | method | ms (wall) | ms (CPU) | median ms (CPU) | x zbuffer (CPU) | precision | recall | kept "
+        "| hidden kept |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for size in args.sizes:
         camera = FisheyeCamera(size, size, fov_deg=190.0)
         truth = occlusion_mask(points, T, camera, spec, "none") & visible(points, centre, boxes)
-        fns = {
-            m: mask_fn(points, T, camera, spec, m)
-            for m in ("ordering", "ordering (numpy)", "zbuffer", "none")
-        }
-        masks = {method: fn() for method, fn in fns.items()}  # also compiles / warms up
+        fns = {name: mask_fn(points, T, camera, spec, name) for name in METHODS}
+        masks = {name: fn() for name, fn in fns.items()}  # also compiles / warms up
         times = min_times_ms(fns, args.repeats)
         rows = {}
-        for method, mask in masks.items():
+        for name, mask in masks.items():
             tp = int((mask & truth).sum())
-            rows[method] = (times[method], tp / max(int(mask.sum()), 1), tp / max(int(truth.sum()), 1), mask)
-        for method, ((wall, cpu), precision, recall, mask) in rows.items():
+            rows[name] = (times[name], tp / max(int(mask.sum()), 1), tp / max(int(truth.sum()), 1), mask)
+        for name, ((wall, cpu, median), precision, recall, mask) in rows.items():
             ratio = cpu / rows["zbuffer"][0][1]
             print(
-                f"| {size}^2 | {method} | {wall:.1f} | {cpu:.1f} | {ratio:.2f} | {precision:.4f} | {recall:.4f} "
-                f"| {int(mask.sum())} | {int((mask & ~truth).sum())} |"
+                f"| {size}^2 | {name} | {wall:.1f} | {cpu:.1f} | {median:.1f} | {ratio:.2f} | {precision:.4f} "
+                f"| {recall:.4f} | {int(mask.sum())} | {int((mask & ~truth).sum())} |"
             )
         if args.check:
             reference = ordering_reference(points, T, camera, spec)
@@ -170,6 +236,30 @@ def main() -> None:
             print(f"\n{size}^2: ordering == ordering (numpy) == ordering_reference: {same[0] and same[1]}\n")
     if args.variants:
         measure_variants(points, boxes, spec, FisheyeCamera(args.sizes[0], args.sizes[0]), args.repeats)
+    if args.scans:
+        measure_scans(boxes, spec, centre, T, FisheyeCamera(args.sizes[-1], args.sizes[-1], fov_deg=190.0))
+
+
+SCANS = ("nominal", "boundary", "ring phase", "jitter", "shuffled")
+
+
+def measure_scans(boxes, spec, centre, T, camera) -> None:
+    """Precision / recall of every method on scans whose beams sit where a real sensor's may."""
+    names = [name for name in METHODS if name != "ordering (numpy)"]
+    print(f"\nrealistic scans, {camera.width}^2: precision / recall\n")
+    print("| scan | hidden / projected | " + " | ".join(names) + " |")
+    print("|---|---|" + "---|" * len(names))
+    for variant in SCANS:
+        points = scan(spec, boxes, variant, seed=1)
+        projects = occlusion_mask(points, T, camera, spec, "none")
+        truth = projects & visible(points, centre, boxes)
+        cells = []
+        for name in names:
+            mask = mask_fn(points, T, camera, spec, name)()
+            tp = int((mask & truth).sum())
+            cells.append(f"{tp / max(int(mask.sum()), 1):.4f} / {tp / max(int(truth.sum()), 1):.4f}")
+        hidden = f"{int((projects & ~truth).sum())} / {int(projects.sum())}"
+        print(f"| {variant} | {hidden} | " + " | ".join(cells) + " |")
 
 
 VARIANTS = {

@@ -41,7 +41,8 @@ Depth (``depth``) and completion (``completion``) only:
 
 Completion only:
 
-- ``airfisheye.occlusion``: occlusion correction of the sparse input (``ordering`` | ``zbuffer`` | ``none``).
+- ``airfisheye.occlusion``: occlusion correction of the sparse input (``ordering`` | ``zbuffer`` | ``hpr`` |
+  ``none``); its options, if any were set, are ``occlusion_options`` in ``airfisheye.data_config``.
   ``sparse_depth`` is range in metres, float32 ``[B, 1, H, W]``, 0 = no LiDAR point.
 
 Outputs: ``logits`` ``[B, C, H, W]`` (argmax over ``C`` gives the class id), ``depth`` ``[B, 1, H, W]`` range in

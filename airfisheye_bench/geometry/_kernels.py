@@ -75,43 +75,69 @@ def blend_interleaved3(src, pixels, index, weight, out, is_int, lo, hi):  # prag
 
 # -------------------------------------------------------------------------- LiDAR: organisation and ordering
 @njit(cache=True, nogil=True)
-def lidar_cells(
-    r, az, el, lower, az0, v_res, h_res, n_c, n_pc, wraps, cell, index
+def lidar_layout(
+    r, az, el, lower, v_res, edge, h_res, n_c, wrap_last, first_col, n_cols, ring, position, column
 ):  # pragma: no cover - compiled
-    """Step 1 of III-C: the cell of every point and ``I_LiDAR``, exactly as ``lidar.cells_from_angles``.
+    """Step 1 of III-C: ring, rank in azimuth within the ring and azimuth sector of every point.
 
-    The same float64 operations in the same order (no fastmath), so the cells and collision winners are
-    bit-identical to numpy's. One pass replaces two ``np.minimum.at`` reductions: visiting the points in index
-    order with a strict ``<`` leaves the lowest index among the points nearest to a cell centre.
+    Exactly ``lidar.layout_from_angles``: the same float64 operations (no fastmath), and the same order
+    (ring, azimuth, point index) found in O(N) instead of a lexsort: a counting sort into (ring, sector)
+    buckets, stable in the point index, then an insertion sort by azimuth inside each bucket (a sector holds
+    one or two points of a ring; the sector grows with the azimuth, so the bucket order is the azimuth order).
 
     Args:
         r, az, el: ``[N]`` range, azimuth and elevation of the points (``lidar.spherical_coordinates``).
-        lower, az0: Elevation of channel 0 and azimuth of column 0 (radians).
-        v_res, h_res: Vertical and horizontal resolution (radians).
-        n_c, n_pc: Channels and points per channel.
-        wraps: The azimuth wraps around (360 deg sensor): column ``N_PC`` is column 0.
-        cell: ``int64 [N]`` output, ``row * N_PC + col`` or -1 outside the FOV.
-        index: ``int64 [N_C * N_PC]`` output, the point in each cell or -1.
+        lower, v_res: Elevation of channel 0 and the channel spacing (radians).
+        edge, h_res: Azimuth where sector 0 starts and the sector width (radians).
+        n_c: Channels.
+        wrap_last: Clamp the sector to ``wrap_last`` (a 360 deg sensor: azimuth +pi is the last sector); -1: no.
+        first_col, n_cols: Sectors span ``[first_col, first_col + n_cols)`` (``lidar.column_range``).
+        ring, position, column: ``int64 [N]`` outputs.
+
+    Returns:
+        The length of the longest ring (0 for no point).
     """
-    best = np.full(n_c * n_pc, np.inf)
-    index[:] = -1
-    for p in range(r.shape[0]):
-        cell[p] = -1
-        fi = (el[p] - lower) / v_res
-        fj = (az[p] - az0) / h_res
-        i = np.rint(fi)
-        j = np.rint(fj)
-        dj = fj - j  # offset from the column centre, taken before the wrap (as numpy does)
-        if wraps:
-            j = float(int(j) % n_pc)
-        if not (r[p] > 0 and i >= 0 and i < n_c and j >= 0 and j < n_pc):
-            continue
-        c = int(i) * n_pc + int(j)
-        cell[p] = c
-        score = (fi - i) * (fi - i) + dj * dj
-        if score < best[c]:
-            best[c] = score
-            index[c] = p
+    n = r.shape[0]
+    count = np.zeros(n_c * n_cols + 1, np.int64)
+    bucket = np.empty(n, np.int64)
+    for p in range(n):
+        i = np.rint((el[p] - lower) / v_res)
+        j = np.floor((az[p] - edge) / h_res)
+        if wrap_last >= 0 and j > wrap_last:
+            j = float(wrap_last)
+        column[p] = int(j)
+        if r[p] > 0 and i >= 0 and i < n_c:
+            ring[p] = int(i)
+            bucket[p] = int(i) * n_cols + int(j) - first_col
+            count[bucket[p] + 1] += 1
+        else:
+            ring[p] = -1
+            position[p] = -1
+            bucket[p] = -1
+    for b in range(n_c * n_cols):
+        count[b + 1] += count[b]
+    start = count.copy()
+    order = np.empty(count[-1], np.int64)
+    for p in range(n):
+        b = bucket[p]
+        if b >= 0:
+            order[count[b]] = p
+            count[b] += 1
+    for b in range(n_c * n_cols):  # insertion sort by azimuth; strict > keeps equal azimuths in index order
+        for k in range(start[b] + 1, start[b + 1]):
+            p = order[k]
+            m = k - 1
+            while m >= start[b] and az[order[m]] > az[p]:
+                order[m + 1] = order[m]
+                m -= 1
+            order[m + 1] = p
+    longest = 0
+    for i in range(n_c):
+        first = start[i * n_cols]
+        for k in range(first, start[(i + 1) * n_cols]):
+            position[order[k]] = k - first
+        longest = max(longest, start[(i + 1) * n_cols] - first)
+    return longest
 
 
 _ALL = np.uint64(0xFFFFFFFFFFFFFFFF)
@@ -160,72 +186,102 @@ def _set(words, w0, c):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def ordering_keep(row, col, theta, phi, n_c, n_pc, az_win, el_win, tol, keep):  # pragma: no cover - compiled
+def ordering_keep(
+    row, pos, col, theta, phi, n_c, row_len, n_cols, az_win, el_win, tol, keep
+):  # pragma: no cover - compiled
     """Step 4 of III-C: the sequential loop of ``occlusion._ordering_loop``, with the same result.
 
-    Points come in visiting order (ascending camera range), one per cell. A point is kept iff its ``theta`` is
+    Points come in visiting order (ascending camera range), each at its own place ``(row, pos)`` of a row
+    and in a column ``col`` that may hold several points of one row. A point is kept iff its ``theta`` is
     strictly greater than every kept ``theta`` left of it in its row and smaller than every one right of it
-    (within ``az_win`` columns), and its ``phi`` likewise in its column against the rows below / above
+    (within ``az_win`` places), and its ``phi`` likewise in its column against the rows below / above
     (within ``el_win`` rows, with ``tol``).
 
-    Why a nearest-neighbour lookup is exact: two kept cells of a line within one window of each other were
-    compared when the later one was kept, so kept values are strictly increasing along a line within any
-    window (also for ``tol < 0``, which only demands more clearance). The extreme kept value left / below a
-    point within its window is then the nearest kept one. For ``tol > 0`` a column need not be increasing, so
-    every kept entry of the window is tested (columns are short: ``N_C`` cells).
+    Why a nearest-neighbour lookup is exact: two kept entries of a line in different places, within one
+    window of each other, were compared when the later one was kept, so kept values strictly increase along
+    a line within any window (also for ``tol < 0``, which only demands more clearance). The extreme kept value
+    left / below a point within its window is then the nearest kept one; a column cell keeps the largest and
+    smallest ``phi`` of its points. For ``tol > 0`` a column need not be increasing, so every kept cell of
+    the window is tested (columns are short: ``N_C`` cells).
 
     Args:
-        row, col: ``int64 [M]`` cell of each point (channel, column), all different.
+        row, pos, col: ``int64 [M]`` ring, place along the ring (all ``(row, pos)`` different), column
+            (``0 <= col < n_cols``).
         theta, phi: ``float64 [M]`` azimuth / elevation seen from the camera centre (LiDAR axes).
-        n_c, n_pc: Shape of ``I_LiDAR``.
-        az_win, el_win: Window half-widths in columns / rows (``n_pc`` / ``n_c`` for the whole line).
+        n_c, row_len, n_cols: Rows, places per row and columns.
+        az_win, el_win: Window half-widths in places / rows (``row_len`` / ``n_c`` for the whole line).
         tol: Elevation tolerance in radians (see ``occlusion``).
         keep: ``bool [M]`` output.
     """
-    row_words = (n_pc + 63) >> 6  # words per row bitset
+    row_words = (row_len + 63) >> 6  # words per row bitset
     col_words = (n_c + 63) >> 6
     row_bits = np.zeros(n_c * row_words, np.uint64)
-    col_bits = np.zeros(n_pc * col_words, np.uint64)
-    theta_final = np.empty(n_c * n_pc)  # row-major; read only where a bit is set
-    phi_final = np.empty(n_pc * n_c)  # column-major: a column is contiguous
+    col_bits = np.zeros(n_cols * col_words, np.uint64)
+    theta_final = np.empty(n_c * row_len)  # row-major; read only where a bit is set
+    phi_max = np.full(n_cols * n_c, -np.inf)  # column-major: a column is contiguous
+    phi_min = np.full(n_cols * n_c, np.inf)
     for k in range(row.shape[0]):
         keep[k] = False
         i = row[k]
-        j = col[k]
+        j = pos[k]
         th = theta[k]
         ph = phi[k]
         # (1) row i: the nearest kept entry left of j must be smaller, the nearest right of j greater.
-        rb, rw = i * n_pc, i * row_words
+        rb, rw = i * row_len, i * row_words
         c = _last_set(row_bits, rw, max(0, j - az_win), j)
         if c >= 0 and theta_final[rb + c] >= th:
             continue
-        c = _first_set(row_bits, rw, j + 1, min(n_pc, j + az_win + 1))
+        c = _first_set(row_bits, rw, j + 1, min(row_len, j + az_win + 1))
         if c >= 0 and theta_final[rb + c] <= th:
             continue
-        # (2) column j: entries below row i must be below phi + tol, entries above must be above phi - tol.
-        cb, cw = j * n_c, j * col_words
+        # (2) column: entries below row i must be below phi + tol, entries above must be above phi - tol.
+        jc = col[k]
+        cb, cw = jc * n_c, jc * col_words
         lo, hi = max(0, i - el_win), min(n_c, i + el_win + 1)
-        if tol > 0.0:  # every kept entry of the window (row i is not among them: one point per cell)
+        if tol > 0.0:  # every kept cell of the window (row i's own cell is not compared)
             c = _first_set(col_bits, cw, lo, hi)
             while c >= 0:
-                v = phi_final[cb + c]
-                if (c < i and v >= ph + tol) or (c > i and v <= ph - tol):
+                if (c < i and phi_max[cb + c] >= ph + tol) or (c > i and phi_min[cb + c] <= ph - tol):
                     break
                 c = _first_set(col_bits, cw, c + 1, hi)
             if c >= 0:
                 continue
         else:
             c = _last_set(col_bits, cw, lo, i)
-            if c >= 0 and phi_final[cb + c] >= ph + tol:
+            if c >= 0 and phi_max[cb + c] >= ph + tol:
                 continue
             c = _first_set(col_bits, cw, i + 1, hi)
-            if c >= 0 and phi_final[cb + c] <= ph - tol:
+            if c >= 0 and phi_min[cb + c] <= ph - tol:
                 continue
         keep[k] = True
         _set(row_bits, rw, j)
         theta_final[rb + j] = th
         _set(col_bits, cw, i)
-        phi_final[cb + i] = ph
+        phi_max[cb + i] = max(phi_max[cb + i], ph)
+        phi_min[cb + i] = min(phi_min[cb + i], ph)
+
+
+@njit(cache=True, nogil=True)
+def zbuffer_keep(depth, width, pix, rng, radius, relative, threshold, keep):  # pragma: no cover - compiled
+    """The z-buffer test: is each point within the margin of the nearest range in its own window?
+
+    ``depth`` is the per-pixel nearest range ``[H * W]`` (+inf: empty). Point ``k`` at pixel ``pix[k]`` is
+    kept iff ``rng[k] <= m * (1 + threshold)`` (``relative``) or ``rng[k] <= m + threshold``, with ``m`` the
+    minimum of ``depth`` over the ``(2 r + 1)^2`` pixels around it, ``r = radius[k]`` (clipped at the image
+    border). A window per point, so that it can follow the image scale at the point's pixel.
+    """
+    height = depth.shape[0] // width
+    for k in range(pix.shape[0]):
+        r = radius[k]
+        v0, u0 = divmod(pix[k], width)
+        m = np.inf
+        for v in range(max(0, v0 - r), min(height, v0 + r + 1)):
+            base = v * width
+            for u in range(max(0, u0 - r), min(width, u0 + r + 1)):
+                if depth[base + u] < m:
+                    m = depth[base + u]
+        limit = m * (np.float32(1.0) + threshold[k]) if relative else m + threshold[k]
+        keep[k] = rng[k] <= limit
 
 
 @njit(cache=True, nogil=True)

@@ -15,13 +15,17 @@ Beam pattern (the single definition; the synthetic generator casts :meth:`LidarS
   on the x axis, is split into equal cells whose centres are the beam azimuths. Azimuth increases with the
   column (the paper's "ascending order of theta from left to right"), and a 360 deg sensor has no duplicated
   column.
+
+This is the *nominal* pattern. A real spinning sensor fires at an arbitrary azimuth phase every frame (and
+per ring), with jitter and dropped returns: :func:`organize_scan` therefore uses the channel elevations and the
+column width, never the column centres.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -202,79 +206,84 @@ def spherical_coordinates(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
 
 
 # ---------------------------------------------------------------------- organisation (step 1 of III-C)
-def scan_cells(points: np.ndarray, spec: LidarSpec) -> tuple[np.ndarray, np.ndarray]:
-    """Cell ``(row, col)`` of every point of a validated float64 scan, and ``I_LiDAR``.
+class ScanLayout(NamedTuple):
+    """Where each point of a scan sits in ``I_LiDAR`` (see :func:`organize_scan`); ``int64 [N]`` arrays.
 
-    Returns:
-        ``cell [N]`` (flat index ``row * N_PC + col``; ``-1`` for points more than half a cell outside the
-        sensor's FOV, or at the origin) and ``index [N_C, N_PC]`` (``I_LiDAR``, ``-1`` = no return). A point
-        whose cell went to a point nearer the cell centre keeps its ``cell`` but is not in ``index``.
+    Attributes:
+        ring: Channel (row of ``I_LiDAR``, 0 = the lowest beam), or -1 for a point no beam of the sensor can
+            have returned (at the origin, or more than half a channel spacing outside the vertical FOV).
+        position: Rank of the point in azimuth within its ring (its place along the row; -1 where ``ring`` is).
+        column: Azimuth sector, ``floor((azimuth + HFOV/2) / (HFOV/N_PC))``: the spec's column ``j`` covers
+            ``[-HFOV/2 + j * res, -HFOV/2 + (j + 1) * res)``. Points outside a partial HFOV get the sectors
+            beyond ``[0, N_PC)`` (negative or ``>= N_PC``), so that they are organised (and tested) too.
     """
-    return cells_from_angles(*spherical_coordinates(points), spec)
+
+    ring: ArrayLike
+    position: ArrayLike
+    column: ArrayLike
 
 
-def cells_from_angles(
-    r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`scan_cells` from the points' spherical coordinates (see :func:`spherical_coordinates`)."""
-    n_c, n_pc = spec.channels, spec.points_per_channel
-    index = np.full(n_c * n_pc, -1, dtype=np.int64)
-    if len(r) == 0:
-        return np.empty(0, dtype=np.int64), index.reshape(n_c, n_pc)
-    lower = math.radians(spec.vfov_deg[0])
-    az0 = float(spec.column_azimuths()[0])
-    # Fractional channel / column coordinates: integers are the beam directions.
-    fi = (el - lower) / spec.vertical_resolution
-    fj = (az - az0) / spec.horizontal_resolution
-    i = np.rint(fi)
-    j = np.rint(fj)
+def column_range(spec: LidarSpec) -> tuple[int, int]:
+    """``(first, count)`` of the azimuth sectors that :class:`ScanLayout` can hold for this spec.
+
+    ``first`` is the sector of azimuth ``-pi`` (<= 0), ``count`` the number of sectors up to ``+pi``.
+    """
     if spec.hfov_deg == 360.0:
-        j = np.mod(j, n_pc)  # the azimuth wraps around: column N_PC is column 0
-    inside = (r > 0) & (i >= 0) & (i < n_c) & (j >= 0) & (j < n_pc)
-    cell = np.where(inside, i * n_pc + j, -1).astype(np.int64)
-
-    # Collisions: the point nearest to the cell centre (in units of the cell size) wins; ties go to the lower
-    # point index. Two exact min-reductions, so the result does not depend on any write order.
-    dj = fj - np.rint(fj)  # offset from the column centre, also correct across the 360 deg wrap
-    score = (fi - i) ** 2 + dj**2
-    ids = np.flatnonzero(inside)
-    best = np.full(n_c * n_pc, np.inf)
-    np.minimum.at(best, cell[ids], score[ids])
-    ids = ids[score[ids] == best[cell[ids]]]
-    index[:] = len(r)
-    np.minimum.at(index, cell[ids], ids)
-    index[index == len(r)] = -1
-    return cell, index.reshape(n_c, n_pc)
+        return 0, spec.points_per_channel
+    edge, res = -math.radians(spec.hfov_deg) / 2.0, spec.horizontal_resolution
+    first = math.floor((-math.pi - edge) / res)
+    return first, math.floor((math.pi - edge) / res) - first + 1
 
 
-def organize_scan(points_lidar: ArrayLike, spec: LidarSpec) -> ArrayLike:
-    """Organise a LiDAR scan into the index matrix ``I_LiDAR [N_C, N_PC]`` (paper, III-C, first step).
+def layout_from_angles(r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec) -> ScanLayout:
+    """:func:`organize_scan` from the points' spherical coordinates (see :func:`spherical_coordinates`).
 
-    Each point goes to the cell of the nearest beam direction (nearest channel elevation and column azimuth;
-    the beam pattern is in the module docstring). Dropped returns leave cells empty; points more than half a
-    cell outside the sensor's FOV are left out. When several points fall in one cell, the one nearest to the
-    cell centre (angular distance measured in cell sizes) wins, ties going to the lower point index.
+    The numpy reference of the compiled ``_kernels.lidar_layout`` (bit-identical: the same float64
+    operations); numpy in, numpy out.
+    """
+    ring = np.rint((el - math.radians(spec.vfov_deg[0])) / spec.vertical_resolution)
+    ring = np.where((r > 0) & (ring >= 0) & (ring < spec.channels), ring, -1).astype(np.int64)
+    column = np.floor((az - (-math.radians(spec.hfov_deg) / 2.0)) / spec.horizontal_resolution)
+    if spec.hfov_deg == 360.0:
+        column = np.minimum(column, spec.points_per_channel - 1)  # azimuth +pi exactly: the last sector
+    # Rank in azimuth within the ring; lexsort is stable, so equal azimuths keep the lower index first.
+    order = np.lexsort((az, ring))
+    ranked = ring[order]
+    position = np.empty(len(r), dtype=np.int64)
+    position[order] = np.arange(len(r)) - np.searchsorted(ranked, ranked)
+    position[ring < 0] = -1
+    return ScanLayout(ring, position, column.astype(np.int64))
+
+
+def organize_scan(points_lidar: ArrayLike, spec: LidarSpec) -> ScanLayout:
+    """Organise a LiDAR scan into the paper's ``I_LiDAR`` (III-C, first step), wherever its beams sit.
+
+    Row ``i`` of ``I_LiDAR`` is ring ``i`` (the channel nearest the point's elevation: rings are a full
+    channel spacing apart, so jitter cannot move a point to another ring) with its points in ascending
+    azimuth; column ``j`` is the spec's azimuth sector ``j``. No point competes for a cell: a real scan's
+    beams sit at an arbitrary azimuth phase (per frame, per ring), with jitter and dropped returns, so a
+    sector may hold zero, one or two points of a ring, and every one of them keeps its place. The result
+    does not depend on the order of the points.
 
     Args:
         points_lidar: ``[N, 3]`` points in the LiDAR frame (numpy or torch, floating, finite).
-        spec: The sensor that recorded the scan.
+        spec: The sensor that recorded the scan (channel elevations, sector width).
 
     Returns:
-        ``int64 [N_C, N_PC]`` indices into ``points_lidar``, ``-1`` where there is no return; numpy or torch
-        like the input.
+        :class:`ScanLayout` of ``int64 [N]`` arrays, numpy or torch like the input.
 
     Example:
         >>> spec = LidarSpec(channels=4, points_per_channel=8)
         >>> beams = spec.beam_directions(torch.float64).reshape(-1, 3)
-        >>> index = organize_scan(10.0 * beams.flip(0), spec)  # points listed in reverse order
-        >>> int(index[0, 0]), int(index[3, 7])
-        (31, 0)
+        >>> layout = organize_scan(10.0 * beams.flip(0), spec)  # points listed in reverse order
+        >>> [int(v[0]) for v in layout], [int(v[31]) for v in layout]  # (ring, position, column)
+        ([3, 7, 7], [0, 0, 0])
     """
     if not isinstance(spec, LidarSpec):
         raise ValueError(f"spec must be a LidarSpec, got {type(spec).__name__}")
     points = as_points64(points_lidar, "points_lidar")
-    _, index = scan_cells(points, spec)
-    return like(index, points_lidar)
+    layout = layout_from_angles(*spherical_coordinates(points), spec)
+    return ScanLayout(*(like(v, points_lidar) for v in layout))
 
 
-__all__ = ["LidarSpec", "organize_scan", "spherical_coordinates"]
+__all__ = ["LidarSpec", "ScanLayout", "organize_scan", "spherical_coordinates"]

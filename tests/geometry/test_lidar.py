@@ -89,79 +89,97 @@ def test_spec_is_frozen() -> None:
 
 
 # ---------------------------------------------------------------------------------------------- organize_scan
-def test_organize_recovers_the_beam_grid_from_a_shuffled_scan() -> None:
-    spec = LidarSpec(channels=16, points_per_channel=90)
+def turned(points: np.ndarray, radians: np.ndarray | float) -> np.ndarray:
+    """Points rotated about the LiDAR's z axis (a change of azimuth phase)."""
+    a = np.broadcast_to(np.asarray(radians, dtype=np.float64), (len(points),))
+    x, y, z = points.T
+    return np.stack([np.cos(a) * x - np.sin(a) * y, np.sin(a) * x + np.cos(a) * y, z], axis=1)
+
+
+@pytest.mark.parametrize("phase", [0.0, 0.5, -0.49])
+def test_organize_recovers_the_beam_grid_from_a_shuffled_scan(phase: float) -> None:
+    """Whatever the azimuth phase (beams on the sector centres, on their edges, anywhere), every return keeps
+    its own place: ring = channel, position = beam index along the ring."""
+    spec = LidarSpec(channels=16, points_per_channel=90, hfov_deg=360.0)
     rng = np.random.default_rng(0)
     points = beam_points(spec, rng.uniform(1.0, 100.0, 16 * 90))
-    # small angular jitter (well under half a cell) must not move a point to another cell
-    points += rng.normal(0.0, 1e-4, points.shape) * np.linalg.norm(points, axis=1, keepdims=True)
+    ring_phase = np.repeat(rng.uniform(-0.5, 0.5, 16), 90) if phase == -0.49 else phase
+    points = turned(points, ring_phase * spec.horizontal_resolution)
     perm = rng.permutation(len(points))
-    index = organize_scan(points[perm], spec)
-    assert index.shape == (16, 90) and index.dtype == np.int64
-    np.testing.assert_array_equal(perm[index.reshape(-1)], np.arange(16 * 90))
+    ring, position, column = organize_scan(points[perm], spec)
+    assert ring.dtype == position.dtype == column.dtype == np.int64
+    channel, beam = np.divmod(perm, 90)
+    np.testing.assert_array_equal(ring, channel)
+    if phase == 0.0:  # beams on the sector centres: the sector is the beam's column
+        np.testing.assert_array_equal(column, beam)
+    # a beam past +180 deg wraps to the ring's start: positions are the beams' order in azimuth
+    _, az, _ = spherical_coordinates(points[perm])
+    for i in range(16):
+        np.testing.assert_array_equal(np.argsort(position[ring == i]), np.argsort(az[ring == i]))
 
 
-def test_dropped_returns_leave_empty_cells() -> None:
+def test_dropped_returns_shorten_the_rings() -> None:
     spec = LidarSpec(channels=8, points_per_channel=40)
     rng = np.random.default_rng(1)
     returned = rng.random(8 * 40) < 0.6
-    index = organize_scan(beam_points(spec, 20.0)[returned], spec).reshape(-1)
-    np.testing.assert_array_equal(index >= 0, returned)
-    np.testing.assert_array_equal(index[returned], np.arange(returned.sum()))
+    ring, position, column = organize_scan(beam_points(spec, 20.0)[returned], spec)
+    channel, beam = np.divmod(np.flatnonzero(returned), 40)
+    np.testing.assert_array_equal(ring, channel)
+    np.testing.assert_array_equal(column, beam)
+    for i in range(8):  # ranks 0, 1, ... of the returned beams in azimuth order
+        np.testing.assert_array_equal(position[ring == i], np.arange((channel == i).sum()))
 
 
-def test_collision_goes_to_the_point_nearest_the_cell_centre() -> None:
+def test_points_sharing_a_sector_keep_their_own_places() -> None:
+    """Two returns in one sector (beams near its edges, jitter): both are organised, by azimuth."""
     spec = LidarSpec(channels=4, points_per_channel=16, hfov_deg=360.0, vfov_deg=(-30.0, 30.0))
-    beam = spec.beam_directions(torch.float64)[2, 5].numpy()
-
-    def turned(cells: float) -> np.ndarray:  # the beam rotated about z by a fraction of a column
-        a = cells * spec.horizontal_resolution
-        Rz = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
-        return 7.0 * Rz @ beam
-
-    far_off, near_centre = turned(0.3), turned(-0.1)
-    for points, winner in (([far_off, near_centre], 1), ([near_centre, far_off], 0)):
-        index = organize_scan(np.array(points), spec)
-        assert index[2, 5] == winner and (index >= 0).sum() == 1
-    # an exact tie (a duplicated return) goes to the lower point index
-    assert organize_scan(np.array([far_off, near_centre, near_centre]), spec)[2, 5] == 1
+    beam = spec.beam_directions(torch.float64)[2, 5].numpy()[None] * 7.0
+    cells = np.array([0.3, -0.45, 0.3, 1.2])  # offsets from the sector centre, in sectors; a duplicate
+    points = turned(np.repeat(beam, 4, axis=0), cells * spec.horizontal_resolution)
+    ring, position, column = organize_scan(points, spec)
+    np.testing.assert_array_equal(ring, [2, 2, 2, 2])
+    np.testing.assert_array_equal(column, [5, 5, 5, 6])
+    np.testing.assert_array_equal(position, [1, 0, 2, 3])  # equal azimuths: the lower index first
 
 
-def test_points_outside_the_fov_are_left_out() -> None:
+def test_points_outside_the_fov() -> None:
     spec = LidarSpec(channels=4, points_per_channel=30, hfov_deg=270.0, vfov_deg=(-10.0, 10.0))
-    cell = math.radians(270.0) / 30
     pts = np.array(
         [
-            [-5.0, 0.0, 0.0],  # behind: azimuth 180 deg, outside the 270 deg FOV
-            [5.0, 0.0, 5.0],  # 45 deg up, far above the top channel
+            [-5.0, 0.0, -0.3],  # behind: azimuth 180 deg, outside the 270 deg HFOV; -3.4 deg: channel 1
+            [5.0, 0.0, 5.0],  # 45 deg up, far above the top channel: no beam returns it
             [0.0, 0.0, 0.0],  # no direction at all
-            # 0.4 cell past the last column centre is still in the last cell
-            [math.cos(math.radians(135.0) - 0.1 * cell), math.sin(math.radians(135.0) - 0.1 * cell), 0.0],
+            [5.0, 0.0, math.tan(math.radians(11.6)) * 5.0],  # 11.6 deg: within half a spacing (3.3 deg) of 10
         ]
     )
-    index = organize_scan(pts, spec)
-    assert set(index[index >= 0].tolist()) == {3}
-    assert (index == 3).sum() == 1 and index[:, -1].max() == 3
+    ring, position, column = organize_scan(pts, spec)
+    np.testing.assert_array_equal(ring, [1, -1, -1, 3])  # channels at -10, -3.3, 3.3, 10 deg
+    np.testing.assert_array_equal(position, [0, -1, -1, 0])
+    assert column[0] == math.floor(315.0 / 9.0) and column[3] == 15  # the sector beyond the HFOV; the centre
 
 
 def test_full_circle_wraps_around() -> None:
     spec = LidarSpec(channels=2, points_per_channel=8, hfov_deg=360.0, vfov_deg=(0.0, 10.0))
     azimuths = np.radians([170.0, -170.0, 180.0, -180.0])
-    index = organize_scan(np.stack([np.cos(azimuths), np.sin(azimuths), 0 * azimuths], 1), spec)
-    assert index[0, 7] == 0 and index[0, 0] == 1  # column centres at 157.5 and -157.5 deg
-    assert (index >= 0).sum() == 2  # the +-180 deg points lost the collisions but were not out of the FOV
-    index = organize_scan(np.array([[-1.0, 0.0, 0.0]]), spec)  # exactly 180 deg, the seam between 7 and 0
-    assert index[0, 0] == 0 or index[0, 7] == 0
+    ring, position, column = organize_scan(
+        np.stack([np.cos(azimuths), np.sin(azimuths), 0 * azimuths], 1), spec
+    )
+    np.testing.assert_array_equal(ring, 0)
+    np.testing.assert_array_equal(column, [7, 0, 7, 0])  # 45 deg sectors from -180 deg
+    _, az, _ = spherical_coordinates(np.stack([np.cos(azimuths), np.sin(azimuths), 0 * azimuths], 1))
+    np.testing.assert_array_equal(position, np.argsort(np.argsort(az, kind="stable"), kind="stable"))
 
 
 def test_torch_in_torch_out_and_empty_scan() -> None:
     spec = LidarSpec(channels=4, points_per_channel=8)
     pts = torch.from_numpy(beam_points(spec, 5.0)).float()
-    index = organize_scan(pts, spec)
-    assert isinstance(index, torch.Tensor) and index.dtype == torch.int64
-    np.testing.assert_array_equal(index.numpy(), organize_scan(pts.double().numpy(), spec))
+    layout = organize_scan(pts, spec)
+    expected = organize_scan(pts.double().numpy(), spec)
+    for got, want in zip(layout, expected, strict=True):
+        assert isinstance(got, torch.Tensor) and got.dtype == torch.int64
+        np.testing.assert_array_equal(got.numpy(), want)
     empty = organize_scan(np.zeros((0, 3), dtype=np.float32), spec)
-    assert empty.shape == (4, 8) and (empty == -1).all()
+    assert all(v.shape == (0,) for v in empty)
 
 
 @pytest.mark.parametrize(

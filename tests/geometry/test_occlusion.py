@@ -9,9 +9,9 @@ import pytest
 import torch
 
 from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
-from airfisheye_bench.geometry.lidar import LidarSpec, cells_from_angles, spherical_coordinates
+from airfisheye_bench.geometry.lidar import LidarSpec, layout_from_angles, spherical_coordinates
 from airfisheye_bench.geometry.occlusion import (
-    _cells_numba,
+    _layout_numba,
     _ordering,
     lidar_depth_map,
     occlusion_mask,
@@ -289,25 +289,29 @@ def test_numba_equals_vectorised_on_a_paper_size_scan() -> None:
 
 
 @pytest.mark.parametrize("hfov", [90.0, 270.0, 360.0])
-def test_numba_cells_equal_numpy_cells(hfov: float) -> None:
-    """Step 1 (cells and collision winners) of the compiled path is bit-identical to ``cells_from_angles``."""
+def test_numba_layout_equals_numpy_layout(hfov: float) -> None:
+    """Step 1 (ring, place along the ring, sector) of the compiled path is bit-identical to the numpy one."""
     rng = np.random.default_rng(int(hfov))
     spec = LidarSpec(channels=16, points_per_channel=100, hfov_deg=hfov, vfov_deg=(-20.0, 10.0))
     beams = spec.beam_directions(torch.float64).reshape(-1, 3).numpy()
-    beams = beams[rng.random(len(beams)) < 0.9]  # dropped returns: empty cells
-    jitter = rng.normal(0.0, 0.004, beams.shape)  # ~ a cell size: many points per cell, many strays
+    beams = beams[rng.random(len(beams)) < 0.9]  # dropped returns
+    jitter = rng.normal(0.0, 0.004, beams.shape)  # ~ a cell size: shared sectors, points outside the FOV
     points = np.concatenate([beams + jitter, beams[:50], beams[:50] * 2.0, np.zeros((3, 3))])  # ties, origin
     r, az, el = spherical_coordinates(points * rng.uniform(1.0, 50.0, (len(points), 1)))
-    # angles exactly half a cell off the beams (rounding ties) and at the FOV's edges
-    half_v, half_h = spec.vertical_resolution / 2, spec.horizontal_resolution / 2
-    el = np.concatenate([el, spec.channel_elevations()[[0, -1]] + [-half_v, half_v]])
-    az = np.concatenate([az, spec.column_azimuths()[[0, -1]] + [-half_h, half_h]])
-    r = np.concatenate([r, [5.0, 5.0]])
-    expected_cell, expected_index = cells_from_angles(r, az, el, spec)
-    cell, index = _cells_numba(r, az, el, spec)
-    np.testing.assert_array_equal(cell, expected_cell)
-    np.testing.assert_array_equal(index, expected_index)
-    assert (cell == -1).sum() >= 3 and (index == -1).any() and (np.bincount(cell[cell >= 0]) > 1).any()
+    # angles exactly half a channel off the beams (rounding ties), at +-180 deg and at the sector edges
+    half_v = spec.vertical_resolution / 2
+    el = np.concatenate([el, spec.channel_elevations()[[0, -1]] + [-half_v, half_v], [0.0, 0.0]])
+    az = np.concatenate(
+        [az, spec.column_azimuths()[[0, -1]] - spec.horizontal_resolution / 2, [-np.pi, np.pi]]
+    )
+    r = np.concatenate([r, [5.0, 5.0, 5.0, 5.0]])
+    expected = layout_from_angles(r, az, el, spec)
+    layout = _layout_numba(r, az, el, spec)
+    for got, want in zip(layout, expected, strict=True):
+        np.testing.assert_array_equal(got, want)
+    ring, _, column = layout
+    assert (ring == -1).sum() >= 3 and (column < 0).any() == (hfov < 360.0)
+    assert (np.unique(ring * 10**6 + column, return_counts=True)[1] > 1).any()  # shared sectors
 
 
 def test_unknown_implementation_raises() -> None:
@@ -339,14 +343,36 @@ def test_zbuffer_known_answers() -> None:
         [(200, 200), (200, 200), (202, 201), (204, 200), (200, 300), (201, 300), (300, 100), (301, 100)],
         [5.0, 10.0, 10.0, 10.0, 8.0, 8.9, 10.0, 10.5],
     )
-    mask = occlusion_mask(pts, T, CAMERA, None, "zbuffer")  # kernel 5 (radius 2 px), 1 m
+    fixed = {"kernel": 5, "threshold": 1.0, "relative": False}
+    mask = occlusion_mask(pts, T, CAMERA, None, "zbuffer", **fixed)  # kernel 5 (radius 2 px), 1 m
     # same pixel and 2 px away: hidden; 4 px away: outside the kernel; within 1 m: same surface
     np.testing.assert_array_equal(mask, [True, False, False, True, True, True, True, True])
-    mask = occlusion_mask(pts, T, CAMERA, None, "zbuffer", kernel=9, threshold=0.2)
+    mask = occlusion_mask(pts, T, CAMERA, None, "zbuffer", kernel=9, threshold=0.2, relative=False)
     np.testing.assert_array_equal(mask, [True, False, False, False, True, False, True, False])
     # relative: 10% of the local minimum
-    mask = occlusion_mask(pts, T, CAMERA, None, "zbuffer", threshold=0.1, relative=True)
+    mask = occlusion_mask(pts, T, CAMERA, None, "zbuffer", kernel=5, threshold=0.1, relative=True)
     np.testing.assert_array_equal(mask, [True, False, False, True, True, False, True, True])
+
+
+def test_zbuffer_derived_window_and_margin() -> None:
+    """Defaults: window radius = half the LiDAR's vertical spacing in pixels at the point's pixel, relative
+    margin = tan(87 deg) x the window's half-angle. Hand-computed for a 512^2 190 deg equidistant camera
+    (focal 154.4 px/rad on the axis) and a 2 deg vertical spacing: radius rint(2.69) = 3 px, margin 43 %."""
+    spec = LidarSpec(channels=2, points_per_channel=2048, vfov_deg=(0.0, 2.0))  # columns 0.13 deg apart
+    T = make_transform(CAM_FROM_FLU, np.zeros(3))
+    c = CAMERA.width // 2  # whole pixels: no rounding ties
+    pixels = [(c, c), (c + 3, c), (c, c - 4), (c - 3, c + 3), (c - 2, c - 1)]
+    pts = points_on_rays(pixels, [5.0, 10.0, 10.0, 6.0, 8.0])
+    mask = occlusion_mask(pts, T, CAMERA, spec, "zbuffer")
+    # 3 px away and twice as far: hidden; 4 px away: outside the first point's window (but 10 m is within 43 %
+    # of the 8 m point's range); 6 m is within 43 % of 5 m, 8 m is not
+    np.testing.assert_array_equal(mask, [True, False, True, True, False])
+    scale = CAMERA.focal  # px/rad on the axis
+    assert round(0.5 * math.radians(2.0) * scale) == 3
+    assert 6.0 < 5.0 * (1 + math.tan(math.radians(87.0)) * 3.5 / scale) < 8.0
+    # a gentler surface limit (45 deg: margin 2.3 %) keeps only the nearest point
+    mask = occlusion_mask(pts, T, CAMERA, spec, "zbuffer", max_incidence_deg=45.0)
+    np.testing.assert_array_equal(mask, [True, False, False, False, False])
 
 
 # -------------------- depth map
@@ -404,7 +430,7 @@ def test_torch_input_gives_torch_output() -> None:
     assert isinstance(depth, torch.Tensor) and depth.dtype == torch.float32 and depth.shape == (512, 512)
 
 
-@pytest.mark.parametrize("method", ["ordering", "zbuffer", "none"])
+@pytest.mark.parametrize("method", ["ordering", "zbuffer", "hpr", "none"])
 def test_empty_scan(method: str) -> None:
     _, T = rig((0.0, 0.5, 0.0))
     empty = np.zeros((0, 3), dtype=np.float32)
@@ -428,7 +454,11 @@ def test_empty_scan(method: str) -> None:
         ({"T_cam_lidar": [[1.0, 0, 0, 0]] * 4}, "T_cam_lidar"),
         ({"camera": "fisheye"}, "camera"),
         ({"spec": {"channels": 64}}, "spec"),
-        ({"method": "hpr"}, "method"),
+        ({"method": "raycast"}, "method"),
+        ({"method": "hpr", "radius": 0.5}, "radius"),
+        ({"method": "zbuffer", "max_incidence_deg": 90.0}, "max_incidence_deg"),
+        ({"method": "zbuffer", "kernel": None, "threshold": "1"}, "threshold"),
+        ({"method": "zbuffer", "relative": False}, "needs a threshold"),
         ({"azimuth_window": -1}, "azimuth_window"),
         ({"elevation_window": 1.5}, "elevation_window"),
         ({"elevation_tolerance": float("nan")}, "elevation_tolerance"),
