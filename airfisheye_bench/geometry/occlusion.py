@@ -1,4 +1,4 @@
-"""LiDAR-to-fisheye projection with occlusion correction (paper, III-C) and two baselines.
+"""LiDAR-to-fisheye projection with occlusion correction (paper, III-C) and its baselines (z-buffer, HPR).
 
 The camera and the LiDAR sit at different places, so a LiDAR point can project into the image although the
 camera cannot see it: something nearer *to the camera* hides it. :func:`occlusion_mask` tells, per point,
