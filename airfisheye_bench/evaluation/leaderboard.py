@@ -61,7 +61,7 @@ __all__ = [
 
 TASKS = ("seg", "depth", "completion")
 TASK_TITLES = {"seg": "Semantic segmentation", "depth": "Monocular depth", "completion": "Depth completion"}
-#: The headline metrics of each task (DESIGN.md, "Metrics"), in the paper's column order.
+#: The headline metrics of each task (docs/design.md, "Metrics"), in the paper's column order.
 TASK_COLUMNS: dict[str, tuple[str, ...]] = {
     "seg": ("mIoU", "pixel_acc"),
     "depth": ("abs_rel", "sq_rel", "rmse", "rmse_log", "delta1", "delta2", "delta3"),
@@ -173,7 +173,7 @@ def _paper(task: str, model: str, run: str, **metrics: float) -> LeaderboardEntr
     return LeaderboardEntry(task, "test", model, run, PAPER_DATASET, metrics=metrics, paper=True)
 
 
-#: The paper's baselines (DESIGN.md "Paper baselines"), measured on the real dataset's test split. Metrics the
+#: The paper's baselines (docs/design.md "Paper baselines"), measured on the real dataset's test split. Metrics the
 #: paper does not report are simply absent (shown as "–").
 PAPER_BASELINES: tuple[LeaderboardEntry, ...] = (
     _paper("seg", "DeepLabV3+ / ResNet50", "paper IV-A", mIoU=0.512),

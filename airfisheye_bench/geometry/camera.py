@@ -13,7 +13,7 @@ orthographic      f sin(theta)                                180 deg
 kannala_brandt    f * theta (1 + k1 t^2 + k2 t^4 + k3 t^6 + k4 t^8)   while r(theta) increases
 ================  ==========================================  ==========================
 
-Conventions (DESIGN.md): camera frame x right, y down, z forward; the centre of pixel (row i, col j) is at
+Conventions (docs/design.md): camera frame x right, y down, z forward; the centre of pixel (row i, col j) is at
 ``(u=j, v=i)``; the default principal point is the image centre ``((W-1)/2, (H-1)/2)``; unless ``focal`` is given
 it is chosen so that the image circle (``theta = FOV/2``) is inscribed in the image: ``r_max = min(W, H) / 2``.
 All maths runs in float64 internally; outputs come back in the input's dtype and kind (numpy or torch).

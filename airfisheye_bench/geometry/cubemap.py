@@ -2,7 +2,7 @@
 
 Five 90-degree pinhole faces share the camera origin (the back face is omitted). Each face is an OpenCV camera with
 focal ``S/2`` and principal point ``((S-1)/2, (S-1)/2)``, oriented by ``R_cam_face`` (columns = the face's x, y, z
-axes in the fisheye camera frame; DESIGN.md):
+axes in the fisheye camera frame; docs/design.md):
 
 =====  ===========  ======  ======
 face   looks along  face x  face y

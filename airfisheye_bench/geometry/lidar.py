@@ -1,6 +1,6 @@
 """LiDAR sensor description and the organisation of a scan into the paper's index matrix ``I_LiDAR`` (III-C).
 
-Frames (DESIGN.md): the LiDAR frame is x forward, y left, z up. A point's spherical angles are
+Frames (docs/design.md): the LiDAR frame is x forward, y left, z up. A point's spherical angles are
 
 * azimuth ``theta = atan2(y, x)``: 0 straight ahead, increasing counter-clockwise seen from above (towards the
   sensor's left), and

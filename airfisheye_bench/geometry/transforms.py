@@ -1,6 +1,6 @@
 """Rigid transforms, rotations and the fixed axis conventions of the project.
 
-Conventions (DESIGN.md): ``T_a_b`` is a 4x4 rigid transform mapping points in frame b to frame a. Camera frames are
+Conventions (docs/design.md): ``T_a_b`` is a 4x4 rigid transform mapping points in frame b to frame a. Camera frames are
 OpenCV (x right, y down, z forward); body and LiDAR frames are FLU (x forward, y left, z up); the world is z up.
 Every function accepts numpy arrays or torch tensors, any leading batch shape, and answers in kind.
 """

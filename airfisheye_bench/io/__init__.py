@@ -1,4 +1,4 @@
-"""Reading and writing the on-disk AirFisheye layout (``DESIGN.md``), for synthetic and real releases alike.
+"""Reading and writing the on-disk AirFisheye layout (``docs/design.md``), for synthetic and real releases alike.
 
 This package is the one place that knows file names and encodings; the generator writes through it and the
 datamodules read through it (:class:`DatasetReader`).

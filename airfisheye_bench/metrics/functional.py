@@ -3,7 +3,7 @@
 The stateful :mod:`torchmetrics` classes in this package only accumulate what these functions return, so
 the formulas live in one place and can be used on their own (e.g. per-frame numbers in a notebook).
 
-Conventions (see ``DESIGN.md``, "Metrics"):
+Conventions (see ``docs/design.md``, "Metrics"):
 
 * Segmentation: confusion matrix ``[C, C]`` with rows = ground truth, columns = prediction, ``int64``.
 * Monocular depth (Eigen, as AdaBins ``compute_errors``): per image on ``min_depth < gt <= max_depth`` with

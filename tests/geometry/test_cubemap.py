@@ -15,7 +15,7 @@ from airfisheye_bench.geometry.cubemap import _TABLES, _apply_torch, direction_t
 def direction_faces(face_size: int) -> torch.Tensor:
     """Faces whose texels hold their own viewing direction (camera frame): ``[5, 3, S, S]``.
 
-    Built from the DESIGN.md axis table directly, not from ``face_rays``.
+    Built from the docs/design.md axis table directly, not from ``face_rays``.
     """
     axes = {  # face: (x axis, y axis, z axis) in the camera frame
         "front": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),
