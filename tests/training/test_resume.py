@@ -144,6 +144,6 @@ def test_a_run_where_a_process_gets_no_training_batch_is_refused(
     assert not (tmp_path / "checkpoints").exists()
 
 
-@pytest.mark.parametrize("name", ["airfisheye_bench.runs", "datamodules.sampling"])
+@pytest.mark.parametrize("name", ["airfisheye_bench.runs"])
 def test_docstring_examples(name: str) -> None:
     assert_doctests_pass(name)
