@@ -2,23 +2,37 @@
 
 The run directory (``hydra.run.dir``) ends up holding ``config.yaml`` (resolved), ``checkpoints/`` (best and
 last), ``metrics.csv``, ``panels/`` and the test ``results.json`` in the leaderboard format.
+
+Resuming (``ckpt_path=last``) continues the run exactly (see README, "Resume and DDP"): its configuration must be
+the run's (:func:`airfisheye_bench.runs.check_resume`), ``metrics.csv`` is cut back to the rows the checkpoint
+covers and appended to, and the data loader restarts at the checkpoint's batch.
 """
 
 from __future__ import annotations
 
 import logging
+import warnings
 from pathlib import Path
 from typing import Any
 
 import hydra
 import lightning as L
 import torch
+from lightning.pytorch.utilities import rank_zero_only
 from omegaconf import DictConfig, OmegaConf
 
+from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
+from airfisheye_bench.io.atomic import atomic_write_text
+from airfisheye_bench.runs import check_resume, keep_metric_rows
 from models import list_models, model_task
 
 log = logging.getLogger(__name__)
+
+# The datamodule, not the DataLoader, restores the position in the epoch (AirFisheyeDataModule.load_state_dict).
+warnings.filterwarnings(
+    "ignore", message="You're resuming from a checkpoint that ended before the epoch ended"
+)
 
 
 def check_config(cfg: DictConfig) -> None:
@@ -31,6 +45,12 @@ def check_config(cfg: DictConfig) -> None:
         raise ValueError(
             f"model={name} solves task={model_task(name)}, not task={task}; use one of "
             f"{', '.join('model=' + m for m in _model_configs(task))} or task={model_task(name)}"
+        )
+    model_checkpoint = (cfg.get("callbacks") or {}).get("model_checkpoint") or {}
+    if model_checkpoint.get("every_n_train_steps"):
+        raise ValueError(
+            "callbacks.model_checkpoint.every_n_train_steps is unsupported (that callback keeps the best checkpoints "
+            "by a validation metric); use callbacks.last_checkpoint.every_n_train_steps to save last.ckpt every N steps"
         )
     if cfg.data.get("root") is None and cfg.data.get("preset") is None:
         raise ValueError(
@@ -62,24 +82,68 @@ def build(cfg: DictConfig) -> tuple[L.LightningDataModule, L.LightningModule]:
     return datamodule, module
 
 
+def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
+    """Set up the run directory for a new run or a resume; return the checkpoint to resume from, if any.
+
+    A new run writes ``config.yaml`` and starts ``metrics.csv`` afresh. A resume checks the configuration against
+    the run's and cuts ``metrics.csv`` back to the rows its checkpoint covers (rows a killed process logged after
+    it are logged again). Files are written by the first process only (DDP starts one per device).
+    """
+    first = rank_zero_only.rank == 0
+    output_dir.mkdir(parents=True, exist_ok=True)
+    ckpt_path = cfg.get("ckpt_path")
+    if ckpt_path is None:
+        if first:
+            atomic_write_text(output_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+            (output_dir / "metrics.csv").unlink(missing_ok=True)
+        return None
+    if ckpt_path == "last":
+        ckpt_path = str(output_dir / "checkpoints" / "last.ckpt")
+    if not Path(ckpt_path).is_file():
+        raise FileNotFoundError(
+            f"ckpt_path: no checkpoint at {ckpt_path} (a run saves last.ckpt at its first epoch end, or every "
+            "callbacks.last_checkpoint.every_n_train_steps steps); start the run again without ckpt_path"
+        )
+    check_resume(cfg, output_dir, write=first)
+    rows = torch.load(ckpt_path, map_location="cpu", weights_only=True, mmap=True).get(METRIC_ROWS_KEY)
+    if first and rows is not None:
+        keep_metric_rows(output_dir / "metrics.csv", rows)
+    return ckpt_path
+
+
+def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule) -> None:
+    """Refuse to start when a process would get no training batch (it would train nothing, then test)."""
+    world = trainer.num_devices * trainer.num_nodes
+    if datamodule.train_batches_per_rank(world) > 0:
+        return
+    frames = len(datamodule.split_dataset("train"))
+    per_rank = -(-frames // world)
+    raise ValueError(
+        f"no training batch: the {frames} training frames split over {world} process(es) give each "
+        f"{per_rank} frame(s), fewer than data.batch_size={datamodule.batch_size} (incomplete batches are dropped); "
+        f"lower data.batch_size to at most {per_rank}"
+        + (", use fewer processes (trainer.devices)" if world > 1 else "")
+        + ", or train on a larger dataset (data.preset=quickstart or data.root=...)"
+    )
+
+
 def train(cfg: DictConfig) -> dict[str, Any]:
     """Train, validate and test as configured; returns the test metrics (empty when ``test=false``)."""
     check_config(cfg)
     L.seed_everything(cfg.seed, workers=True)
     output_dir = Path(cfg.paths.output_dir)
-    output_dir.mkdir(parents=True, exist_ok=True)
-    (output_dir / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
+    ckpt_path = prepare_run_dir(cfg, output_dir)
 
     datamodule, module = build(cfg)
     # A group entry set to null (callbacks.rich_progress_bar=null) switches that callback or logger off.
     callbacks = [hydra.utils.instantiate(c) for c in (cfg.get("callbacks") or {}).values() if c is not None]
     loggers = [hydra.utils.instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None]
-    trainer: L.Trainer = hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)
+    trainer: L.Trainer = hydra.utils.instantiate(
+        cfg.trainer, callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
+    )
 
-    ckpt_path = cfg.get("ckpt_path")
-    if ckpt_path == "last":
-        ckpt_path = str(output_dir / "checkpoints" / "last.ckpt")
     if cfg.get("train", True):
+        check_training_batches(trainer, datamodule)
         trainer.fit(module, datamodule=datamodule, ckpt_path=ckpt_path)
 
     results: dict[str, Any] = {}

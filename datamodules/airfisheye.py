@@ -12,13 +12,21 @@ from typing import Any
 
 import lightning as L
 import numpy as np
+import torch
+from lightning.pytorch.trainer.states import TrainerFn
 from torch.utils.data import DataLoader
 
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD, AirFisheyeDataset, CameraConfig, collate
-from datamodules.sampling import EpochSeededSampler, evaluation_sampler
+from datamodules.sampling import (
+    EpochSeededSampler,
+    EvaluationLoader,
+    batches_per_rank,
+    evaluation_sampler,
+    training_position,
+)
 
 log = logging.getLogger(__name__)
 
@@ -127,6 +135,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         )
         self.split_names = tuple(splits)
         self.datasets: dict[str, AirFisheyeDataset] = {}
+        self._resume_position: tuple[int, int] | None = None
 
     # ----------------------------------------------------------------------------------- Lightning hooks
     def prepare_data(self) -> None:
@@ -149,9 +158,38 @@ class AirFisheyeDataModule(L.LightningDataModule):
     def train_dataloader(self) -> DataLoader:
         dataset = self._dataset(0)
         sampler = EpochSeededSampler(len(dataset), self.seed)
+        if self._resume_position is not None:
+            # Lightning creates the first iterator before it sets the epoch of a resumed run: set it here.
+            epoch, batches_done = self._resume_position
+            self._resume_position = None
+            sampler.set_epoch(epoch)
+            sampler.start = batches_done * self.batch_size
+            self.set_epoch(epoch)
         return DataLoader(
-            dataset, batch_size=self.batch_size, sampler=sampler, drop_last=True, **self.loader_kwargs
+            dataset,
+            batch_size=self.batch_size,
+            sampler=sampler,
+            drop_last=True,
+            generator=_own_generator(),
+            **self.loader_kwargs,
         )
+
+    def train_batches_per_rank(self, world_size: int) -> int:
+        """Training batches each of ``world_size`` processes gets per epoch (0: it would train nothing)."""
+        return batches_per_rank(len(self._dataset(0)), self.batch_size, world_size)
+
+    def state_dict(self) -> dict[str, int]:
+        """Where training stands in the epoch's batches, saved in every checkpoint (see ``load_state_dict``)."""
+        trainer = self.trainer
+        if trainer is None or trainer.state.fn != TrainerFn.FITTING:
+            return {}
+        epoch, batches_done = training_position(trainer)
+        return {"train_epoch": epoch, "train_batches_done": batches_done}
+
+    def load_state_dict(self, state_dict: dict[str, int]) -> None:
+        """Make the next training loader continue at the saved position (exact mid-epoch resume)."""
+        if "train_epoch" in state_dict:
+            self._resume_position = (int(state_dict["train_epoch"]), int(state_dict["train_batches_done"]))
 
     def set_epoch(self, epoch: int) -> None:
         """Select the training augmentation of ``epoch`` (the task calls this at every epoch start)."""
@@ -168,8 +206,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
         # Under DDP each rank evaluates its own frames exactly once (Lightning's default sampler pads with repeats).
         dataset = self._dataset(index)
         sampler = evaluation_sampler(dataset)
-        return DataLoader(
-            dataset, batch_size=self.eval_batch_size, shuffle=False, sampler=sampler, **self.loader_kwargs
+        return EvaluationLoader(
+            dataset,
+            batch_size=self.eval_batch_size,
+            shuffle=False,
+            sampler=sampler,
+            generator=_own_generator(),
+            **self.loader_kwargs,
         )
 
     # ------------------------------------------------------------------------------------ information
@@ -231,6 +274,13 @@ def _occlusion_options(method: str, given: dict[str, Any] | None) -> dict[str, A
     except ValueError as err:
         raise ValueError(f"data.occlusion_options (data.occlusion={method}): {err}") from None
     return given
+
+
+def _own_generator() -> torch.Generator:
+    # Every iter() over a DataLoader draws its workers' base seed from this generator, by default the global one:
+    # a resumed run, which starts one extra iterator, would then continue with the global RNG (dropout) off by
+    # one draw. Samples do not depend on it (their draws are seeded by (seed, epoch, index)).
+    return torch.Generator().manual_seed(0)
 
 
 def _options(group: str, given: dict[str, Any], allowed: set[str], tuples: tuple[str, ...]) -> dict[str, Any]:

@@ -2,15 +2,18 @@
 
 Shuffling and per-sample augmentation draws are functions of ``(seed, epoch, index)`` only: a run resumed from a
 checkpoint replays exactly the epochs an uninterrupted run would have seen, and ``num_workers`` changes nothing.
+The datamodule saves :func:`training_position` in every checkpoint and restarts the sampler there.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
+import lightning as L
 import torch
 import torch.distributed as dist
-from torch.utils.data import DistributedSampler, Sampler
+from torch.utils.data import DataLoader, DistributedSampler, Sampler
 
 
 def draw_seed(seed: int, epoch: int, index: int) -> int:
@@ -21,26 +24,80 @@ def draw_seed(seed: int, epoch: int, index: int) -> int:
     return (x ^ (x >> 32)) & (2**63 - 1)
 
 
-class EpochSeededSampler(Sampler[int]):
-    """Random permutation seeded by ``(seed, epoch)``; Lightning calls :meth:`set_epoch` every epoch.
+class EpochSeededSampler(DistributedSampler):
+    """Random permutation seeded by ``(seed, epoch)``, sharded across DDP ranks, resumable mid-epoch.
 
-    Under DDP Lightning swaps it for a ``DistributedSampler``, which is epoch-seeded in the same way.
+    Lightning calls :meth:`set_epoch` every epoch. Under DDP every rank draws the same permutation, pads it with
+    its first indices to a multiple of the world size (as torch's ``DistributedSampler`` does, so all ranks run
+    the same number of steps) and keeps every ``world_size``-th index. Being a ``DistributedSampler``, Lightning
+    keeps it instead of wrapping it in its own. ``start`` skips the first indices of this rank's shard once: a run
+    resumed mid-epoch continues with exactly the samples the uninterrupted run would have drawn next.
+
+    Example:
+        >>> s = EpochSeededSampler(6, seed=0, num_replicas=1, rank=0)
+        >>> full = list(s)
+        >>> s.start = 4
+        >>> list(s) == full[4:], list(s) == full
+        (True, True)
+        >>> shards = [list(EpochSeededSampler(5, 0, num_replicas=2, rank=r)) for r in (0, 1)]
+        >>> [len(x) for x in shards], sorted(set(shards[0] + shards[1])) == list(range(5))
+        ([3, 3], True)
     """
 
-    def __init__(self, num_samples: int, seed: int = 0) -> None:
-        self.num_samples = int(num_samples)
+    def __init__(
+        self, num_samples: int, seed: int = 0, num_replicas: int | None = None, rank: int | None = None
+    ) -> None:
+        if num_replicas is None or rank is None:
+            distributed = dist.is_available() and dist.is_initialized()
+            num_replicas = dist.get_world_size() if distributed else 1
+            rank = dist.get_rank() if distributed else 0
+        super().__init__(
+            range(int(num_samples)), num_replicas=num_replicas, rank=rank, shuffle=True, seed=seed
+        )
         self.seed = int(seed)
-        self.epoch = 0
+        #: Indices of this rank's shard to skip at the next iteration only (mid-epoch resume).
+        self.start = 0
 
     def set_epoch(self, epoch: int) -> None:
         self.epoch = int(epoch)
 
     def __iter__(self) -> Iterator[int]:
         generator = torch.Generator().manual_seed(draw_seed(self.seed, self.epoch, -1))
-        return iter(torch.randperm(self.num_samples, generator=generator).tolist())
+        order = torch.randperm(len(self.dataset), generator=generator).tolist()
+        if order:  # pad (repeating the start) so every rank gets num_samples indices
+            order = (order * math.ceil(self.total_size / len(order)))[: self.total_size]
+        start, self.start = self.start, 0
+        return iter(order[self.rank : self.total_size : self.num_replicas][start:])
 
     def __len__(self) -> int:
         return self.num_samples
+
+
+def batches_per_rank(num_frames: int, batch_size: int, world_size: int) -> int:
+    """Training batches each of ``world_size`` ranks gets from ``num_frames`` frames (incomplete batches dropped).
+
+    Example:
+        >>> batches_per_rank(8, 2, 1), batches_per_rank(8, 2, 3), batches_per_rank(8, 4, 3)
+        (4, 1, 0)
+    """
+    return math.ceil(num_frames / world_size) // batch_size
+
+
+def training_position(trainer: L.Trainer) -> tuple[int, int]:
+    """``(epoch, batches of it already trained)`` a run resumed from a checkpoint saved now must continue at.
+
+    Read from the fit loop's progress counters, the ones Lightning itself restores: during an epoch its batches
+    done so far (the next epoch once all ran, e.g. while validating at its end); after ``on_train_epoch_end`` the
+    next epoch, from its start.
+    """
+    loop = trainer.fit_loop
+    epochs = loop.epoch_progress.current
+    batches = loop.epoch_loop.batch_progress.current.processed
+    if epochs.started > epochs.processed:  # inside epoch `processed`
+        if batches >= trainer.num_training_batches:
+            return epochs.processed + 1, 0
+        return epochs.processed, batches
+    return epochs.processed, 0
 
 
 class SharedEpoch:
@@ -83,3 +140,16 @@ def evaluation_sampler(dataset) -> Sampler[int] | None:
     if dist.is_available() and dist.is_initialized() and dist.get_world_size() > 1:
         return UnpaddedDistributedSampler(dataset)
     return None
+
+
+class EvaluationLoader(DataLoader):
+    """An evaluation ``DataLoader`` whose rank, when its shard is empty (more ranks than frames), yields one empty
+    batch: that rank still runs the epoch-end hooks and joins the metric sync, contributing nothing."""
+
+    def __len__(self) -> int:
+        return max(super().__len__(), 1)
+
+    def __iter__(self) -> Iterator:
+        if len(self.sampler) == 0:
+            return iter([self.collate_fn([])])
+        return super().__iter__()

@@ -13,7 +13,10 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from airfisheye_bench.runs import register_resolvers
+
 CONFIG_DIR = str(Path(__file__).resolve().parents[1] / "configs")
+register_resolvers()  # ${run_suffix:} in hydra.run.dir
 
 
 @hydra.main(version_base="1.3", config_path=CONFIG_DIR, config_name="evaluate")

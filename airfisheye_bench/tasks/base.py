@@ -19,7 +19,7 @@ import lightning as L
 import numpy as np
 import torch
 from torch import Tensor, nn
-from torchmetrics import Metric
+from torchmetrics import MeanMetric, Metric
 
 from airfisheye_bench.evaluation.scorer import TaskScorer
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG
@@ -84,6 +84,9 @@ class BenchmarkTask(L.LightningModule):
         self.scorers = nn.ModuleDict(
             {stage: TaskScorer(self.make_metric, ring_edges_deg, depth_edges) for stage in STAGES}
         )
+        # Frame-weighted mean loss as summed metric states: under DDP the synced value is the one-process value
+        # whatever the shard sizes (a rank with no frame adds nothing), unlike a mean of per-rank means.
+        self.eval_losses = nn.ModuleDict({stage: MeanMetric() for stage in STAGES})
         self._theta: Tensor | None = None
         self._panel_rows: list[list[np.ndarray]] = []
 
@@ -165,7 +168,7 @@ class BenchmarkTask(L.LightningModule):
         target = self.target(batch)
         mask = batch["valid_mask"]
         self.scorers[stage].update(pred, target, theta=self._theta_deg(mask), mask=mask)
-        self.log(f"{stage}/loss", terms["loss"], batch_size=batch["image"].shape[0], sync_dist=True)
+        self.eval_losses[stage].update(terms["loss"].detach(), weight=batch["image"].shape[0])
         self._log_skipped(batch, stage)
         if stage == "val" and len(self._panel_rows) < self.hparams.num_panels:
             for i in range(min(batch["image"].shape[0], self.hparams.num_panels - len(self._panel_rows))):
@@ -184,9 +187,12 @@ class BenchmarkTask(L.LightningModule):
         """Log ``<stage>/<metric>`` and ``<stage>/<ring or range>/<metric>``; return the plain values."""
         scores = self.scorers[stage].compute()
         self.scorers[stage].reset()
+        loss = self.eval_losses[stage].compute()
+        self.eval_losses[stage].reset()
         metrics, breakdown = scores["metrics"], scores["breakdown"]
         # The values are already synced across processes (torchmetrics); sync_dist averages identical numbers.
         # NaN (e.g. a class absent from the split) is logged as is; monitors use the primary metric only.
+        self.log(f"{stage}/loss", loss, sync_dist=True)
         self.log_dict({f"{stage}/{k}": v for k, v in metrics.items()}, sync_dist=True)
         self.log_dict({f"{stage}/{k}": v for k, v in breakdown.items() if math.isfinite(v)}, sync_dist=True)
         return scores

@@ -1,6 +1,6 @@
 """Find and load a trained task from a run directory or a Lightning checkpoint.
 
-A run directory (``logs/<task>/runs/<time>``) holds ``config.yaml`` (resolved), ``checkpoints/`` and, after
+A run directory (``logs/<task>/runs/<time>_<suffix>``) holds ``config.yaml`` (resolved), ``checkpoints/`` and, after
 testing, ``results.json`` naming the best checkpoint. Evaluation and export accept either the directory or a
 ``.ckpt`` file; the run's data configuration (lens, size, occlusion method, dataset) travels with it so the model
 is evaluated on the camera it was trained for.

@@ -1,8 +1,10 @@
-"""Slow end-to-end runs through ``python train.py``: resume after SIGKILL, and 2-process DDP on gloo."""
+"""Slow end-to-end runs through ``python train.py``: exact resume after SIGKILL, and DDP on 2 and 3 gloo ranks."""
 
 from __future__ import annotations
 
 import json
+import os
+import random
 import subprocess
 import sys
 from pathlib import Path
@@ -12,26 +14,44 @@ import torch
 
 ROOT = Path(__file__).resolve().parents[2]
 
+#: A seconds-long run with last.ckpt after every step: 3 epochs of 2 steps (debug trainer), a 1.7M-parameter model.
+RESUMABLE_RUN = [
+    "task=seg",
+    "trainer=debug",
+    "trainer.max_epochs=3",
+    "model.encoder_name=timm-mobilenetv3_small_minimal_100",
+    "test=false",
+    "callbacks.last_checkpoint.every_n_train_steps=1",
+]
+
 
 def run_train(
-    run_dir: Path, dataset: Path, *overrides: str, check: bool = True
+    run_dir: Path,
+    dataset: Path | None,
+    *overrides: str,
+    kill: tuple[str, int] | None = None,
+    check: bool = True,
 ) -> subprocess.CompletedProcess:
-    cmd = [
-        sys.executable,
-        str(ROOT / "train.py"),
-        "task=seg",
-        f"data.root={dataset}",
-        "data.camera.size=64",
-        "data.batch_size=2",
-        "data.num_workers=0",
-        "data.persistent_workers=false",
-        "callbacks.rich_progress_bar=null",
-        "trainer.deterministic=true",
-        "trainer.log_every_n_steps=1",
-        f"hydra.run.dir={run_dir}",
-        *overrides,
-    ]
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=900)
+    """``python train.py`` (through ``tests.training.killer`` when ``kill`` is ``(hook, step)``); ``dataset=None``
+    passes no data or run overrides (a resume re-using the run's configuration)."""
+    base = []
+    if dataset is not None:
+        base = [
+            f"data.root={dataset}",
+            "data.camera.size=64",
+            "data.batch_size=2",
+            "data.num_workers=0",
+            "data.persistent_workers=false",
+            "callbacks.rich_progress_bar=null",
+            "trainer.deterministic=true",
+            "trainer.log_every_n_steps=1",
+        ]
+    launcher = (
+        [str(ROOT / "train.py")] if kill is None else ["-m", "tests.training.killer", kill[0], str(kill[1])]
+    )
+    cmd = [sys.executable, *launcher, *base, f"hydra.run.dir={run_dir}", *overrides]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=900, env=env)
     if check and proc.returncode != 0:
         raise AssertionError(
             f"train.py failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
@@ -39,56 +59,88 @@ def run_train(
     return proc
 
 
-def final_state(run_dir: Path) -> dict[str, torch.Tensor]:
-    return torch.load(run_dir / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)[
-        "state_dict"
-    ]
+def last_checkpoint(run_dir: Path) -> dict:
+    return torch.load(run_dir / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)
+
+
+def kill_and_check(
+    run_dir: Path, dataset: Path | None, kill: tuple[str, int], *overrides: str
+) -> dict[str, int]:
+    """Run until ``kill``, check it died of SIGKILL, return where its last.ckpt stands."""
+    proc = run_train(run_dir, dataset, *overrides, kill=kill, check=False)
+    assert proc.returncode == -9, proc.stderr[-3000:]
+    return last_checkpoint(run_dir)["AirFisheyeDataModule"]
 
 
 @pytest.mark.slow
-def test_a_killed_run_resumes_to_the_same_weights_and_metrics(tiny_dataset: Path, tmp_path: Path) -> None:
-    epochs = ["trainer.max_epochs=3"]
-    straight = tmp_path / "straight"
-    run_train(straight, tiny_dataset, *epochs)
+def test_runs_killed_at_random_points_resume_to_the_same_weights_and_metrics(
+    tiny_dataset: Path, tmp_path: Path
+) -> None:
+    seed = random.randrange(2**32)
+    rng = random.Random(seed)
+    why = f"kill points drawn with random.Random({seed})"
+    straight, killed = tmp_path / "straight", tmp_path / "killed"
+    run_train(straight, tiny_dataset, *RESUMABLE_RUN)
 
-    killed = tmp_path / "killed"
-    # SIGKILL in the middle of the second epoch (3 steps per epoch): nothing is flushed or saved.
-    proc = run_train(
-        killed,
-        tiny_dataset,
-        *epochs,
-        "+callbacks.kill._target_=tests.training.killer.KillAtStep",
-        "+callbacks.kill.step=4",
-        check=False,
+    # Steps are numbered 1..6, epoch e trains steps 2e+1 and 2e+2. First a kill that leaves a mid-epoch last.ckpt
+    # (after step 1 or 3): inside the epoch's second step, or in the validation that follows it.
+    mid = rng.choice([1, 3])
+    hook, step = rng.choice(
+        [
+            ("on_train_batch_start", mid),
+            ("on_before_optimizer_step", mid),
+            ("on_validation_batch_end", mid + 1),
+        ]
     )
-    assert proc.returncode == -9
-    saved = torch.load(killed / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)
-    assert saved["epoch"] == 0 and not (killed / "results.json").exists()
+    position = kill_and_check(killed, tiny_dataset, (hook, step), *RESUMABLE_RUN)
+    assert position == {"train_epoch": mid // 2, "train_batches_done": 1}, why
 
-    run_train(killed, tiny_dataset, *epochs, "ckpt_path=last")
-    a, b = final_state(straight), final_state(killed)
-    assert a.keys() == b.keys()
-    for key in a:
-        torch.testing.assert_close(a[key], b[key], rtol=0, atol=0, msg=key)
-    ra = json.loads((straight / "results.json").read_text())["metrics"]
-    rb = json.loads((killed / "results.json").read_text())["metrics"]
-    assert ra == rb
+    # The resume (only ckpt_path=last and the run directory: the run's own configuration) is killed again, leaving
+    # an end-of-epoch last.ckpt: at the next epoch's start, in its first step, or right after it.
+    epoch = rng.choice([e for e in (1, 2) if 2 * e > mid])
+    hook, step = rng.choice(
+        [
+            ("on_train_epoch_start", 2 * epoch),
+            ("on_before_optimizer_step", 2 * epoch),
+            ("on_train_batch_end", 2 * epoch + 1),
+        ]
+    )
+    position = kill_and_check(killed, None, (hook, step), "ckpt_path=last")
+    assert position == {"train_epoch": epoch, "train_batches_done": 0}, why
+
+    run_train(killed, None, "ckpt_path=last")
+    a, b = last_checkpoint(straight), last_checkpoint(killed)
+    assert (a["epoch"], a["global_step"]) == (b["epoch"], b["global_step"]) == (2, 6), why
+    assert a["state_dict"].keys() == b["state_dict"].keys()
+    for key in a["state_dict"]:
+        torch.testing.assert_close(
+            a["state_dict"][key], b["state_dict"][key], rtol=0, atol=0, msg=f"{key}; {why}"
+        )
+    # Every row logged, bit for bit (the killed runs' rows after their checkpoint were logged again, once).
+    assert (killed / "metrics.csv").read_text() == (straight / "metrics.csv").read_text(), why
+    assert (killed / "config.yaml").read_text() == (straight / "config.yaml").read_text().replace(
+        str(straight), str(killed)
+    )
 
 
 @pytest.mark.slow
-def test_ddp_on_two_processes_matches_a_single_process_evaluation(tiny_dataset: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("devices", [2, 3])
+def test_ddp_matches_a_single_process_evaluation(devices: int, tiny_dataset: Path, tmp_path: Path) -> None:
+    # The tiny preset's 8 training frames give each of 2 or 3 ranks 1 batch of 2; its 2 test frames leave the
+    # third rank none: that rank evaluates nothing and the synced metrics are the one-process ones.
     run_dir = tmp_path / "ddp"
     run_train(
         run_dir,
         tiny_dataset,
+        "task=seg",
         "trainer=ddp",
         "trainer.accelerator=cpu",
-        "trainer.devices=2",
+        f"trainer.devices={devices}",
         "trainer.max_epochs=1",
         "trainer.sync_batchnorm=false",
+        "model.encoder_name=timm-mobilenetv3_small_minimal_100",
     )
     ddp = json.loads((run_dir / "results.json").read_text())
-    # The same checkpoint evaluated by one process gives the same pooled metrics.
     import lightning as L
 
     from airfisheye_bench.tasks import SegmentationTask
@@ -102,6 +154,7 @@ def test_ddp_on_two_processes_matches_a_single_process_evaluation(tiny_dataset: 
     )
     trainer.test(module, datamodule=dm)
     single = module.test_results["metrics"]
+    assert ddp["metrics"].keys() == single.keys()
     for key, value in ddp["metrics"].items():
         if value is None:
             assert single[key] != single[key]  # NaN in both

@@ -1,0 +1,163 @@
+"""Run directories: unique names, and resuming one with the configuration it was started with.
+
+A run directory holds ``config.yaml`` (the resolved configuration), ``checkpoints/last.ckpt`` and ``metrics.csv``.
+Resuming it (``ckpt_path=last hydra.run.dir=<run>``) re-uses that configuration; a resume whose configuration
+differs is refused with the differing keys unless ``resume_overrides_ok=true``. Kept light (no torch import): the
+entry points register :func:`register_resolvers` before Hydra composes.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import os
+import secrets
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+log = logging.getLogger(__name__)
+
+#: Keys a resume may set without counting as a configuration change.
+RESUME_KEYS = frozenset({"ckpt_path", "resume_overrides_ok"})
+
+
+@functools.cache
+def run_suffix() -> str:
+    """``<pid>-<4 hex digits>``, fixed for the process: two commands started in the same second differ by it.
+
+    Processes alive at the same time have different ids; the random part covers hosts sharing a filesystem.
+    Cached, so every re-resolution of the run directory (Lightning's DDP launcher re-reads it) agrees.
+
+    Example:
+        >>> run_suffix() == run_suffix() and run_suffix().startswith(f"{os.getpid()}-")
+        True
+    """
+    return f"{os.getpid()}-{secrets.token_hex(2)}"
+
+
+def register_resolvers() -> None:
+    """Register ``${run_suffix:}`` (used by ``hydra.run.dir``) with OmegaConf; safe to call more than once."""
+    if not OmegaConf.has_resolver("run_suffix"):
+        OmegaConf.register_new_resolver("run_suffix", run_suffix)
+
+
+def flatten(config: Any, prefix: str = "") -> dict[str, Any]:
+    """Dotted keys of a nested dict/list config and their leaf values.
+
+    Example:
+        >>> flatten({"a": {"b": 1, "c": [2, {"d": 3}]}, "e": {}})
+        {'a.b': 1, 'a.c.0': 2, 'a.c.1.d': 3, 'e': {}}
+    """
+    items = (
+        config.items()
+        if isinstance(config, dict)
+        else enumerate(config)
+        if isinstance(config, list)
+        else None
+    )
+    if items is None or not config:
+        return {prefix: config}
+    flat: dict[str, Any] = {}
+    for key, value in items:
+        flat.update(flatten(value, f"{prefix}.{key}" if prefix else str(key)))
+    return flat
+
+
+def config_differences(saved: DictConfig | dict, current: DictConfig | dict) -> list[str]:
+    """``key: run has X, now Y`` for every key (resume keys aside) whose resolved value differs.
+
+    Example:
+        >>> config_differences({"a": 1, "b": {"c": 2}, "ckpt_path": None}, {"a": 1, "b": {"c": 3}, "ckpt_path": "last"})
+        ['b.c: run has 2, now 3']
+    """
+    old, new = (flatten(_plain(c)) for c in (saved, current))
+    missing = "<absent>"
+    return [
+        f"{key}: run has {old.get(key, missing)}, now {new.get(key, missing)}"
+        for key in sorted(old.keys() | new.keys())
+        if key.split(".")[0] not in RESUME_KEYS and old.get(key, missing) != new.get(key, missing)
+    ]
+
+
+def resume_config(cfg: DictConfig, task_overrides: Iterable[str]) -> DictConfig:
+    """The configuration to run: on a resume given nothing but resume keys, the run's own ``config.yaml``.
+
+    ``task_overrides`` are the command line's ``key=value`` overrides (``hydra.*`` ones are not among them), so
+    ``python train.py ckpt_path=last hydra.run.dir=<run>`` continues with exactly the run's settings instead of
+    the defaults. Any other override makes the composed configuration the one to compare (see
+    :func:`check_resume`).
+    """
+    saved = Path(cfg.paths.output_dir) / "config.yaml"
+    given = {override.split("=", 1)[0].lstrip("+~") for override in task_overrides}
+    if cfg.get("ckpt_path") is None or not saved.is_file() or not given <= RESUME_KEYS:
+        return cfg
+    run_cfg = OmegaConf.load(saved)
+    assert isinstance(run_cfg, DictConfig)
+    for key in RESUME_KEYS:
+        run_cfg[key] = cfg.get(key)
+    log.info("resuming with the run's configuration %s", saved)
+    return run_cfg
+
+
+def check_resume(cfg: DictConfig, output_dir: Path, write: bool) -> None:
+    """Refuse to resume with a configuration other than the run's, or record the accepted one.
+
+    With ``resume_overrides_ok=true`` the differences are logged, the previous ``config.yaml`` is kept as
+    ``config.<n>.yaml`` and the new one becomes ``config.yaml`` (``write`` is false on all but the first process).
+
+    Raises:
+        ValueError: the configurations differ and ``resume_overrides_ok`` is not set; lists the keys.
+    """
+    from airfisheye_bench.io.atomic import atomic_write_text
+
+    saved = output_dir / "config.yaml"
+    if not saved.is_file():
+        if write:
+            atomic_write_text(saved, OmegaConf.to_yaml(cfg, resolve=True))
+        return
+    differences = config_differences(OmegaConf.load(saved), cfg)
+    if not differences:
+        return
+    listing = "\n  ".join(differences)
+    if not cfg.get("resume_overrides_ok"):
+        raise ValueError(
+            f"resuming {output_dir} with a configuration that differs from the run's {saved}:\n  {listing}\n"
+            "resume with only ckpt_path=last hydra.run.dir=<run> to continue as configured, or add "
+            "resume_overrides_ok=true to continue with these changes"
+        )
+    log.warning("resuming with a changed configuration (resume_overrides_ok=true):\n  %s", listing)
+    if write:
+        n = 1
+        while (kept := output_dir / f"config.{n}.yaml").exists():
+            n += 1
+        os.replace(saved, kept)
+        atomic_write_text(saved, OmegaConf.to_yaml(cfg, resolve=True))
+
+
+def keep_metric_rows(path: Path, rows: int) -> None:
+    """Cut ``metrics.csv`` back to its header and first ``rows`` rows: the ones a checkpoint had logged.
+
+    Rows written after that checkpoint, by the killed process, are logged again by the resumed one.
+
+    Example:
+        >>> import tempfile
+        >>> p = Path(tempfile.mkdtemp()) / "metrics.csv"
+        >>> _ = p.write_text("step,loss\\r\\n0,1.5\\r\\n1,1.2\\r\\n2,0.9\\r\\n")
+        >>> keep_metric_rows(p, 2)
+        >>> p.read_text().splitlines()
+        ['step,loss', '0,1.5', '1,1.2']
+    """
+    from airfisheye_bench.io.atomic import atomic_write_text
+
+    if not path.is_file():
+        return
+    lines = path.read_text().splitlines(keepends=True)
+    if len(lines) > rows + 1:
+        atomic_write_text(path, "".join(lines[: rows + 1]))
+
+
+def _plain(config: DictConfig | dict) -> Any:
+    return OmegaConf.to_container(config, resolve=True) if isinstance(config, DictConfig) else config

@@ -1,0 +1,149 @@
+"""Run-directory bookkeeping in process: last.ckpt, atomic writes, resume configuration, metrics.csv, run names,
+and the refusal of a run in which a process would get no training batch."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf, open_dict
+
+from airfisheye_bench.checkpointing import AtomicCheckpointIO, RunCSVLogger
+from airfisheye_bench.runs import check_resume, register_resolvers, resume_config
+from airfisheye_bench.training import train
+from tests.doctests import assert_doctests_pass
+from tests.training.test_configs import CONFIG_DIR, compose_train
+from tests.training.test_train import tiny_run_overrides
+
+
+def tiny_cfg(root: Path, out: Path, *overrides: str):
+    cfg = compose_train([*tiny_run_overrides("seg", root), "logger=csv", "test=false", *overrides])
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(out)
+    return cfg
+
+
+def test_last_checkpoint_holds_the_final_state(tiny_dataset: Path, tmp_path: Path) -> None:
+    # The monitored metric need not improve: last.ckpt is rewritten at every epoch end regardless.
+    cfg = tiny_cfg(tiny_dataset, tmp_path, "trainer.max_epochs=3", "trainer.limit_train_batches=1")
+    train(cfg)
+    saved = torch.load(tmp_path / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)
+    assert (saved["epoch"], saved["global_step"]) == (2, 3)
+    assert saved["AirFisheyeDataModule"] == {"train_epoch": 3, "train_batches_done": 0}
+    rows = (tmp_path / "metrics.csv").read_text().splitlines()
+    assert saved["metrics_csv_rows"] == len(rows) - 1  # the checkpoint covers every row logged
+    assert not list(tmp_path.rglob("*.tmp"))
+
+
+def test_an_interrupted_checkpoint_write_leaves_the_previous_file(tmp_path: Path, monkeypatch) -> None:
+    path = tmp_path / "last.ckpt"
+    io = AtomicCheckpointIO()
+    io.save_checkpoint({"step": torch.tensor(1)}, path)
+
+    def dies_halfway(obj, f, *args, **kwargs) -> None:
+        Path(f).write_bytes(b"half a checkpoint")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(torch, "save", dies_halfway)
+    with pytest.raises(KeyboardInterrupt):
+        io.save_checkpoint({"step": torch.tensor(2)}, path)
+    monkeypatch.undo()
+    assert torch.load(path, weights_only=True)["step"] == 1
+    assert [p.name for p in tmp_path.iterdir()] == ["last.ckpt"]
+
+
+def test_resume_with_another_configuration_is_refused_with_the_keys(tmp_path: Path) -> None:
+    run = compose_train(["trainer.max_epochs=5"])
+    with open_dict(run):
+        run.paths.output_dir = str(tmp_path)
+    check_resume(run, tmp_path, write=True)  # a new run records its configuration
+    saved = (tmp_path / "config.yaml").read_text()
+
+    same = run.copy()
+    with open_dict(same):
+        same.ckpt_path = "last"
+    check_resume(same, tmp_path, write=True)  # resume keys aside, identical: accepted
+
+    changed = same.copy()
+    with open_dict(changed):
+        changed.trainer.max_epochs = 8
+        changed.data.batch_size = 3
+    with pytest.raises(ValueError, match="resume_overrides_ok") as error:
+        check_resume(changed, tmp_path, write=True)
+    assert "trainer.max_epochs: run has 5, now 8" in str(error.value)
+    assert "data.batch_size" in str(error.value) and "seed" not in str(error.value)
+    assert (tmp_path / "config.yaml").read_text() == saved
+
+    with open_dict(changed):
+        changed.resume_overrides_ok = True
+    check_resume(changed, tmp_path, write=True)
+    assert (tmp_path / "config.1.yaml").read_text() == saved  # the previous configuration is kept
+    assert OmegaConf.load(tmp_path / "config.yaml").trainer.max_epochs == 8
+
+
+def test_a_bare_resume_reuses_the_run_configuration(tmp_path: Path) -> None:
+    run = compose_train(["trainer.max_epochs=5", "task=depth"])
+    with open_dict(run):
+        run.paths.output_dir = str(tmp_path)
+    check_resume(run, tmp_path, write=True)
+    defaults = compose_train(["ckpt_path=last"])
+    with open_dict(defaults):
+        defaults.paths.output_dir = str(tmp_path)
+    resumed = resume_config(defaults, ["ckpt_path=last"])
+    assert resumed.trainer.max_epochs == 5 and resumed.task.name == "depth" and resumed.ckpt_path == "last"
+    # With other overrides the composed configuration stands (and check_resume compares it).
+    assert resume_config(defaults, ["ckpt_path=last", "seed=1"]) is defaults
+
+
+def test_metrics_csv_is_continued_not_replaced(tmp_path: Path) -> None:
+    (tmp_path / "metrics.csv").write_text("epoch,step,train/loss\r\n0,0,2.5\r\n")
+    logger = RunCSVLogger(save_dir=tmp_path, name="", version="")
+    logger.log_metrics({"train/loss": 2.0, "val/loss": 1.0}, step=1)
+    logger.save()
+    assert (tmp_path / "metrics.csv").read_text().splitlines() == [
+        "epoch,step,train/loss,val/loss",
+        "0,0,2.5,",
+        ",1,2.0,1.0",
+    ]
+
+
+def test_run_directories_of_simultaneous_commands_differ() -> None:
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+        cfg = compose(config_name="train", return_hydra_config=True)
+    assert "${run_suffix:}" in OmegaConf.to_container(cfg.hydra.run)["dir"]
+    register_resolvers()
+    code = "from airfisheye_bench.runs import run_suffix; print(run_suffix())"
+    procs = [
+        subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True) for _ in range(2)
+    ]
+    suffixes = [p.communicate()[0].strip() for p in procs]
+    assert suffixes[0] != suffixes[1] and all(suffixes)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "advice"),
+    [
+        (["data.batch_size=16"], "lower data.batch_size to at most 8"),
+        (
+            ["trainer=ddp", "trainer.accelerator=cpu", "trainer.devices=2", "data.batch_size=8"],
+            "trainer.devices",
+        ),
+    ],
+)
+def test_a_run_where_a_process_gets_no_training_batch_is_refused(
+    overrides: list[str], advice: str, tiny_dataset: Path, tmp_path: Path
+) -> None:
+    cfg = tiny_cfg(tiny_dataset, tmp_path, *overrides)
+    with pytest.raises(ValueError, match="no training batch") as error:
+        train(cfg)
+    assert advice in str(error.value)
+    assert not (tmp_path / "checkpoints").exists()
+
+
+@pytest.mark.parametrize("name", ["airfisheye_bench.runs"])
+def test_docstring_examples(name: str) -> None:
+    assert_doctests_pass(name)
