@@ -424,7 +424,7 @@ def generate_dataset(
     """Generate (or finish generating) a synthetic dataset.
 
     Args:
-        config: A :class:`SynthConfig` or a preset name (``tiny``, ``quickstart``, ``small``, ``medium``, ``paper``).
+        config: A :class:`SynthConfig` or a preset name (``tiny``, ``quickstart``, ``small``, ``medium``, ``paper``, ``occlusion``).
         out_dir: Output folder: new, empty, a partial run of the same config and seed (resumed), or a complete
             dataset of the same config and seed (returned as is).
         seed: Base seed.
