@@ -65,11 +65,12 @@ class Run:
 
 
 def plan(out: Path, methods: Sequence[str], seeds: Sequence[int]) -> list[Run]:
-    """Every (method, seed) run, method-major, each in ``<out>/<method>/seed<seed>``."""
+    """Every (method, seed) run, each in ``<out>/<method>/seed<seed>``, seed-major: an ablation stopped early
+    has the same seeds for every method, so what it has is comparable."""
     unknown = [m for m in methods if m not in occlusion.OCCLUSION_METHODS]
     if unknown:
         raise ValueError(f"--methods: unknown {unknown}; available: {', '.join(occlusion.OCCLUSION_METHODS)}")
-    return [Run(m, int(s), out / m / f"seed{int(s)}") for m in methods for s in seeds]
+    return [Run(m, int(s), out / m / f"seed{int(s)}") for s in seeds for m in methods]
 
 
 def execute(runs: Sequence[Run], overrides: Sequence[str], runner: Callable[[list[str]], None]) -> None:
@@ -88,12 +89,14 @@ def run_subprocess(argv: list[str]) -> None:
 
 def collect(runs: Sequence[Run]) -> dict[str, dict[str, Any]]:
     """``method -> {"seeds": [...], "metrics": {name: {"values", "mean", "std", "n"}}}`` from the finished runs."""
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, dict[str, Any]] = {
+        m: {"seeds": [], "values": {}} for m in dict.fromkeys(r.method for r in runs)
+    }
     for run in runs:
         if not run.results.is_file():
             continue
         record = json.loads(run.results.read_text(encoding="utf-8"))
-        entry = out.setdefault(run.method, {"seeds": [], "values": {}})
+        entry = out[run.method]
         entry["seeds"].append(run.seed)
         for name, value in record["metrics"].items():
             if isinstance(value, int | float) and not isinstance(value, bool):
@@ -104,6 +107,7 @@ def collect(runs: Sequence[Run]) -> dict[str, dict[str, Any]]:
             "metrics": {name: {"values": v, **mean_std(v)} for name, v in entry["values"].items()},
         }
         for method, entry in out.items()
+        if entry["seeds"]
     }
 
 

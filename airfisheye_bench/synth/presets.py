@@ -17,14 +17,14 @@ yardstick for the cubemap remap); the larger presets build it with the cubemap r
 The quickstart LiDAR (64 x 256 over 270 deg) is thinned so that its projection into the 160^2 fisheye is about as
 sparse as the paper's 64 x 2048 scans at 512^2.
 
-``occlusion`` is the rig where occlusion matters: the camera sits 0.8 m beside and 0.8 m below the LiDAR (the other
-presets: ~0.3 m), the drone flies 1.5-6 m above the ground and 1 m above obstacles with the gimbal at most 20 deg
-down, so buildings, trees, poles and vehicles are near both sensors, and the scan is the paper's full 64 x 2048 with what a real spinning sensor adds
-(a random azimuth phase every frame, 0.1-cell beam jitter, 2 % dropped returns; see ``synth.sensors.ScanModel``).
-It has no cube faces (the fisheye is ray-cast at 512^2 and served with ``data.source=fisheye``), which keeps it
-at about one second per frame: its 240 frames generate in about three minutes on 2 cores. Few frames per
-flight (10) and many locations (24, so 4 held-out test locations) because occlusion statistics vary by place much
-more than between neighbouring frames.
+``occlusion`` is the rig where occlusion matters: the camera sits 0.8 m beside and 0.8 m below the LiDAR (the
+other presets: ~0.3 m), the drone flies 1.5-6 m above the ground and 1 m above obstacles with the gimbal at most
+20 deg down, so buildings, trees, poles and vehicles are near both sensors, and the scan is the paper's full
+64 x 2048 with what a real spinning sensor adds (a random azimuth phase every frame, 0.1-cell beam jitter, 2 %
+dropped returns; see ``synth.sensors.ScanModel``). It has no cube faces (the fisheye is ray-cast at 512^2 and
+served with ``data.source=fisheye``), which keeps it at about one second per frame: its 240 frames generate in
+about four minutes on 2 busy cores. Few frames per flight (10) and many locations (24, so 4 held-out test
+locations), because occlusion varies much more from place to place than between neighbouring frames.
 
 Only the ``occlusion`` preset changes the scan model: the others keep ``lidar_phase=fixed`` and no jitter or
 dropout, so their datasets stay byte-identical to those of earlier versions (the scan fields are left out of

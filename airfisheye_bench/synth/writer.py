@@ -93,6 +93,13 @@ def trajectory_seeds(seed: int, plan: TrajectoryPlan) -> tuple[int, int, int, in
     return scene_seed, flight_seed, light_seed, strata_seed
 
 
+def scan_seed(seed: int, plan: TrajectoryPlan) -> int:
+    """Seed of a trajectory's LiDAR phase, jitter and dropout: a stream of its own, so that the seeds of
+    :func:`trajectory_seeds` (and the bytes of datasets with ideal scans) do not depend on the scan model."""
+    ss = np.random.SeedSequence([int(seed), zlib.crc32(plan.env.encode()), int(plan.index), 1])
+    return int(ss.generate_state(1)[0])
+
+
 def scan_rng(scan_seed: int, frame: int) -> np.random.Generator:
     """The generator of frame ``frame``'s LiDAR phase, jitter and dropout (depends on the trajectory and frame only)."""
     return np.random.default_rng([int(scan_seed), int(frame)])
@@ -133,12 +140,6 @@ def build_trajectory(
         start_altitude_m=stratified_value(plan.index, n, *fc.altitude_m, phase=0.45, jitter=jitter[1]),
     )
     lighting = Lighting.random(torch.Generator().manual_seed(light_seed))
-    # Its own stream, so the four seeds above (and the datasets of ideal scans) do not change.
-    scan_seed = int(
-        np.random.SeedSequence([int(seed), zlib.crc32(plan.env.encode()), int(plan.index), 1]).generate_state(
-            1
-        )[0]
-    )
     return TrajectoryRecording(
         plan,
         scene,
@@ -146,7 +147,7 @@ def build_trajectory(
         lighting,
         flight.body_pose(flight.t_cam),
         flight.body_pose(flight.t_lidar),
-        scan_seed,
+        scan_seed(seed, plan),
     )
 
 
