@@ -135,7 +135,12 @@ def markdown_table(summary: dict[str, dict[str, Any]], metrics: Sequence[str] = 
         cells = []
         for name in present:
             stat = entry["metrics"].get(name)
-            cells.append("-" if stat is None else f"{stat['mean']:.4f} ± {stat['std']:.4f}")
+            if stat is None:
+                cells.append("-")
+            elif math.isnan(stat["std"]):  # one seed: no spread to show
+                cells.append(f"{stat['mean']:.4f}")
+            else:
+                cells.append(f"{stat['mean']:.4f} ± {stat['std']:.4f}")
         seeds = ",".join(str(s) for s in entry["seeds"])
         lines.append(f"| `{method}` | {seeds} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
