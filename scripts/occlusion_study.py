@@ -14,19 +14,28 @@ occlusion method of ``airfisheye_bench.geometry.occlusion_mask`` this measures, 
   more than 5 %, over the sparse pixels that have ground truth; sparse pixels without ground truth are
   counted apart.
 
-Rows: ``ordering`` (paper, III-C), ``zbuffer``, ``none`` with the training transform (motion compensation
-on), ``ordering (no MC)`` with the static extrinsics (``AirFisheyeDataset(motion_compensation=False)``; the
-synthetic camera and LiDAR have different timestamps), and, for the depth map only, ``oracle`` built from the
-ground-truth visible points: the floor set by pixel sampling at depth edges, which no method can beat.
-Counts are pooled over the split (sums, then ratios); means of the per-frame ratios are reported too.
+Rows: every method of ``airfisheye_bench.geometry.occlusion.OCCLUSION_METHODS`` (read when the script runs, so a
+new method is studied without editing this file; ``--methods`` picks some) with the training transform (motion
+compensation on); ``ordering (no MC)`` with the static extrinsics (``AirFisheyeDataset(motion_compensation=False)``;
+the synthetic camera and LiDAR have different timestamps); and ``oracle``, the ground-truth visible points: its
+point-level row is perfect by definition, its sparse map is the floor set by pixel sampling at depth edges, which no
+method can beat. Method parameters other than the defaults: ``--option zbuffer.kernel=7`` (repeatable). Counts are
+pooled over the split (sums, then ratios); means of the per-frame ratios are reported too, and the timing as mean
+and median over the frames (single-threaded). The header line gives the hidden fraction: the projected points the
+camera does not see, over all projected points (the errors a method without correction keeps).
 
+    python scripts/occlusion_study.py --preset occlusion --split test --size 512 \\
+        --json docs/figures/occlusion_study_occlusion.json
     python scripts/occlusion_study.py --preset quickstart --split test \\
         --figure docs/figures/occlusion_overlay.png --json docs/figures/occlusion_study.json
     python scripts/occlusion_study.py --root /path/to/synthetic --size 128 --frames 20
 
 ``--figure`` draws one frame (the one with the most hidden points that project, or ``--figure-frame``) at the
-dataset's fisheye size: (a) all projected points (``none``), (b) those kept by ``zbuffer``, (c) by
-``ordering``; green = truly visible, red = hidden.
+dataset's fisheye size: (a) all projected points (``none``), then the points kept by each other method; green =
+truly visible, red = hidden.
+
+The second half of the study, the completion ablation (train + evaluate with each method's sparse input, several
+seeds), is ``scripts/occlusion_ablation.py``.
 """
 
 from __future__ import annotations
@@ -43,25 +52,22 @@ from typing import Any
 
 import numpy as np
 import torch
+import yaml
 from PIL import Image, ImageDraw
 
-from airfisheye_bench.geometry import FisheyeCamera, LidarSpec, lidar_depth_map, project_lidar
+from airfisheye_bench.geometry import FisheyeCamera, LidarSpec, lidar_depth_map, occlusion, project_lidar
 from airfisheye_bench.io.atomic import atomic_write_text
+from airfisheye_bench.io.spec import DatasetSpec
 from airfisheye_bench.synth.writer import ensure_dataset
 from airfisheye_bench.viz import denormalize, make_panel, save_png
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD, AirFisheyeDataset, CameraConfig
 
-#: (row, occlusion method, motion compensation)
-VARIANTS: tuple[tuple[str, str, bool], ...] = (
-    ("ordering", "ordering", True),
-    ("zbuffer", "zbuffer", True),
-    ("none", "none", True),
-    ("ordering (no MC)", "ordering", False),
-)
-ORACLE = "oracle (GT visibility)"
+ORACLE = "oracle"
+NO_MC = "ordering (no MC)"
 WRONG_REL = 0.05  # a sparse pixel is wrong if |sparse - gt| > WRONG_REL * gt
 QUICKSTART_SIZE = 128  # the size the quick-start trains at
 COUNTS = ("kept", "tp", "hidden_kept", "truth", "sparse_px", "sparse_gt", "sparse_wrong", "sparse_no_gt")
+Options = dict[str, dict[str, Any]]  # method -> keyword arguments of occlusion_mask
 GREEN, RED = (0, 230, 0), (255, 30, 30)
 
 
@@ -75,6 +81,41 @@ class Frame:
     visible: np.ndarray  # bool [N]
     spec: LidarSpec
     T: dict[bool, np.ndarray]  # motion compensation on / off -> T_cam_lidar
+
+
+# ------------------------------------------------------------------------------------------------ rows
+def variants(methods: Sequence[str] | None = None) -> list[tuple[str, str, bool]]:
+    """``(row, occlusion method, motion compensation)`` of every measured row, ``oracle`` aside.
+
+    ``methods`` defaults to every method of ``OCCLUSION_METHODS`` (``none`` always included: it defines the
+    projected points); ``ordering (no MC)`` follows when ``ordering`` is measured.
+    """
+    available = tuple(occlusion.OCCLUSION_METHODS)
+    chosen = list(available if methods is None else methods)
+    unknown = [m for m in chosen if m not in available]
+    if unknown:
+        raise ValueError(f"--methods: unknown {unknown}; available: {', '.join(available)}")
+    if "none" not in chosen:
+        chosen.append("none")
+    rows = [(m, m, True) for m in chosen]
+    if "ordering" in chosen:
+        rows.append((NO_MC, "ordering", False))
+    return rows
+
+
+def parse_options(items: Sequence[str]) -> Options:
+    """``["zbuffer.kernel=7"]`` -> ``{"zbuffer": {"kernel": 7}}`` (values parsed as YAML)."""
+    out: Options = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        method, dot, name = key.partition(".")
+        if not sep or not dot or not name or method not in occlusion.OCCLUSION_METHODS:
+            raise ValueError(
+                f"--option must look like METHOD.NAME=VALUE with METHOD one of {list(occlusion.OCCLUSION_METHODS)}, "
+                f"got {item!r}"
+            )
+        out.setdefault(method, {})[name] = yaml.safe_load(value)
+    return out
 
 
 # ------------------------------------------------------------------------------------------------ data
@@ -134,9 +175,10 @@ def sparse_map(
     method: str,
     max_depth: float,
     valid: np.ndarray,
+    **options: Any,
 ) -> np.ndarray:
     """The sparse input as ``AirFisheyeDataset`` serves it (no augmentation): range map times the circle mask."""
-    return lidar_depth_map(points, T, camera, spec, method, max_depth=max_depth) * valid
+    return lidar_depth_map(points, T, camera, spec, method, max_depth=max_depth, **options) * valid
 
 
 # ------------------------------------------------------------------------------------------------ measuring
@@ -160,17 +202,26 @@ def depth_counts(sparse: np.ndarray, gt: np.ndarray) -> dict[str, int]:
 
 
 def measure_frame(
-    frame: Frame, camera: FisheyeCamera, gt: np.ndarray, valid: np.ndarray, max_depth: float
+    frame: Frame,
+    camera: FisheyeCamera,
+    gt: np.ndarray,
+    valid: np.ndarray,
+    max_depth: float,
+    rows_to_measure: Sequence[tuple[str, str, bool]] | None = None,
+    options: Options | None = None,
 ) -> dict[str, dict[str, float]]:
-    """Counts and timings of every row for one frame."""
+    """Counts and timings of every row (:func:`variants` by default, then ``oracle``) for one frame."""
     pts, spec = frame.points, frame.spec
+    options = options or {}
     projects = project_lidar(pts, frame.T[True], camera, spec, "none").mask
     truth = projects & frame.visible  # what the camera really sees, whatever T a method is given
     rows: dict[str, dict[str, float]] = {}
-    for name, method, mc in VARIANTS:
-        T = frame.T[mc]
-        mask, wall, cpu = timed(lambda T=T, m=method: project_lidar(pts, T, camera, spec, m).mask)
-        sparse = sparse_map(pts, T, camera, spec, method, max_depth, valid)
+    for name, method, mc in rows_to_measure or variants():
+        T, kw = frame.T[mc], options.get(method, {})
+        mask, wall, cpu = timed(
+            lambda T=T, m=method, kw=kw: project_lidar(pts, T, camera, spec, m, **kw).mask
+        )
+        sparse = sparse_map(pts, T, camera, spec, method, max_depth, valid, **kw)
         rows[name] = {
             "kept": int(mask.sum()),
             "tp": int((mask & truth).sum()),
@@ -184,7 +235,10 @@ def measure_frame(
     oracle = sparse_map(pts[truth], frame.T[True], camera, spec, "none", max_depth, valid)
     n = int(truth.sum())
     rows[ORACLE] = {"kept": n, "tp": n, "hidden_kept": 0, "truth": n, **depth_counts(oracle, gt)}
-    rows["_frame"] = {"hidden_projected": int((projects & ~frame.visible).sum())}
+    rows["_frame"] = {
+        "projected": int(projects.sum()),
+        "hidden_projected": int((projects & ~frame.visible).sum()),
+    }
     return rows
 
 
@@ -210,10 +264,13 @@ def summarize(per_frame: list[dict[str, float]]) -> dict[str, Any]:
     frame_ratios = [ratios(f) for f in per_frame]
     mean = {k: _nanmean([r[k] for r in frame_ratios]) for k in frame_ratios[0]}
     mean.update({k: float(np.mean([f[k] for f in per_frame])) for k in COUNTS})
+    timing = {}
     for clock in ("ms_wall", "ms_cpu"):
         if clock in per_frame[0]:
             mean[clock] = float(np.mean([f[clock] for f in per_frame]))
-    return {"pooled": pooled, "mean_per_frame": mean}
+            timing[f"{clock}_median"] = float(np.median([f[clock] for f in per_frame]))
+            timing[f"{clock}_min"] = float(np.min([f[clock] for f in per_frame]))
+    return {"pooled": pooled, "mean_per_frame": mean, **({"timing": timing} if timing else {})}
 
 
 def _nanmean(values: list[float]) -> float:
@@ -225,19 +282,24 @@ def run_size(
     root: Path, args: argparse.Namespace, size: int | None, limit: int | None
 ) -> tuple[dict[str, Any], dict[str, int]]:
     """All frames at one served size -> (summary, hidden projected points per sample id)."""
+    rows_to_measure, options = variants(args.methods), parse_options(args.option)
     datasets = make_datasets(root, args.split, args.source, size, args.max_depth)
     ds = datasets[True]
     valid = ds.valid_mask.numpy()
     indices = frame_indices(len(ds), limit)
     warm = load_frame(datasets, indices[0])  # compile the numba kernels outside the timings
-    project_lidar(warm.points, warm.T[True], ds.camera, warm.spec, "ordering")
+    for _, method, _ in rows_to_measure:
+        project_lidar(warm.points, warm.T[True], ds.camera, warm.spec, method, **options.get(method, {}))
     rows: dict[str, list[dict[str, float]]] = {}
     hidden: dict[str, int] = {}
+    projected = 0
     for k, index in enumerate(indices):
         frame = load_frame(datasets, index)
         gt = ds[index]["depth"][0].numpy()  # the served target: clipped to max_depth, 0 = invalid
-        result = measure_frame(frame, ds.camera, gt, valid, args.max_depth)
-        hidden[frame.sample_id] = result.pop("_frame")["hidden_projected"]
+        result = measure_frame(frame, ds.camera, gt, valid, args.max_depth, rows_to_measure, options)
+        counts = result.pop("_frame")
+        hidden[frame.sample_id] = counts["hidden_projected"]
+        projected += counts["projected"]
         for name, counts in result.items():
             rows.setdefault(name, []).append(counts)
         if (k + 1) % 25 == 0:
@@ -245,6 +307,10 @@ def run_size(
     summary = {
         "camera": ds.camera.to_dict(),
         "frames": len(indices),
+        "projected": projected,
+        "hidden_projected": sum(hidden.values()),
+        "hidden_fraction": ratio(sum(hidden.values()), projected),
+        "options": options,
         "rows": {name: summarize(per_frame) for name, per_frame in rows.items()},
     }
     return summary, hidden
@@ -253,14 +319,14 @@ def run_size(
 # ------------------------------------------------------------------------------------------------ report
 def markdown_table(results: dict[str, dict[str, Any]]) -> str:
     head = (
-        "| size | method | precision | recall | F1 | kept | hidden kept | ms/frame (wall / CPU) "
+        "| size | method | precision | recall | F1 | kept | hidden kept | ms/frame (wall median / CPU median) "
         "| mean P / R / F1 per frame | sparse px | wrong >5% | no GT |"
     )
     lines = [head, "|" + "---|" * 12]
     for size, summary in results.items():
         for name, row in summary["rows"].items():
-            p, m = row["pooled"], row["mean_per_frame"]
-            ms = f"{m['ms_wall']:.1f} / {m['ms_cpu']:.1f}" if "ms_wall" in m else "-"
+            p, m, t = row["pooled"], row["mean_per_frame"], row.get("timing")
+            ms = f"{t['ms_wall_median']:.1f} / {t['ms_cpu_median']:.1f}" if t else "-"
             lines.append(
                 f"| {size}² | {name} | {p['precision']:.4f} | {p['recall']:.4f} | {p['f1']:.4f} "
                 f"| {p['kept']} | {p['hidden_kept']} | {ms} "
@@ -300,15 +366,18 @@ def labelled(tile: np.ndarray, lines: Sequence[str]) -> np.ndarray:
 
 
 def overlay_figure(
-    datasets: dict[bool, AirFisheyeDataset], index: int, scale: int
+    datasets: dict[bool, AirFisheyeDataset], index: int, scale: int, methods: Sequence[str] | None = None
 ) -> tuple[np.ndarray, dict[str, Any]]:
-    """Three panels: all projected points / kept by zbuffer / kept by ordering, green visible, red hidden."""
+    """One panel per method: all projected points (``none``) first, then the points each other method keeps;
+    green visible, red hidden."""
     ds = datasets[True]
     frame = load_frame(datasets, index)
     image = denormalize(ds[index]["image"], IMAGENET_MEAN, IMAGENET_STD)
     colors = np.where(frame.visible[:, None], np.array(GREEN, np.uint8), np.array(RED, np.uint8))
     tiles, info = [], {"sample_id": frame.sample_id, "size": ds.camera.width, "scale": scale, "panels": {}}
-    for tag, method in (("a", "none"), ("b", "zbuffer"), ("c", "ordering")):
+    methods = ["none"] + [m for _, m, mc in variants(methods) if mc and m != "none"]
+    for k, method in enumerate(methods):
+        tag = chr(ord("a") + k)
         uv, _, mask = project_lidar(frame.points, frame.T[True], ds.camera, frame.spec, method)
         hidden = int((mask & ~frame.visible).sum())
         order = np.argsort(~frame.visible[mask], kind="stable")  # hidden (red) dots drawn last, on top
@@ -344,7 +413,19 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--size", type=int, nargs="+", help=f"served sizes (default: the fisheye's and {QUICKSTART_SIZE})"
     )
     parser.add_argument("--frames", type=int, help="at most this many frames, evenly spread over the split")
-    parser.add_argument("--source", choices=("cubemap", "fisheye"), default="cubemap", help="as in training")
+    parser.add_argument(
+        "--source",
+        choices=("cubemap", "fisheye"),
+        help="as in training (default: cubemap if the release has cube faces, else fisheye)",
+    )
+    parser.add_argument(
+        "--methods",
+        type=lambda v: [m for m in v.split(",") if m],
+        help="comma-separated occlusion methods (default: every one of OCCLUSION_METHODS)",
+    )
+    parser.add_argument(
+        "--option", action="append", default=[], metavar="METHOD.NAME=VALUE", help="a method parameter"
+    )
     parser.add_argument("--max-depth", type=float, default=120.0)
     parser.add_argument("--figure", type=Path, help="write the overlay PNG here")
     parser.add_argument("--figure-frame", help="sample id or split index of the figure's frame")
@@ -356,7 +437,11 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     args = parse_args(argv)
     torch.set_num_threads(1)  # single-threaded timings, as in scripts/bench_lidar.py
+    parse_options(args.option)  # bad options fail before any work
+    variants(args.methods)
     root = resolve_root(args)
+    if args.source is None:
+        args.source = "cubemap" if DatasetSpec.load(root).has("cubemap") else "fisheye"
     calibrated = AirFisheyeDataset(root, args.split, "depth", source=args.source).calibrated_camera.width
     sizes = list(dict.fromkeys(args.size or [calibrated, QUICKSTART_SIZE]))
     results: dict[str, dict[str, Any]] = {}
@@ -365,13 +450,18 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         results[str(size)], frame_hidden = run_size(root, args, size, args.frames)
         hidden = hidden or frame_hidden
     first = next(iter(results.values()))
-    print(f"{root} split={args.split}: {first['frames']} frames, source={args.source}\n")
+    print(f"{root} split={args.split}: {first['frames']} frames, source={args.source}")
+    print(
+        f"hidden: {first['hidden_projected']} of {first['projected']} projected points "
+        f"({100 * first['hidden_fraction']:.2f} %) are not seen by the camera\n"
+    )
     print(markdown_table(results))
     payload: dict[str, Any] = {
         "dataset": str(root),
         "split": args.split,
         "frames": first["frames"],
         "source": args.source,
+        "methods": [name for name, _, _ in variants(args.methods)] + [ORACLE],
         "max_depth": args.max_depth,
         "wrong_rel": WRONG_REL,
         "command": "python scripts/occlusion_study.py " + " ".join(sys.argv[1:] if argv is None else argv),
@@ -380,7 +470,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     if args.figure is not None:
         datasets = make_datasets(root, args.split, args.source, calibrated, args.max_depth)
         index = figure_index(datasets[True], args.figure_frame, hidden)
-        panel, payload["figure"] = overlay_figure(datasets, index, args.figure_scale)
+        panel, payload["figure"] = overlay_figure(datasets, index, args.figure_scale, args.methods)
         save_png(args.figure, panel)
         payload["figure"]["path"] = str(args.figure)
         print(f"\nfigure: {args.figure} ({payload['figure']['sample_id']})")

@@ -377,3 +377,43 @@ def read_visibility(path: str | Path, num_points: int | None = None) -> np.ndarr
     if num_points is not None and vis.shape[0] != num_points:
         raise DatasetFormatError(path, f"has {vis.shape[0]} flags but the scan has {num_points} points")
     return vis
+
+
+def read_beams(path: str | Path, num_points: int | None = None) -> np.ndarray:
+    """Read the beam of every LiDAR point (int32 ``[N]``, ``channel * N_PC + column``); checks ``N`` if given."""
+    beam = load_npy(path)
+    if beam.ndim != 1 or beam.dtype != np.int32:
+        raise DatasetFormatError(path, f"beams must be int32 [N], got {beam.dtype} {list(beam.shape)}")
+    if num_points is not None and beam.shape[0] != num_points:
+        raise DatasetFormatError(path, f"has {beam.shape[0]} beams but the scan has {num_points} points")
+    return beam
+
+
+SCAN_PHASE_HEADER = "frame,phase_rad"
+
+
+def encode_scan_phases(frames: list[str], phases: np.ndarray) -> bytes:
+    """``lidar_scan.csv``: one ``frame,phase_rad`` line per frame (the scan's azimuth phase, 17 digits).
+
+    Example:
+        >>> encode_scan_phases(["000000"], np.array([0.5])).decode()
+        'frame,phase_rad\\n000000,0.5\\n'
+    """
+    lines = [SCAN_PHASE_HEADER] + [f"{f},{float(p)!r}" for f, p in zip(frames, phases, strict=True)]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def read_scan_phases(path: str | Path) -> dict[str, float]:
+    """Read ``lidar_scan.csv`` -> ``{frame: phase_rad}``; errors name the file and line."""
+    path = Path(path)
+    lines = path.read_text(encoding="utf-8").splitlines()
+    if not lines or lines[0].strip() != SCAN_PHASE_HEADER:
+        raise DatasetFormatError(path, f"must start with the header {SCAN_PHASE_HEADER!r}")
+    out: dict[str, float] = {}
+    for n, line in enumerate(lines[1:], start=2):
+        try:
+            frame, phase = line.split(",")
+            out[frame] = float(phase)
+        except ValueError:
+            raise DatasetFormatError(path, f"line {n}: expected 'frame,phase_rad', got {line!r}") from None
+    return out

@@ -134,6 +134,24 @@ def _check_sample(reader, sid: str, calib: np.ndarray, deep: bool, report: Inspe
         n_vis = _check_array(reader.layout.lidar_visible(sid), 1, None, np.bool_, False, report, "visibility")
         if n_points is not None and n_vis is not None and n_points != n_vis:
             report.add(reader.layout.lidar_visible(sid), f"{n_vis} flags for {n_points} LiDAR points")
+    if spec.has("lidar_beam"):
+        report.files += 1
+        path = reader.layout.lidar_beam(sid)
+        n_beam = _check_array(path, 1, None, np.int32, False, report, "beams")
+        if n_points is not None and n_beam is not None and n_points != n_beam:
+            report.add(path, f"{n_beam} beams for {n_points} LiDAR points")
+        elif deep and n_beam:
+            lidar = calib.lidar_spec()
+            beam = codecs.read_beams(path)
+            if beam.min() < 0 or beam.max() >= lidar.channels * lidar.points_per_channel:
+                report.add(
+                    path, "beams must be indices in [0, channels * points_per_channel) (calib.yaml lidar)"
+                )
+    if spec.has("lidar_scan"):
+        try:
+            reader.lidar_phase(sid)
+        except (DatasetFormatError, OSError) as err:
+            report.add(reader.layout.lidar_scan(sid), str(err))
 
 
 def _check_image(path: Path, modality: str, size: tuple[int, int], reader, deep: bool, report) -> None:

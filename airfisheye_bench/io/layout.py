@@ -61,6 +61,10 @@ class DatasetLayout:
     def imu(self, trajectory: str) -> Path:
         return self._traj("imu", trajectory)
 
+    def lidar_scan(self, trajectory: str) -> Path:
+        """``lidar_scan.csv`` (per-frame scan phase) of ``"<env>/<traj>"``."""
+        return self._traj("lidar_scan", trajectory)
+
     # -------------------------------------------------------------------------------- frame level
     def cubemap(self, sample_id: str, face: str, modality: str) -> Path:
         """One cube-face file of ``"<env>/<traj>/<frame>"``."""
@@ -87,6 +91,10 @@ class DatasetLayout:
     def lidar_visible(self, sample_id: str) -> Path:
         env, traj, frame = parse_sample_id(sample_id)
         return self.root / self.templates["lidar_visible"].format(env=env, traj=traj, frame=frame)
+
+    def lidar_beam(self, sample_id: str) -> Path:
+        env, traj, frame = parse_sample_id(sample_id)
+        return self.root / self.templates["lidar_beam"].format(env=env, traj=traj, frame=frame)
 
 
 def _parse_trajectory(trajectory: str) -> tuple[str, str]:

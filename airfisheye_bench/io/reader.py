@@ -113,7 +113,31 @@ class DatasetReader:
             )
         return codecs.read_visibility(self.layout.lidar_visible(sample_id))
 
+    def lidar_beam(self, sample_id: str) -> np.ndarray:
+        """``int32 [N]`` beam of every point, ``channel * N_PC + column`` (synthetic releases with a realistic
+        scan model; see ``sensors.lidar.scan``)."""
+        self._require("lidar_beam")
+        return codecs.read_beams(self.layout.lidar_beam(sample_id))
+
+    def lidar_phase(self, sample_id: str) -> float:
+        """Azimuth phase (radians) of the scan of ``sample_id`` (see ``sensors.lidar.scan``)."""
+        self._require("lidar_scan")
+        traj = trajectory_of(sample_id)
+        phases = self._cached(
+            "lidar_scan", traj, lambda: codecs.read_scan_phases(self.layout.lidar_scan(traj))
+        )
+        frame = sample_id.rsplit("/", 1)[1]
+        if frame not in phases:
+            raise DatasetFormatError(self.layout.lidar_scan(traj), f"no phase for frame {frame}")
+        return phases[frame]
+
     # ------------------------------------------------------------------------------- helpers
+    def _require(self, modality: str) -> None:
+        if not self.spec.has(modality):
+            raise DatasetFormatError(
+                self.layout.dataset_yaml, f"this release has no {modality}", key="contents"
+            )
+
     def _read(self, path: Path, modality: str) -> np.ndarray:
         if modality not in MODALITIES:
             raise ValueError(f"modality must be one of {MODALITIES}, got {modality!r}")

@@ -38,7 +38,7 @@ DATASET_YAML = "dataset.yaml"
 FACE_NAMES = ("front", "left", "right", "up", "down")  # mirrors airfisheye_bench.geometry.cubemap.FACE_NAMES
 
 #: Modalities a release may contain (``contents`` key).
-KNOWN_CONTENTS = ("cubemap", "fisheye", "lidar", "lidar_visible", "poses", "imu")
+KNOWN_CONTENTS = ("cubemap", "fisheye", "lidar", "lidar_visible", "lidar_beam", "lidar_scan", "poses", "imu")
 RGB_ENCODINGS = ("png", "jpg")
 SEG_ENCODINGS = ("png",)
 DEPTH_ENCODINGS = ("png16", "npy", "pfm")
@@ -52,7 +52,14 @@ DEFAULT_LAYOUT: dict[str, str] = {
     "fisheye": "{env}/{traj}/fisheye/{modality}/{frame}.{ext}",
     "lidar": "{env}/{traj}/lidar/{frame}.npy",
     "lidar_visible": "{env}/{traj}/lidar_visible/{frame}.npy",
+    "lidar_beam": "{env}/{traj}/lidar_beam/{frame}.npy",
+    "lidar_scan": "{env}/{traj}/lidar_scan.csv",
 }
+#: Templates written to ``dataset.yaml`` only when the release contains them (they came after format 1 shipped,
+#: and releases without them keep their bytes): the synthetic generator's record of a realistic scan,
+#: ``lidar_beam`` (int32 [N] per frame: ``channel * N_PC + column`` of the beam that measured each point, its true
+#: cell of ``I_LiDAR``) and ``lidar_scan`` (``frame,phase_rad`` per trajectory: the scan's azimuth phase).
+OPTIONAL_TEMPLATES = ("lidar_beam", "lidar_scan")
 _LAYOUT_FIELDS = {
     "calib": {"env", "traj"},
     "poses": {"env", "traj"},
@@ -61,6 +68,8 @@ _LAYOUT_FIELDS = {
     "fisheye": {"env", "traj", "frame", "modality", "ext"},
     "lidar": {"env", "traj", "frame"},
     "lidar_visible": {"env", "traj", "frame"},
+    "lidar_beam": {"env", "traj", "frame"},
+    "lidar_scan": {"env", "traj"},
 }
 
 
@@ -256,7 +265,9 @@ class DatasetSpec:
             },
             "sensors": self.sensors,
             "files": self.files.to_dict(),
-            "layout": dict(self.layout),
+            "layout": {
+                k: v for k, v in self.layout.items() if k not in OPTIONAL_TEMPLATES or k in self.contents
+            },
             "contents": list(self.contents),
             "splits": self.splits.to_dict(),
         }

@@ -9,7 +9,10 @@ them from the sensor poses and packs the results:
   the cubemap remap) or remapped from the faces with ``CubemapToFisheye`` (like the real release). Pixels outside
   the image circle are ``rgb = 0``, ``seg = 255`` (ignore), ``depth = 0``.
 * **LiDAR** — ``LidarSpec.beam_directions`` from the LiDAR pose at the LiDAR timestamp; beams with no return
-  within ``max_range`` are dropped. Points are stored in the LiDAR frame in beam order (channel-major).
+  within ``max_range`` are dropped. Points are stored in the LiDAR frame in beam order (channel-major). A
+  :class:`ScanModel` makes the scan look like a real spinning sensor's: a per-frame azimuth phase (the firing
+  grid slides by a fraction of a column from frame to frame), per-beam angular jitter and random dropped
+  returns. The ideal model (the default) casts exactly ``LidarSpec.beam_directions``.
 * **Visibility** — for every LiDAR point, whether the straight segment from the *camera centre at t_cam* to the
   point (the world position where the beam hit at t_lidar) is unobstructed: an exact ray cast
   (``Scene.segment_visible``), independent of the lens field of view. Consumers AND it with
@@ -53,6 +56,9 @@ class FrameData:
         fisheye_depth: ``float32 [H, W]`` range, 0 = sky / outside.
         lidar: ``float32 [N, 4]``: x, y, z (LiDAR frame), raw id.
         lidar_visible: ``bool [N]`` ground-truth visibility from the camera centre.
+        lidar_beam: ``int32 [N]`` beam each point was fired by, ``channel * N_PC + column`` (its true cell of
+            ``I_LiDAR``).
+        lidar_phase: Azimuth phase of the scan in radians (see :meth:`ScanModel.frame_phase`).
     """
 
     cube_rgb: np.ndarray | None
@@ -63,11 +69,110 @@ class FrameData:
     fisheye_depth: np.ndarray | None
     lidar: np.ndarray
     lidar_visible: np.ndarray
+    lidar_beam: np.ndarray
+    lidar_phase: float = 0.0
 
 
 def to_uint8(rgb: torch.Tensor) -> torch.Tensor:
     """Display values in [0, 1] -> ``uint8`` (round half up after clamping; deterministic)."""
     return torch.floor(rgb.clamp(0.0, 1.0) * 255.0 + 0.5).to(torch.uint8)
+
+
+SCAN_PHASES = ("fixed", "random", "spin")
+
+
+@dataclass(frozen=True)
+class ScanModel:
+    """How the beams of a spinning LiDAR deviate, frame by frame, from the ideal grid of ``LidarSpec``.
+
+    ``LidarSpec`` puts beam ``(i, j)`` at the centre of cell ``(i, j)``. A real spinning sensor (and a
+    simulator's, which steps its azimuth by rotation rate x tick) fires at azimuths ``column_azimuths + phase``
+    with a phase that changes every frame, its beams scatter a little about their nominal directions, and some
+    returns are lost. Angles below are in cells: horizontal resolution ``HFOV / N_PC`` for azimuth, vertical
+    resolution ``VFOV / (N_C - 1)`` for elevation.
+
+    Attributes:
+        phase: ``fixed`` (phase 0: the ideal grid), ``random`` (uniform in ``[-1/2, 1/2)`` cell per frame) or
+            ``spin`` (a sensor turning at ``rotation_hz`` that fires on a fixed angular grid: phase
+            ``2 pi rotation_hz t_lidar`` wrapped into ``[-1/2, 1/2)`` cell).
+        rotation_hz: Rotation rate of ``spin``.
+        jitter_cells: Standard deviations ``(azimuth, elevation)`` of the Gaussian per-beam, per-frame jitter.
+        dropout: Probability that a beam gives no return (independently per beam and frame).
+
+    Example:
+        >>> from airfisheye_bench.geometry.lidar import LidarSpec
+        >>> spec = LidarSpec(channels=4, points_per_channel=8)
+        >>> scan = ScanModel(phase="random", jitter_cells=(0.1, 0.1), dropout=0.25)
+        >>> rng = np.random.default_rng(0)
+        >>> phase = scan.frame_phase(spec, t_lidar=0.0, rng=rng)
+        >>> abs(phase) <= spec.horizontal_resolution / 2
+        True
+        >>> dirs, beam = scan.beams(spec, phase, rng)
+        >>> dirs.shape[0] == len(beam) < 32, bool(torch.allclose(dirs.norm(dim=1), torch.ones(len(beam), dtype=dirs.dtype)))
+        (True, True)
+    """
+
+    phase: str = "fixed"
+    rotation_hz: float = 10.0
+    jitter_cells: tuple[float, float] = (0.0, 0.0)
+    dropout: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.phase not in SCAN_PHASES:
+            raise ValueError(f"lidar_phase must be one of {SCAN_PHASES}, got {self.phase!r}")
+        if not self.rotation_hz > 0:
+            raise ValueError(f"lidar_rotation_hz must be positive, got {self.rotation_hz!r}")
+        if len(self.jitter_cells) != 2 or min(self.jitter_cells) < 0:
+            raise ValueError(
+                f"lidar_jitter_cells must be two standard deviations (azimuth, elevation) >= 0, got {self.jitter_cells!r}"
+            )
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"lidar_dropout must be a probability in [0, 1), got {self.dropout!r}")
+
+    @property
+    def ideal(self) -> bool:
+        """Whether the beams are exactly ``LidarSpec.beam_directions`` (no phase, jitter or dropout)."""
+        return self.phase == "fixed" and tuple(self.jitter_cells) == (0.0, 0.0) and self.dropout == 0.0
+
+    def frame_phase(self, spec: LidarSpec, t_lidar: float, rng: np.random.Generator) -> float:
+        """The azimuth phase (radians) of the frame scanned at ``t_lidar``; ``random`` draws first from ``rng``."""
+        h = spec.horizontal_resolution
+        if self.phase == "random":
+            return float((rng.random() - 0.5) * h)
+        if self.phase == "spin":
+            angle = 2.0 * np.pi * self.rotation_hz * float(t_lidar)
+            return float((angle + 0.5 * h) % h - 0.5 * h)
+        return 0.0
+
+    def beams(
+        self,
+        spec: LidarSpec,
+        phase: float,
+        rng: np.random.Generator,
+        device: torch.device | str | None = None,
+    ) -> tuple[torch.Tensor, np.ndarray]:
+        """Unit directions ``float64 [M, 3]`` (LiDAR frame) of the beams fired this frame, and their beam index.
+
+        The beam index is ``channel * N_PC + column`` of the nominal beam, in ascending order; dropped beams are
+        left out. Draws the azimuth jitter, the elevation jitter and the dropout from ``rng``, in that order.
+        """
+        if self.ideal:
+            dirs = spec.beam_directions(dtype=torch.float64, device=device).reshape(-1, 3)
+            return dirs, np.arange(dirs.shape[0], dtype=np.int64)
+        n = spec.channels * spec.points_per_channel
+        el = np.repeat(spec.channel_elevations(), spec.points_per_channel)
+        az = np.tile(spec.column_azimuths(), spec.channels) + phase
+        sigma_az, sigma_el = self.jitter_cells
+        if sigma_az > 0:
+            az = az + rng.normal(0.0, sigma_az * spec.horizontal_resolution, n)
+        if sigma_el > 0:
+            el = el + rng.normal(0.0, sigma_el * spec.vertical_resolution, n)
+        beam = np.arange(n, dtype=np.int64)
+        if self.dropout > 0:
+            keep = rng.random(n) >= self.dropout
+            az, el, beam = az[keep], el[keep], beam[keep]
+        dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+        return torch.from_numpy(dirs).to(device=device), beam
 
 
 def _rotate(R: np.ndarray, dirs: torch.Tensor) -> torch.Tensor:
@@ -137,14 +242,33 @@ def remap_fisheye(
     return rgb, seg.astype(np.uint8), depth.astype(np.float32)
 
 
-def scan_lidar(scene, T_world_lidar: np.ndarray, spec: LidarSpec) -> tuple[np.ndarray, torch.Tensor]:
+def scan_lidar(
+    scene,
+    T_world_lidar: np.ndarray,
+    spec: LidarSpec,
+    scan: ScanModel | None = None,
+    phase: float = 0.0,
+    rng: np.random.Generator | None = None,
+) -> tuple[np.ndarray, torch.Tensor, np.ndarray]:
     """Simulate one LiDAR scan from ``T_world_lidar``.
+
+    Args:
+        scene: The scene.
+        T_world_lidar: LiDAR pose at the LiDAR timestamp.
+        spec: LiDAR specification.
+        scan: Deviations from the ideal beam grid (``None``: ideal).
+        phase: This frame's azimuth phase (:meth:`ScanModel.frame_phase`).
+        rng: Source of the frame's jitter and dropout (needed unless ``scan`` is ideal).
 
     Returns:
         ``points [N, 4]`` float32 (x, y, z in the LiDAR frame, raw id; only beams with a return within
-        ``max_range``, in channel-major beam order) and their world positions ``[N, 3]`` (float32 tensor).
+        ``max_range``, in channel-major beam order), their world positions ``[N, 3]`` (float32 tensor) and
+        their beam indices ``int32 [N]`` (``channel * N_PC + column``).
     """
-    beams = spec.beam_directions(dtype=torch.float64, device=scene.device).reshape(-1, 3)
+    scan = scan or ScanModel()
+    if not scan.ideal and rng is None:
+        raise ValueError("scan_lidar needs an rng for a scan model with phase, jitter or dropout")
+    beams, beam_index = scan.beams(spec, phase, rng, device=scene.device)
     dirs = _rotate(T_world_lidar[:3, :3], beams)
     origin = torch.as_tensor(T_world_lidar[:3, 3], dtype=torch.float32, device=scene.device).expand_as(dirs)
     hits = scene.raycast(origin.contiguous(), dirs.contiguous(), max_dist=spec.max_range)
@@ -153,7 +277,7 @@ def scan_lidar(scene, T_world_lidar: np.ndarray, spec: LidarSpec) -> tuple[np.nd
     local = beams[keep].to(torch.float32) * dist[:, None]
     world = origin[keep] + dirs[keep] * dist[:, None]
     points = torch.cat([local, hits.raw_id[keep].to(torch.float32)[:, None]], dim=1)
-    return points.cpu().numpy(), world
+    return points.cpu().numpy(), world, beam_index[keep.cpu().numpy()].astype(np.int32)
 
 
 def lidar_visibility(scene, camera_centre: np.ndarray, points_world: torch.Tensor) -> np.ndarray:
@@ -181,6 +305,9 @@ def render_frame(
     fisheye_source: str = "raycast",
     max_dist: float = 1000.0,
     remapper: CubemapToFisheye | None = None,
+    scan: ScanModel | None = None,
+    scan_phase: float = 0.0,
+    scan_rng: np.random.Generator | None = None,
 ) -> FrameData:
     """Record one frame: cube faces (if ``face_size > 0``), fisheye (per ``fisheye_source``), LiDAR + visibility.
 
@@ -195,6 +322,9 @@ def render_frame(
         fisheye_source: ``raycast``, ``remap`` or ``none``.
         max_dist: Farthest camera ray distance.
         remapper: Cached ``CubemapToFisheye(camera, face_size)`` for ``remap`` (built if ``None``).
+        scan: LiDAR deviations from the ideal grid (``None``: ideal), see :class:`ScanModel`.
+        scan_phase: The frame's azimuth phase.
+        scan_rng: Source of the frame's jitter and dropout.
     """
     cube = (None, None, None)
     if face_size > 0:
@@ -208,6 +338,8 @@ def render_frame(
         fish = remap_fisheye(remapper or CubemapToFisheye(camera, face_size), *cube)
     elif fisheye_source not in ("none", "raycast", "remap"):
         raise ValueError(f"fisheye_source must be 'raycast', 'remap' or 'none', got {fisheye_source!r}")
-    points, world = scan_lidar(scene, T_world_lidar, lidar)
+    points, world, beam = scan_lidar(scene, T_world_lidar, lidar, scan, scan_phase, scan_rng)
     visible = lidar_visibility(scene, T_world_cam[:3, 3], world)
-    return FrameData(*cube, *fish, lidar=points, lidar_visible=visible)
+    return FrameData(
+        *cube, *fish, lidar=points, lidar_visible=visible, lidar_beam=beam, lidar_phase=scan_phase
+    )

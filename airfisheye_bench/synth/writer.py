@@ -1,7 +1,8 @@
 """Write a synthetic dataset in the AirFisheye layout: deterministic, parallel, atomic and resumable.
 
 :func:`generate_dataset` records every trajectory of a :class:`~airfisheye_bench.synth.presets.SynthConfig`
-(scene, flight, lighting) and every frame (cube faces, fisheye, LiDAR, visibility), then writes the split files,
+(scene, flight, lighting) and every frame (cube faces, fisheye, LiDAR, visibility; with a realistic scan model also
+each point's beam and each frame's scan phase), then writes the split files,
 ``dataset.yaml`` and ``manifest.json`` (written last: a dataset with a manifest is complete).
 
 * **Deterministic.** Each trajectory's scene, flight and lighting are seeded from ``(seed, environment,
@@ -55,7 +56,7 @@ from airfisheye_bench.synth.presets import (
     plan_trajectories,
 )
 from airfisheye_bench.synth.scene import ENVIRONMENTS, Lighting, Scene
-from airfisheye_bench.synth.sensors import VISIBILITY_DEFINITION, render_frame
+from airfisheye_bench.synth.sensors import VISIBILITY_DEFINITION, ScanModel, render_frame
 from airfisheye_bench.synth.trajectory import Flight
 
 log = logging.getLogger(__name__)
@@ -76,6 +77,7 @@ class TrajectoryRecording:
     lighting: Lighting
     T_world_body_cam: np.ndarray  # [N, 4, 4] at t_cam
     T_world_body_lidar: np.ndarray  # [N, 4, 4] at t_lidar
+    scan_seed: int = 0  # seeds the LiDAR's per-frame phase, jitter and dropout (scan_rng)
 
     def T_world_cam(self, i: int) -> np.ndarray:
         return self.T_world_body_cam[i] @ self.flight.T_body_cam
@@ -89,6 +91,18 @@ def trajectory_seeds(seed: int, plan: TrajectoryPlan) -> tuple[int, int, int, in
     ss = np.random.SeedSequence([int(seed), zlib.crc32(plan.env.encode()), int(plan.index)])
     scene_seed, flight_seed, light_seed, strata_seed = (int(v) for v in ss.generate_state(4))
     return scene_seed, flight_seed, light_seed, strata_seed
+
+
+def scan_seed(seed: int, plan: TrajectoryPlan) -> int:
+    """Seed of a trajectory's LiDAR phase, jitter and dropout: a stream of its own, so that the seeds of
+    :func:`trajectory_seeds` (and the bytes of datasets with ideal scans) do not depend on the scan model."""
+    ss = np.random.SeedSequence([int(seed), zlib.crc32(plan.env.encode()), int(plan.index), 1])
+    return int(ss.generate_state(1)[0])
+
+
+def scan_rng(scan_seed: int, frame: int) -> np.random.Generator:
+    """The generator of frame ``frame``'s LiDAR phase, jitter and dropout (depends on the trajectory and frame only)."""
+    return np.random.default_rng([int(scan_seed), int(frame)])
 
 
 def stratified_value(index: int, count: int, low: float, high: float, phase: float, jitter: float) -> float:
@@ -127,7 +141,21 @@ def build_trajectory(
     )
     lighting = Lighting.random(torch.Generator().manual_seed(light_seed))
     return TrajectoryRecording(
-        plan, scene, flight, lighting, flight.body_pose(flight.t_cam), flight.body_pose(flight.t_lidar)
+        plan,
+        scene,
+        flight,
+        lighting,
+        flight.body_pose(flight.t_cam),
+        flight.body_pose(flight.t_lidar),
+        scan_seed(seed, plan),
+    )
+
+
+def frame_phases(rec: TrajectoryRecording, config: SynthConfig) -> np.ndarray:
+    """The LiDAR azimuth phase of every frame of a trajectory (radians), as :func:`_write_frame` draws them."""
+    scan, spec = config.scan_model(), config.lidar_spec()
+    return np.array(
+        [scan.frame_phase(spec, t, scan_rng(rec.scan_seed, i)) for i, t in enumerate(rec.flight.t_lidar)]
     )
 
 
@@ -163,6 +191,22 @@ def dataset_spec(config: SynthConfig, seed: int, plans: list[TrajectoryPlan]) ->
         sensors["fisheye"] = {**config.fisheye_camera().to_dict(), "source": config.fisheye_source}
     contents += ["lidar", "lidar_visible", "poses", "imu"]
     sensors["lidar"] = {**lidar.to_dict(), "frame": "x forward, y left, z up", "captured_at": "t_lidar"}
+    scan = config.scan_model()
+    if not scan.ideal:  # ideal scans are described by the LiDAR spec alone (and keep earlier datasets' bytes)
+        contents += ["lidar_beam", "lidar_scan"]
+        sensors["lidar"]["scan"] = {
+            "phase": scan.phase,
+            **({"rotation_hz": scan.rotation_hz} if scan.phase == "spin" else {}),
+            "jitter_cells": list(scan.jitter_cells),
+            "dropout": scan.dropout,
+            "model": (
+                "beam (channel i, column j) fires at elevation channel_elevations[i] + e and azimuth "
+                "column_azimuths[j] + phase + a, with phase per frame (lidar_scan.csv, radians, in [-1/2, 1/2) "
+                "cell), a ~ N(0, (jitter_cells[0] * hres)^2), e ~ N(0, (jitter_cells[1] * vres)^2) per beam and "
+                "frame, and each beam lost with probability dropout; lidar_beam/<frame>.npy holds i * N_PC + j "
+                "of every point (its true cell of I_LiDAR)"
+            ),
+        }
     sensors["imu"] = {
         "frame": "body (FLU: x forward, y left, z up)",
         "columns": "t [s], ax ay az: specific force = R_world_body^T (a - g) [m/s^2], wx wy wz: angular rate [rad/s]",
@@ -251,6 +295,8 @@ def _write_trajectory_meta(rec: TrajectoryRecording, config: SynthConfig, layout
     accel, gyro = flight.imu(t_imu)
     ImuTable(t_imu, accel, gyro).save(layout.imu(plan.key))
     out.put_written(layout.imu(plan.key))
+    if not config.scan_model().ideal:
+        out.put(layout.lidar_scan(plan.key), codecs.encode_scan_phases(frames, frame_phases(rec, config)))
     return out.files
 
 
@@ -258,6 +304,8 @@ def _write_frame(
     rec: TrajectoryRecording, index: int, config: SynthConfig, sensors: _Sensors, layout: DatasetLayout
 ) -> dict:
     """Render and write every file of frame ``index`` of a trajectory."""
+    rng = scan_rng(rec.scan_seed, index)
+    phase = sensors.scan.frame_phase(sensors.lidar, rec.flight.t_lidar[index], rng)
     frame = render_frame(
         rec.scene,
         rec.lighting,
@@ -269,6 +317,9 @@ def _write_frame(
         fisheye_source=config.fisheye_source,
         max_dist=config.render_max_dist,
         remapper=sensors.remapper,
+        scan=sensors.scan,
+        scan_phase=phase,
+        scan_rng=rng,
     )
     sid = f"{rec.plan.key}/{frame_name(index)}"
     files = layout.files
@@ -292,6 +343,8 @@ def _write_frame(
         )
     out.put(layout.lidar(sid), codecs.npy_bytes(frame.lidar.astype(np.float32)))
     out.put(layout.lidar_visible(sid), codecs.npy_bytes(frame.lidar_visible.astype(bool)))
+    if not sensors.scan.ideal:
+        out.put(layout.lidar_beam(sid), codecs.npy_bytes(frame.lidar_beam.astype(np.int32)))
     return out.files
 
 
@@ -302,12 +355,13 @@ class _Sensors:
     lidar: LidarSpec
     camera: FisheyeCamera | None
     remapper: CubemapToFisheye | None
+    scan: ScanModel
 
     @classmethod
     def from_config(cls, config: SynthConfig) -> _Sensors:
         camera = config.fisheye_camera()
         remapper = CubemapToFisheye(camera, config.face_size) if config.fisheye_source == "remap" else None
-        return cls(config.lidar_spec(), camera, remapper)
+        return cls(config.lidar_spec(), camera, remapper, config.scan_model())
 
 
 @dataclass(frozen=True)
@@ -371,7 +425,7 @@ def generate_dataset(
     """Generate (or finish generating) a synthetic dataset.
 
     Args:
-        config: A :class:`SynthConfig` or a preset name (``tiny``, ``quickstart``, ``small``, ``medium``, ``paper``).
+        config: A :class:`SynthConfig` or a preset name (``tiny``, ``quickstart``, ``small``, ``medium``, ``paper``, ``occlusion``).
         out_dir: Output folder: new, empty, a partial run of the same config and seed (resumed), or a complete
             dataset of the same config and seed (returned as is).
         seed: Base seed.

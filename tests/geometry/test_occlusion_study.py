@@ -1,4 +1,5 @@
-"""``scripts/occlusion_study.py`` runs end to end on the ``tiny`` dataset (only what holds by construction)."""
+"""``scripts/occlusion_study.py`` runs end to end on the ``tiny`` dataset (only what holds by construction), and
+``scripts/occlusion_ablation.py`` plans, resumes and summarises its training runs."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS
 from tests.scripts import load_script
 
 
@@ -28,7 +30,11 @@ def test_main_tiny(
     assert json.loads(out.read_text())["results"].keys() == {"32"}
     assert 1 <= payload["frames"] <= 2
     rows = {name: row["pooled"] for name, row in payload["results"]["32"]["rows"].items()}
-    assert set(rows) == {name for name, _, _ in study.VARIANTS} | {study.ORACLE}
+    assert set(rows) == {name for name, _, _ in study.variants()} | {study.ORACLE}
+    assert {m for _, m, _ in study.variants()} == set(OCCLUSION_METHODS)  # read from the library, not listed
+    summary = payload["results"]["32"]
+    assert summary["hidden_projected"] == rows["none"]["hidden_kept"]
+    assert summary["hidden_fraction"] == pytest.approx(rows["none"]["hidden_kept"] / rows["none"]["kept"])
     none = rows["none"]
     assert none["kept"] > 0
     for name, row in rows.items():
@@ -40,14 +46,39 @@ def test_main_tiny(
     # `none` keeps every projected point: all the visible ones, and the hidden ones too.
     assert none["recall"] == 1.0
     assert none["tp"] == none["truth"] and none["hidden_kept"] == none["kept"] - none["truth"]
-    for name in ("ordering", "zbuffer"):  # occlusion tests only remove projected points
+    for name in OCCLUSION_METHODS:  # occlusion tests only remove projected points
         assert rows[name]["kept"] <= none["kept"] and rows[name]["hidden_kept"] <= none["hidden_kept"]
+        assert rows[name]["truth"] == none["truth"]
     assert rows[study.ORACLE]["precision"] == rows[study.ORACLE]["recall"] == 1.0
 
     assert "| 32² | ordering |" in capsys.readouterr().out
     size = payload["figure"]["size"]
     width, height = Image.open(figure).size
-    assert width == 3 * size + 2 * 4 and height > size  # three panels, gap 4, label strips on top
+    panels = len(OCCLUSION_METHODS)  # `none` first, then each other method
+    assert width == panels * size + (panels - 1) * 4 and height > size  # gap 4, label strips on top
+    assert set(payload["figure"]["panels"]) == set(OCCLUSION_METHODS)
+
+
+def test_methods_and_options_are_checked(study: ModuleType) -> None:
+    assert [row for row, _, _ in study.variants(["zbuffer"])] == ["zbuffer", "none"]
+    assert study.parse_options(["zbuffer.kernel=7", "zbuffer.relative=true"]) == {
+        "zbuffer": {"kernel": 7, "relative": True}
+    }
+    with pytest.raises(ValueError, match="unknown"):
+        study.variants(["nope"])
+    with pytest.raises(ValueError, match=r"METHOD\.NAME=VALUE"):
+        study.parse_options(["kernel=7"])
+
+
+def test_options_reach_the_method(study: ModuleType, tiny_dataset: Path) -> None:
+    """A z-buffer margin beyond any range keeps every projected point: the option was passed through."""
+    frame = study.load_frame(study.make_datasets(tiny_dataset, "test", "cubemap", 32, 120.0), 0)
+    ds = study.make_datasets(tiny_dataset, "test", "cubemap", 32, 120.0)[True]
+    gt = ds[0]["depth"][0].numpy()
+    valid = ds.valid_mask.numpy()
+    rows = study.variants(["zbuffer"])
+    loose = study.measure_frame(frame, ds.camera, gt, valid, 120.0, rows, {"zbuffer": {"threshold": 1e6}})
+    assert loose["zbuffer"]["kept"] == loose["none"]["kept"] > 0
 
 
 def test_sparse_map_is_the_served_input(study: ModuleType, tiny_dataset: Path) -> None:
@@ -59,3 +90,59 @@ def test_sparse_map_is_the_served_input(study: ModuleType, tiny_dataset: Path) -
         frame.points, frame.T[True], served.camera, frame.spec, "ordering", 120.0, served.valid_mask.numpy()
     )
     np.testing.assert_array_equal(ours, served[0]["sparse_depth"][0].numpy())
+
+
+# ------------------------------------------------------------------------------------------------ ablation
+@pytest.fixture(scope="module")
+def ablation() -> ModuleType:
+    return load_script("occlusion_ablation")
+
+
+def _fake_train(metrics_of: dict[tuple[str, int], float], calls: list[list[str]]):
+    """A stand-in for ``train.py``: records the command and writes a results.json with a made-up RMSE."""
+
+    def run(argv: list[str]) -> None:
+        calls.append(argv)
+        args = dict(a.split("=", 1) for a in argv[2:])
+        out = Path(args["hydra.run.dir"])
+        out.mkdir(parents=True)
+        rmse = metrics_of[(args["data.occlusion"], int(args["seed"]))]
+        (out / "results.json").write_text(json.dumps({"metrics": {"rmse": rmse, "mae": rmse / 2}}))
+
+    return run
+
+
+def test_ablation_trains_each_method_and_seed_once_and_summarises(
+    ablation: ModuleType, tmp_path: Path
+) -> None:
+    values = {
+        ("none", 0): 5.0,
+        ("none", 1): 6.0,
+        ("none", 2): 7.0,
+        ("ordering", 0): 4.0,
+        ("ordering", 1): 4.5,
+    }
+    calls: list[list[str]] = []
+    argv = ["--out", str(tmp_path), "--methods", "none,ordering", "--seeds", "0", "1", "2"]
+    values[("ordering", 2)] = 5.0
+    out = tmp_path / "summary.json"
+    payload = ablation.main(
+        [*argv, "--json", str(out), "--", "trainer=debug"], runner=_fake_train(values, calls)
+    )
+
+    assert len(calls) == 6
+    for call in calls:
+        assert "task=completion" in call and "trainer=debug" in call
+    none = payload["results"]["none"]["metrics"]["rmse"]
+    assert none["mean"] == pytest.approx(6.0) and none["std"] == pytest.approx(1.0) and none["n"] == 3
+    assert payload["results"]["ordering"]["metrics"]["mae"]["mean"] == pytest.approx(13.5 / 6)
+    assert json.loads(out.read_text())["results"].keys() == {"none", "ordering"}
+
+    calls.clear()  # a second call resumes: nothing left to train, same summary
+    again = ablation.main(argv, runner=_fake_train(values, calls))
+    assert calls == [] and again["results"] == payload["results"]
+
+
+def test_ablation_rejects_unknown_methods(ablation: ModuleType, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="unknown"):
+        ablation.plan(tmp_path, ["nope"], [0])

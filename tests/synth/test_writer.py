@@ -175,7 +175,7 @@ def test_visibility_on_a_constructed_scene():
     spec = LidarSpec(
         channels=48, points_per_channel=256, hfov_deg=60.0, vfov_deg=(-40.0, -5.0), max_range=120.0
     )
-    points, world = scan_lidar(scene, T_world_lidar, spec)
+    points, world, _ = scan_lidar(scene, T_world_lidar, spec)
     assert (
         np.abs(transform_points(T_world_lidar, points[:, :3].astype(np.float64)) - world.numpy()).max() < 1e-3
     )
