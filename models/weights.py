@@ -33,6 +33,7 @@ from torch import Tensor, nn
 __all__ = [
     "IMAGENET",
     "WeightsUnavailableError",
+    "build_smp_with_encoder_weights",
     "file_identity",
     "load_weights",
     "pretrained_weights_disabled",
@@ -261,6 +262,27 @@ def smp_pretrained(build: Callable[[str | bool], T], encoder_name: str, tag: str
     if isinstance(cached, str) and Path(cached).is_file():
         record = file_identity(cached, **record)
     return built, record
+
+
+def build_smp_with_encoder_weights(
+    build: Callable[[str | bool | None], T],
+    encoder_name: str,
+    encoder_weights: str | os.PathLike | None,
+    encoder_of: Callable[[T], nn.Module] = lambda module: module,
+) -> tuple[T, dict[str, Any] | None]:
+    """``build(weights)`` with ``encoder_weights`` applied (see :func:`resolve_encoder_weights`), and its record.
+
+    ``imagenet`` (or another smp tag) goes through :func:`smp_pretrained`; a local file is loaded into
+    ``encoder_of(module)``; ``None`` builds from random initialisation (record ``None``).
+    """
+    tag, encoder_file = resolve_encoder_weights(encoder_weights)
+    if tag is not None:
+        return smp_pretrained(build, encoder_name, tag)
+    module = build(None)
+    if encoder_file is None:
+        return module, None
+    load_weights(encoder_of(module), encoder_file, what="encoder_weights")
+    return module, file_identity(encoder_file, encoder_weights=str(encoder_weights))
 
 
 def torchvision_imagenet_state(name: str) -> tuple[dict[str, Tensor], dict[str, Any]]:

@@ -15,11 +15,9 @@ from models.adabins.decoder import DecoderBN
 from models.adabins.mini_vit import BIN_NORMS, MiniViT
 from models.input_checks import check_image
 from models.weights import (
-    file_identity,
+    build_smp_with_encoder_weights,
     load_weights,
-    resolve_encoder_weights,
     resolve_weights_path,
-    smp_pretrained,
     weights_identity,
 )
 
@@ -106,15 +104,9 @@ class UnetAdaptiveBins(nn.Module):
         def build_encoder(weights: str | bool | None) -> nn.Module:
             return get_encoder(encoder_name, in_channels=in_channels, depth=5, weights=weights)
 
-        tag, encoder_file = resolve_encoder_weights(encoder_weights)
-        encoder_record = None
-        if tag is not None:
-            self.encoder, encoder_record = smp_pretrained(build_encoder, encoder_name, tag)
-        else:
-            self.encoder = build_encoder(None)
-        if encoder_file is not None:
-            load_weights(self.encoder, encoder_file, what="encoder_weights")
-            encoder_record = file_identity(encoder_file, encoder_weights=str(encoder_weights))
+        self.encoder, encoder_record = build_smp_with_encoder_weights(
+            build_encoder, encoder_name, encoder_weights
+        )
         channels = list(self.encoder.out_channels)
         self.decoder = DecoderBN(channels, decoder_features or channels[-1], decoder_out_channels)
         self.adaptive_bins_layer = MiniViT(

@@ -9,11 +9,9 @@ from torch import Tensor, nn
 
 from models.input_checks import check_image
 from models.weights import (
-    file_identity,
+    build_smp_with_encoder_weights,
     load_weights,
-    resolve_encoder_weights,
     resolve_weights_path,
-    smp_pretrained,
     weights_identity,
 )
 
@@ -78,15 +76,9 @@ class SmpSegmentationModel(nn.Module):
                 **arch_kwargs,
             )
 
-        tag, encoder_file = resolve_encoder_weights(encoder_weights)
-        encoder_record = None
-        if tag is not None:
-            self.net, encoder_record = smp_pretrained(build, encoder_name, tag)
-        else:
-            self.net = build(None)
-        if encoder_file is not None:
-            load_weights(self.net.encoder, encoder_file, what="encoder_weights")
-            encoder_record = file_identity(encoder_file, encoder_weights=str(encoder_weights))
+        self.net, encoder_record = build_smp_with_encoder_weights(
+            build, encoder_name, encoder_weights, encoder_of=lambda net: net.encoder
+        )
         weights_path = resolve_weights_path(weights_path)
         if weights_path is not None:
             load_weights(self, weights_path, what="weights_path")
