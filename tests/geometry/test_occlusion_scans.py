@@ -13,7 +13,8 @@ import pytest
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec, organize_scan
 from airfisheye_bench.geometry.occlusion import _ordering, occlusion_mask, ordering_reference
-from tests.geometry.test_occlusion import ray_box_entry, rig, seen_from
+from tests.geometry.test_occlusion import rig, seen_from
+from tests.scripts import load_script
 
 PAPER = LidarSpec()  # 64 x 2048, 270 deg
 CAMERA = FisheyeCamera(512, 512, fov_deg=190.0)
@@ -28,36 +29,19 @@ SCENE = np.array(
         [(-50.0, -50.0, -4.0), (50.0, 50.0, -3.0)],
     ]
 )
-VARIANTS = ("boundary", "ring_phase", "jitter", "shuffled")
+VARIANTS = ("boundary", "ring phase", "jitter", "shuffled")
+BENCH = load_script("bench_lidar")  # one definition of the scan variants, shared with the benchmark
 
 
 def realistic_scan(spec: LidarSpec, variant: str, seed: int = 0, boxes: np.ndarray = SCENE) -> np.ndarray:
-    """Cast the spec's beams, moved as ``variant`` says, at ``boxes``; the returns within range.
+    """The spec's beams moved as ``variant`` says, cast at ``boxes`` (``scripts/bench_lidar.py``'s ``scan``).
 
     ``boundary``: every beam half a column off the spec's column centres (on the cell edges);
-    ``ring_phase``: a random azimuth phase per ring; ``jitter``: a random phase per ring plus 0.1 cell of
-    noise per beam in azimuth and elevation, and 5% of the returns dropped; ``shuffled``: the spec's beams,
+    ``ring phase``: a random azimuth phase per ring; ``jitter``: a random phase per ring plus 0.1 cell of
+    noise per beam in azimuth and elevation, and 5% of the beams dropped; ``shuffled``: the spec's beams,
     listed in a random order.
     """
-    rng = np.random.default_rng(seed)
-    shape = (spec.channels, spec.points_per_channel)
-    el = np.broadcast_to(spec.channel_elevations()[:, None], shape).copy()
-    az = np.broadcast_to(spec.column_azimuths()[None, :], shape).copy()
-    h, v = spec.horizontal_resolution, spec.vertical_resolution
-    if variant == "boundary":
-        az += 0.5 * h
-    elif variant in ("ring_phase", "jitter"):
-        az += rng.uniform(-0.5, 0.5, (spec.channels, 1)) * h
-    if variant == "jitter":
-        az += rng.normal(0.0, 0.1, shape) * h
-        el += rng.normal(0.0, 0.1, shape) * v
-    dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], -1).reshape(-1, 3)
-    t = ray_box_entry(np.zeros(3), dirs, boxes)
-    keep = t <= spec.max_range
-    if variant == "jitter":
-        keep &= rng.random(len(t)) >= 0.05
-    points = dirs[keep] * t[keep, None]
-    return points[rng.permutation(len(points))] if variant == "shuffled" else points
+    return BENCH.scan(spec, boxes, variant, seed)
 
 
 def precision_recall(mask: np.ndarray, visible: np.ndarray) -> tuple[float, float]:
