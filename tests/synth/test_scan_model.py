@@ -34,14 +34,6 @@ REALISTIC = get_preset("tiny").replace(
 )
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
-
-
 def _cells(dirs: np.ndarray, spec: LidarSpec, phase: float) -> tuple[np.ndarray, np.ndarray]:
     """Offsets (in cells) of directions from the nominal beam grid shifted by ``phase``: (azimuth, elevation)."""
     _, az, el = spherical_coordinates(dirs)

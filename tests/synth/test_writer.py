@@ -34,15 +34,6 @@ MICRO = get_preset("tiny").replace(
 )
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    """The ray caster is much faster single-threaded on a busy machine (results do not depend on it)."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
-
-
 def _all_ids(reader: DatasetReader) -> list[str]:
     return [sid for split in reader.split_names for sid in reader.split(split)]
 
