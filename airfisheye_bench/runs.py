@@ -94,12 +94,44 @@ def resume_config(cfg: DictConfig, task_overrides: Iterable[str]) -> DictConfig:
     given = {override.split("=", 1)[0].lstrip("+~") for override in task_overrides}
     if cfg.get("ckpt_path") is None or not saved.is_file() or not given <= RESUME_KEYS:
         return cfg
-    run_cfg = OmegaConf.load(saved)
-    assert isinstance(run_cfg, DictConfig)
+    run_cfg = saved_config(saved, cfg.paths.output_dir)
     for key in RESUME_KEYS:
         run_cfg[key] = cfg.get(key)
     log.info("resuming with the run's configuration %s", saved)
     return run_cfg
+
+
+def saved_config(path: Path, output_dir: str | Path) -> DictConfig:
+    """A run's ``config.yaml``, its paths under the run directory moved to ``output_dir``.
+
+    ``config.yaml`` is saved resolved, so it names the directory the run was started in (``paths.output_dir``,
+    the checkpoint folder, the logger's folder); a run directory that was moved or copied since is resumed where
+    it is now.
+
+    Example:
+        >>> import tempfile
+        >>> old = Path(tempfile.mkdtemp())
+        >>> _ = (old / "config.yaml").write_text(f"paths: {{output_dir: {old}}}\\nckpt: {old}/checkpoints\\nseed: 1\\n")
+        >>> moved = saved_config(old / "config.yaml", "/data/runs/moved")
+        >>> moved.paths.output_dir, moved.ckpt, moved.seed
+        ('/data/runs/moved', '/data/runs/moved/checkpoints', 1)
+    """
+    config = OmegaConf.load(path)
+    assert isinstance(config, DictConfig)
+    old, new = str(config.get("paths", {}).get("output_dir", "")), str(output_dir)
+    if not old or old == new:
+        return config
+
+    def move(value: Any) -> Any:
+        if isinstance(value, str) and (value == old or value.startswith(old + os.sep)):
+            return new + value[len(old) :]
+        if isinstance(value, dict):
+            return {k: move(v) for k, v in value.items()}
+        if isinstance(value, list):
+            return [move(v) for v in value]
+        return value
+
+    return OmegaConf.create(move(OmegaConf.to_container(config)))
 
 
 def check_resume(cfg: DictConfig, output_dir: Path, write: bool) -> None:
@@ -118,7 +150,7 @@ def check_resume(cfg: DictConfig, output_dir: Path, write: bool) -> None:
         if write:
             atomic_write_text(saved, OmegaConf.to_yaml(cfg, resolve=True))
         return
-    differences = config_differences(OmegaConf.load(saved), cfg)
+    differences = config_differences(saved_config(saved, output_dir), cfg)
     if not differences:
         return
     listing = "\n  ".join(differences)
@@ -133,7 +165,7 @@ def check_resume(cfg: DictConfig, output_dir: Path, write: bool) -> None:
         n = 1
         while (kept := output_dir / f"config.{n}.yaml").exists():
             n += 1
-        os.replace(saved, kept)
+        atomic_write_text(kept, saved.read_text())  # copy first: a kill leaves config.yaml in place
         atomic_write_text(saved, OmegaConf.to_yaml(cfg, resolve=True))
 
 

@@ -11,6 +11,7 @@ covers and appended to, and the data loader restarts at the checkpoint's batch.
 from __future__ import annotations
 
 import logging
+import os
 import warnings
 from pathlib import Path
 from typing import Any
@@ -23,9 +24,10 @@ from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
-from airfisheye_bench.io.atomic import atomic_write_text
+from airfisheye_bench.io.atomic import atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.runs import check_resume, keep_metric_rows
 from models import list_models, model_task
+from models.weights import pretrained_weights_disabled
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +49,11 @@ def check_config(cfg: DictConfig) -> None:
             f"{', '.join('model=' + m for m in _model_configs(task))} or task={model_task(name)}"
         )
     model_checkpoint = (cfg.get("callbacks") or {}).get("model_checkpoint") or {}
+    if model_checkpoint.get("save_last"):
+        raise ValueError(
+            "callbacks.model_checkpoint.save_last=true is unsupported: last.ckpt belongs to callbacks.last_checkpoint, "
+            "which rewrites it at every epoch end (ModelCheckpoint's would be another state)"
+        )
     if model_checkpoint.get("every_n_train_steps"):
         raise ValueError(
             "callbacks.model_checkpoint.every_n_train_steps is unsupported (that callback keeps the best checkpoints "
@@ -64,8 +71,13 @@ def _model_configs(task: str) -> list[str]:
     return [n for n in names if (OmegaConf.load(folder / f"{n}.yaml").get("name") in list_models(task))]
 
 
-def build(cfg: DictConfig) -> tuple[L.LightningDataModule, L.LightningModule]:
-    """Instantiate the datamodule (data prepared and set up) and the task module."""
+def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningDataModule, L.LightningModule]:
+    """Instantiate the datamodule (data prepared and set up) and the task module.
+
+    With ``resume_from`` (a checkpoint) the model is built without reading or fetching its initial weights
+    (``encoder_weights``: the checkpoint restores every weight, and a resume must work offline); the record of
+    what the run started from is taken over from the checkpoint.
+    """
     datamodule = hydra.utils.instantiate(cfg.data)
     datamodule.prepare_data()
     datamodule.setup("fit")
@@ -76,7 +88,15 @@ def build(cfg: DictConfig) -> tuple[L.LightningDataModule, L.LightningModule]:
             "class_names": datamodule.class_names,
             "palette": datamodule.palette[: datamodule.num_classes].tolist(),
         }
-    module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
+    if resume_from is None:
+        module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
+    else:
+        hparams = torch.load(resume_from, map_location="cpu", weights_only=True, mmap=True).get(
+            "hyper_parameters"
+        )
+        extra["weights"] = (hparams or {}).get("weights")
+        with pretrained_weights_disabled():
+            module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
     if cfg.get("compile"):
         module.net = torch.compile(module.net)
     return datamodule, module
@@ -87,7 +107,9 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
 
     A new run writes ``config.yaml`` and starts ``metrics.csv`` afresh. A resume checks the configuration against
     the run's and cuts ``metrics.csv`` back to the rows its checkpoint covers (rows a killed process logged after
-    it are logged again). Files are written by the first process only (DDP starts one per device).
+    it are logged again). A checkpoint that does not record its rows (a best ``epoch_*.ckpt``: the history after
+    it is rewritten) moves ``metrics.csv`` aside to ``metrics.<n>.csv`` and starts a new one. Files are written by
+    the first process only (DDP starts one per device).
     """
     first = rank_zero_only.rank == 0
     output_dir.mkdir(parents=True, exist_ok=True)
@@ -101,13 +123,25 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
         ckpt_path = str(output_dir / "checkpoints" / "last.ckpt")
     if not Path(ckpt_path).is_file():
         raise FileNotFoundError(
-            f"ckpt_path: no checkpoint at {ckpt_path} (a run saves last.ckpt at its first epoch end, or every "
-            "callbacks.last_checkpoint.every_n_train_steps steps); start the run again without ckpt_path"
+            f"ckpt_path: no checkpoint at {ckpt_path}. ckpt_path=last resumes the run directory given by "
+            "hydra.run.dir=<run> (it has checkpoints/last.ckpt once its first epoch ended, or every "
+            "callbacks.last_checkpoint.every_n_train_steps steps); otherwise start the run without ckpt_path"
         )
     check_resume(cfg, output_dir, write=first)
     rows = torch.load(ckpt_path, map_location="cpu", weights_only=True, mmap=True).get(METRIC_ROWS_KEY)
-    if first and rows is not None:
-        keep_metric_rows(output_dir / "metrics.csv", rows)
+    if first:
+        remove_stale_temporaries(output_dir / "checkpoints")  # left by a kill during a checkpoint write
+        metrics = output_dir / "metrics.csv"
+        if rows is not None:
+            keep_metric_rows(metrics, rows)
+        elif metrics.is_file():
+            n = 1
+            while (aside := output_dir / f"metrics.{n}.csv").exists():
+                n += 1
+            os.replace(metrics, aside)
+            log.warning(
+                "%s does not record its metrics.csv rows: the earlier rows are kept in %s", ckpt_path, aside
+            )
     return ckpt_path
 
 
@@ -134,7 +168,7 @@ def train(cfg: DictConfig) -> dict[str, Any]:
     output_dir = Path(cfg.paths.output_dir)
     ckpt_path = prepare_run_dir(cfg, output_dir)
 
-    datamodule, module = build(cfg)
+    datamodule, module = build(cfg, resume_from=ckpt_path)
     # A group entry set to null (callbacks.rich_progress_bar=null) switches that callback or logger off.
     callbacks = [hydra.utils.instantiate(c) for c in (cfg.get("callbacks") or {}).values() if c is not None]
     loggers = [hydra.utils.instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None]

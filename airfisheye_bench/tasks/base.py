@@ -86,7 +86,8 @@ class BenchmarkTask(L.LightningModule):
         )
         # Frame-weighted mean loss as summed metric states: under DDP the synced value is the one-process value
         # whatever the shard sizes (a rank with no frame adds nothing), unlike a mean of per-rank means.
-        self.eval_losses = nn.ModuleDict({stage: MeanMetric() for stage in STAGES})
+        # nan_strategy="disable": a NaN loss must show in the logged mean, not be dropped with a warning.
+        self.eval_losses = nn.ModuleDict({stage: MeanMetric(nan_strategy="disable") for stage in STAGES})
         self._theta: Tensor | None = None
         self._panel_rows: list[list[np.ndarray]] = []
 
@@ -126,6 +127,8 @@ class BenchmarkTask(L.LightningModule):
             "numpy": (kind, torch.from_numpy(keys.astype(np.int64)), pos, has_gauss, cached),
             "python": (version, torch.tensor(py_state, dtype=torch.int64), gauss_next),
         }
+        if torch.cuda.is_initialized():  # dropout on a GPU draws from the CUDA generators
+            checkpoint["rng_states"]["cuda"] = torch.cuda.get_rng_state_all()
 
     def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
         states = checkpoint.get("rng_states")
@@ -136,6 +139,12 @@ class BenchmarkTask(L.LightningModule):
         np.random.set_state((kind, keys.numpy().astype(np.uint32), pos, has_gauss, cached))  # noqa: NPY002
         version, py_state, gauss_next = states["python"]
         random.setstate((version, tuple(py_state.tolist()), gauss_next))
+        if (
+            "cuda" in states
+            and torch.cuda.is_available()
+            and len(states["cuda"]) == torch.cuda.device_count()
+        ):
+            torch.cuda.set_rng_state_all(states["cuda"])
 
     # ----------------------------------------------------------------------------------------------------- model
     def forward(self, *inputs: Tensor) -> Tensor:
@@ -245,7 +254,10 @@ class BenchmarkTask(L.LightningModule):
             name = name.removeprefix("net.").removeprefix(
                 "_orig_mod."
             )  # the model's names (torch.compile wraps)
-            key = next((k for k in factors if name == k or name.startswith(k + ".")), "default")
+            # The most specific entry wins (``encoder`` and ``encoder.layer4`` may both be given).
+            key = max(
+                (k for k in factors if name == k or name.startswith(k + ".")), key=len, default="default"
+            )
             members[key].append(param)
         empty = [k for k in factors if not members[k]]
         if empty:

@@ -375,8 +375,9 @@ class NonLocalPropagation(nn.Module):
 
 
 def _fp32(t: Tensor | None) -> Tensor | None:
-    """``t`` as float32 (a no-op for float32 input, so it leaves exported graphs unchanged)."""
-    return t if t is None or t.dtype == torch.float32 else t.float()
+    """Half-precision ``t`` as float32; anything else unchanged (float32 input leaves exported graphs as they
+    were, and a model converted to float64 stays float64)."""
+    return t.float() if t is not None and t.dtype in (torch.float16, torch.bfloat16) else t
 
 
 def _sampling_grid(displacement: Tensor) -> Tensor:

@@ -63,3 +63,14 @@ def test_unknown_multiplier_names_the_submodules():
     task = adabins_task(lr_multipliers={"backbone": 0.1})
     with pytest.raises(ValueError, match=r"backbone.*encoder"):
         task.configure_optimizers()
+
+
+def test_the_most_specific_multiplier_wins():
+    task = adabins_task(lr_multipliers={"encoder": 0.1, "encoder.layer4": 0.5})
+    optimizer = task.configure_optimizers()  # no scheduler: the optimizer itself
+    groups = {g["name"]: g for g in optimizer.param_groups}
+    assert ids(groups["encoder.layer4"]["params"]) == ids(task.net.encoder.layer4.parameters())
+    assert groups["encoder.layer4"]["lr"] == pytest.approx(0.5 * LR)
+    assert ids(groups["encoder"]["params"]) == ids(task.net.get_1x_lr_params()) - ids(
+        task.net.encoder.layer4.parameters()
+    )

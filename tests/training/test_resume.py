@@ -3,18 +3,20 @@ and the refusal of a run in which a process would get no training batch."""
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 import torch
+import torchvision
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf, open_dict
 
 from airfisheye_bench.checkpointing import AtomicCheckpointIO, RunCSVLogger
 from airfisheye_bench.runs import check_resume, register_resolvers, resume_config
-from airfisheye_bench.training import train
+from airfisheye_bench.training import build, check_config, prepare_run_dir, train
 from tests.doctests import assert_doctests_pass
 from tests.training.test_configs import CONFIG_DIR, compose_train
 from tests.training.test_train import tiny_run_overrides
@@ -147,3 +149,61 @@ def test_a_run_where_a_process_gets_no_training_batch_is_refused(
 @pytest.mark.parametrize("name", ["airfisheye_bench.runs"])
 def test_docstring_examples(name: str) -> None:
     assert_doctests_pass(name)
+
+
+def test_a_moved_run_directory_resumes_where_it_is_now(tmp_path: Path) -> None:
+    old, new = tmp_path / "old", tmp_path / "new"
+    run = compose_train(["trainer.max_epochs=5"])
+    with open_dict(run):
+        run.paths.output_dir = str(old)
+    old.mkdir()
+    check_resume(run, old, write=True)
+    shutil.move(old, new)
+    moved = run.copy()
+    with open_dict(moved):
+        moved.paths.output_dir = str(new)
+        moved.ckpt_path = "last"
+    check_resume(moved, new, write=True)  # the saved paths moved with the run: no difference
+    resumed = resume_config(moved, ["ckpt_path=last"])
+    assert resumed.paths.output_dir == str(new)
+    assert resumed.callbacks.last_checkpoint.dirpath == str(new / "checkpoints")
+    assert resumed.trainer.max_epochs == 5
+
+
+def test_a_resume_from_a_checkpoint_without_its_rows_keeps_metrics_csv_aside(tmp_path: Path) -> None:
+    run = compose_train([])
+    with open_dict(run):
+        run.paths.output_dir = str(tmp_path)
+    check_resume(run, tmp_path, write=True)
+    (tmp_path / "metrics.csv").write_text("epoch,step,val/loss\n0,1,0.5\n1,3,0.4\n")
+    (tmp_path / "checkpoints").mkdir()
+    best = tmp_path / "checkpoints" / "epoch_000.ckpt"  # a ModelCheckpoint file: it records no metrics rows
+    torch.save({"state_dict": {}, "global_step": 1}, best)
+    stale = tmp_path / "checkpoints" / ".last.ckpt.0123456789ab.tmp"  # left by a kill during a write
+    stale.write_bytes(b"half a checkpoint")
+    with open_dict(run):
+        run.ckpt_path = str(best)
+    assert prepare_run_dir(run, tmp_path) == str(best)
+    assert not (tmp_path / "metrics.csv").exists()
+    assert (tmp_path / "metrics.1.csv").read_text().count("\n") == 3
+    assert not stale.exists()
+
+
+def test_model_checkpoint_may_not_write_last_ckpt() -> None:
+    cfg = compose_train(["callbacks.model_checkpoint.save_last=true"])
+    with pytest.raises(ValueError, match=r"callbacks\.last_checkpoint"):
+        check_config(cfg)
+
+
+def test_a_resume_reads_no_initial_weights(tiny_dataset: Path, tmp_path: Path) -> None:
+    weights = tmp_path / "resnet18.pth"
+    torch.save(torchvision.models.resnet18(weights=None).state_dict(), weights)
+    run = tmp_path / "run"
+    cfg = tiny_cfg(tiny_dataset, run, "trainer.limit_train_batches=1", f"model.encoder_weights={weights}")
+    train(cfg)
+    weights.unlink()  # gone (or an ImageNet download offline): the checkpoint holds every weight anyway
+    ckpt = run / "checkpoints" / "last.ckpt"
+    _, module = build(cfg, resume_from=str(ckpt))
+    started_from = torch.load(ckpt, map_location="cpu", weights_only=True)["hyper_parameters"]["weights"]
+    assert started_from["encoder_weights"]["file"] == str(weights.resolve())
+    assert module.hparams["weights"] == started_from
