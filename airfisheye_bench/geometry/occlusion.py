@@ -37,7 +37,10 @@ The ordering algorithm, step by step, with the interpretation decisions of this 
    a ring. Every return of the sensor is tested, whatever the phase, jitter, dropouts and point order;
    only points no beam can have returned (at the origin, more than half a channel spacing outside the
    vertical FOV) are not, and are reported not visible. Returns outside a partial HFOV are organised in
-   the sectors beyond it and tested too.
+   the sectors beyond it and tested too. *Decided here*: a 360 deg ring is a circle, but a row is a line;
+   it is cut on the sector edge nearest the middle of the widest azimuth gap between the in-image returns
+   (where the camera sees nothing), so that an occluder is compared with the points it hides wherever the
+   sensor's +-180 deg lies.
 2. ``I_proj``: the returns that project into the image (``camera.project`` valid). The others are left out,
    so points outside the image are neither tested nor hide anything.
 3. Translate to the camera, do not rotate (the paper's second observation). ``(theta~, phi~)`` are the
@@ -539,6 +542,9 @@ def _ordering_problem(
 ) -> _OrderingProblem:
     # Steps 1-2: I_LiDAR, then I_proj (the returns that project into the image).
     r, az, el = spherical_coordinates(points)
+    cut = _widest_gap(az, proj.valid, spec.horizontal_resolution) if spec.hfov_deg == 360.0 else None
+    if cut is not None:
+        az = _turn(az, cut)
     ring, position, column = layout(r, az, el, spec)
     ids = np.flatnonzero((ring >= 0) & proj.valid)
     # Visiting order: ascending range from the camera, ties to the lower point index (a stable sort only when
@@ -554,6 +560,8 @@ def _ordering_problem(
     az = az[ids]
     # np.take gathers rows ~4x faster than fancy indexing (the same values).
     _, az_cam, el_cam = spherical_coordinates(np.take(points, ids, axis=0) - centre)
+    if cut is not None:  # measured from the same cut as the rows' azimuths
+        az_cam = _turn(az_cam, cut)
     # theta = az + (remainder(az_cam - az + pi, 2 pi) - pi), the same operations in place
     theta = np.subtract(az_cam, az, out=az_cam)
     theta += math.pi
@@ -571,6 +579,30 @@ def _ordering_problem(
         el_cam,
         (spec.channels, row_len, n_cols),
     )
+
+
+def _widest_gap(az: np.ndarray, in_image: np.ndarray, sector: float) -> float | None:
+    """The sector edge nearest the middle of the widest azimuth gap between the in-image points.
+
+    ``None`` for fewer than two in-image points. On a sector edge (``-pi + k * sector``), so that turning the
+    azimuths moves whole sectors and the column test compares the same returns wherever the cut falls.
+
+    A row of ``I_LiDAR`` is a line from -pi to +pi, but a 360 deg ring is a circle: an occluder on one side of
+    the line's ends would never be compared with the points it hides on the other. The camera sees a part of
+    the ring only (unless it looks along the LiDAR's vertical axis), so the line is cut where it sees nothing.
+    """
+    seen = np.sort(az[in_image])
+    if len(seen) < 2:
+        return None
+    gaps = np.diff(seen, append=seen[0] + 2.0 * math.pi)
+    widest = int(np.argmax(gaps))
+    middle = float(seen[widest] + 0.5 * gaps[widest])
+    return -math.pi + round((middle + math.pi) / sector) * sector
+
+
+def _turn(az: np.ndarray, cut: float) -> np.ndarray:
+    """Azimuths measured so that ``cut`` falls on -pi (the start of every row)."""
+    return np.remainder(az - cut, 2.0 * math.pi) - math.pi
 
 
 def _layout_numba(r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec) -> ScanLayout:

@@ -479,3 +479,30 @@ def test_bad_input_raises(kwargs: dict, match: str) -> None:
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         lidar_depth_map(**args)
+
+
+def test_a_360_degree_scan_gives_the_same_mask_wherever_its_seam_falls() -> None:
+    # A box inside a 10 m sphere at the LiDAR's front, and the same scene turned by 180 deg about z (the camera
+    # too): then the +-180 deg seam of the rows runs through the middle of the image, with the box and the
+    # points it hides on both sides of it. The ordering test must still compare them and keep the same points.
+    spec = LidarSpec(channels=32, points_per_channel=1024, hfov_deg=360.0, vfov_deg=(-20.0, 20.0))
+    el = spec.channel_elevations()[:, None]
+    az = spec.column_azimuths()[None, :] + 0.3 * spec.horizontal_resolution  # the scan's azimuth phase
+    beams = np.stack(np.broadcast_arrays(np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)), -1)
+    turn = np.diag([-1.0, -1.0, 1.0])  # 180 deg about z: beam j goes to beam j + 512, the same grid
+    cases = [  # box centre, half size, camera centre (LiDAR frame)
+        ((3.21, 0.24, 0.19), (0.2, 0.17, 0.17), (0.0, 0.27, 0.02)),
+        ((1.81, 0.27, 0.15), (0.2, 0.25, 0.29), (0.0, 0.6, 0.38)),
+        ((3.32, -0.52, 0.36), (0.2, 0.23, 0.25), (0.0, -0.09, -0.38)),
+    ]
+    for centre, half, camera in cases:
+        lo, hi = np.subtract(centre, half), np.add(centre, half)
+        masks = []
+        for R in (np.eye(3), turn):
+            dirs = beams.reshape(-1, 3) @ R.T
+            box = np.array([[np.minimum(R @ lo, R @ hi), np.maximum(R @ lo, R @ hi)]])
+            t = np.minimum(ray_box_entry(np.zeros(3), dirs, box), 10.0)
+            R_cam = CAM_FROM_FLU @ R.T
+            T = make_transform(R_cam, -R_cam @ (R @ np.asarray(camera)))
+            masks.append(occlusion_mask(dirs * t[:, None], T, FisheyeCamera(512, 512), spec))
+        assert (masks[0] == masks[1]).all(), (centre, half, camera)
