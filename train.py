@@ -13,6 +13,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.runs import register_resolvers, resume_config
 
 CONFIG_DIR = str(Path(__file__).resolve().parent / "configs")
@@ -20,6 +21,7 @@ register_resolvers()
 
 
 @hydra.main(version_base="1.3", config_path=CONFIG_DIR, config_name="train")
+@report_user_errors  # a user error: one line on stderr, exit status 2 (README, "When something goes wrong")
 def main(cfg: DictConfig) -> float | None:
     from airfisheye_bench.training import train
 

@@ -19,13 +19,17 @@ from typing import Any
 import hydra
 import lightning as L
 import torch
+from hydra.errors import InstantiationException
 from lightning.pytorch.utilities import rank_zero_only
 from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
+from airfisheye_bench.config_checks import check_common_values
+from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.io.atomic import atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.runs import check_resume, keep_metric_rows
+from airfisheye_bench.tasks.checkpoint import read_checkpoint
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
 
@@ -38,29 +42,34 @@ warnings.filterwarnings(
 
 
 def check_config(cfg: DictConfig) -> None:
-    """Stop before any work on an inconsistent configuration, saying what to write instead."""
+    """Stop before any work on an inconsistent configuration, saying what to write instead.
+
+    Raises:
+        ConfigError: the key, the value given and what to write instead (a ``ValueError``).
+    """
+    check_common_values(cfg)
     task = cfg.task.name
     name = cfg.model.get("name")
     if name not in list_models():
-        raise ValueError(f"model.name={name!r} is not a registered model; choose one of {list_models()}")
+        raise ConfigError(f"model.name={name!r} is not a registered model; choose one of {list_models()}")
     if model_task(name) != task:
-        raise ValueError(
+        raise ConfigError(
             f"model={name} solves task={model_task(name)}, not task={task}; use one of "
             f"{', '.join('model=' + m for m in _model_configs(task))} or task={model_task(name)}"
         )
     model_checkpoint = (cfg.get("callbacks") or {}).get("model_checkpoint") or {}
     if model_checkpoint.get("save_last"):
-        raise ValueError(
+        raise ConfigError(
             "callbacks.model_checkpoint.save_last=true is unsupported: last.ckpt belongs to callbacks.last_checkpoint, "
             "which rewrites it at every epoch end (ModelCheckpoint's would be another state)"
         )
     if model_checkpoint.get("every_n_train_steps"):
-        raise ValueError(
+        raise ConfigError(
             "callbacks.model_checkpoint.every_n_train_steps is unsupported (that callback keeps the best checkpoints "
             "by a validation metric); use callbacks.last_checkpoint.every_n_train_steps to save last.ckpt every N steps"
         )
     if cfg.data.get("root") is None and cfg.data.get("preset") is None:
-        raise ValueError(
+        raise ConfigError(
             "data.root is unset and data.preset is null: give data.root=/path or data.preset=quickstart"
         )
 
@@ -78,7 +87,12 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     (``encoder_weights``: the checkpoint restores every weight, and a resume must work offline); the record of
     what the run started from is taken over from the checkpoint.
     """
-    datamodule = hydra.utils.instantiate(cfg.data)
+    try:
+        datamodule = hydra.utils.instantiate(cfg.data)
+    except InstantiationException as err:  # Hydra wraps the datamodule's own error: a user error stays one
+        if isinstance(err.__cause__, UserError):
+            raise err.__cause__ from None
+        raise
     datamodule.prepare_data()
     datamodule.setup("fit")
     model_cfg = OmegaConf.to_container(cfg.model, resolve=True)
@@ -91,9 +105,7 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     if resume_from is None:
         module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
     else:
-        hparams = torch.load(resume_from, map_location="cpu", weights_only=True, mmap=True).get(
-            "hyper_parameters"
-        )
+        hparams = read_checkpoint(resume_from, mmap=True).get("hyper_parameters")
         extra["weights"] = (hparams or {}).get("weights")
         with pretrained_weights_disabled():
             module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
@@ -122,13 +134,13 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
     if ckpt_path == "last":
         ckpt_path = str(output_dir / "checkpoints" / "last.ckpt")
     if not Path(ckpt_path).is_file():
-        raise FileNotFoundError(
+        raise MissingFileError(
             f"ckpt_path: no checkpoint at {ckpt_path}. ckpt_path=last resumes the run directory given by "
             "hydra.run.dir=<run> (it has checkpoints/last.ckpt once its first epoch ended, or every "
             "callbacks.last_checkpoint.every_n_train_steps steps); otherwise start the run without ckpt_path"
         )
     check_resume(cfg, output_dir, write=first)
-    rows = torch.load(ckpt_path, map_location="cpu", weights_only=True, mmap=True).get(METRIC_ROWS_KEY)
+    rows = read_checkpoint(ckpt_path, mmap=True).get(METRIC_ROWS_KEY)
     if first:
         remove_stale_temporaries(output_dir / "checkpoints")  # left by a kill during a checkpoint write
         metrics = output_dir / "metrics.csv"
@@ -152,7 +164,7 @@ def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule
         return
     frames = len(datamodule.split_dataset("train"))
     per_rank = -(-frames // world)
-    raise ValueError(
+    raise ConfigError(
         f"no training batch: the {frames} training frames split over {world} process(es) give each "
         f"{per_rank} frame(s), fewer than data.batch_size={datamodule.batch_size} (incomplete batches are dropped); "
         f"lower data.batch_size to at most {per_rank}"

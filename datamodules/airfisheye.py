@@ -16,6 +16,7 @@ import torch
 from lightning.pytorch.trainer.states import TrainerFn
 from torch.utils.data import DataLoader
 
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
 from datamodules.augment import FisheyeAugment
@@ -92,13 +93,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
     ) -> None:
         super().__init__()
         if batch_size < 1:
-            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+            raise ConfigError(f"batch_size must be >= 1, got {batch_size}")
         if root is None and preset is None:
-            raise ValueError(
+            raise ConfigError(
                 "give data.root (a dataset folder) or data.preset (a synthetic preset such as quickstart)"
             )
         if root is not None and not Path(root).is_dir():
-            raise ValueError(
+            raise ConfigError(
                 f"data.root={str(root)!r} is not a folder; point it at a dataset in the AirFisheye layout (holding "
                 "dataset.yaml) or leave it unset to use the synthetic dataset"
             )

@@ -30,6 +30,8 @@ from typing import Any, TypeVar
 import torch
 from torch import Tensor, nn
 
+from airfisheye_bench.errors import UserError
+
 __all__ = [
     "IMAGENET",
     "WeightsUnavailableError",
@@ -54,7 +56,7 @@ _DISABLED: contextvars.ContextVar[bool] = contextvars.ContextVar("pretrained_wei
 T = TypeVar("T")
 
 
-class WeightsUnavailableError(RuntimeError):
+class WeightsUnavailableError(UserError, RuntimeError):
     """Pretrained weights are neither cached nor downloadable (offline); the message says where to put them."""
 
 

@@ -26,6 +26,7 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.evaluator import EvaluationResult, evaluate_predictions, format_results_table
 from airfisheye_bench.evaluation.predictors import (
     CheckpointPredictor,
@@ -59,12 +60,12 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     """
     given = [key for key in _SOURCES if cfg.get(key)]
     if len(given) != 1:
-        raise ValueError(
+        raise ConfigError(
             f"give exactly one of ckpt_path=<.ckpt or run dir>, onnx_path=<.onnx>, predictions=<dir>; got {given or 'none'}"
         )
     source = given[0]
     if cfg.split not in ("val", "test"):
-        raise ValueError(f"split must be 'val' or 'test', got {cfg.split!r}")
+        raise ConfigError(f"split must be 'val' or 'test', got {cfg.split!r}")
 
     module, checkpoint, source_data = None, None, None
     task = cfg.task.name if cfg.get("task") else None
@@ -83,9 +84,9 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
         source_data = OmegaConf.create(metadata["data_config"]) if metadata.get("data_config") else None
         task = _agree(task, metadata["task"], f"ONNX model {cfg.onnx_path}")
     elif task is None:
-        raise ValueError("predictions=DIR needs task=seg|depth|completion")
+        raise ConfigError("predictions=DIR needs task=seg|depth|completion")
     if task not in PRIMARY_METRIC:
-        raise ValueError(f"task must be one of {sorted(PRIMARY_METRIC)}, got {task!r}")
+        raise ConfigError(f"task must be one of {sorted(PRIMARY_METRIC)}, got {task!r}")
 
     with open_dict(cfg):
         if not cfg.get("task"):
@@ -128,7 +129,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
 
 def _agree(requested: str | None, found: str, what: str) -> str:
     if requested and requested != found:
-        raise ValueError(
+        raise ConfigError(
             f"task={requested} was requested but {what} is a {found} model; drop task= or fix it"
         )
     return found
@@ -160,13 +161,13 @@ def _predictor(
         predictor = OnnxPredictor(cfg.onnx_path, threads=cfg.get("threads"), tta=tta)
         size = predictor.fixed_size
         if size is not None and size != (camera.height, camera.width):
-            raise ValueError(
+            raise ConfigError(
                 f"ONNX model {cfg.onnx_path} takes {size[0]}x{size[1]} images but the data serves "
                 f"{camera.height}x{camera.width}; drop the data.camera overrides (or export with dynamic_spatial=true)"
             )
         return predictor
     if tta is not None:
-        raise ValueError("tta= only applies to ckpt_path= or onnx_path= (prediction files are final)")
+        raise ConfigError("tta= only applies to ckpt_path= or onnx_path= (prediction files are final)")
     return FilePredictor(
         cfg.predictions, task, list(dataset.sample_ids), (camera.height, camera.width), name=cfg.get("name")
     )
@@ -176,7 +177,7 @@ def _prediction_writer(cfg: DictConfig, source: str, task: str) -> SubmissionWri
     if not cfg.get("save_predictions"):
         return None
     if source == "predictions":
-        raise ValueError(
+        raise ConfigError(
             "save_predictions= only applies to ckpt_path= or onnx_path= (predictions are files already)"
         )
     return SubmissionWriter(cfg.save_predictions, task, depth_format=cfg.prediction_format)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from airfisheye_bench.errors import MissingFileError, UserError, report_user_errors
 from airfisheye_bench.evaluation.results import PRIMARY_METRIC, RESULTS_VERSION, load_results
 from airfisheye_bench.io import atomic_write_text
 
@@ -110,7 +111,7 @@ PAPER_SOURCE = "paper (real AirFisheye)"
 PAPER_DATASET = "AirFisheye (real)"
 
 
-class LeaderboardError(ValueError):
+class LeaderboardError(UserError, ValueError):
     """Invalid ``results.json`` files; ``problems`` holds one ``"<path>: <what is wrong>"`` per file."""
 
     def __init__(self, problems: Sequence[str]) -> None:
@@ -236,11 +237,11 @@ def find_results(paths: Iterable[str | Path]) -> list[Path]:
             searched.append(str(path))
             hits = [hit for hit in path.rglob("results.json") if hit.is_file()]
         else:
-            raise FileNotFoundError(f"{path}: no such file or directory")
+            raise MissingFileError(f"{path}: no such file or directory")
         for hit in hits:
             found.setdefault(hit.resolve(), hit)
     if not found:
-        raise FileNotFoundError(f"no results.json found under {', '.join(searched) or '(no paths given)'}")
+        raise MissingFileError(f"no results.json found under {', '.join(searched) or '(no paths given)'}")
     return sorted(found.values())
 
 
@@ -672,6 +673,7 @@ def _flag(args: Mapping[str, str], name: str, default: bool) -> bool:
     return value in _TRUE
 
 
+@report_user_errors
 def main(argv: Sequence[str] | None = None) -> int:
     """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false] [html=FILE]``.
 

@@ -16,6 +16,7 @@ import torch
 from torch import Tensor
 from torch.utils.data import Dataset
 
+from airfisheye_bench.errors import MissingFileError
 from airfisheye_bench.evaluation.submission import read_prediction, validate_submission
 from airfisheye_bench.io import file_sha256
 
@@ -156,7 +157,7 @@ class OnnxPredictor:
         self.path = Path(path)
         self.tta = check_tta(tta)
         if not self.path.is_file():
-            raise FileNotFoundError(f"ONNX model {self.path} does not exist")
+            raise MissingFileError(f"ONNX model {self.path} does not exist")
         self.metadata = read_deployment_metadata(self.path)
         self.task = self.metadata["task"]
         options = ort.SessionOptions()

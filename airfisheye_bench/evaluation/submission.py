@@ -23,6 +23,7 @@ import numpy as np
 import torch
 from PIL import Image
 
+from airfisheye_bench.errors import MissingFileError, OutputExistsError, UserError
 from airfisheye_bench.io import atomic_write_bytes
 
 __all__ = [
@@ -42,7 +43,7 @@ _NPY_DTYPES = (np.dtype("<f4"), np.dtype("<f2"))
 _MAX_LISTED = 20
 
 
-class SubmissionError(ValueError):
+class SubmissionError(UserError, ValueError):
     """A prediction folder that cannot be evaluated; ``problems`` lists every reason."""
 
     def __init__(self, root: Path, problems: list[str]) -> None:
@@ -90,7 +91,7 @@ def validate_submission(
         raise ValueError(f"task must be one of {sorted(_SUFFIXES)}, got {task!r}")
     root = Path(root).expanduser()
     if not root.is_dir():
-        raise FileNotFoundError(f"prediction folder {root} does not exist or is not a directory")
+        raise MissingFileError(f"prediction folder {root} does not exist or is not a directory")
     base = root.resolve()
     suffixes = _SUFFIXES[task]
     problems: list[str] = []
@@ -185,7 +186,7 @@ class SubmissionWriter:
     def __init__(self, root: str | Path, task: str, depth_format: str = "png") -> None:
         self.root = Path(root)
         if self.root.exists():
-            raise FileExistsError(f"{self.root} already exists; choose a new folder for the predictions")
+            raise OutputExistsError(f"{self.root} already exists; choose a new folder for the predictions")
         if task not in _SUFFIXES:
             raise ValueError(f"task must be one of {sorted(_SUFFIXES)}, got {task!r}")
         if depth_format not in ("png", "npy"):

@@ -38,9 +38,11 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 from torch import Tensor
 
+from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.export.metadata import TASK_INPUTS, TASK_OUTPUT, deployment_metadata
 from airfisheye_bench.export.onnx import OnnxParityError, ParityReport, _median_ms, export_onnx, verify_onnx
 from airfisheye_bench.io import file_sha256
+from airfisheye_bench.io.atomic import check_writable
 
 __all__ = [
     "QUANTIZE_MODES",
@@ -224,11 +226,7 @@ def export_deployment(
         exported seg.onnx (...): task=seg model=deeplabv3plus, inputs ['image'] -> logits, dynamic batch, ...
     """
     _check_arguments(batch, parity_samples, quantize, calib_samples, eval_samples, repeats)
-    out = Path(out)
-    if out.is_dir():
-        raise ValueError(
-            f"out={out} is a folder; give the .onnx file to write, e.g. out={out / 'model.onnx'}"
-        )
+    out = check_writable(out, "out")  # before the minutes of loading, exporting and verifying
     from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint
 
     checkpoint = resolve_checkpoint(ckpt_path)
@@ -280,6 +278,7 @@ def export_deployment(
     )
 
 
+@report_user_errors
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line of :func:`export_deployment` (``key=value`` arguments); returns the exit code.
 

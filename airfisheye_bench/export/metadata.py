@@ -58,6 +58,8 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from airfisheye_bench.errors import InputFileError, MissingFileError
+
 __all__ = [
     "COMMON_KEYS",
     "FORMAT_VERSION",
@@ -323,11 +325,18 @@ def read_deployment_metadata(path: str | os.PathLike) -> dict[str, Any]:
     from airfisheye_bench.export.onnx import read_onnx_metadata
 
     if not os.path.isfile(path):
-        raise FileNotFoundError(f"ONNX model {path} does not exist")
+        raise MissingFileError(f"ONNX model {path} does not exist")
     try:
-        return parse_deployment_metadata(read_onnx_metadata(path))
+        props = read_onnx_metadata(path)
+    except Exception as err:  # onnx raises protobuf's DecodeError (and others) on a file that is not a model
+        raise InputFileError(
+            f"{path}: not an ONNX model (it cannot be parsed: {type(err).__name__}); give a file written by "
+            "scripts/export_onnx.py"
+        ) from err
+    try:
+        return parse_deployment_metadata(props)
     except ValueError as err:
-        raise ValueError(f"{path}: {err}") from None
+        raise InputFileError(f"{path}: {err}; give a file written by scripts/export_onnx.py") from None
 
 
 def _encode(key: str, value: Any) -> str:

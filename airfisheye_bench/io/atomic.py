@@ -9,8 +9,11 @@ Stray temporaries from a killed process match :data:`TEMP_GLOB` and can be remov
 from __future__ import annotations
 
 import os
+import tempfile
 import uuid
 from pathlib import Path
+
+from airfisheye_bench.errors import OutputError
 
 #: Glob matching the temporary names used by :func:`atomic_write_bytes` (``.<name>.<hex>.tmp``).
 TEMP_GLOB = ".*.tmp"
@@ -45,6 +48,52 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
 def atomic_write_text(path: str | Path, text: str) -> None:
     """Write UTF-8 ``text`` to ``path`` atomically (``\\n`` line endings on every platform)."""
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def check_writable(path: str | Path, key: str = "out") -> Path:
+    """Refuse, before any long work, an output file that cannot be written; return it as a ``Path``.
+
+    The nearest existing folder of ``path`` must be a folder (not a file) in which a file can be created: that is
+    tried for real, since permission bits do not tell (``/proc`` and ``/sys`` refuse even root).
+
+    Args:
+        path: The file to be written (its missing parent folders will be created).
+        key: The option that named it, for the message.
+
+    Raises:
+        OutputError: ``path`` is a folder, a parent is a file, or the folder is not writable (the message names
+            the real target and what to do).
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> check_writable(folder / "new" / "model.onnx").name
+        'model.onnx'
+        >>> (folder / "file").write_text("x")
+        1
+        >>> check_writable(folder / "file" / "model.onnx")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        airfisheye_bench.errors.OutputError: out=.../file/model.onnx: .../file is a file, not a folder; ...
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(
+            f"{key}={path} is a folder; give the file to write, e.g. {key}={path / 'model.onnx'}"
+        )
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise OutputError(f"{key}={path}: {folder} is a file, not a folder; choose another {key}=")
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        raise OutputError(
+            f"{key}={path}: cannot write into {folder} ({err.strerror or err}); choose a writable folder"
+        ) from None
+    return path
 
 
 def remove_stale_temporaries(root: str | Path) -> int:

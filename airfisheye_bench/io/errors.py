@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from airfisheye_bench.errors import UserError
 
-class DatasetFormatError(ValueError):
+
+class DatasetFormatError(UserError, ValueError):
     """A dataset file is missing, unreadable or does not follow the layout.
 
     The message always names the file and, where it applies, the offending key (``classes.raw[3].color``) or

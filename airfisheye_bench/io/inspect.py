@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import trajectory_of
@@ -232,6 +233,7 @@ def _check_array(path: Path, ndim: int, cols: int | None, kind, deep: bool, repo
     return int(arr.shape[0])
 
 
+@report_user_errors
 def main(argv: list[str] | None = None) -> int:
     """``python -m airfisheye_bench.io.inspect root=DIR [deep=true] [limit=20]``; exit 1 when problems are found."""
     args = dict(arg.split("=", 1) for arg in (sys.argv[1:] if argv is None else argv) if "=" in arg)

@@ -43,6 +43,7 @@ from concurrent.futures import BrokenExecutor, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
+from airfisheye_bench.errors import OutputExistsError, report_user_errors
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.atomic import TEMP_GLOB
 from airfisheye_bench.io.errors import DatasetFormatError
@@ -197,7 +198,7 @@ def transcode_dataset(
 
             create_manifest(tmp)
         if os.path.lexists(dst):
-            raise FileExistsError(f"dst {str(dst)!r} appeared while transcoding; the result was discarded")
+            raise OutputExistsError(f"dst {str(dst)!r} appeared while transcoding; the result was discarded")
         os.replace(tmp, dst)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -215,7 +216,7 @@ def _check_destination(src: Path, dst: Path) -> None:
             f"dst {str(dst)!r} lies inside the source root {str(src)!r}; choose a folder outside it"
         )
     if os.path.lexists(dst):
-        raise FileExistsError(
+        raise OutputExistsError(
             f"dst {str(dst)!r} already exists; choose a new folder (it is never overwritten)"
         )
 
@@ -344,6 +345,7 @@ def _integer(name: str, value: str) -> int:
         raise ValueError(f"{name} must be an integer, got {value!r}") from None
 
 
+@report_user_errors
 def main(argv: list[str] | None = None) -> int:
     """``python -m airfisheye_bench.io.transcode src=DIR dst=DIR [rgb=jpg] [depth=npy] [...]``; exit 2 on an error."""
     argv = list(sys.argv[1:] if argv is None else argv)

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import yaml
 
+from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.synth.presets import PRESETS, SynthConfig, get_preset, plan_trajectories
 
 _RUN_KEYS = {
@@ -89,6 +90,7 @@ def _flag(value: object, name: str) -> bool:
     raise ValueError(f"{name} must be true or false, got {value!r}")
 
 
+@report_user_errors
 def main(argv: list[str] | None = None) -> int:
     """Run the generator CLI; returns the process exit code (0 = success, 1 = verification failed)."""
     argv = list(sys.argv[1:] if argv is None else argv)

@@ -16,11 +16,12 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf
 
+from airfisheye_bench.errors import InputFileError, MissingFileError
 from airfisheye_bench.tasks.base import BenchmarkTask
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
 
-__all__ = ["load_task", "resolve_checkpoint", "run_config"]
+__all__ = ["load_task", "read_checkpoint", "resolve_checkpoint", "run_config"]
 
 #: Model defaults that changed when checkpoints started to record their initial weights (the ``weights``
 #: hyperparameter): NLSPN then moved to upstream's confidence sampling. An older checkpoint that did not name the
@@ -40,7 +41,7 @@ def resolve_checkpoint(path: str | Path) -> Path:
     if path.is_file():
         return path
     if not path.is_dir():
-        raise FileNotFoundError(f"checkpoint {path} does not exist (give a .ckpt file or a run directory)")
+        raise MissingFileError(f"checkpoint {path} does not exist (give a .ckpt file or a run directory)")
     results = path / "results.json"
     if results.is_file():
         try:
@@ -58,7 +59,7 @@ def resolve_checkpoint(path: str | Path) -> Path:
     if candidates:
         # Several monitored checkpoints and no results.json to say which is best: the newest is the safe guess.
         return max(candidates, key=lambda p: p.stat().st_mtime)
-    raise FileNotFoundError(f"run directory {path} has no checkpoints/*.ckpt")
+    raise MissingFileError(f"run directory {path} has no checkpoints/*.ckpt")
 
 
 def run_config(checkpoint: str | Path) -> DictConfig | None:
@@ -69,6 +70,30 @@ def run_config(checkpoint: str | Path) -> DictConfig | None:
         if candidate.is_file():
             return OmegaConf.load(candidate)
     return None
+
+
+def read_checkpoint(path: str | Path, mmap: bool = False) -> dict[str, Any]:
+    """The contents of a checkpoint file, read with ``weights_only=True`` (tensors and plain containers only).
+
+    Raises:
+        InputFileError: the file is not a readable checkpoint (the message names it).
+    """
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True, mmap=mmap)
+    except pickle.UnpicklingError as err:
+        # PyTorch's message advises weights_only=False, which would run any code the file holds: not repeated here.
+        raise InputFileError(
+            f"{path}: not a readable checkpoint (it holds something other than tensors and plain containers: "
+            "corrupt, or not written by train.py); give a .ckpt file of a run"
+        ) from err
+    except (RuntimeError, EOFError, OSError, ValueError) as err:
+        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise InputFileError(
+            f"{path}: not a readable checkpoint ({reason}); give a .ckpt file of a run"
+        ) from err
+    if not isinstance(state, dict):
+        raise InputFileError(f"{path}: not a checkpoint (it holds a {type(state).__name__}, not a dict)")
+    return state
 
 
 def load_task(path: str | Path, map_location: str | torch.device = "cpu") -> BenchmarkTask:
@@ -99,14 +124,11 @@ def load_task(path: str | Path, map_location: str | torch.device = "cpu") -> Ben
     from airfisheye_bench.tasks import TASKS
 
     checkpoint = resolve_checkpoint(path)
-    try:
-        state = torch.load(checkpoint, map_location="cpu", weights_only=True)
-    except (pickle.UnpicklingError, RuntimeError, EOFError, OSError) as err:
-        raise ValueError(f"{checkpoint}: not a readable checkpoint ({type(err).__name__}: {err})") from err
-    hparams: dict[str, Any] = state.get("hyper_parameters", {}) if isinstance(state, dict) else {}
+    state = read_checkpoint(checkpoint)
+    hparams: dict[str, Any] = state.get("hyper_parameters", {})
     name = (hparams.get("model") or {}).get("name")
     if "state_dict" not in state or name not in list_models():
-        raise ValueError(
+        raise InputFileError(
             f"{checkpoint}: not a checkpoint of an airfisheye-bench task "
             f"(expected 'state_dict' and hyper_parameters.model.name among the registered models)"
         )

@@ -20,6 +20,7 @@ from omegaconf import OmegaConf, open_dict
 
 import airfisheye_bench.export.deploy as deploy
 import airfisheye_bench.export.metadata as metadata_module
+from airfisheye_bench.errors import OutputError
 from airfisheye_bench.export import read_onnx_metadata, verify_onnx
 from airfisheye_bench.export.metadata import (
     KEY_WEIGHTS,
@@ -271,7 +272,7 @@ def test_bad_values_and_overrides_are_rejected(seg_run: Path, tmp_path: Path) ->
         deploy.export_deployment(seg_run, tmp_path / "x.onnx", batch=1)
     with pytest.raises(ValueError, match=r"unknown override data\.colour"):
         deploy.export_deployment(seg_run, tmp_path / "x.onnx", data_overrides={"colour": 1})
-    with pytest.raises(ValueError, match="is a folder"):
+    with pytest.raises(OutputError, match="is a folder"):
         deploy.export_deployment(seg_run, tmp_path)
     with pytest.raises(ValueError, match="task=seg model"):
         deploy.export_deployment(seg_run, tmp_path / "x.onnx", data_overrides={"task": "depth"})
