@@ -104,17 +104,20 @@ def _worker_error(text: str) -> str | None:
     first, _, rest = text.partition("\n")
     if not (first.startswith("Caught ") and " worker process " in first):
         return None
-    # PyTorch keeps only the formatted traceback, whose last entry is `<module>.<Type>: <message>`; the type is
-    # resolved by import (not compared by name) so only real user-error types qualify.
-    for line in reversed(rest.rstrip("\n").splitlines()):
-        qualname, sep, message = line.partition(": ")
+    # PyTorch keeps only the formatted traceback, which ends with `<module>.<Type>: <message>` (the message may
+    # span lines). The type is resolved by import, not compared by name, so only real user-error types qualify.
+    lines = rest.rstrip("\n").splitlines()
+    for i in range(len(lines) - 1, -1, -1):
+        qualname, sep, message = lines[i].partition(": ")
         module, _, name = qualname.rpartition(".")
-        if sep and module and name.isidentifier() and not line.startswith(" "):
-            try:
-                cls = getattr(importlib.import_module(module), name)
-            except (ImportError, AttributeError):
-                return None
-            return message if isinstance(cls, type) and issubclass(cls, UserError) else None
+        if not (sep and module and name.isidentifier()) or lines[i].startswith(" "):
+            continue
+        try:
+            cls = getattr(importlib.import_module(module), name)
+        except (ImportError, AttributeError, ValueError):
+            continue  # a line of the message that merely looks like `a.b: c`
+        if isinstance(cls, type) and issubclass(cls, BaseException):
+            return "\n".join([message, *lines[i + 1 :]]) if issubclass(cls, UserError) else None
     return None
 
 

@@ -25,6 +25,7 @@ from torch.utils.data import DataLoader, Dataset
 
 from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError, report_user_errors, user_message
 from airfisheye_bench.io.errors import DatasetFormatError
+from tests.doctests import assert_doctests_pass
 from tests.training.test_train import tiny_run_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -163,6 +164,11 @@ def test_debug_switch_shows_the_traceback(tiny_dataset: Path, tmp_path: Path) ->
 
 
 # ------------------------------------------------------------------------------------- the wrapper in-process
+@pytest.mark.parametrize("module", ["airfisheye_bench.errors", "airfisheye_bench.config_checks"])
+def test_docstring_examples(module: str) -> None:
+    assert_doctests_pass(module)
+
+
 def test_wrapper_exits_2_on_user_errors_and_reraises_bugs(capsys: pytest.CaptureFixture[str]) -> None:
     @report_user_errors
     def fails(error: Exception) -> None:
@@ -223,31 +229,37 @@ def _garbage_yaml(path: Path) -> None:
 
 
 CORRUPTIONS: dict[str, tuple[str, str, Callable[[Path], None]]] = {
-    # name: (task, the file to corrupt (first match under the copy), corruption)
-    "truncated_png": ("seg", "town/traj00/cubemap/front/rgb/000000.png", _truncate),
-    "truncated_npy": ("completion", "town/traj00/lidar/000000.npy", _truncate),
-    "pickled_npy": ("completion", "town/traj00/lidar/000000.npy", _pickled_npy),
-    "garbage_calib": ("seg", "town/traj00/calib.yaml", _garbage_yaml),
-    "missing_split": ("seg", "splits/val.txt", Path.unlink),
+    # name: (task, the files to corrupt (a glob in the training trajectory of the tiny preset), corruption)
+    "truncated_png": ("seg", "cubemap/front/rgb/*.png", _truncate),
+    "truncated_npy": ("completion", "lidar/*.npy", _truncate),
+    "pickled_npy": ("completion", "lidar/*.npy", _pickled_npy),
+    "garbage_calib": ("seg", "calib.yaml", _garbage_yaml),
 }
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("row", sorted(CORRUPTIONS))
+@pytest.mark.parametrize("row", [*sorted(CORRUPTIONS), "missing_split"])
 def test_corrupt_dataset_rows(row: str, tiny_dataset: Path, tmp_path: Path) -> None:
-    task, relative, corrupt = CORRUPTIONS[row]
     root = tmp_path / "dataset"
     shutil.copytree(tiny_dataset, root)
-    target = root / relative
-    assert target.exists(), f"the tiny preset has no {relative}"
-    corrupt(target)
+    if row == "missing_split":
+        task, targets = "seg", [root / "splits" / "val.txt"]
+        targets[0].unlink()
+    else:
+        task, pattern, corrupt = CORRUPTIONS[row]
+        trajectory = (root / "splits" / "train.txt").read_text().split()[0].rpartition("/")[0]
+        targets = sorted((root / trajectory).glob(pattern))
+        assert targets, f"the tiny preset has no {trajectory}/{pattern}"
+        for target in targets:  # every frame: which ones a short run reads first depends on the shuffle
+            corrupt(target)
     args = [
         *tiny_run_overrides(task, root),
         "data.num_workers=1",  # read frames in a loader worker, as a real run does
         "test=false",
         f"hydra.run.dir={tmp_path / 'run'}",
     ]
-    assert_one_line_error(run_command(TRAIN, args), str(target))
+    message = assert_one_line_error(run_command(TRAIN, args))
+    assert any(str(target) in message for target in targets), message
 
 
 def test_pickle_free_checkpoint_message_is_ours(tmp_path: Path) -> None:
