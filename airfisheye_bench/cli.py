@@ -1,7 +1,9 @@
 """Console-script entry points (``airfisheye-train``, ``airfisheye-generate``, ...).
 
 The Hydra configuration lives in ``configs/`` at the project root (the package is installed in editable mode,
-as the README says), so every entry point composes the same files as ``python train.py``.
+as the README says), so every entry point composes the same files as ``python train.py``. Each command's main
+function runs under :func:`airfisheye_bench.errors.report_user_errors`: a user error ends in one line,
+``error: <message>``, and exit status 2.
 """
 
 from __future__ import annotations

@@ -65,9 +65,13 @@ def instantiate_datamodule(data: DictConfig, stage: str | None = None):
     """The datamodule of ``data`` for use in one process (no loader workers), prepared and set up for ``stage``.
 
     Raises:
-        ValueError: The datamodule cannot be built; the message says how to fix it with overrides.
+        UserError: The datamodule's own message for a wrong value or file (e.g. ``data.root`` is not a folder).
+        ValueError: The datamodule cannot be built otherwise; the message says how to fix it with overrides.
     """
     import hydra
+    from hydra.errors import InstantiationException
+
+    from airfisheye_bench.errors import UserError
 
     cfg = OmegaConf.merge(data, {"num_workers": 0, "persistent_workers": False})
     try:
@@ -76,6 +80,11 @@ def instantiate_datamodule(data: DictConfig, stage: str | None = None):
         if stage is not None:
             datamodule.setup(stage)
     except Exception as err:
+        cause = (
+            err.__cause__ if isinstance(err, InstantiationException) else err
+        )  # Hydra wraps __init__'s error
+        if isinstance(cause, UserError):
+            raise cause from None
         raise ValueError(
             f"cannot build the datamodule from the data config ({type(err).__name__}: {err}); "
             "fix it with data.<key>=<value> overrides, e.g. data.root=/path/to/dataset"

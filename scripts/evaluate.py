@@ -13,6 +13,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.runs import register_resolvers
 
@@ -23,6 +24,7 @@ register_resolvers()  # ${run_suffix:} in hydra.run.dir
 @hydra.main(version_base="1.3", config_path=CONFIG_DIR, config_name="evaluate")
 @report_user_errors  # a user error: one line on stderr, exit status 2
 def main(cfg: DictConfig) -> None:
+    check_common_values(cfg)  # a mistyped value is answered before the imports below
     from airfisheye_bench.evaluation.command import evaluate
 
     overrides = [o.lstrip("+") for o in HydraConfig.get().overrides.task if o.lstrip("+").startswith("data.")]

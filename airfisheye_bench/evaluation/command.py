@@ -26,6 +26,7 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.evaluator import EvaluationResult, evaluate_predictions, format_results_table
 from airfisheye_bench.evaluation.predictors import (
@@ -145,6 +146,7 @@ def _datamodule(
         data = apply_data_overrides(source_data, parse_data_overrides(overrides), task=task)
     else:  # configs/evaluate.yaml's data group, overrides already composed in by Hydra
         data = apply_data_overrides(cfg.data, task=task)
+    check_common_values(OmegaConf.create({"data": data}))  # the run's values with the command line's on top
     data.num_workers = 0  # the evaluation loop makes its own loader (cfg.num_workers)
     data.persistent_workers = False
     return instantiate_datamodule(data), OmegaConf.to_container(data)

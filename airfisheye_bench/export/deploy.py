@@ -38,6 +38,7 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 from torch import Tensor
 
+from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.export.metadata import TASK_INPUTS, TASK_OUTPUT, deployment_metadata
 from airfisheye_bench.export.onnx import OnnxParityError, ParityReport, _median_ms, export_onnx, verify_onnx
@@ -234,6 +235,7 @@ def export_deployment(
     from datamodules.config import apply_data_overrides, instantiate_datamodule
 
     data_cfg = apply_data_overrides(_run_data(checkpoint), data_overrides, task=task.task)
+    check_common_values(OmegaConf.create({"data": data_cfg}))
     datamodule = instantiate_datamodule(data_cfg, "validate")  # a few frames: main-process loading
     metadata = _metadata(task, datamodule, data_cfg, checkpoint)
     names = TASK_INPUTS[task.task]
