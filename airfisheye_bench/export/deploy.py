@@ -39,7 +39,7 @@ from omegaconf import DictConfig, OmegaConf
 from torch import Tensor
 
 from airfisheye_bench.config_checks import check_common_values
-from airfisheye_bench.errors import report_user_errors
+from airfisheye_bench.errors import debug_requested, report_user_errors
 from airfisheye_bench.export.metadata import TASK_INPUTS, TASK_OUTPUT, deployment_metadata
 from airfisheye_bench.export.onnx import OnnxParityError, ParityReport, _median_ms, export_onnx, verify_onnx
 from airfisheye_bench.io import file_sha256
@@ -309,6 +309,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 1
     except (FileNotFoundError, ValueError) as err:
+        if debug_requested():
+            raise
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(report.summary())
