@@ -268,7 +268,7 @@ def test_pickle_free_checkpoint_message_is_ours(tmp_path: Path) -> None:
     from airfisheye_bench.tasks.checkpoint import read_checkpoint
 
     path = tmp_path / "evil.ckpt"
-    path.write_bytes(pickle.dumps(ConfigError("an arbitrary object")))
+    path.write_bytes(pickle.dumps(ConfigError("an arbitrary object"), protocol=2))
     with pytest.raises(InputFileError, match=r"evil\.ckpt: not a readable checkpoint") as caught:
         read_checkpoint(path)
     assert "weights_only" not in str(caught.value)
