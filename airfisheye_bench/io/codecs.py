@@ -371,22 +371,25 @@ def write_visibility(path: str | Path, visible: np.ndarray) -> None:
 
 def read_visibility(path: str | Path, num_points: int | None = None) -> np.ndarray:
     """Read per-point visibility flags (bool ``[N]``); checks ``N`` against ``num_points`` when given."""
-    vis = load_npy(path)
-    if vis.ndim != 1 or vis.dtype != np.bool_:
-        raise DatasetFormatError(path, f"visibility must be bool [N], got {vis.dtype} {list(vis.shape)}")
-    if num_points is not None and vis.shape[0] != num_points:
-        raise DatasetFormatError(path, f"has {vis.shape[0]} flags but the scan has {num_points} points")
-    return vis
+    return _read_per_point(path, np.bool_, "visibility", "flags", num_points)
 
 
 def read_beams(path: str | Path, num_points: int | None = None) -> np.ndarray:
     """Read the beam of every LiDAR point (int32 ``[N]``, ``channel * N_PC + column``); checks ``N`` if given."""
-    beam = load_npy(path)
-    if beam.ndim != 1 or beam.dtype != np.int32:
-        raise DatasetFormatError(path, f"beams must be int32 [N], got {beam.dtype} {list(beam.shape)}")
-    if num_points is not None and beam.shape[0] != num_points:
-        raise DatasetFormatError(path, f"has {beam.shape[0]} beams but the scan has {num_points} points")
-    return beam
+    return _read_per_point(path, np.int32, "beams", "beams", num_points)
+
+
+def _read_per_point(
+    path: str | Path, dtype: type, what: str, unit: str, num_points: int | None
+) -> np.ndarray:
+    """A ``[N]`` array of ``dtype`` with one entry per LiDAR point (``N == num_points`` when given)."""
+    values = load_npy(path)
+    if values.ndim != 1 or values.dtype != dtype:
+        name = np.dtype(dtype).name
+        raise DatasetFormatError(path, f"{what} must be {name} [N], got {values.dtype} {list(values.shape)}")
+    if num_points is not None and values.shape[0] != num_points:
+        raise DatasetFormatError(path, f"has {values.shape[0]} {unit} but the scan has {num_points} points")
+    return values
 
 
 SCAN_PHASE_HEADER = "frame,phase_rad"
