@@ -19,18 +19,10 @@ from tests.scripts import load_script
 PAPER = LidarSpec()  # 64 x 2048, 270 deg
 CAMERA = FisheyeCamera(512, 512, fov_deg=190.0)
 CAMERA_OFFSET = (0.0, 0.6, 0.4)  # 0.6 m beside (left) and 0.4 m above the LiDAR, looking along its x axis
+BENCH = load_script("bench_lidar")  # one definition of the scene and scan variants, shared with the benchmark
 # LiDAR frame (x forward, y left, z up): a wall 20 m ahead, three boxes 5-14 m ahead, the ground 3 m below.
-SCENE = np.array(
-    [
-        [(20.0, -30.0, -10.0), (21.0, 30.0, 20.0)],
-        [(8.0, -2.0, -3.0), (10.0, 2.0, 1.0)],
-        [(5.0, 3.0, -3.0), (6.0, 4.5, 2.0)],
-        [(12.0, -8.0, -3.0), (14.0, -5.0, 3.0)],
-        [(-50.0, -50.0, -4.0), (50.0, 50.0, -3.0)],
-    ]
-)
+SCENE = BENCH.BOXES_AND_WALL
 VARIANTS = ("boundary", "ring phase", "jitter", "shuffled")
-BENCH = load_script("bench_lidar")  # one definition of the scan variants, shared with the benchmark
 
 
 def realistic_scan(spec: LidarSpec, variant: str, seed: int = 0, boxes: np.ndarray = SCENE) -> np.ndarray:
