@@ -162,11 +162,26 @@ def check_resume(cfg: DictConfig, output_dir: Path, write: bool) -> None:
         )
     log.warning("resuming with a changed configuration (resume_overrides_ok=true):\n  %s", listing)
     if write:
-        n = 1
-        while (kept := output_dir / f"config.{n}.yaml").exists():
-            n += 1
-        atomic_write_text(kept, saved.read_text())  # copy first: a kill leaves config.yaml in place
+        atomic_write_text(
+            numbered_sibling(saved), saved.read_text()
+        )  # copy first: a kill leaves config.yaml in place
         atomic_write_text(saved, OmegaConf.to_yaml(cfg, resolve=True))
+
+
+def numbered_sibling(path: Path) -> Path:
+    """The first free ``<stem>.<n><suffix>`` next to ``path`` (n = 1, 2, ...): where a replaced file is kept.
+
+    Example:
+        >>> import tempfile
+        >>> folder = Path(tempfile.mkdtemp())
+        >>> _ = (folder / "config.1.yaml").write_text("")
+        >>> numbered_sibling(folder / "config.yaml").name
+        'config.2.yaml'
+    """
+    n = 1
+    while (candidate := path.with_name(f"{path.stem}.{n}{path.suffix}")).exists():
+        n += 1
+    return candidate
 
 
 def keep_metric_rows(path: Path, rows: int) -> None:

@@ -28,7 +28,7 @@ from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.io.atomic import atomic_write_text, remove_stale_temporaries
-from airfisheye_bench.runs import check_resume, keep_metric_rows
+from airfisheye_bench.runs import check_resume, keep_metric_rows, numbered_sibling
 from airfisheye_bench.tasks.checkpoint import read_checkpoint
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
@@ -147,9 +147,7 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
         if rows is not None:
             keep_metric_rows(metrics, rows)
         elif metrics.is_file():
-            n = 1
-            while (aside := output_dir / f"metrics.{n}.csv").exists():
-                n += 1
+            aside = numbered_sibling(metrics)
             os.replace(metrics, aside)
             log.warning(
                 "%s does not record its metrics.csv rows: the earlier rows are kept in %s", ckpt_path, aside
