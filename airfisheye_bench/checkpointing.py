@@ -18,8 +18,6 @@ through :class:`AtomicCheckpointIO` (temporary file + rename), so a kill during 
 from __future__ import annotations
 
 import csv
-import os
-import uuid
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +27,8 @@ from lightning.fabric.loggers.logger import rank_zero_experiment
 from lightning.pytorch.loggers import CSVLogger
 from lightning.pytorch.loggers.csv_logs import ExperimentWriter
 from lightning.pytorch.plugins.io import TorchCheckpointIO
+
+from airfisheye_bench.io.atomic import atomic_write
 
 #: Checkpoint key: how many ``metrics.csv`` rows had been written when the checkpoint was.
 METRIC_ROWS_KEY = "metrics_csv_rows"
@@ -43,15 +43,7 @@ class AtomicCheckpointIO(TorchCheckpointIO):
     def save_checkpoint(
         self, checkpoint: dict[str, Any], path: str | Path, storage_options: Any | None = None
     ) -> None:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")  # io.atomic.TEMP_GLOB
-        try:
-            torch.save(checkpoint, tmp)
-            os.replace(tmp, path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        atomic_write(path, lambda tmp: torch.save(checkpoint, tmp))
 
 
 class LastCheckpoint(L.Callback):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import tempfile
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 
 from airfisheye_bench.errors import OutputError
@@ -33,12 +34,21 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
         >>> p.read_bytes()
         b'hello'
     """
+    atomic_write(path, lambda tmp: tmp.write_bytes(data))
+
+
+def atomic_write(path: str | Path, write: Callable[[Path], object]) -> None:
+    """Let ``write(tmp)`` fill a temporary file next to ``path``, then rename it over ``path``.
+
+    A reader (or a process resumed after a kill) sees the previous file or the new one, never half of one; the
+    temporary is removed if ``write`` fails or the process is interrupted (a kill leaves it: see
+    :func:`remove_stale_temporaries`).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
     try:
-        with open(tmp, "wb") as f:
-            f.write(data)
+        write(tmp)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
