@@ -25,7 +25,6 @@ from torch.utils.data import DataLoader, Dataset
 
 from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError, report_user_errors, user_message
 from airfisheye_bench.io.errors import DatasetFormatError
-from tests.doctests import assert_doctests_pass
 from tests.training.test_train import tiny_run_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -164,11 +163,6 @@ def test_debug_switch_shows_the_traceback(tiny_dataset: Path, tmp_path: Path) ->
 
 
 # ------------------------------------------------------------------------------------- the wrapper in-process
-@pytest.mark.parametrize("module", ["airfisheye_bench.errors", "airfisheye_bench.config_checks"])
-def test_docstring_examples(module: str) -> None:
-    assert_doctests_pass(module)
-
-
 def test_wrapper_exits_2_on_user_errors_and_reraises_bugs(capsys: pytest.CaptureFixture[str]) -> None:
     @report_user_errors
     def fails(error: Exception) -> None:

@@ -43,6 +43,7 @@ def conv_bn_relu(
     The convolution has a bias only when there is no batch norm (as upstream).
 
     Example:
+        >>> import torch
         >>> conv_bn_relu(3, 8, stride=2)(torch.zeros(1, 3, 9, 9)).shape
         torch.Size([1, 8, 5, 5])
     """
@@ -62,6 +63,7 @@ def convt_bn_relu(in_channels: int, out_channels: int, kernel_size: int = 3) -> 
     """Stride-2 ``ConvTranspose2d`` that exactly doubles the size -> ``BatchNorm2d`` -> ``LeakyReLU(0.2)``.
 
     Example:
+        >>> import torch
         >>> convt_bn_relu(8, 4)(torch.zeros(1, 8, 5, 7)).shape
         torch.Size([1, 4, 10, 14])
     """

@@ -21,7 +21,6 @@ from airfisheye_bench.evaluation import (
     load_entry,
     write_results,
 )
-from tests.doctests import assert_doctests_pass
 
 HASH_A = "a1b2c3d4" + "0" * 56
 HASH_B = "ffee0011" + "1" * 56
@@ -383,7 +382,3 @@ def test_console_script_is_declared_and_runs(tmp_path: Path, monkeypatch, capsys
         cli.leaderboard()
     assert info.value.code == 0 and (tmp_path / "o" / "leaderboard.md").is_file()
     assert "# AirFisheye-bench leaderboard" in capsys.readouterr().out
-
-
-def test_docstring_examples() -> None:
-    assert_doctests_pass(lb, min_examples=11)

@@ -17,12 +17,10 @@ from PIL import Image
 
 import airfisheye_bench.evaluation.leaderboard as lb
 import airfisheye_bench.evaluation.leaderboard_charts as charts
-import airfisheye_bench.evaluation.leaderboard_html as page_module
 from airfisheye_bench.evaluation import build_leaderboard, load_entries, write_results
 from airfisheye_bench.evaluation.leaderboard import find_results
 from airfisheye_bench.evaluation.leaderboard_html import render_html, write_html
 from airfisheye_bench.viz import save_png
-from tests.doctests import assert_doctests_pass
 from tests.evaluation.chromium import Page, find_chromium
 
 HASH_A = "a1b2c3d4" + "0" * 56
@@ -291,11 +289,6 @@ def test_paper_only_page_and_missing_or_damaged_panels(tmp_path: Path) -> None:
     (bare.parent / "panels" / "frame.png").write_bytes(b"not a png")
     text = render_html(build_leaderboard(entries, paper=False))
     assert "unreadable panel" in text and "<img" not in text
-
-
-@pytest.mark.parametrize("module", [page_module, charts])
-def test_docstring_examples(module) -> None:
-    assert_doctests_pass(module)
 
 
 # ---------------------------------------------------------------------------------------------- in a browser

@@ -19,7 +19,6 @@ import torch
 from omegaconf import OmegaConf, open_dict
 
 import airfisheye_bench.export.deploy as deploy
-import airfisheye_bench.export.metadata as metadata_module
 from airfisheye_bench.errors import OutputError
 from airfisheye_bench.export import read_onnx_metadata, verify_onnx
 from airfisheye_bench.export.metadata import (
@@ -33,7 +32,6 @@ from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint
 from airfisheye_bench.training import build, train
 from datamodules.config import apply_data_overrides, instantiate_datamodule
 from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
-from tests.doctests import assert_doctests_pass
 from tests.training.test_configs import compose_train
 from tests.training.test_train import tiny_run_overrides
 
@@ -371,11 +369,6 @@ def test_parse_names_the_bad_key() -> None:
 def test_read_names_the_file(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match=r"missing\.onnx"):
         read_deployment_metadata(tmp_path / "missing.onnx")
-
-
-def test_docstring_examples() -> None:
-    for module in (metadata_module, deploy):
-        assert_doctests_pass(module)
 
 
 # ---------------------------------------------------------------------------------------------- slow

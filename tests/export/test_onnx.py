@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import doctest
-
 import pytest
 import torch
 from torch import nn
 
-import airfisheye_bench.export.onnx as onnx_module
 from airfisheye_bench.export import OnnxParityError, export_onnx, read_onnx_metadata, verify_onnx
 
 
@@ -123,7 +120,3 @@ def test_training_flag_is_restored(tmp_path):
     net = TwoInputNet().train()
     export_onnx(net, _inputs(2), tmp_path / "n.onnx", output_name="depth", dynamic_batch=False)
     assert net.training
-
-
-def test_docstring_examples():
-    assert doctest.testmod(onnx_module).failed == 0

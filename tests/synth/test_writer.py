@@ -375,19 +375,6 @@ def test_cli_generates_and_writes_a_contact_sheet(tiny_dataset, tmp_path):
     assert spec.generator["config"]["face_size"] == 8 and spec.name == "airfisheye-synthetic-tiny-custom"
 
 
-@pytest.mark.parametrize(
-    "name", ["cli", "contact_sheet", "manifest", "presets", "sensors", "trajectory", "writer"]
-)
-def test_docstring_examples(name):
-    import doctest
-    import importlib
-
-    result = doctest.testmod(
-        importlib.import_module(f"airfisheye_bench.synth.{name}"), optionflags=doctest.ELLIPSIS
-    )
-    assert result.failed == 0
-
-
 def test_gimbal_pitch_is_stratified_so_every_split_spans_the_range():
     cfg = get_preset("quickstart")
     plans = plan_trajectories(cfg, ENVIRONMENTS)

@@ -17,7 +17,6 @@ from omegaconf import OmegaConf, open_dict
 from airfisheye_bench.checkpointing import AtomicCheckpointIO, RunCSVLogger
 from airfisheye_bench.runs import check_resume, register_resolvers, resume_config
 from airfisheye_bench.training import build, check_config, prepare_run_dir, train
-from tests.doctests import assert_doctests_pass
 from tests.training.test_configs import CONFIG_DIR, compose_train
 from tests.training.test_train import tiny_run_overrides
 
@@ -144,11 +143,6 @@ def test_a_run_where_a_process_gets_no_training_batch_is_refused(
         train(cfg)
     assert advice in str(error.value)
     assert not (tmp_path / "checkpoints").exists()
-
-
-@pytest.mark.parametrize("name", ["airfisheye_bench.runs"])
-def test_docstring_examples(name: str) -> None:
-    assert_doctests_pass(name)
 
 
 def test_a_moved_run_directory_resumes_where_it_is_now(tmp_path: Path) -> None:
