@@ -29,7 +29,7 @@ def warp_and_colour(
         valid: ``bool [H, W]`` pixels that carry data.
         maps: ``float32 [D, H, W]`` maps copied, never blended (labels, depth); ``D`` may be 0.
         fills: ``float32 [D]`` value of each map outside the moved valid mask.
-        flip: Mirror the input horizontally (``u -> W - 1 - u``) before rotating.
+        flip: Mirror the input about the principal point's column (``u -> 2 cx - u``) before rotating.
         cos_a, sin_a: Cosine and sine of the rotation angle.
         cx, cy: Principal point.
         colour, offset: ``float32 [3, 3]`` and ``[3]``: the colour transform of 0-255 RGB values.
@@ -52,7 +52,7 @@ def warp_and_colour(
             us = u_row + cos_a * dx
             vs = v_row - sin_a * dx
             if flip:
-                us = (w - 1) - us
+                us = 2.0 * cx - us
             jn = int(np.rint(us))
             i_n = int(np.rint(vs))
             ok = False

@@ -1,8 +1,11 @@
 """Fisheye-aware augmentation that keeps image, labels, depth and sparse LiDAR depth consistent.
 
-- Horizontal flip: mirrors the image about the vertical line through the principal point (``u -> W - 1 - u``), which
-  for a radially symmetric lens with a centred principal point is the camera seen in a mirror. Sparse depth maps are
-  flipped as images (a pixel permutation, exact).
+- Horizontal flip: mirrors the image about the vertical line through the principal point (``u -> 2 cx - u``), which
+  for a radially symmetric lens is the camera seen in a mirror, wherever its principal point lies. A centred
+  principal point (``cx = (W - 1) / 2``) makes it the pixel permutation ``u -> W - 1 - u``; an off-centre one
+  (a real calibration) moves the image circle onto itself, not onto the frame's mirror image, so the rotation
+  about ``(cx, cy)`` that follows turns about the right point. LiDAR points are mirrored as points
+  (``lidar_depth_map(mirror=True)``), so no sparse point is moved by resampling.
 - Rotation about the optical axis: rotating the camera frame by ``angle`` about z moves every pixel by ``angle``
   about the principal point (the lens is radially symmetric), so dense maps are rotated in the image
   (bilinear for RGB, nearest for labels and depth) and LiDAR points are rotated *before* projection, so no sparse
@@ -163,18 +166,22 @@ def augment_sample(
 def apply_geometry(
     x: torch.Tensor, params: AugmentParams, cx: float, cy: float, mode: str, grid: torch.Tensor | None = None
 ) -> torch.Tensor:
-    """Flip and rotate a dense ``[C, H, W]`` map about the principal point ``(cx, cy)``.
+    """Mirror (``u -> 2 cx - u``) and rotate a dense ``[C, H, W]`` map about the principal point ``(cx, cy)``.
 
     ``mode`` is ``bilinear`` (images) or ``nearest`` (labels, depth, masks; values are copied, never blended).
     Stack maps that share a mode into one call, and pass the same ``grid`` (:func:`rotation_grid`) to every call of
     one sample. Pixels rotated in from outside the image get 0 (callers re-apply the image-circle mask).
     """
-    if params.flip:
+    w = x.shape[-1]
+    if params.flip and cx == (w - 1) / 2.0:  # centred: the mirror is a pixel permutation
         x = x.flip(-1)
-    if params.angle_rad == 0.0:
+        flip = False
+    else:
+        flip = params.flip
+    if params.angle_rad == 0.0 and not flip:
         return x
     if grid is None:
-        grid = rotation_grid(params.angle_rad, cx, cy, *x.shape[-2:])
+        grid = rotation_grid(params.angle_rad, cx, cy, *x.shape[-2:], flip=flip)
     dtype = x.dtype
     out = F.grid_sample(x[None].to(torch.float32), grid, mode=mode, padding_mode="zeros", align_corners=True)[
         0
@@ -184,9 +191,13 @@ def apply_geometry(
     return out.round_().to(dtype)
 
 
-def rotation_grid(angle_rad: float, cx: float, cy: float, h: int, w: int) -> torch.Tensor:
-    """``[1, H, W, 2]`` sampling grid of the rotation (what ``F.affine_grid`` gives, built separably: faster)."""
-    theta = rotation_affine(angle_rad, cx, cy, h, w)
+def rotation_grid(angle_rad: float, cx: float, cy: float, h: int, w: int, flip: bool = False) -> torch.Tensor:
+    """``[1, H, W, 2]`` sampling grid of the rotation (what ``F.affine_grid`` gives, built separably: faster).
+
+    With ``flip``, the rotated position is then mirrored about the principal point's column (``u -> 2 cx - u``):
+    the grid of "mirror, then rotate" (the output reads the mirrored input).
+    """
+    theta = rotation_affine(angle_rad, cx, cy, h, w, flip)
     xs = torch.linspace(-1.0, 1.0, w)
     ys = torch.linspace(-1.0, 1.0, h)
     gx = theta[0, 0] * xs[None, :] + (theta[0, 1] * ys + theta[0, 2])[:, None]
@@ -194,11 +205,14 @@ def rotation_grid(angle_rad: float, cx: float, cy: float, h: int, w: int) -> tor
     return torch.stack([gx, gy], -1)[None]
 
 
-def rotation_affine(angle_rad: float, cx: float, cy: float, h: int, w: int) -> torch.Tensor:
+def rotation_affine(
+    angle_rad: float, cx: float, cy: float, h: int, w: int, flip: bool = False
+) -> torch.Tensor:
     """``[2, 3]`` affine map (``align_corners=True`` normalised coordinates) of the inverse rotation.
 
-    The output pixel at offset ``d`` from the principal point reads the input at ``R(-angle) d``; written in
-    normalised coordinates ``x = 2u / (W-1) - 1`` so that ``F.affine_grid`` builds the sampling grid in one call.
+    The output pixel at offset ``d`` from the principal point reads the input at ``R(-angle) d`` (then mirrored
+    about the principal point's column if ``flip``); written in normalised coordinates ``x = 2u / (W-1) - 1`` so
+    that ``F.affine_grid`` builds the sampling grid in one call.
     """
     c, s = math.cos(angle_rad), math.sin(angle_rad)
     sx, sy = (w - 1) / 2.0, (h - 1) / 2.0  # pixels per normalised unit
@@ -206,6 +220,9 @@ def rotation_affine(angle_rad: float, cx: float, cy: float, h: int, w: int) -> t
     a = torch.tensor([[c, s * sy / sx], [-s * sx / sy, c]], dtype=torch.float64)
     p0 = torch.tensor([cx / sx - 1.0, cy / sy - 1.0], dtype=torch.float64)
     b = p0 - a @ p0
+    if flip:  # x -> 2 p0_x - x, after the rotation
+        a, b = a * torch.tensor([[-1.0], [1.0]], dtype=torch.float64), b.clone()
+        b[0] = 2.0 * p0[0] - b[0]
     return torch.cat([a, b[:, None]], 1).to(torch.float32)
 
 

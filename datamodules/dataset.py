@@ -245,8 +245,6 @@ class AirFisheyeDataset(Dataset):
             out["label"] = moved[0].to(out["label"].dtype)
         if "depth" in out:
             out["depth"] = moved[-1:]
-        if "sparse_depth" in out and params.flip:
-            out["sparse_depth"] = out["sparse_depth"].flip(-1)  # the rotation was applied to the points
         return rgb, valid, out
 
     def _dense(self, sample_id: str, modality: str) -> torch.Tensor:
@@ -300,8 +298,8 @@ class AirFisheyeDataset(Dataset):
         calib = self.reader.calib(sample_id)
         T = torch.from_numpy(self.T_cam_lidar(sample_id))
         if params is not None and params.angle_rad != 0.0:
-            # Dense maps are flipped, then rotated; the sparse map is rotated (as points), then flipped.
-            # flip . rot(a) == rot(-a) . flip, so the points turn the other way when the frame is flipped.
+            # Dense maps are mirrored, then rotated; the points are rotated, then mirrored (in lidar_depth_map).
+            # mirror . rot(a) == rot(-a) . mirror, so the points turn the other way when the frame is mirrored.
             T = rotation_about_optical_axis(-params.angle_rad if params.flip else params.angle_rad) @ T
         depth = lidar_depth_map(
             scan[:, :3].astype(np.float64),
@@ -310,6 +308,7 @@ class AirFisheyeDataset(Dataset):
             calib.lidar_spec(),
             method=self.occlusion,
             max_depth=self.max_depth,
+            mirror=params is not None and params.flip,
             **self.occlusion_options,
         )
         return torch.from_numpy(depth)[None]

@@ -255,12 +255,17 @@ def lidar_depth_map(
     spec: LidarSpec | None = None,
     method: str = "ordering",
     max_depth: float = 120.0,
+    mirror: bool = False,
     **options: Any,
 ) -> ArrayLike:
     """Sparse LiDAR range map ``[H, W]`` (float32 metres from the camera centre, 0 = no point).
 
     Visible points (see :func:`occlusion_mask`) within ``max_depth`` are written to their nearest pixel; where
     several land on one pixel the nearest wins (an exact min-reduction, independent of the points' order).
+    ``mirror`` writes each point at its mirror image about the principal point's column, ``u -> 2 cx - u``: the
+    horizontal-flip augmentation applied to the points themselves, exact for any ``cx`` (a flip of the finished
+    map about the frame's centre is not, unless ``cx = (W - 1) / 2``). Visibility is decided before mirroring: a
+    mirror moves the image, not the scene.
 
     Example:
         >>> import numpy as np
@@ -276,7 +281,13 @@ def lidar_depth_map(
     uv, rng, mask = project_lidar(points_lidar, T_cam_lidar, camera, spec, method, **options)
     if isinstance(mask, torch.Tensor):
         uv, rng, mask = uv.cpu().numpy(), rng.cpu().numpy(), mask.cpu().numpy()
-    keep = np.flatnonzero(mask & (rng <= max_depth))
+    keep = mask & (rng <= max_depth)
+    if mirror:
+        uv = uv.copy()  # project_lidar's array may be shared with the caller
+        uv[:, 0] = 2.0 * camera.cx - uv[:, 0]
+        # The frame's bounds as in project(): an off-centre cx mirrors some points past them.
+        keep &= (uv[:, 0] >= -0.5) & (uv[:, 0] <= camera.width - 0.5)
+    keep = np.flatnonzero(keep)
     depth = np.full(camera.height * camera.width, np.inf, dtype=np.float32)
     pix = _pixel_index(np.take(uv, keep, axis=0), camera)
     _kernels.scatter_min(rng[keep].astype(np.float32), pix, depth)

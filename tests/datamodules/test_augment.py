@@ -103,3 +103,37 @@ def test_fused_augmentation_matches_the_torch_composition(params: AugmentParams)
     # moves the colours by ~1e-6.
     ref_image = apply_color_jitter(ref_rgb, params) * ref_valid
     torch.testing.assert_close(image, ref_image, atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.5])
+def test_flip_mirrors_about_the_principal_point_not_the_frame_centre(angle: float) -> None:
+    """A real calibration's off-centre principal point: the image circle mirrors onto itself.
+
+    Mirroring about the frame's centre (``u -> W - 1 - u``) would move the circle to ``W - 1 - cx`` and the
+    rotation that follows would turn about the wrong point.
+    """
+    h, w, cx, cy = 40, 56, 22.5, 19.5  # cx is 5 px left of the centre column 27.5
+    v, u = torch.meshgrid(torch.arange(h), torch.arange(w), indexing="ij")
+    valid = (u - cx) ** 2 + (v - cy) ** 2 <= 15.0**2
+    column = (u.float() * valid)[None]  # each pixel holds its own column
+    params = AugmentParams(True, angle, None)
+    moved = apply_geometry(valid[None].float(), params, cx, cy, "nearest")[0] > 0.5
+    _, fused_valid, fused = augment_sample(
+        torch.zeros(3, h, w, dtype=torch.uint8), valid, column, [0.0], params, cx, cy
+    )
+    # The circle is symmetric about its centre's column, so mirroring it changes nothing: mirrored-then-rotated
+    # equals rotated alone (up to a rounding tie or two on the rim).
+    rotated = (
+        apply_geometry(valid[None].float(), AugmentParams(False, angle, None), cx, cy, "nearest")[0] > 0.5
+    )
+    assert (moved ^ rotated).sum() <= 2
+    assert torch.equal(fused_valid, moved)
+    if angle == 0.0:  # the pixel at column u now shows column 2 cx - u
+        expected = torch.where(valid, 2 * cx - u.float(), torch.zeros(()))
+        assert torch.equal(fused[0], expected)
+
+
+def test_flip_about_a_centred_principal_point_is_the_pixel_permutation() -> None:
+    x = torch.arange(12.0).view(1, 3, 4)
+    params = AugmentParams(True, 0.0, None)
+    assert torch.equal(apply_geometry(x, params, cx=1.5, cy=1.0, mode="nearest"), x.flip(-1))

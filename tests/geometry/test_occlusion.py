@@ -506,3 +506,27 @@ def test_a_360_degree_scan_gives_the_same_mask_wherever_its_seam_falls() -> None
             T = make_transform(R_cam, -R_cam @ (R @ np.asarray(camera)))
             masks.append(occlusion_mask(dirs * t[:, None], T, FisheyeCamera(512, 512), spec))
         assert (masks[0] == masks[1]).all(), (centre, half, camera)
+
+
+@pytest.mark.parametrize("cx", [31.5, 27.0, 36.3])
+def test_mirrored_depth_map_is_the_mirrored_scene_seen_by_the_camera(cx: float) -> None:
+    """``mirror=True`` writes each point where the camera would see its mirror image (x -> -x in the camera
+    frame), for a centred, an integer and an arbitrary off-centre principal point."""
+    camera = FisheyeCamera(64, 64, cx=cx)
+    T = make_transform(CAM_FROM_FLU, np.array([0.1, -0.2, 0.05]))
+    rng = np.random.default_rng(4)
+    points = rng.normal(size=(3000, 3)) * np.array([20.0, 20.0, 5.0])
+    cam = points @ T[:3, :3].T + T[:3, 3]
+    cam[:, 0] *= -1.0
+    mirrored_points = (cam - T[:3, 3]) @ T[:3, :3]  # back to the LiDAR frame
+    direct = lidar_depth_map(points, T, camera, method="none", mirror=True)
+    reference = lidar_depth_map(mirrored_points, T, camera, method="none")
+    # Columns whose mirror image lies outside the frame show what the unmirrored camera never saw: the mirrored
+    # map leaves them empty (as the mirrored image is), the mirrored scene fills them.
+    # A pixel column j covers [j - 0.5, j + 0.5]; its mirror covers [2 cx - j - 0.5, 2 cx - j + 0.5].
+    near, far = 2 * cx - np.arange(64) - 0.5, 2 * cx - np.arange(64) + 0.5
+    unseen, seen = (far < -0.5) | (near > 63.5), (near >= -0.5) & (far <= 63.5)
+    assert unseen.any() == (cx != 31.5) and (direct[:, unseen] == 0).all()
+    # Elsewhere identical, up to points that round to a pixel centre differently in the last bit.
+    assert (direct > 0).sum() > 100
+    assert (direct[:, seen] != reference[:, seen]).sum() <= 2
