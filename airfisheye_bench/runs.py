@@ -8,11 +8,14 @@ entry points register :func:`register_resolvers` before Hydra composes.
 
 from __future__ import annotations
 
+import datetime as _dt
 import functools
 import logging
 import os
+import re
 import secrets
-from collections.abc import Iterable
+import socket
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,23 +28,68 @@ RESUME_KEYS = frozenset({"ckpt_path", "resume_overrides_ok"})
 
 
 @functools.cache
-def run_suffix() -> str:
-    """``<pid>-<4 hex digits>``, fixed for the process: two commands started in the same second differ by it.
+def run_name() -> str:
+    """The run directory's name, fixed for the process (``hydra.run.dir`` ends in ``${run_name:}``).
 
-    Processes alive at the same time have different ids; the random part covers hosts sharing a filesystem.
-    Cached, so every re-resolution of the run directory (Lightning's DDP launcher re-reads it) agrees.
+    One command: ``<date>_<time>_<pid>-<4 hex digits>``; two commands started in the same second differ by the
+    pid (processes alive at the same time) or the random part (hosts sharing a filesystem). Cached, so every
+    re-resolution of the run directory agrees. Lightning's own DDP launcher passes the first process's directory
+    to the processes it starts; torchrun and ``srun`` start every rank as its own command, so there the name is
+    the one every rank of the launch shares (:func:`launch_id`) after the date.
 
     Example:
-        >>> run_suffix() == run_suffix() and run_suffix().startswith(f"{os.getpid()}-")
+        >>> run_name() == run_name() and f"_{os.getpid()}-" in run_name()
         True
     """
-    return f"{os.getpid()}-{secrets.token_hex(2)}"
+    return run_name_for(os.environ, _dt.datetime.now(), os.getpid(), os.getppid())
+
+
+def run_name_for(environ: Mapping[str, str], now: _dt.datetime, pid: int, parent_pid: int) -> str:
+    """:func:`run_name` for the given environment, time and process ids.
+
+    Example:
+        >>> t = _dt.datetime(2026, 11, 24, 9, 30, 5)
+        >>> run_name_for({}, t, 812, 1)[:-4]
+        '2026-11-24_09-30-05_812-'
+        >>> run_name_for({"SLURM_JOB_ID": "4471", "SLURM_STEP_ID": "0", "SLURM_NTASKS": "8"}, t, 812, 1)
+        '2026-11-24_slurm-4471.0'
+        >>> run_name_for({"TORCHELASTIC_RUN_ID": "none", "WORLD_SIZE": "2"}, t, 812, 77)  # doctest: +ELLIPSIS
+        '2026-11-24_torchrun-pid77-...'
+    """
+    shared = launch_id(environ, parent_pid)
+    if shared is not None:  # ranks start seconds apart: the time of day would split them
+        return f"{now:%Y-%m-%d}_{shared}"
+    return f"{now:%Y-%m-%d_%H-%M-%S}_{pid}-{secrets.token_hex(2)}"
+
+
+def launch_id(environ: Mapping[str, str], parent_pid: int) -> str | None:
+    """The id every rank of one multi-process launch shares, or ``None`` for a single process.
+
+    - ``srun`` with several tasks: ``slurm-<job>.<step>``.
+    - torchrun with ``WORLD_SIZE > 1``: ``torchrun-<rendezvous id>`` (``--rdzv-id``; ``--standalone`` draws one);
+      with the default id ``none``, the agent's pid, which every rank of a single-node launch shares, and the host
+      name: ``torchrun-pid<agent>-<host>``.
+    """
+    if environ.get("SLURM_JOB_ID") and int(environ.get("SLURM_NTASKS", "1")) > 1:
+        step = environ.get("SLURM_STEP_ID")
+        return f"slurm-{environ['SLURM_JOB_ID']}" + (f".{step}" if step else "")
+    run_id = environ.get("TORCHELASTIC_RUN_ID")
+    if run_id is not None and int(environ.get("WORLD_SIZE", "1")) > 1:
+        if run_id == "none":
+            return f"torchrun-pid{parent_pid}-{socket.gethostname()}"
+        return f"torchrun-{_safe(run_id)}"
+    return None
+
+
+def _safe(text: str) -> str:
+    """``text`` with anything but letters, digits, ``.``, ``_`` and ``-`` replaced: a folder-name part."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", text)
 
 
 def register_resolvers() -> None:
-    """Register ``${run_suffix:}`` (used by ``hydra.run.dir``) with OmegaConf; safe to call more than once."""
-    if not OmegaConf.has_resolver("run_suffix"):
-        OmegaConf.register_new_resolver("run_suffix", run_suffix)
+    """Register ``${run_name:}`` (used by ``hydra.run.dir``) with OmegaConf; safe to call more than once."""
+    if not OmegaConf.has_resolver("run_name"):
+        OmegaConf.register_new_resolver("run_name", run_name)
 
 
 def flatten(config: Any, prefix: str = "") -> dict[str, Any]:

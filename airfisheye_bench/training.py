@@ -114,6 +114,25 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     return datamodule, module
 
 
+def check_fresh_run_dir(output_dir: Path) -> None:
+    """Refuse to start a new run in a directory that holds one: it would overwrite its configuration, metrics and
+    checkpoints (``hydra.run.dir=<an earlier run>`` without ``ckpt_path``, or a torchrun/srun launch id reused).
+
+    Raises:
+        ConfigError: names the directory and the two ways on.
+    """
+    saved = [name for name in ("metrics.csv", "checkpoints/last.ckpt") if (output_dir / name).is_file()]
+    if (output_dir / "checkpoints").is_dir():
+        saved += [
+            f"checkpoints/{p.name}" for p in sorted((output_dir / "checkpoints").glob("epoch_*.ckpt"))[:1]
+        ]
+    if saved:
+        raise ConfigError(
+            f"hydra.run.dir={output_dir} already holds a run ({', '.join(saved)}); resume it with ckpt_path=last, "
+            "or start the new run in another directory (leave hydra.run.dir unset for a fresh one)"
+        )
+
+
 def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
     """Set up the run directory for a new run or a resume; return the checkpoint to resume from, if any.
 
@@ -128,6 +147,7 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
     ckpt_path = cfg.get("ckpt_path")
     if ckpt_path is None:
         if first:
+            check_fresh_run_dir(output_dir)
             atomic_write_text(output_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
             (output_dir / "metrics.csv").unlink(missing_ok=True)
         return None

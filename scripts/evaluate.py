@@ -18,7 +18,7 @@ from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.runs import register_resolvers
 
 CONFIG_DIR = str(Path(__file__).resolve().parents[1] / "configs")
-register_resolvers()  # ${run_suffix:} in hydra.run.dir
+register_resolvers()  # ${run_name:} in hydra.run.dir
 
 
 @hydra.main(version_base="1.3", config_path=CONFIG_DIR, config_name="evaluate")

@@ -3,6 +3,8 @@ and the refusal of a run in which a process would get no training batch."""
 
 from __future__ import annotations
 
+import datetime
+import os
 import shutil
 import subprocess
 import sys
@@ -15,7 +17,8 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf, open_dict
 
 from airfisheye_bench.checkpointing import AtomicCheckpointIO, RunCSVLogger
-from airfisheye_bench.runs import check_resume, register_resolvers, resume_config
+from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.runs import check_resume, register_resolvers, resume_config, run_name_for
 from airfisheye_bench.training import build, check_config, prepare_run_dir, train
 from tests.training.test_configs import CONFIG_DIR, compose_train
 from tests.training.test_train import tiny_run_overrides
@@ -112,17 +115,67 @@ def test_metrics_csv_is_continued_not_replaced(tmp_path: Path) -> None:
     ]
 
 
+def _run_names(env: dict[str, str], count: int = 2) -> list[str]:
+    """``run_name()`` as printed by ``count`` processes started together, children of this one."""
+    code = "from airfisheye_bench.runs import run_name; print(run_name())"
+    environ = {
+        k: v for k, v in os.environ.items() if not k.startswith(("SLURM_", "TORCHELASTIC_", "WORLD_SIZE"))
+    }
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env={**environ, **env}
+        )
+        for _ in range(count)
+    ]
+    return [p.communicate()[0].strip() for p in procs]
+
+
 def test_run_directories_of_simultaneous_commands_differ() -> None:
     with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
         cfg = compose(config_name="train", return_hydra_config=True)
-    assert "${run_suffix:}" in OmegaConf.to_container(cfg.hydra.run)["dir"]
+    assert OmegaConf.to_container(cfg.hydra.run)["dir"].endswith("/${run_name:}")
     register_resolvers()
-    code = "from airfisheye_bench.runs import run_suffix; print(run_suffix())"
-    procs = [
-        subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True) for _ in range(2)
-    ]
-    suffixes = [p.communicate()[0].strip() for p in procs]
-    assert suffixes[0] != suffixes[1] and all(suffixes)
+    names = _run_names({})
+    assert names[0] != names[1] and all(names)
+
+
+@pytest.mark.parametrize(
+    "env",
+    [
+        {"SLURM_JOB_ID": "4471", "SLURM_STEP_ID": "0", "SLURM_NTASKS": "2", "SLURM_PROCID": "1"},
+        {"TORCHELASTIC_RUN_ID": "8f2c/x", "WORLD_SIZE": "2"},
+        {"TORCHELASTIC_RUN_ID": "none", "WORLD_SIZE": "2"},  # torchrun's default id: the agent's pid decides
+    ],
+    ids=["srun", "torchrun-rdzv-id", "torchrun-default-id"],
+)
+def test_the_ranks_of_one_launch_share_one_run_directory(env: dict[str, str]) -> None:
+    """torchrun and srun start every rank as its own command: a per-process name gave each its own folder."""
+    names = _run_names(env, count=3)
+    assert len(set(names)) == 1 and "/" not in names[0], names
+    assert ("slurm-4471.0" if "SLURM_JOB_ID" in env else "torchrun-") in names[0]
+
+
+def test_a_single_rank_launch_keeps_the_per_process_name() -> None:
+    t = datetime.datetime(2026, 11, 24, 9, 30, 5)
+    assert run_name_for({"SLURM_JOB_ID": "9", "SLURM_NTASKS": "1"}, t, 5, 1).startswith(
+        "2026-11-24_09-30-05_5-"
+    )
+    assert run_name_for({"TORCHELASTIC_RUN_ID": "a", "WORLD_SIZE": "1"}, t, 5, 1).startswith(
+        "2026-11-24_09-30-05"
+    )
+
+
+def test_a_new_run_in_a_finished_run_directory_is_refused(tiny_dataset: Path, tmp_path: Path) -> None:
+    """``hydra.run.dir=<an earlier run>`` without ``ckpt_path`` would overwrite its metrics and checkpoints."""
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "checkpoints" / "last.ckpt").write_bytes(b"state")
+    (tmp_path / "metrics.csv").write_text("epoch,step\n0,0\n")
+    cfg = tiny_cfg(tiny_dataset, tmp_path)
+    with pytest.raises(
+        ConfigError, match=r"already holds a run \(metrics.csv, checkpoints/last.ckpt\).*ckpt_path=last"
+    ):
+        train(cfg)
+    assert (tmp_path / "metrics.csv").read_text() == "epoch,step\n0,0\n"
 
 
 @pytest.mark.parametrize(
