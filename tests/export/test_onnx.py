@@ -6,7 +6,8 @@ import pytest
 import torch
 from torch import nn
 
-from airfisheye_bench.export import OnnxParityError, export_onnx, read_onnx_metadata, verify_onnx
+from airfisheye_bench.export import OnnxParityError, export_onnx, verify_onnx
+from airfisheye_bench.io.deployment import read_onnx_metadata
 
 
 class TwoInputNet(nn.Module):
