@@ -8,6 +8,7 @@ import numpy as np
 import torch
 from PIL import Image
 
+from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.io import atomic_write_bytes
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.specs.formats import LabelMaps
@@ -127,8 +128,6 @@ def panel_row(
         Tiles ``uint8 [H, W, 3]``. The error tile is red where a label is wrong, or the absolute range error
         with red at 10 m or more; pixels without ground truth are dark grey.
     """
-    from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
-
     image = denormalize(batch["image"][index], IMAGENET_MEAN, IMAGENET_STD)
     valid = batch["valid_mask"][index].bool().cpu()
     spec = get_task(task)

@@ -34,6 +34,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import Dataset
 
+from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
@@ -46,8 +47,6 @@ log = logging.getLogger(__name__)
 #: The task-dependent keys a sample can hold, in the order they are loaded.
 SAMPLE_KEYS = ("label", "depth", "sparse_depth")
 SOURCES = ("cubemap", "fisheye")
-IMAGENET_MEAN = (0.485, 0.456, 0.406)
-IMAGENET_STD = (0.229, 0.224, 0.225)
 
 
 @dataclass(frozen=True)
@@ -371,4 +370,4 @@ def collate(samples: list[dict | None]) -> dict:
     return batch
 
 
-__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "SAMPLE_KEYS", "AirFisheyeDataset", "CameraConfig", "collate"]
+__all__ = ["SAMPLE_KEYS", "AirFisheyeDataset", "CameraConfig", "collate"]
