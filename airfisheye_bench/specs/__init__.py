@@ -8,13 +8,11 @@ Example:
     >>> spec = get_task("completion")
     >>> spec.inputs, spec.target, spec.output, spec.primary_metric
     (('image', 'sparse_depth'), 'depth', 'depth', 'rmse')
-    >>> type(task_metric("depth", max_depth=80.0)).__name__
-    'DepthMetrics'
+    >>> type(spec.make_metric(max_depth=80.0)).__name__
+    'CompletionMetrics'
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 from airfisheye_bench.specs.base import Baseline, ExportSpec, MetricColumn, MetricOptions, TaskSpec
 from airfisheye_bench.specs.completion import COMPLETION
@@ -29,9 +27,6 @@ from airfisheye_bench.specs.registry import (
     unregister_task,
 )
 from airfisheye_bench.specs.seg import SEG
-
-if TYPE_CHECKING:
-    from torchmetrics import Metric
 
 __all__ = [
     "COMPLETION",
@@ -51,7 +46,6 @@ __all__ = [
     "deployment_keys",
     "get_task",
     "register_task",
-    "task_metric",
     "task_names",
     "unregister_task",
 ]
@@ -68,8 +62,3 @@ def deployment_keys(task: str) -> tuple[str, ...]:
         ('min_depth', 'max_depth', 'occlusion')
     """
     return get_task(task).export.metadata
-
-
-def task_metric(task: str, **options) -> Metric:
-    """A fresh metric of ``task``: ``get_task(task).make_metric(**options)`` (see :meth:`TaskSpec.make_metric`)."""
-    return get_task(task).make_metric(**options)

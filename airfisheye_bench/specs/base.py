@@ -45,7 +45,7 @@ class MetricColumn:
         label: Column title, units and percent marker included (``RMSE (m)``).
         higher_is_better: Rank descending on it.
         percent: Printed as a percentage in markdown and HTML (the paper writes "mIoU 51.2"); files keep fractions.
-        decimals: Decimals printed (the paper's own precision).
+        decimals: Decimals printed for fractions and metres (the paper's own precision; percentages print one).
     """
 
     key: str
