@@ -29,6 +29,7 @@ from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.io.atomic import atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.runs import check_resume, keep_metric_rows, numbered_sibling, read_checkpoint
+from airfisheye_bench.specs import UnknownTaskError, get_task
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
 
@@ -48,6 +49,17 @@ def check_config(cfg: DictConfig) -> None:
     """
     check_common_values(cfg)
     task = cfg.task.name
+    try:
+        spec = get_task(task)
+    except UnknownTaskError as err:
+        raise ConfigError(f"task.name: {err}") from None
+    monitored = spec.column(cfg.task.get("primary_metric"))
+    if monitored is not None and cfg.task.get("mode") != ("max" if monitored.higher_is_better else "min"):
+        raise ConfigError(
+            f"task.mode={cfg.task.get('mode')} but a higher {monitored.key} is "
+            f"{'better' if monitored.higher_is_better else 'worse'}; write task.mode="
+            f"{'max' if monitored.higher_is_better else 'min'}"
+        )
     name = cfg.model.get("name")
     if name not in list_models():
         raise ConfigError(f"model.name={name!r} is not a registered model; choose one of {list_models()}")
@@ -96,7 +108,7 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     datamodule.setup("fit")
     model_cfg = OmegaConf.to_container(cfg.model, resolve=True)
     extra: dict[str, Any] = {}
-    if cfg.task.name == "seg":
+    if get_task(cfg.task.name).uses_classes:
         extra = {
             "class_names": datamodule.class_names,
             "palette": datamodule.palette[: datamodule.num_classes].tolist(),

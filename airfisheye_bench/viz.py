@@ -10,6 +10,8 @@ from PIL import Image
 
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.io import atomic_write_bytes
+from airfisheye_bench.specs import get_task
+from airfisheye_bench.specs.formats import LabelMaps
 
 # Anchor colours of a perceptually ordered map (near = yellow, far = dark purple), interpolated to 256 entries.
 _ANCHORS = np.array(
@@ -109,43 +111,44 @@ def panel_row(
     palette: np.ndarray | None = None,
     max_depth: float = 120.0,
 ) -> list[np.ndarray]:
-    """One qualitative row for sample ``index`` of a batch: image | (sparse input) | ground truth | prediction | error.
+    """One qualitative row for sample ``index`` of a batch: image | (other inputs) | ground truth | prediction | error.
+
+    What is drawn follows the task's spec: its model inputs after the image (e.g. completion's sparse depth, drawn as
+    range maps), its target, and its prediction as labels or as a range map (``spec.prediction``).
 
     Args:
-        task: ``seg``, ``depth`` or ``completion``.
-        batch: A collated batch (normalised ``image``, ``valid_mask``, and ``label`` or ``depth``, plus
-            ``sparse_depth`` for completion).
-        prediction: Labels ``[B, H, W]`` (seg) or depth ``[B, 1, H, W]``.
+        task: A registered task name (``seg``, ``depth``, ``completion``).
+        batch: A collated batch (normalised ``image``, ``valid_mask``, the task's target and inputs).
+        prediction: Labels ``[B, H, W]`` or range ``[B, 1, H, W]``.
         index: Sample of the batch to draw.
-        palette: ``uint8 [N, 3]`` class colours (seg).
+        palette: ``uint8 [N, 3]`` class colours (label predictions).
         max_depth: Far end of the depth colour map in metres.
 
     Returns:
-        Tiles ``uint8 [H, W, 3]``. The error tile is red where a label is wrong (seg), or the absolute depth error
+        Tiles ``uint8 [H, W, 3]``. The error tile is red where a label is wrong, or the absolute range error
         with red at 10 m or more; pixels without ground truth are dark grey.
     """
     image = denormalize(batch["image"][index], IMAGENET_MEAN, IMAGENET_STD)
     valid = batch["valid_mask"][index].bool().cpu()
-    if task == "seg":
+    spec = get_task(task)
+    tiles = [image] + [colorize_depth(batch[key][index, 0].cpu(), max_depth) for key in spec.inputs[1:]]
+    if isinstance(spec.prediction, LabelMaps):
         if palette is None:
-            raise ValueError("panel_row('seg') needs the class palette")
-        gt = batch["label"][index].cpu()
+            raise ValueError(f"panel_row({task!r}) needs the class palette")
+        gt = batch[spec.target][index].cpu()
         pred = torch.where(valid, prediction[index].cpu(), 255)
         wrong = (pred != gt).float()
         return [
-            image,
+            *tiles,
             colorize_labels(gt, palette),
             colorize_labels(pred, palette),
             colorize_error(wrong, gt != 255, scale=1.0),
         ]
-    gt = batch["depth"][index, 0].cpu()
+    gt = batch[spec.target][index, 0].cpu()
     pred = prediction[index, 0].detach().cpu() * valid
-    tiles = [
-        image,
+    return [
+        *tiles,
         colorize_depth(gt, max_depth),
         colorize_depth(pred, max_depth),
         colorize_error((pred - gt).abs(), gt > 0, scale=10.0),
     ]
-    if task == "completion":
-        tiles.insert(1, colorize_depth(batch["sparse_depth"][index, 0].cpu(), max_depth))
-    return tiles

@@ -7,11 +7,15 @@ key                shape, dtype                  meaning
 =================  ============================  ==========================================================
 ``image``          ``[3, H, W]`` float32         RGB normalised with ImageNet mean/std
 ``valid_mask``     ``[H, W]`` bool               inside the image circle and seen by a cube face
-``label``          ``[H, W]`` int64              ``seg``: training class, 255 = ignore (incl. outside)
-``depth``          ``[1, H, W]`` float32         ``depth``/``completion``: range in metres, 0 = invalid
-``sparse_depth``   ``[1, H, W]`` float32         ``completion``: LiDAR range map after occlusion correction
+``label``          ``[H, W]`` int64              training class, 255 = ignore (incl. outside)
+``depth``          ``[1, H, W]`` float32         range in metres, 0 = invalid
+``sparse_depth``   ``[1, H, W]`` float32         LiDAR range map after occlusion correction
 ``sample_id``      str                           ``<env>/<trajectory>/<frame>``
 =================  ============================  ==========================================================
+
+``image``, ``valid_mask`` and ``sample_id`` are always served; of the others, the keys the task's spec names
+(its ``target`` and its model ``inputs``, :data:`SAMPLE_KEYS`): ``seg`` gets ``label``, ``depth`` gets ``depth``,
+``completion`` gets ``depth`` and ``sparse_depth``.
 
 Sources: ``cubemap`` remaps the raw cube faces on the fly with :class:`~airfisheye_bench.geometry.CubemapToFisheye`
 at the requested camera (any lens, FOV and size, no re-generation: the lookup table is built directly at the
@@ -34,12 +38,14 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
+from airfisheye_bench.specs import get_task
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
 from datamodules.sampling import SharedEpoch, draw_seed
 
 log = logging.getLogger(__name__)
 
-TASKS = ("seg", "depth", "completion")
+#: The task-dependent keys a sample can hold, in the order they are loaded.
+SAMPLE_KEYS = ("label", "depth", "sparse_depth")
 SOURCES = ("cubemap", "fisheye")
 
 
@@ -87,7 +93,7 @@ class AirFisheyeDataset(Dataset):
     Args:
         root: Dataset root (holds ``dataset.yaml``).
         split: Split name (``train``, ``val``, ``test``).
-        task: ``seg``, ``depth`` or ``completion``.
+        task: A registered task (``seg``, ``depth``, ``completion``, see :mod:`airfisheye_bench.specs`).
         source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
         camera: The served camera (see :class:`CameraConfig`).
         occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``
@@ -123,8 +129,8 @@ class AirFisheyeDataset(Dataset):
         skip_bad_frames: bool = False,
         seed: int = 0,
     ) -> None:
+        task_spec = get_task(task)
         for name, value, allowed in (
-            ("task", task, TASKS),
             ("source", source, SOURCES),
             ("occlusion", occlusion, OCCLUSION_METHODS),
         ):
@@ -150,8 +156,18 @@ class AirFisheyeDataset(Dataset):
             raise ValueError(f"split {split!r} of {root} is empty")
         if source == "cubemap" and not self.spec.has("cubemap"):
             raise ValueError(f"{root} has no cube faces; use data.source=fisheye")
-        if task == "completion" and not self.spec.has("lidar"):
-            raise ValueError(f"{root} has no LiDAR scans; task=completion needs them")
+        for content in task_spec.requires:
+            if not self.spec.has(content):
+                raise ValueError(
+                    f"{root} has no {content} data (dataset.yaml contents); task={task} needs it"
+                )
+        needed = {task_spec.target, *task_spec.inputs} - {"image"}
+        if needed - set(SAMPLE_KEYS):
+            raise ValueError(
+                f"task={task} needs sample keys {sorted(needed - set(SAMPLE_KEYS))} that the dataset cannot serve "
+                f"(it serves image, {', '.join(SAMPLE_KEYS)})"
+            )
+        self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
@@ -199,19 +215,11 @@ class AirFisheyeDataset(Dataset):
         valid = self.valid_mask
         rgb = self._dense(sample_id, "rgb")  # uint8 [3, H, W]
         out: dict = {"sample_id": sample_id}
-        if self.task == "seg":
-            raw = self._dense(sample_id, "seg")[0]
-            unknown = self.spec.unknown_label_ids(raw.numpy())
-            if unknown:
-                raise DatasetFormatError(
-                    self._path(sample_id, "seg"), f"label ids {unknown} are not raw classes of dataset.yaml"
-                )
-            label = self.label_lut[raw.long()]
-            out["label"] = label
-        if self.task in ("depth", "completion"):
-            depth = self._dense(sample_id, "depth")  # float32 [1, H, W]
-            out["depth"] = self._clip_depth(depth)
-        if self.task == "completion":
+        if "label" in self.sample_keys:
+            out["label"] = self._label(sample_id)
+        if "depth" in self.sample_keys:
+            out["depth"] = self._clip_depth(self._dense(sample_id, "depth"))  # float32 [1, H, W]
+        if "sparse_depth" in self.sample_keys:
             out["sparse_depth"] = self._sparse_depth(sample_id, params)
 
         if params is not None:
@@ -236,7 +244,7 @@ class AirFisheyeDataset(Dataset):
         if "depth" in out:
             maps.append(out["depth"])
             fills.append(0.0)
-        # Every task has a label or a depth map.
+        # Every task's target is a label or a depth map.
         rgb, valid, moved = augment_sample(
             rgb, valid, torch.cat(maps), fills, params, self.camera.cx, self.camera.cy
         )
@@ -245,6 +253,16 @@ class AirFisheyeDataset(Dataset):
         if "depth" in out:
             out["depth"] = moved[-1:]
         return rgb, valid, out
+
+    def _label(self, sample_id: str) -> torch.Tensor:
+        """Training-class ids ``[H, W]`` (raw ids mapped through ``dataset.yaml``; unknown raw ids are an error)."""
+        raw = self._dense(sample_id, "seg")[0]
+        unknown = self.spec.unknown_label_ids(raw.numpy())
+        if unknown:
+            raise DatasetFormatError(
+                self._path(sample_id, "seg"), f"label ids {unknown} are not raw classes of dataset.yaml"
+            )
+        return self.label_lut[raw.long()]
 
     def _dense(self, sample_id: str, modality: str) -> torch.Tensor:
         """One dense modality at the served camera: ``[C, H, W]`` (uint8 RGB / raw labels, float32 depth)."""
@@ -351,4 +369,4 @@ def collate(samples: list[dict | None]) -> dict:
     return batch
 
 
-__all__ = ["AirFisheyeDataset", "CameraConfig", "collate"]
+__all__ = ["SAMPLE_KEYS", "AirFisheyeDataset", "CameraConfig", "collate"]

@@ -12,7 +12,7 @@ from typing import TypeVar
 
 from torch import nn
 
-TASKS = ("seg", "depth", "completion")
+from airfisheye_bench.specs import get_task
 
 _MODELS: dict[str, Callable[..., nn.Module]] = {}
 _MODEL_TASKS: dict[str, str] = {}
@@ -21,9 +21,12 @@ F = TypeVar("F", bound=Callable[..., nn.Module])
 
 
 def register_model(name: str, task: str) -> Callable[[F], F]:
-    """Register a model constructor under ``name`` for ``task`` (one of ``seg``, ``depth``, ``completion``)."""
-    if task not in TASKS:
-        raise ValueError(f"task must be one of {TASKS}, got {task!r}")
+    """Register a model constructor under ``name`` for ``task`` (a registered task, see :mod:`airfisheye_bench.specs`).
+
+    Raises:
+        ValueError: ``task`` is not registered (the message lists the registered tasks).
+    """
+    get_task(task)
 
     def decorator(fn: F) -> F:
         key = name.lower()

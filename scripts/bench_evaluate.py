@@ -48,7 +48,8 @@ from airfisheye_bench.evaluation.evaluator import evaluate_predictions
 from airfisheye_bench.evaluation.predictors import FilePredictor
 from airfisheye_bench.evaluation.submission import SubmissionWriter, read_prediction
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
-from airfisheye_bench.metrics.scorer import TaskScorer, task_metric
+from airfisheye_bench.metrics.scorer import TaskScorer
+from airfisheye_bench.specs import get_task
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -133,7 +134,7 @@ def evaluation_set(root: Path, task: str, size: int, frames: int) -> RepeatedFra
 
 def fake_prediction(task: str, sample: dict, rng: np.random.Generator, num_classes: int) -> np.ndarray:
     """A plausible prediction of one frame from its ground truth."""
-    if task == "seg":
+    if get_task(task).uses_classes:
         label = sample["label"].numpy()
         wrong = rng.random(label.shape) < SEG_ERROR_RATE
         return np.where(wrong, rng.integers(0, num_classes, label.shape), label).astype(np.uint8)
@@ -161,9 +162,10 @@ def ensure_predictions(
 
 def make_scorer(task: str, dataset: RepeatedFrames) -> TaskScorer:
     """The scorer ``scripts/evaluate.py`` builds for a prediction folder."""
-    class_names = dataset.bases[0].spec.train_class_names if task == "seg" else None
-    factory = partial(task_metric, task, class_names=class_names, max_depth=dataset.bases[0].max_depth)
-    return TaskScorer(factory, depth_edges_m=None if task == "seg" else DEFAULT_DEPTH_EDGES_M)
+    spec = get_task(task)
+    class_names = dataset.bases[0].spec.train_class_names if spec.uses_classes else None
+    factory = partial(spec.make_metric, class_names=class_names, max_depth=dataset.bases[0].max_depth)
+    return TaskScorer(factory, depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None)
 
 
 # ---------------------------------------------------------------------------------------------------- timing
@@ -247,7 +249,7 @@ def time_parts(
         collate([wrapped[i] for i in range(start, min(start + batch_size, n))])
         for start in range(0, n, batch_size)
     ]
-    target = "label" if task == "seg" else "depth"
+    target = get_task(task).target
 
     def score(metric, **kwargs) -> None:
         metric.reset()
@@ -281,7 +283,7 @@ def bench_task(
     args: argparse.Namespace,
 ) -> TaskResult:
     dataset = evaluation_set(root, task, args.size, args.frames)
-    fmt = "png" if task == "seg" else args.depth_format
+    fmt = get_task(task).prediction.suffix(args.depth_format).lstrip(".")
     folder = data_dir / f"preds-{root.name}-{task}-{fmt}-{args.size}px-{args.frames}f"
     ensure_predictions(folder, dataset, task, fmt)
     theta = torch.rad2deg(dataset.camera.theta_grid()).float()
@@ -334,7 +336,7 @@ def format_table(results: Sequence[TaskResult], args: argparse.Namespace) -> str
     for r in results:
         kind = (
             "8-bit label PNG"
-            if r.task == "seg"
+            if get_task(r.task).uses_classes
             else ("16-bit PNG" if r.prediction_format == "png" else ".npy")
         )
         runs = " / ".join(f"{s:.1f}" for s in r.loop_s)

@@ -52,6 +52,7 @@ from lightning.pytorch.loggers import CSVLogger
 from omegaconf import DictConfig, OmegaConf
 from torch.utils.data import DataLoader, Dataset
 
+from airfisheye_bench.specs import get_task, task_names
 from airfisheye_bench.synth.classes import TRAIN_CLASSES
 from airfisheye_bench.tasks import BenchmarkTask
 from datamodules.dataset import collate
@@ -60,7 +61,6 @@ ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = ROOT / "configs"
 DOCS = ROOT / "docs" / "benchmarks.md"
 SECTION = "## Lightning overhead"
-TASKS = ("seg", "depth", "completion")
 VARIANTS = ("plain", "trainer", "trainer_csv")
 CLOCKS = ("cpu", "wall")
 
@@ -69,18 +69,19 @@ CLOCKS = ("cpu", "wall")
 def compose_config(task: str, size: int) -> DictConfig:
     """The quick-start training config of ``task`` at ``size`` (no LR scheduler: the plain loop has none)."""
     overrides = [f"task={task}", f"data.camera.size={size}", "task.module.scheduler=null"]
-    if task == "depth":
-        # As configs/model/adabins.yaml says: patch 4 at 128^2, 16 at 512^2 (the mini-ViT needs >= 129 patches).
-        overrides.append(f"model.patch_size={max(1, size // 32)}")
     with initialize_config_dir(config_dir=str(CONFIG_DIR), version_base="1.3"):
-        return compose(config_name="train", overrides=overrides)
+        cfg = compose(config_name="train", overrides=overrides)
+    if cfg.model.name == "adabins":
+        # As configs/model/adabins.yaml says: patch 4 at 128^2, 16 at 512^2 (the mini-ViT needs >= 129 patches).
+        cfg.model.patch_size = max(1, size // 32)
+    return cfg
 
 
 def build_module(cfg: DictConfig, seed: int) -> BenchmarkTask:
     """The task module exactly as ``airfisheye_bench.training.build`` instantiates it, with seeded weights."""
     torch.manual_seed(seed)
     extra: dict[str, Any] = {}
-    if cfg.task.name == "seg":
+    if get_task(cfg.task.name).uses_classes:
         extra = {
             "class_names": [c.name for c in TRAIN_CLASSES],
             "palette": [list(c.color) for c in TRAIN_CLASSES],
@@ -90,7 +91,12 @@ def build_module(cfg: DictConfig, seed: int) -> BenchmarkTask:
 
 
 def make_samples(task: str, batch: int, size: int, num_classes: int, seed: int) -> list[dict[str, Any]]:
-    """``batch`` samples with the keys, shapes and dtypes ``AirFisheyeDataset`` serves for ``task``."""
+    """``batch`` samples with the keys, shapes and dtypes ``AirFisheyeDataset`` serves for ``task``.
+
+    The target and inputs are those of the task's spec: ``label`` (random classes) or range maps (``depth``
+    uniform in 1-100 m, ``sparse_depth`` that depth at ~5 % of pixels, as LiDAR returns).
+    """
+    spec = get_task(task)
     g = torch.Generator().manual_seed(seed)
     yy, xx = torch.meshgrid(torch.arange(size), torch.arange(size), indexing="ij")
     c = (size - 1) / 2
@@ -98,13 +104,13 @@ def make_samples(task: str, batch: int, size: int, num_classes: int, seed: int) 
     samples = []
     for i in range(batch):
         s: dict[str, Any] = {"sample_id": f"bench_{i:04d}"}
-        if task == "seg":
+        if spec.target == "label":
             label = torch.randint(0, num_classes, (size, size), generator=g)
             s["label"] = torch.where(valid, label, 255).long()
         else:
-            s["depth"] = (1 + 99 * torch.rand(1, size, size, generator=g)) * valid
-        if task == "completion":  # ~5 % of pixels with a LiDAR return
-            s["sparse_depth"] = s["depth"] * (torch.rand(1, size, size, generator=g) < 0.05)
+            s[spec.target] = (1 + 99 * torch.rand(1, size, size, generator=g)) * valid
+        if "sparse_depth" in spec.inputs:  # ~5 % of pixels with a LiDAR return
+            s["sparse_depth"] = s[spec.target] * (torch.rand(1, size, size, generator=g) < 0.05)
         s["image"] = torch.randn(3, size, size, generator=g) * valid
         s["valid_mask"] = valid.clone()
         samples.append(s)
@@ -300,7 +306,7 @@ def update_docs(section: str, path: Path = DOCS) -> None:
 # ------------------------------------------------------------------------------------------------------- main
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", choices=TASKS, default=list(TASKS))
+    parser.add_argument("--tasks", nargs="+", choices=task_names(), default=list(task_names()))
     parser.add_argument(
         "--size", type=int, default=128, help="square input size (quick start: 128, paper: 512)"
     )

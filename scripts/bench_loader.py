@@ -21,6 +21,7 @@ import time
 
 import torch
 
+from airfisheye_bench.specs import task_names
 from datamodules import AirFisheyeDataset, CameraConfig, FisheyeAugment
 
 
@@ -30,13 +31,14 @@ def rss_mb() -> float:
 
 def decode_ms(ds: AirFisheyeDataset, n: int) -> float:
     """CPU ms per sample spent reading and decoding the files alone (the storage format's share)."""
-    modalities = ["rgb"] + (["seg"] if ds.task == "seg" else ["depth"])
+    # The dataset's modality files of the task's target ("label" is read from the "seg" files).
+    modalities = ["rgb"] + (["seg"] if "label" in ds.sample_keys else ["depth"])
     t0 = time.process_time()
     for i in range(n):
         sid = ds.sample_ids[i % len(ds)]
         for m in modalities:
             ds.reader.cubemap(sid, m) if ds.source == "cubemap" else ds.reader.fisheye(sid, m)
-        if ds.task == "completion":
+        if "sparse_depth" in ds.sample_keys:
             ds.reader.lidar(sid)
     return (time.process_time() - t0) / n * 1e3
 
@@ -75,7 +77,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--size", type=int, default=512)
     parser.add_argument("--samples", type=int, default=40)
     parser.add_argument("--repeats", type=int, default=1, help="loops per configuration (min and median)")
-    parser.add_argument("--tasks", nargs="+", default=["seg", "depth", "completion"])
+    parser.add_argument("--tasks", nargs="+", default=list(task_names()))
     parser.add_argument("--sources", nargs="+", default=["cubemap", "fisheye"])
     args = parser.parse_args(argv)
     torch.set_num_threads(1)

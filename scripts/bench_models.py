@@ -31,6 +31,7 @@ from torch import Tensor, nn
 
 import models
 from airfisheye_bench.export import export_onnx, verify_onnx
+from airfisheye_bench.specs import get_task
 from models.losses import AdaBinsLoss, SegmentationCELoss, SILogLoss
 
 PAPER_MODELS = ("deeplabv3plus", "adabins", "nlspn")
@@ -39,7 +40,7 @@ PAPER_MODELS = ("deeplabv3plus", "adabins", "nlspn")
 def make_inputs(task: str, batch: int, size: int, device: torch.device) -> dict[str, Tensor]:
     g = torch.Generator().manual_seed(0)
     inputs = {"image": torch.randn(batch, 3, size, size, generator=g)}
-    if task == "completion":  # ~5 % of pixels with a LiDAR-like return
+    if "sparse_depth" in get_task(task).inputs:  # ~5 % of pixels with a LiDAR-like return
         depth = 1 + 99 * torch.rand(batch, 1, size, size, generator=g)
         inputs["sparse_depth"] = depth * (torch.rand(batch, 1, size, size, generator=g) < 0.05)
     return {k: v.to(device) for k, v in inputs.items()}
@@ -47,7 +48,7 @@ def make_inputs(task: str, batch: int, size: int, device: torch.device) -> dict[
 
 def make_target(task: str, batch: int, size: int, device: torch.device) -> Tensor:
     g = torch.Generator().manual_seed(1)
-    if task == "seg":
+    if get_task(task).uses_classes:
         return torch.randint(0, 13, (batch, size, size), generator=g).to(device)
     return (1 + 99 * torch.rand(batch, 1, size, size, generator=g)).to(device)
 
@@ -115,7 +116,7 @@ def bench_device(
 def bench_onnx(model: nn.Module, name: str, task: str, args: argparse.Namespace) -> tuple[float, float]:
     """(ORT / eager latency ratio, max abs diff) on CPU."""
     model = model.cpu().eval()
-    primary = "logits" if task == "seg" else "depth"
+    primary = get_task(task).output
     with tempfile.TemporaryDirectory() as tmp:
         path = export_onnx(
             model,

@@ -4,7 +4,6 @@ The evaluation command itself is :func:`airfisheye_bench.evaluation.command.eval
 """
 
 from airfisheye_bench.evaluation.leaderboard import (
-    PAPER_BASELINES,
     Leaderboard,
     LeaderboardEntry,
     LeaderboardError,
@@ -13,9 +12,9 @@ from airfisheye_bench.evaluation.leaderboard import (
     find_results,
     load_entries,
     load_entry,
+    paper_baselines,
 )
 from airfisheye_bench.evaluation.results import (
-    PRIMARY_METRIC,
     RESULTS_VERSION,
     dataset_identity,
     load_results,
@@ -31,8 +30,6 @@ from airfisheye_bench.evaluation.submission import (
 )
 
 __all__ = [
-    "PAPER_BASELINES",
-    "PRIMARY_METRIC",
     "RESULTS_VERSION",
     "Leaderboard",
     "LeaderboardEntry",
@@ -46,6 +43,7 @@ __all__ = [
     "load_entries",
     "load_entry",
     "load_results",
+    "paper_baselines",
     "read_prediction",
     "validate_submission",
     "write_prediction",

@@ -35,10 +35,11 @@ from airfisheye_bench.evaluation.predictors import (
     OnnxPredictor,
     Predictor,
 )
-from airfisheye_bench.evaluation.results import PRIMARY_METRIC, dataset_identity, write_results
+from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.evaluation.submission import SubmissionWriter
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
-from airfisheye_bench.metrics.scorer import TaskScorer, task_metric
+from airfisheye_bench.metrics.scorer import TaskScorer
+from airfisheye_bench.specs import UnknownTaskError, deployment_keys, get_task, task_names
 from airfisheye_bench.viz import make_panel, save_png
 
 log = logging.getLogger(__name__)
@@ -82,13 +83,15 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     elif source == "onnx_path":
         from airfisheye_bench.io.deployment import read_deployment_metadata
 
-        metadata = read_deployment_metadata(cfg.onnx_path)
+        metadata = read_deployment_metadata(cfg.onnx_path, deployment_keys)
         source_data = OmegaConf.create(metadata["data_config"]) if metadata.get("data_config") else None
         task = _agree(task, metadata["task"], f"ONNX model {cfg.onnx_path}")
     elif task is None:
-        raise ConfigError("predictions=DIR needs task=seg|depth|completion")
-    if task not in PRIMARY_METRIC:
-        raise ConfigError(f"task must be one of {sorted(PRIMARY_METRIC)}, got {task!r}")
+        raise ConfigError(f"predictions=DIR needs task={'|'.join(task_names())}")
+    try:
+        spec = get_task(task)
+    except UnknownTaskError as err:
+        raise ConfigError(f"task: {err}") from None
 
     with open_dict(cfg):
         if not cfg.get("task"):
@@ -103,9 +106,9 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     if module is not None:
         factory = module.make_metric  # the checkpoint's own evaluation bounds
     else:
-        class_names = datamodule.class_names if task == "seg" else None
-        factory = partial(task_metric, task, class_names=class_names, max_depth=max_depth)
-    scorer = TaskScorer(factory, depth_edges_m=None if task == "seg" else DEFAULT_DEPTH_EDGES_M)
+        class_names = datamodule.class_names if spec.uses_classes else None
+        factory = partial(spec.make_metric, class_names=class_names, max_depth=max_depth)
+    scorer = TaskScorer(factory, depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None)
     theta = torch.rad2deg(camera.theta_grid()).float()
 
     output_dir = Path(cfg.output_dir)
@@ -119,12 +122,12 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
             batch_size=cfg.batch_size,
             num_workers=cfg.num_workers,
             num_panels=cfg.num_panels,
-            palette=datamodule.palette if task == "seg" else None,
+            palette=datamodule.palette if spec.uses_classes else None,
             max_depth=max_depth,
             on_batch=writer.add_batch if writer else None,
         )
     record = _write(cfg, output_dir, task, datamodule, data_config, predictor, result)
-    print(format_results_table(task, result, PRIMARY_METRIC[task]))
+    print(format_results_table(task, result, spec.primary_metric))
     print(f"\n{result.num_frames} frames in {result.seconds:.1f} s; results: {output_dir / 'results.json'}")
     return record
 

@@ -24,6 +24,7 @@ from torchmetrics.utilities.data import dim_zero_sum
 from airfisheye_bench.evaluation.predictors import FilePredictor, Predictor
 from airfisheye_bench.metrics._state import record_update
 from airfisheye_bench.metrics.scorer import TaskScorer
+from airfisheye_bench.specs import get_task
 from airfisheye_bench.viz import panel_row
 
 __all__ = ["EvaluationResult", "evaluate_predictions", "format_results_table"]
@@ -71,7 +72,7 @@ def evaluate_predictions(
         batch_size: Frames per batch.
         num_workers: DataLoader workers.
         num_panels: Frames drawn as qualitative panels (the first ones of the split).
-        palette: Class colours (seg panels).
+        palette: Class colours (panels of tasks that predict labels).
         max_depth: Far end of the depth colour maps.
         on_batch: Called with ``(batch, prediction)`` after scoring each batch (e.g. to save predictions).
 
@@ -81,6 +82,7 @@ def evaluate_predictions(
     from datamodules.dataset import collate
 
     scorer.reset()
+    target_key = get_task(predictor.task).target
     collate_fn: Callable[[list], dict] = collate
     if isinstance(predictor, FilePredictor):
         dataset = predictor.wrap(dataset)
@@ -101,7 +103,7 @@ def evaluate_predictions(
                 continue
             states = batch.pop(_STATES, None)
             prediction = predictor(batch)
-            target = batch["label"] if predictor.task == "seg" else batch["depth"]
+            target = batch[target_key]
             _check_shape(prediction, target)
             if states is None:
                 scorer.update(prediction, target, theta=theta_deg, mask=batch["valid_mask"])
@@ -181,7 +183,7 @@ class _ScoringCollate:
         if "image" not in batch:
             return batch
         prediction = batch["prediction"]
-        target = batch["label"] if self.task == "seg" else batch["depth"]
+        target = batch[get_task(self.task).target]
         _check_shape(prediction, target)
         self.scorer.reset()
         self.scorer.update(prediction, target, theta=self.theta_deg, mask=batch["valid_mask"])

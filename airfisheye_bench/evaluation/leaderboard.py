@@ -37,13 +37,11 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.errors import MissingFileError, UserError, report_user_errors
-from airfisheye_bench.evaluation.results import PRIMARY_METRIC, RESULTS_VERSION, load_results
+from airfisheye_bench.evaluation.results import RESULTS_VERSION, load_results
 from airfisheye_bench.io import atomic_write_text
+from airfisheye_bench.specs import MetricColumn, UnknownTaskError, all_tasks, get_task
 
 __all__ = [
-    "METRIC_LABELS",
-    "PAPER_BASELINES",
-    "TASK_COLUMNS",
     "Leaderboard",
     "LeaderboardEntry",
     "LeaderboardError",
@@ -52,57 +50,29 @@ __all__ = [
     "breakdown_bins",
     "build_leaderboard",
     "collect_results",
+    "csv_columns",
     "find_results",
     "format_value",
+    "higher_is_better",
     "load_entries",
     "load_entry",
     "main",
+    "metric_column",
+    "metric_label",
+    "paper_baselines",
     "rim_label",
 ]
 
-TASKS = ("seg", "depth", "completion")
-TASK_TITLES = {"seg": "Semantic segmentation", "depth": "Monocular depth", "completion": "Depth completion"}
-#: The headline metrics of each task (docs/design.md, "Metrics"), in the paper's column order.
-TASK_COLUMNS: dict[str, tuple[str, ...]] = {
-    "seg": ("mIoU", "pixel_acc"),
-    "depth": ("abs_rel", "sq_rel", "rmse", "rmse_log", "delta1", "delta2", "delta3"),
-    "completion": ("abs_rel", "rmse", "mae", "delta1", "delta2", "delta3"),
-}
-HIGHER_IS_BETTER = frozenset({"mIoU", "pixel_acc", "delta1", "delta2", "delta3"})
-#: Printed as percentages in the markdown (the paper writes "mIoU 51.2"); the CSV keeps fractions.
-PERCENT_METRICS = frozenset({"mIoU", "pixel_acc"})
-#: Column titles of the metrics (units and percent markers included).
-METRIC_LABELS = {
-    "mIoU": "mIoU (%)",
-    "pixel_acc": "pixel acc (%)",
-    "abs_rel": "AbsRel",
-    "sq_rel": "SqRel",
-    "rmse": "RMSE (m)",
-    "rmse_log": "RMSE log",
-    "mae": "MAE (m)",
-    "delta1": "δ1",
-    "delta2": "δ2",
-    "delta3": "δ3",
-}
-# Four decimals where the paper prints them (completion AbsRel 0.0834), millimetres for metres, else three.
-_DECIMALS = {"abs_rel": 4}
-_CSV_METRICS = (
-    "mIoU",
-    "pixel_acc",
-    "abs_rel",
-    "sq_rel",
-    "rmse",
-    "rmse_log",
-    "mae",
-    "delta1",
-    "delta2",
-    "delta3",
-)
-#: Header of ``leaderboard.csv``: identity columns, every task's metrics (fractions, metres), the rim ring.
-CSV_COLUMNS = (
-    *("task", "rank", "model", "source", "split", "dataset", "manifest_sha256", "run", "primary_metric"),
-    *_CSV_METRICS,
-    *("rim_key", "rim_value", "path"),
+_IDENTITY_COLUMNS = (
+    "task",
+    "rank",
+    "model",
+    "source",
+    "split",
+    "dataset",
+    "manifest_sha256",
+    "run",
+    "primary_metric",
 )
 _BIN = re.compile(r"^(?P<kind>ring|range)_(?P<lo>\d+(?:\.\d+)?)-(?P<hi>\d+(?:\.\d+)?)/(?P<metric>.+)$")
 _TEXT_COLUMNS = frozenset({"model", "source", "split", "run"})  # left-aligned; numbers are right-aligned
@@ -170,38 +140,48 @@ class LeaderboardEntry:
         return f"{self.dataset_name} ({manifest}), {self.split} split"
 
 
-def _paper(task: str, model: str, run: str, **metrics: float) -> LeaderboardEntry:
-    return LeaderboardEntry(task, "test", model, run, PAPER_DATASET, metrics=metrics, paper=True)
+def paper_baselines() -> tuple[LeaderboardEntry, ...]:
+    """The paper's baselines of every registered task (``TaskSpec.baselines``, docs/design.md "Paper baselines").
+
+    They were measured on the real dataset's test split; metrics the paper does not report are absent ("–").
+
+    Example:
+        >>> [(e.task, e.run) for e in paper_baselines()][:2]
+        [('seg', 'paper IV-A'), ('depth', 'paper Table II')]
+    """
+    return tuple(
+        LeaderboardEntry(
+            spec.name, "test", b.model, b.source, PAPER_DATASET, metrics=dict(b.metrics), paper=True
+        )
+        for spec in all_tasks()
+        for b in spec.baselines
+    )
 
 
-#: The paper's baselines (docs/design.md "Paper baselines"), measured on the real dataset's test split. Metrics the
-#: paper does not report are simply absent (shown as "–").
-PAPER_BASELINES: tuple[LeaderboardEntry, ...] = (
-    _paper("seg", "DeepLabV3+ / ResNet50", "paper IV-A", mIoU=0.512),
-    _paper(
-        "depth",
-        "AdaBins / ResNet50",
-        "paper Table II",
-        abs_rel=0.132,
-        sq_rel=2.575,
-        rmse=13.324,
-        rmse_log=0.270,
-        delta1=0.865,
-        delta2=0.950,
-        delta3=0.972,
-    ),
-    _paper(
-        "completion",
-        "NLSPN / ResNet34",
-        "paper Table II",
-        abs_rel=0.0834,
-        rmse=6.971,
-        mae=2.377,
-        delta1=0.934,
-        delta2=0.971,
-        delta3=0.983,
-    ),
-)
+def metric_column(metric: str) -> MetricColumn | None:
+    """How the leaderboard shows ``metric``: the first registered task with a headline column of that key."""
+    return next((c for spec in all_tasks() if (c := spec.column(metric)) is not None), None)
+
+
+def metric_label(metric: str) -> str:
+    """Column title of a metric (``rmse`` -> ``RMSE (m)``); metrics no task heads show their key."""
+    column = metric_column(metric)
+    return column.label if column is not None else metric
+
+
+def higher_is_better(metric: str) -> bool:
+    """Whether a larger ``metric`` is better (unknown metrics rank ascending, like errors)."""
+    column = metric_column(metric)
+    return column is not None and column.higher_is_better
+
+
+def csv_columns() -> tuple[str, ...]:
+    """Header of ``leaderboard.csv``: identity columns, every task's headline metrics (fractions, metres), the rim."""
+    return (*_IDENTITY_COLUMNS, *_csv_metrics(), "rim_key", "rim_value", "path")
+
+
+def _csv_metrics() -> tuple[str, ...]:
+    return tuple(dict.fromkeys(key for spec in all_tasks() for key in spec.metric_keys))
 
 
 # ----------------------------------------------------------------------------------------------- collecting
@@ -309,8 +289,10 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
     if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= RESULTS_VERSION:
         raise ValueError(f"unsupported version {version!r} (this reader knows 1..{RESULTS_VERSION})")
     task = record["task"]
-    if task not in PRIMARY_METRIC:
-        raise ValueError(f"unknown task {task!r}, expected one of {sorted(PRIMARY_METRIC)}")
+    try:
+        get_task(task)
+    except UnknownTaskError as err:
+        raise ValueError(str(err)) from None
     if not isinstance(record["split"], str) or not record["split"]:
         raise ValueError(f"split is {record['split']!r}, not a name")
     dataset, model = record.get("dataset") or {}, record.get("model") or {}
@@ -409,8 +391,13 @@ class TaskTable:
     groups: tuple[LeaderboardGroup, ...]
 
     @property
+    def title(self) -> str:
+        """The task's human-readable name (``Semantic segmentation``)."""
+        return get_task(self.task).title
+
+    @property
     def higher_is_better(self) -> bool:
-        return self.primary in HIGHER_IS_BETTER
+        return higher_is_better(self.primary)
 
 
 def breakdown_bins(
@@ -444,7 +431,7 @@ def _rim_key(entries: Iterable[LeaderboardEntry], primary: str) -> str | None:
 def _rank(
     entries: Sequence[LeaderboardEntry], primary: str
 ) -> tuple[tuple[int | None, LeaderboardEntry], ...]:
-    sign = -1.0 if primary in HIGHER_IS_BETTER else 1.0
+    sign = -1.0 if higher_is_better(primary) else 1.0
 
     def key(e: LeaderboardEntry) -> tuple:
         value = e.metrics.get(primary)
@@ -466,14 +453,15 @@ def _rank(
 
 
 def _task_table(task: str, entries: Sequence[LeaderboardEntry]) -> TaskTable:
-    primary = PRIMARY_METRIC[task]
+    spec = get_task(task)
+    primary = spec.primary_metric
     groups: dict[tuple, list[LeaderboardEntry]] = {}
     for entry in entries:
         groups.setdefault(entry.group_key, []).append(entry)
     return TaskTable(
         task=task,
         primary=primary,
-        columns=TASK_COLUMNS[task],
+        columns=spec.metric_keys,
         rim_key=_rim_key(entries, primary),
         groups=tuple(
             LeaderboardGroup(rows[0].group_title, _rank(rows, primary))
@@ -489,7 +477,7 @@ def build_leaderboard(
 
     Args:
         entries: Rows, e.g. from :func:`collect_results`.
-        paper: Add :data:`PAPER_BASELINES` (in their own group: the real dataset's test split).
+        paper: Add :func:`paper_baselines` (in their own group: the real dataset's test split).
         invalid: ``"<path>: <reason>"`` of the files that failed validation (:func:`load_entries`); the
             renderings list them under the tables rather than dropping them silently.
 
@@ -503,11 +491,11 @@ def build_leaderboard(
         >>> [[(r, e.run) for r, e in g.rows] for g in board.tables[0].groups]
         [[(1, 'paper IV-A')], [(1, 'run1')]]
     """
-    rows = list(entries) + (list(PAPER_BASELINES) if paper else [])
+    rows = list(entries) + (list(paper_baselines()) if paper else [])
     tables = tuple(
-        _task_table(task, [e for e in rows if e.task == task])
-        for task in TASKS
-        if any(e.task == task for e in rows)
+        _task_table(spec.name, [e for e in rows if e.task == spec.name])
+        for spec in all_tasks()
+        if any(e.task == spec.name for e in rows)
     )
     return Leaderboard(
         tables=tables, files=sum(not e.paper for e in rows), paper=paper, invalid=tuple(invalid)
@@ -518,7 +506,7 @@ def build_leaderboard(
 
 
 def format_value(metric: str, value: float | None) -> str:
-    """A metric value as the tables print it: percent for mIoU and pixel accuracy, the paper's decimals.
+    """A metric value as the tables print it: percent where the task's column says so, the paper's decimals.
 
     Example:
         >>> format_value("mIoU", 0.512), format_value("abs_rel", 0.0834), format_value("rmse", None)
@@ -526,9 +514,10 @@ def format_value(metric: str, value: float | None) -> str:
     """
     if value is None:
         return MISSING
-    if metric in PERCENT_METRICS:
+    column = metric_column(metric)
+    if column is not None and column.percent:
         return f"{100.0 * value:.1f}"
-    return f"{value:.{_DECIMALS.get(metric, 3)}f}"
+    return f"{value:.{column.decimals if column is not None else 3}f}"
 
 
 def _cell(text: str) -> str:
@@ -539,7 +528,7 @@ def rim_label(rim_key: str) -> str:
     """The column title of a rim ring key, e.g. ``ring_80-95/rmse`` -> ``rim 80-95° RMSE (m)``."""
     match = _BIN.match(rim_key)
     assert match is not None
-    return f"rim {match['lo']}-{match['hi']}° {METRIC_LABELS.get(match['metric'], match['metric'])}"
+    return f"rim {match['lo']}-{match['hi']}° {metric_label(match['metric'])}"
 
 
 @dataclass(frozen=True)
@@ -574,7 +563,7 @@ class Leaderboard:
             "",
             f"{self.files} result(s){paper}. Ranks restart for every dataset (name + manifest hash prefix) and "
             "split: results measured on different data are not comparable. Values are fractions and metres "
-            f"(mIoU and pixel accuracy printed in %); {MISSING} = not reported.",
+            f"(columns marked (%) printed in %); {MISSING} = not reported.",
         ]
         for table in self.tables:
             lines += ["", *self._table_markdown(table)]
@@ -586,13 +575,13 @@ class Leaderboard:
     @staticmethod
     def _table_markdown(table: TaskTable) -> list[str]:
         order = "higher is better" if table.higher_is_better else "lower is better"
-        headers = ["rank", "model", "source", "split", *(METRIC_LABELS[c] for c in table.columns)]
+        headers = ["rank", "model", "source", "split", *(metric_label(c) for c in table.columns)]
         headers += [rim_label(table.rim_key)] if table.rim_key else []
         headers += ["run"]
         lines = [
-            f"## {TASK_TITLES[table.task]} ({table.task})",
+            f"## {table.title} ({table.task})",
             "",
-            f"Sorted by {METRIC_LABELS[table.primary]}, {order}. Rows: each evaluated model on one split; "
+            f"Sorted by {metric_label(table.primary)}, {order}. Rows: each evaluated model on one split; "
             "the rim column is the outermost incidence-angle ring, where fisheye distortion is strongest.",
         ]
         for group in table.groups:
@@ -617,7 +606,7 @@ class Leaderboard:
         """
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
-        writer.writerow(CSV_COLUMNS)
+        writer.writerow(csv_columns())
         for table in self.tables:
             for group in table.groups:
                 for rank, e in group.rows:
@@ -646,7 +635,7 @@ def _csv_row(table: TaskTable, rank: int | None, e: LeaderboardEntry) -> list[ob
     head += [e.manifest_sha256 or "", e.run, table.primary]
     return [
         *head,
-        *(_raw(e.metrics.get(m)) for m in _CSV_METRICS),
+        *(_raw(e.metrics.get(m)) for m in _csv_metrics()),
         table.rim_key or "",
         _raw(rim),
         e.path or "",

@@ -30,16 +30,15 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.evaluation.leaderboard import (
-    HIGHER_IS_BETTER,
-    METRIC_LABELS,
     MISSING,
-    PERCENT_METRICS,
-    TASK_TITLES,
     Leaderboard,
     LeaderboardEntry,
     TaskTable,
     breakdown_bins,
     format_value,
+    higher_is_better,
+    metric_column,
+    metric_label,
     rim_label,
 )
 from airfisheye_bench.evaluation.leaderboard_charts import bar_chart, binned_chart
@@ -90,9 +89,7 @@ def render_html(board: Leaderboard, panels: int = 3, panel_width: int = 720) -> 
         f"script-src 'sha256-{digest}'; base-uri 'none'; form-action 'none'"
     )
     paper = " plus the paper's baselines" if board.paper else ""
-    nav = "".join(
-        f'<li><a href="#task-{t.task}">{escape(TASK_TITLES[t.task])}</a></li>' for t in board.tables
-    )
+    nav = "".join(f'<li><a href="#task-{t.task}">{escape(t.title)}</a></li>' for t in board.tables)
     if board.invalid:
         nav += '<li><a href="#invalid">Invalid results</a></li>'
     body = [
@@ -145,8 +142,8 @@ def _task_section(table: TaskTable, panels: int, panel_width: int) -> str:
     columns = _metric_columns(table, entries)
     out = [
         f'<section id="task-{task}" aria-labelledby="title-{task}">',
-        f'<h2 id="title-{task}">{escape(TASK_TITLES[task])} ({task})</h2>',
-        f"<p>Ranked by {escape(METRIC_LABELS[table.primary])}, {order}; the rim column is the outermost "
+        f'<h2 id="title-{task}">{escape(table.title)} ({task})</h2>',
+        f"<p>Ranked by {escape(metric_label(table.primary))}, {order}; the rim column is the outermost "
         "incidence-angle ring, where fisheye distortion is strongest. Paper rows were measured on the real "
         f"AirFisheye test split and are not re-run here. Values are fractions and metres (mIoU and pixel "
         f"accuracy in %); {MISSING} = not reported.</p>",
@@ -186,7 +183,7 @@ def _header(table: TaskTable, columns: Sequence[str]) -> str:
         )
 
     def first(metric: str) -> str:  # the first click puts the best value on top
-        return "descending" if metric in HIGHER_IS_BETTER else "ascending"
+        return "descending" if higher_is_better(metric) else "ascending"
 
     cells = [
         th("rank", "number", sorted_=True),
@@ -194,7 +191,7 @@ def _header(table: TaskTable, columns: Sequence[str]) -> str:
         th("source", "text"),
         th("split", "text"),
     ]
-    cells += [th(METRIC_LABELS.get(c, c), "number", first(c)) for c in columns]
+    cells += [th(metric_label(c), "number", first(c)) for c in columns]
     if table.rim_key:
         cells.append(th(rim_label(table.rim_key), "number", first(table.primary)))
     cells.append(th("run", "text"))
@@ -238,7 +235,7 @@ def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardE
             series[name] = bins
     if not series:
         return ""
-    label = f"{METRIC_LABELS[table.primary]} by incidence-angle ring, every entry of this group"
+    label = f"{metric_label(table.primary)} by incidence-angle ring, every entry of this group"
     return _figure(_binned(series, table.primary, _RING_AXIS, f"group-{key}", label), label)
 
 
@@ -268,7 +265,7 @@ def _detail(table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, pan
         bins = breakdown_bins(e.breakdown, kind, table.primary)
         if bins:
             what = "incidence-angle ring" if kind == "ring" else "depth range"
-            label = f"{METRIC_LABELS[table.primary]} by {what}, {e.run}"
+            label = f"{metric_label(table.primary)} by {what}, {e.run}"
             charts.append(
                 _figure(_binned({e.run: bins}, table.primary, axis, f"{anchor}-{kind}", label), label)
             )
@@ -308,17 +305,17 @@ def _identity(e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str
 
 def _metrics_table(e: LeaderboardEntry) -> str:
     names = [k for k in e.metrics if "/" not in k]
-    head = "".join(f'<th scope="col">{escape(METRIC_LABELS.get(k, k))}</th>' for k in names)
+    head = "".join(f'<th scope="col">{escape(metric_label(k))}</th>' for k in names)
     cells = "".join(f'<td class="num">{escape(format_value(k, e.metrics[k]))}</td>' for k in names)
     table = f"<thead><tr>{head}</tr></thead><tbody><tr>{cells}</tr></tbody>"
     return f'<div class="scroll"><table class="metrics">{table}</table></div>'
 
 
 def _binned(series: Mapping[str, list], metric: str, axis: str, key: str, label: str) -> str:
-    percent = metric in PERCENT_METRICS
+    percent = (column := metric_column(metric)) is not None and column.percent
     return binned_chart(
         series,
-        metric=METRIC_LABELS.get(metric, metric),
+        metric=metric_label(metric),
         axis=axis,
         key=key,
         label=label,

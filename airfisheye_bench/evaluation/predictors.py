@@ -19,6 +19,7 @@ from torch.utils.data import Dataset
 from airfisheye_bench.errors import MissingFileError
 from airfisheye_bench.evaluation.submission import read_prediction, validate_submission
 from airfisheye_bench.io import file_sha256
+from airfisheye_bench.specs import deployment_keys, get_task
 
 __all__ = [
     "TTA_MODES",
@@ -49,10 +50,11 @@ class Predictor(Protocol):
 
 
 def to_prediction(task: str, output: Tensor) -> Tensor:
-    """A model's primary output (logits or depth) as the metric input: labels ``[B, H, W]`` or depth ``[B, 1, H, W]``."""
-    if task == "seg":
-        return output.argmax(1) if output.ndim == 4 else output.long()
-    return output if output.ndim == 4 else output.unsqueeze(1)
+    """A model's primary output (logits or depth) as the metric input: labels ``[B, H, W]`` or depth ``[B, 1, H, W]``.
+
+    The task's prediction format decides (``TaskSpec.prediction``).
+    """
+    return get_task(task).prediction.from_output(output)
 
 
 def check_tta(tta: str | None) -> str | None:
@@ -158,7 +160,7 @@ class OnnxPredictor:
         self.tta = check_tta(tta)
         if not self.path.is_file():
             raise MissingFileError(f"ONNX model {self.path} does not exist")
-        self.metadata = read_deployment_metadata(self.path)
+        self.metadata = read_deployment_metadata(self.path, deployment_keys)
         self.task = self.metadata["task"]
         options = ort.SessionOptions()
         if threads:
@@ -225,7 +227,7 @@ class FilePredictor:
 
     Args:
         root: The prediction folder.
-        task: ``seg``, ``depth`` or ``completion``.
+        task: A registered task (``seg``, ``depth``, ``completion``).
         sample_ids: Frames of the evaluated split.
         shape: Served image size ``(H, W)``.
         name: Label of the submission in the results (default: the folder name).

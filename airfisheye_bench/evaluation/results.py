@@ -14,9 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.io import atomic_write_text
+from airfisheye_bench.specs import get_task
 
 RESULTS_VERSION = 1
-PRIMARY_METRIC = {"seg": "mIoU", "depth": "rmse", "completion": "rmse"}
 
 
 def _clean(value: Any) -> Any:
@@ -41,14 +41,13 @@ def write_results(
     model: dict[str, Any] | None = None,
     config: dict[str, Any] | None = None,
 ) -> Path:
-    """Write ``results.json`` atomically and return its path."""
-    if task not in PRIMARY_METRIC:
-        raise ValueError(f"task must be one of {sorted(PRIMARY_METRIC)}, got {task!r}")
+    """Write ``results.json`` atomically and return its path; ``primary_metric`` is the task spec's."""
+    primary = get_task(task).primary_metric
     record = {
         "version": RESULTS_VERSION,
         "task": task,
         "split": split,
-        "primary_metric": PRIMARY_METRIC[task],
+        "primary_metric": primary,
         "metrics": _clean(metrics),
         "breakdown": _clean(breakdown or {}),
         "dataset": _clean(dataset or {}),

@@ -1,6 +1,7 @@
 """A folder of prediction files (a submission): its layout, validation, reading and writing.
 
-One file per frame of the split, at the frame's id: ``<dir>/<env>/<trajectory>/<frame>.<ext>``.
+One file per frame of the split, at the frame's id: ``<dir>/<env>/<trajectory>/<frame>.<ext>``, in the task's
+prediction format (``TaskSpec.prediction``, :mod:`airfisheye_bench.specs.formats`):
 
 - ``seg``: 8-bit single-channel PNG of training-class ids (255 = no prediction).
 - ``depth`` / ``completion``: 16-bit PNG of ``round(range * 256)`` (0 = no prediction; 1/512 m resolution, up to
@@ -13,7 +14,6 @@ read without decoding, and ``.npy`` files are loaded with ``allow_pickle=False``
 
 from __future__ import annotations
 
-import io
 import shutil
 import tempfile
 from collections.abc import Iterable, Sequence
@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from PIL import Image
 
 from airfisheye_bench.errors import MissingFileError, OutputExistsError, UserError
 from airfisheye_bench.io import atomic_write_bytes
+from airfisheye_bench.specs import DEPTH_PNG_SCALE, get_task
 
 __all__ = [
     "DEPTH_PNG_SCALE",
@@ -36,10 +36,6 @@ __all__ = [
     "write_submission",
 ]
 
-#: Depth PNGs hold ``round(range * 256)`` like the dataset's depth files.
-DEPTH_PNG_SCALE = 256.0
-_SUFFIXES = {"seg": (".png",), "depth": (".png", ".npy"), "completion": (".png", ".npy")}
-_NPY_DTYPES = (np.dtype("<f4"), np.dtype("<f2"))
 _MAX_LISTED = 20
 
 
@@ -65,7 +61,7 @@ def validate_submission(
 
     Args:
         root: The prediction folder.
-        task: ``seg``, ``depth`` or ``completion`` (which file types are allowed).
+        task: A registered task (its prediction format says which file types are allowed).
         sample_ids: The split's frame ids ``<env>/<trajectory>/<frame>``.
         shape: The served image size ``(H, W)`` every prediction must have.
 
@@ -87,13 +83,12 @@ def validate_submission(
         airfisheye_bench.evaluation.submission.SubmissionError: prediction folder ... (1 problems):
           env/traj/000002: missing (expected env/traj/000002.png or env/traj/000002.npy)
     """
-    if task not in _SUFFIXES:
-        raise ValueError(f"task must be one of {sorted(_SUFFIXES)}, got {task!r}")
+    fmt = get_task(task).prediction
     root = Path(root).expanduser()
     if not root.is_dir():
         raise MissingFileError(f"prediction folder {root} does not exist or is not a directory")
     base = root.resolve()
-    suffixes = _SUFFIXES[task]
+    suffixes = fmt.suffixes
     problems: list[str] = []
     found: dict[str, Path] = {}
     expected: set[Path] = set()
@@ -110,7 +105,7 @@ def validate_submission(
             problems.append(f"{sample_id}: ambiguous, both {' and '.join(_rel(p, root) for p in present)}")
             continue
         path = present[0]
-        problem = _check_inside(path, base, root) or _check_file(path, task, shape)
+        problem = _check_inside(path, base, root) or fmt.check(path, shape)
         if problem:
             problems.append(f"{_rel(path, root)}: {problem}")
         else:
@@ -125,15 +120,7 @@ def validate_submission(
 
 def read_prediction(path: str | Path, task: str) -> torch.Tensor:
     """Decode one validated prediction file: labels ``int64 [H, W]`` or range ``float32 [1, H, W]`` in metres."""
-    path = Path(path)
-    if path.suffix == ".npy":
-        array = np.load(path, allow_pickle=False).astype(np.float32)
-        return torch.from_numpy(array.reshape(1, *array.shape[-2:]))
-    with Image.open(path) as image:
-        array = np.asarray(image)
-    if task == "seg":
-        return torch.from_numpy(array.astype(np.int64))
-    return torch.from_numpy(array.astype(np.float32) / DEPTH_PNG_SCALE)[None]
+    return get_task(task).prediction.decode(Path(path))
 
 
 def write_prediction(path: str | Path, prediction: np.ndarray | torch.Tensor, task: str) -> Path:
@@ -142,26 +129,19 @@ def write_prediction(path: str | Path, prediction: np.ndarray | torch.Tensor, ta
     Args:
         path: ``.png`` (labels, or depth as ``round(range * 256)`` in 16 bits) or ``.npy`` (depth, float32).
         prediction: Labels ``[H, W]`` or range in metres ``[H, W]`` / ``[1, H, W]``.
-        task: ``seg``, ``depth`` or ``completion``.
+        task: A registered task (``seg``, ``depth``, ``completion``).
     """
     path = Path(path)
+    fmt = get_task(task).prediction
     array = np.asarray(prediction.detach().cpu() if isinstance(prediction, torch.Tensor) else prediction)
     array = array.reshape(array.shape[-2:])
-    if path.suffix not in _SUFFIXES.get(task, ()):
-        raise ValueError(f"{path}: a {task} prediction is written as {' or '.join(_SUFFIXES[task])}")
-    buf = io.BytesIO()
-    if path.suffix == ".npy":
-        np.save(buf, array.astype(np.float32), allow_pickle=False)
-    elif task == "seg":
-        if array.min(initial=0) < 0 or array.max(initial=0) > 255:
-            raise ValueError(f"{path}: labels must be in 0..255")
-        Image.fromarray(array.astype(np.uint8), mode="L").save(buf, format="PNG")
-    else:
-        encoded = np.round(
-            np.clip(np.nan_to_num(array, nan=0.0, posinf=0.0), 0, 65535 / DEPTH_PNG_SCALE) * 256
-        )
-        Image.fromarray(encoded.astype(np.uint16)).save(buf, format="PNG")
-    return atomic_write_bytes(path, buf.getvalue())
+    if path.suffix not in fmt.suffixes:
+        raise ValueError(f"{path}: a {task} prediction is written as {' or '.join(fmt.suffixes)}")
+    try:
+        data = fmt.encode(path.suffix, array)
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from None
+    return atomic_write_bytes(path, data)
 
 
 class SubmissionWriter:
@@ -171,8 +151,9 @@ class SubmissionWriter:
 
     Args:
         root: Destination folder; must not exist yet (a new submission is never mixed with an old one).
-        task: ``seg``, ``depth`` or ``completion``.
-        depth_format: ``png`` (16-bit, the released depth format) or ``npy`` (float32, exact).
+        task: A registered task (``seg``, ``depth``, ``completion``).
+        depth_format: ``png`` (16-bit, the released depth format) or ``npy`` (float32, exact); range predictions
+            only (labels are always PNG).
 
     Example:
         >>> import tempfile, numpy as np
@@ -187,12 +168,11 @@ class SubmissionWriter:
         self.root = Path(root)
         if self.root.exists():
             raise OutputExistsError(f"{self.root} already exists; choose a new folder for the predictions")
-        if task not in _SUFFIXES:
-            raise ValueError(f"task must be one of {sorted(_SUFFIXES)}, got {task!r}")
+        fmt = get_task(task).prediction
         if depth_format not in ("png", "npy"):
             raise ValueError(f"depth_format must be 'png' or 'npy', got {depth_format!r}")
         self.task = task
-        self.suffix = ".png" if task == "seg" else f".{depth_format}"
+        self.suffix = fmt.suffix(depth_format)
         self._tmp: Path | None = None
 
     def __enter__(self) -> SubmissionWriter:
@@ -250,45 +230,6 @@ def _check_inside(path: Path, base: Path, root: Path) -> str | None:
         return f"leads outside the prediction folder (to {resolved})"
     if not resolved.is_file():
         return "not a regular file"
-    return None
-
-
-def _check_file(path: Path, task: str, shape: tuple[int, int]) -> str | None:
-    """Size and type from the header only."""
-    if path.suffix == ".npy":
-        return _check_npy(path, shape)
-    try:
-        with Image.open(path) as image:
-            size, mode, fmt = (image.height, image.width), image.mode, image.format
-    except (OSError, SyntaxError) as err:
-        return f"not a readable PNG ({err})"
-    if fmt != "PNG":
-        return f"is a {fmt} file, expected PNG"
-    wanted = ("L", "P") if task == "seg" else ("I;16", "I;16B", "I")
-    if mode not in wanted:
-        kind = "8-bit single-channel label" if task == "seg" else "16-bit depth (range * 256)"
-        return f"PNG mode {mode}, expected a {kind} PNG"
-    if size != tuple(shape):
-        return f"size {size[0]}x{size[1]}, expected {shape[0]}x{shape[1]} (HxW)"
-    return None
-
-
-def _check_npy(path: Path, shape: tuple[int, int]) -> str | None:
-    try:
-        with path.open("rb") as f:
-            version = np.lib.format.read_magic(f)
-            header = (
-                np.lib.format.read_array_header_1_0(f)
-                if version == (1, 0)
-                else np.lib.format.read_array_header_2_0(f)
-            )
-    except (OSError, ValueError) as err:
-        return f"not a readable .npy file ({err})"
-    array_shape, _, dtype = header
-    if dtype.hasobject or dtype not in _NPY_DTYPES:
-        return f"dtype {dtype}, expected float32 or float16 range in metres"
-    if tuple(array_shape) not in (tuple(shape), (1, *shape)):
-        return f"shape {tuple(array_shape)}, expected {tuple(shape)} or {(1, *shape)}"
     return None
 
 

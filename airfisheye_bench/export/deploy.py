@@ -43,38 +43,38 @@ from airfisheye_bench.errors import debug_requested, report_user_errors
 from airfisheye_bench.export.onnx import OnnxParityError, ParityReport, _median_ms, export_onnx, verify_onnx
 from airfisheye_bench.io import file_sha256
 from airfisheye_bench.io.atomic import check_writable
-from airfisheye_bench.io.deployment import TASK_INPUTS, TASK_OUTPUT, deployment_metadata
+from airfisheye_bench.io.deployment import deployment_metadata
+from airfisheye_bench.specs import get_task
 
 __all__ = [
     "QUANTIZE_MODES",
-    "TOLERANCES",
     "DeploymentReport",
     "ExportError",
     "QuantizationReport",
     "export_deployment",
     "main",
+    "parity_tolerance",
 ]
 
 log = logging.getLogger(__name__)
 
-#: Parity tolerances ``(atol, rtol)`` per task: ``|ort - torch| <= atol + rtol * |torch|`` element-wise.
-TOLERANCES: dict[str, tuple[float, float]] = {
-    "seg": (1e-4, 0.0),  # logits: absolute
-    "depth": (1e-4, 1e-3),  # metres: relative, with a small absolute floor for values near 0
-    "completion": (1e-4, 1e-3),
-}
 QUANTIZE_MODES = ("none", "dynamic", "static")
-# Metrics shown in the int8 report (every key of the task's metric is kept in the report itself).
-_HEADLINE = {
-    "seg": ("mIoU", "pixel_acc"),
-    "depth": ("rmse", "abs_rel", "delta1"),
-    "completion": ("rmse", "mae", "abs_rel", "delta1"),
-}
 _USAGE = (
     "usage: python scripts/export_onnx.py ckpt_path=<ckpt or run dir> out=model.onnx [dynamic_spatial=false] "
     "[batch=2] [parity_samples=4] [quantize=none|dynamic|static] [opset=20] [calib_samples=16] "
     "[eval_samples=0] [repeats=10] [data.<key>=<value> ...]"
 )
+
+
+def parity_tolerance(task: str) -> tuple[float, float]:
+    """``(atol, rtol)`` of the task's parity check: ``|ort - torch| <= atol + rtol * |torch|`` element-wise.
+
+    Example:
+        >>> parity_tolerance("seg"), parity_tolerance("depth")
+        ((0.0001, 0.0), (0.0001, 0.001))
+    """
+    export = get_task(task).export
+    return export.atol, export.rtol
 
 
 class ExportError(RuntimeError):
@@ -169,7 +169,7 @@ class DeploymentReport:
         )
         lines = [
             f"exported {self.path} ({_mb(self.path)}): task={self.task} model={self.model}, "
-            f"inputs {list(TASK_INPUTS[self.task])} -> {TASK_OUTPUT[self.task]}, dynamic batch, {spatial}",
+            f"inputs {list(get_task(self.task).inputs)} -> {get_task(self.task).output}, dynamic batch, {spatial}",
             f"parity on {self.parity_frames} validation frame(s), onnxruntime CPU vs PyTorch: "
             f"max abs diff {p.max_abs_diff:.3g}, max rel diff {p.max_rel_diff:.3g} "
             f"(allowed |diff| <= {self.atol:g} + {self.rtol:g}*|torch|): OK",
@@ -239,7 +239,7 @@ def export_deployment(
     check_common_values(OmegaConf.create({"data": data_cfg}))
     datamodule = instantiate_datamodule(data_cfg, "validate")  # a few frames: main-process loading
     metadata = _metadata(task, datamodule, data_cfg, checkpoint)
-    names = TASK_INPUTS[task.task]
+    names = task.spec.inputs
     frames = _val_frames(datamodule, max(parity_samples, batch), names)
     available = int(frames["image"].shape[0])
     if available < parity_samples:
@@ -248,7 +248,7 @@ def export_deployment(
         )
     example = {k: _repeat_to(frames[k], batch) for k in names}
     parity_inputs = {k: frames[k][:parity_samples] for k in names}
-    atol, rtol = TOLERANCES[task.task]
+    atol, rtol = parity_tolerance(task.task)
 
     out.parent.mkdir(parents=True, exist_ok=True)
     workdir = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
@@ -434,29 +434,31 @@ def _repeat_to(x: Tensor, n: int) -> Tensor:
 
 
 def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[str, str]:
-    from airfisheye_bench.metrics.functional import COMPLETION_VALID_MIN
+    """The deployment metadata of a task module: the common keys plus the keys its spec lists.
 
+    The task's own values come from the module's metric options (class names, ignore index, depth bounds), its
+    palette and the data config (occlusion); the spec says which of them the task carries.
+    """
+    spec = task.spec
     model_config = dict(task.hparams["model"])
-    extra: dict[str, Any] = {}
-    if task.task == "seg":
-        classes = list(task.class_names)
+    options = task.metric_options()
+    if spec.uses_classes:
+        classes = list(options["class_names"])
         if list(datamodule.class_names) != classes:
             raise ValueError(
                 f"the data config's classes {list(datamodule.class_names)} differ from the checkpoint's {classes}; "
                 "the logits would be scored against the wrong labels"
             )
-        palette = task.hparams.get("palette") or datamodule.palette[: len(classes)].tolist()
-        extra = {"class_names": classes, "palette": palette, "ignore_index": task.ignore_index}
-    elif task.task == "depth":
-        extra = {"min_depth": task.min_depth, "max_depth": task.max_depth}
-    else:
-        extra = {
-            "min_depth": COMPLETION_VALID_MIN,
-            "max_depth": task.max_depth,
-            "occlusion": str(data_cfg.occlusion),
-        }
+        options["palette"] = task.hparams.get("palette") or datamodule.palette[: len(classes)].tolist()
+    available = {**options, "occlusion": str(data_cfg.get("occlusion"))}
+    missing = [k for k in spec.export.metadata if k not in available]
+    if missing:
+        raise ValueError(f"task={spec.name} lists metadata {missing} that the task module does not provide")
     return deployment_metadata(
         task=task.task,
+        inputs=spec.inputs,
+        output=spec.output,
+        task_keys=spec.export.metadata,
         model=model_config["name"],
         model_config=model_config,
         normalization=datamodule.normalization,
@@ -465,7 +467,7 @@ def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[
         checkpoint_sha256=file_sha256(checkpoint),
         source_checkpoint=str(checkpoint.resolve()),
         weights=task.hparams.get("weights"),
-        **extra,
+        **{k: available[k] for k in spec.export.metadata},
     )
 
 
@@ -485,7 +487,7 @@ def _export(
             task.net,
             example,
             path,
-            output_name=TASK_OUTPUT[task.task],
+            output_name=task.spec.output,
             opset=opset,
             dynamic_batch=True,
             dynamic_spatial=dynamic_spatial,
@@ -602,7 +604,7 @@ def _run_quantizer(
         if mode == "dynamic":
             quantize_dynamic(str(source), str(target), weight_type=QuantType.QInt8)
             return
-        reader = _calibration_reader(datamodule, TASK_INPUTS[task], calib_samples)
+        reader = _calibration_reader(datamodule, get_task(task).inputs, calib_samples)
         quantize_static(str(source), str(target), reader)
         notes.append(
             f"static calibration on {reader.frames} validation frame(s), the split the accuracy is measured on"
@@ -649,7 +651,7 @@ def _session(path: Path):
 
 def _compare_metrics(task, datamodule, fp32_session, int8_session, limit: int):
     """The task's metrics of both ONNX models against ground truth on the validation split."""
-    names = TASK_INPUTS[task.task]
+    names = task.spec.inputs
     metric_fp32, metric_int8 = task.make_metric(), task.make_metric()
     frames = 0
     for batch in _val_batches(datamodule, limit):
@@ -664,7 +666,7 @@ def _compare_metrics(task, datamodule, fp32_session, int8_session, limit: int):
 def _accuracy_notes(task: str, fp32: Mapping[str, float], int8: Mapping[str, float]) -> list[str]:
     """Flag headline metrics that int8 moves by more than 5 % (relative): worth a look before deploying."""
     notes = []
-    for key in _HEADLINE[task]:
+    for key in get_task(task).export.headline:
         before, after = fp32.get(key, math.nan), int8.get(key, math.nan)
         if (
             math.isfinite(before)
@@ -689,7 +691,7 @@ def _quantization_lines(q: QuantizationReport, task: str) -> list[str]:
     lines = [f"int8 ({q.mode}) {q.path} ({_mb(q.path)}), on {q.frames} validation frame(s), fp32 -> int8:"]
     parts = [
         f"{k} {q.metrics_fp32[k]:.4f} -> {q.metrics_int8[k]:.4f} ({q.metric_deltas[k]:+.4f})"
-        for k in _HEADLINE[task]
+        for k in get_task(task).export.headline
         if k in q.metrics_fp32
     ]
     lines.append("  " + ", ".join(parts))

@@ -7,7 +7,7 @@ to interpret its output.
 Every task:
 
 - ``airfisheye.format_version``: ``"1"`` (this contract; bumped on an incompatible change).
-- ``airfisheye.task``: ``seg`` | ``depth`` | ``completion``.
+- ``airfisheye.task``: the task name (``seg`` | ``depth`` | ``completion``, or another registered task).
 - ``airfisheye.model``: registry name of the zoo model (``deeplabv3plus``, ``adabins``, ``nlspn``, ...).
 - ``airfisheye.model_config``: JSON of the checkpoint's ``hyper_parameters.model`` dict.
 - ``airfisheye.inputs``: JSON list of graph input names, ``["image"]`` or ``["image", "sparse_depth"]``.
@@ -46,16 +46,18 @@ Completion only:
   ``sparse_depth`` is range in metres, float32 ``[B, 1, H, W]``, 0 = no LiDAR point.
 
 Outputs: ``logits`` ``[B, C, H, W]`` (argmax over ``C`` gives the class id), ``depth`` ``[B, 1, H, W]`` range in
-metres. The keys of one task are exactly the common keys plus that task's keys (``TASK_KEYS``) plus the optional
-keys given (``OPTIONAL_KEYS``):
-:func:`deployment_metadata` writes them, :func:`parse_deployment_metadata` checks and decodes them.
+metres. The keys of one task are exactly the common keys plus that task's keys plus the optional keys given
+(``OPTIONAL_KEYS``): :func:`deployment_metadata` writes them, :func:`parse_deployment_metadata` checks and decodes
+them. Which keys a task has, and its input and output names, are facts of its spec (``TaskSpec.export.metadata``,
+``inputs``, ``output``); this module sits below the specs, so callers pass them in (``task_keys``:
+:func:`airfisheye_bench.specs.deployment_keys`).
 """
 
 from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from airfisheye_bench.errors import InputFileError, MissingFileError
@@ -84,9 +86,6 @@ __all__ = [
     "KEY_WEIGHTS",
     "OPTIONAL_KEYS",
     "PREFIX",
-    "TASK_INPUTS",
-    "TASK_KEYS",
-    "TASK_OUTPUT",
     "deployment_metadata",
     "parse_deployment_metadata",
     "read_deployment_metadata",
@@ -130,20 +129,8 @@ COMMON_KEYS: tuple[str, ...] = (
     KEY_CHECKPOINT_SHA256,
     KEY_SOURCE_CHECKPOINT,
 )
-#: The complete key set of each task (no other ``airfisheye.`` key is written).
-TASK_KEYS: dict[str, tuple[str, ...]] = {
-    "seg": (*COMMON_KEYS, KEY_CLASS_NAMES, KEY_PALETTE, KEY_IGNORE_INDEX),
-    "depth": (*COMMON_KEYS, KEY_MIN_DEPTH, KEY_MAX_DEPTH),
-    "completion": (*COMMON_KEYS, KEY_MIN_DEPTH, KEY_MAX_DEPTH, KEY_OCCLUSION),
-}
 #: Keys written when their value is known, decoded when present.
 OPTIONAL_KEYS: tuple[str, ...] = (KEY_WEIGHTS,)
-TASK_INPUTS: dict[str, tuple[str, ...]] = {
-    "seg": ("image",),
-    "depth": ("image",),
-    "completion": ("image", "sparse_depth"),
-}
-TASK_OUTPUT: dict[str, str] = {"seg": "logits", "depth": "depth", "completion": "depth"}
 
 # Values stored as plain strings; every other key holds JSON.
 _STRING_KEYS = frozenset(
@@ -162,6 +149,9 @@ _STRING_KEYS = frozenset(
 def deployment_metadata(
     *,
     task: str,
+    inputs: Sequence[str],
+    output: str,
+    task_keys: Sequence[str],
     model: str,
     model_config: Mapping[str, Any],
     normalization: Mapping[str, Sequence[float]],
@@ -169,22 +159,19 @@ def deployment_metadata(
     data_config: Mapping[str, Any],
     checkpoint_sha256: str,
     source_checkpoint: str | os.PathLike,
-    class_names: Sequence[str] | None = None,
-    palette: Sequence[Sequence[int]] | None = None,
-    ignore_index: int | None = None,
-    min_depth: float | None = None,
-    max_depth: float | None = None,
-    occlusion: str | None = None,
     weights: Mapping[str, Any] | None = None,
+    **task_values: Any,
 ) -> dict[str, str]:
     """Encode the deployment metadata of one model as ``metadata_props`` strings (see the module docstring).
 
-    ``inputs``, ``output`` and ``image_size`` follow from ``task`` and ``camera``. The task-specific arguments
-    are required for their task and must be left ``None`` for the others, so the key set is always exactly
-    ``TASK_KEYS[task]``.
+    ``image_size`` follows from ``camera``. The task's own values (``task_values``) must be exactly the keys of
+    ``task_keys``, so the key set is always the common keys plus the task's.
 
     Args:
-        task: ``seg``, ``depth`` or ``completion``.
+        task: The task name.
+        inputs: Graph input names (the spec's ``inputs``).
+        output: Graph output name (the spec's ``output``).
+        task_keys: The task's own keys without the prefix (``TaskSpec.export.metadata``).
         model: registry name of the zoo model.
         model_config: the checkpoint's model hyperparameters (``{"name": ..., **kwargs}``).
         normalization: ``{"mean": [3 floats], "std": [3 floats]}`` applied to ``rgb / 255``.
@@ -192,45 +179,34 @@ def deployment_metadata(
         data_config: the run's resolved ``data`` config as plain containers.
         checkpoint_sha256: hex digest of the checkpoint file.
         source_checkpoint: path of the checkpoint file.
-        class_names: seg: training class names, in logits channel order.
-        palette: seg: ``[r, g, b]`` per class.
-        ignore_index: seg: the ignored label.
-        min_depth: depth / completion: lower bound of valid ground truth (metres).
-        max_depth: depth / completion: upper bound (metres).
-        occlusion: completion: occlusion correction method of the sparse input.
         weights: optional record of the weights the model started from (``airfisheye.weights``).
+        **task_values: the task's own values by short name, e.g. seg: ``class_names`` (in logits channel
+            order), ``palette`` (``[r, g, b]`` per class), ``ignore_index``; depth and completion: ``min_depth``,
+            ``max_depth`` (metres); completion: ``occlusion`` (the sparse input's occlusion correction).
 
     Returns:
-        ``{key: str}`` with exactly the keys of ``TASK_KEYS[task]``, plus ``airfisheye.weights`` when given.
+        ``{key: str}`` with exactly the common and the task's keys, plus ``airfisheye.weights`` when given.
 
     Raises:
-        ValueError: unknown task, a missing or superfluous task-specific value, or a malformed value.
+        ValueError: a missing or superfluous task-specific value, or a malformed value.
 
     Example:
         >>> meta = deployment_metadata(
-        ...     task="depth", model="adabins", model_config={"name": "adabins"},
+        ...     task="depth", inputs=["image"], output="depth", task_keys=["min_depth", "max_depth"],
+        ...     model="adabins", model_config={"name": "adabins"},
         ...     normalization={"mean": [0.485, 0.456, 0.406], "std": [0.229, 0.224, 0.225]},
         ...     camera={"model": "equidistant", "width": 64, "height": 48, "fov_deg": 190.0},
         ...     data_config={"task": "depth"}, checkpoint_sha256="0" * 64, source_checkpoint="run/last.ckpt",
         ...     min_depth=1e-3, max_depth=120.0)
         >>> meta["airfisheye.image_size"], meta["airfisheye.inputs"], meta["airfisheye.output"]
         ('[48, 64]', '["image"]', 'depth')
-        >>> parse_deployment_metadata(meta)["max_depth"]
+        >>> parse_deployment_metadata(meta, lambda task: ["min_depth", "max_depth"])["max_depth"]
         120.0
     """
-    if task not in TASK_KEYS:
-        raise ValueError(f"task must be one of {sorted(TASK_KEYS)}, got {task!r}")
-    specific = {
-        KEY_CLASS_NAMES: class_names,
-        KEY_PALETTE: palette,
-        KEY_IGNORE_INDEX: ignore_index,
-        KEY_MIN_DEPTH: min_depth,
-        KEY_MAX_DEPTH: max_depth,
-        KEY_OCCLUSION: occlusion,
-    }
-    wanted = set(TASK_KEYS[task])
-    missing = [k for k, v in specific.items() if k in wanted and v is None]
-    extra = [k for k, v in specific.items() if k not in wanted and v is not None]
+    specific = {PREFIX + k: v for k, v in task_values.items() if v is not None}
+    wanted = [PREFIX + k for k in task_keys]
+    missing = [k for k in wanted if k not in specific]
+    extra = [k for k in specific if k not in wanted]
     if missing or extra:
         raise ValueError(
             f"task={task} needs {_short(missing) or 'no more'} and takes no {_short(extra) or 'other'} metadata"
@@ -244,8 +220,8 @@ def deployment_metadata(
         KEY_TASK: task,
         KEY_MODEL: model,
         KEY_MODEL_CONFIG: dict(model_config),
-        KEY_INPUTS: list(TASK_INPUTS[task]),
-        KEY_OUTPUT: TASK_OUTPUT[task],
+        KEY_INPUTS: list(inputs),
+        KEY_OUTPUT: output,
         KEY_NORMALIZATION: {
             "mean": [float(v) for v in normalization["mean"]],
             "std": [float(v) for v in normalization["std"]],
@@ -255,22 +231,25 @@ def deployment_metadata(
         KEY_DATA_CONFIG: dict(data_config),
         KEY_CHECKPOINT_SHA256: checkpoint_sha256,
         KEY_SOURCE_CHECKPOINT: str(source_checkpoint),
-        KEY_CLASS_NAMES: None if class_names is None else [str(n) for n in class_names],
-        KEY_PALETTE: None if palette is None else [[int(c) for c in rgb] for rgb in palette],
-        KEY_IGNORE_INDEX: None if ignore_index is None else int(ignore_index),
-        KEY_MIN_DEPTH: None if min_depth is None else float(min_depth),
-        KEY_MAX_DEPTH: None if max_depth is None else float(max_depth),
-        KEY_OCCLUSION: occlusion,
+        **{key: _plain(key, value) for key, value in specific.items()},
     }
-    out = {key: _encode(key, values[key]) for key in TASK_KEYS[task]}
+    out = {key: _encode(key, values[key]) for key in (*COMMON_KEYS, *wanted)}
     if weights is not None:
         out[KEY_WEIGHTS] = _encode(KEY_WEIGHTS, dict(weights))
-    parse_deployment_metadata(out)  # the writer never produces what the reader would reject
+    # The writer never produces what the reader would reject.
+    parse_deployment_metadata(out, lambda name: task_keys if name == task else ())
     return out
 
 
-def parse_deployment_metadata(props: Mapping[str, str]) -> dict[str, Any]:
+def parse_deployment_metadata(
+    props: Mapping[str, str], task_keys: Callable[[str], Sequence[str]]
+) -> dict[str, Any]:
     """Check and decode deployment metadata (``metadata_props`` as a dict); other keys are ignored.
+
+    Args:
+        props: The model's ``metadata_props``.
+        task_keys: The own keys (short names) of a task name; raises ``ValueError`` (or ``KeyError``) for an
+            unknown task (:func:`airfisheye_bench.specs.deployment_keys`).
 
     Returns:
         The decoded values keyed by the name without the ``airfisheye.`` prefix, e.g. ``"task"`` (str),
@@ -283,7 +262,7 @@ def parse_deployment_metadata(props: Mapping[str, str]) -> dict[str, Any]:
             task, or a value that is not valid JSON (the message names the key).
 
     Example:
-        >>> parse_deployment_metadata({"airfisheye.format_version": "2"})
+        >>> parse_deployment_metadata({"airfisheye.format_version": "2"}, lambda task: ())
         Traceback (most recent call last):
         ...
         ValueError: airfisheye.format_version is '2'; this reader understands '1' (re-export the model ...)
@@ -299,13 +278,15 @@ def parse_deployment_metadata(props: Mapping[str, str]) -> dict[str, Any]:
             "(re-export the model with this version of airfisheye-export)"
         )
     task = props.get(KEY_TASK)
-    if task not in TASK_KEYS:
-        raise ValueError(f"{KEY_TASK} must be one of {sorted(TASK_KEYS)}, got {task!r}")
-    missing = [k for k in TASK_KEYS[task] if k not in props]
+    try:
+        keys = (*COMMON_KEYS, *(PREFIX + k for k in task_keys(str(task))))
+    except (KeyError, ValueError) as err:
+        raise ValueError(f"{KEY_TASK}: {err}") from None
+    missing = [k for k in keys if k not in props]
     if missing:
         raise ValueError(f"ONNX metadata of a task={task} model lacks {missing}")
     decoded: dict[str, Any] = {}
-    for key in (*TASK_KEYS[task], *(k for k in OPTIONAL_KEYS if k in props)):
+    for key in (*keys, *(k for k in OPTIONAL_KEYS if k in props)):
         value = props[key]
         if key not in _STRING_KEYS:
             try:
@@ -334,7 +315,9 @@ def read_onnx_metadata(path: str | os.PathLike) -> dict[str, str]:
     return {prop.key: prop.value for prop in model.metadata_props}
 
 
-def read_deployment_metadata(path: str | os.PathLike) -> dict[str, Any]:
+def read_deployment_metadata(
+    path: str | os.PathLike, task_keys: Callable[[str], Sequence[str]]
+) -> dict[str, Any]:
     """:func:`parse_deployment_metadata` of an ``.onnx`` file (the weights are not loaded).
 
     Raises:
@@ -351,7 +334,7 @@ def read_deployment_metadata(path: str | os.PathLike) -> dict[str, Any]:
             "scripts/export_onnx.py"
         ) from err
     try:
-        return parse_deployment_metadata(props)
+        return parse_deployment_metadata(props, task_keys)
     except ValueError as err:
         raise InputFileError(f"{path}: {err}; give a file written by scripts/export_onnx.py") from None
 
@@ -365,6 +348,19 @@ def _encode(key: str, value: Any) -> str:
         return json.dumps(value, allow_nan=False)
     except (TypeError, ValueError) as err:
         raise ValueError(f"{key} is not JSON-serialisable ({err}): {value!r}") from None
+
+
+def _plain(key: str, value: Any) -> Any:
+    """A task value as plain JSON-ready data (numpy numbers and tuples from configs become floats and lists)."""
+    if key == KEY_CLASS_NAMES:
+        return [str(n) for n in value]
+    if key == KEY_PALETTE:
+        return [[int(c) for c in rgb] for rgb in value]
+    if key == KEY_IGNORE_INDEX:
+        return int(value)
+    if key in (KEY_MIN_DEPTH, KEY_MAX_DEPTH):
+        return float(value)
+    return value
 
 
 def _short(keys: list[str]) -> str:

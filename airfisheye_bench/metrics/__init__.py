@@ -25,7 +25,7 @@ from airfisheye_bench.metrics.functional import (
     mean_iou_from_confusion,
     pixel_accuracy_from_confusion,
 )
-from airfisheye_bench.metrics.scorer import TaskScorer, task_metric
+from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.metrics.segmentation import SegmentationMetrics
 
 __all__ = [
@@ -46,5 +46,4 @@ __all__ = [
     "iou_from_confusion",
     "mean_iou_from_confusion",
     "pixel_accuracy_from_confusion",
-    "task_metric",
 ]

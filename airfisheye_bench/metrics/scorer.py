@@ -14,58 +14,24 @@ from torch import Tensor, nn
 from torchmetrics import Metric
 
 from airfisheye_bench.metrics.binned import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, BinnedMetrics
-from airfisheye_bench.metrics.completion import CompletionMetrics
-from airfisheye_bench.metrics.depth import DepthMetrics
-from airfisheye_bench.metrics.segmentation import SegmentationMetrics
 
-__all__ = ["TaskScorer", "task_metric"]
-
-TASK_NAMES = ("seg", "depth", "completion")
-
-
-def task_metric(
-    task: str,
-    class_names: Sequence[str] | None = None,
-    ignore_index: int = 255,
-    min_depth: float = 1e-3,
-    max_depth: float = 120.0,
-) -> Metric:
-    """A fresh metric of ``task`` with the paper's conventions (see DESIGN, Metrics).
-
-    Args:
-        task: ``seg``, ``depth`` or ``completion``.
-        class_names: Training class names (``seg``; their count is the number of classes).
-        ignore_index: Ignored label (``seg``).
-        min_depth: Lower evaluation bound (``depth``; completion uses ``1e-4`` by its own convention).
-        max_depth: Upper evaluation bound in metres (``depth``, ``completion``).
-
-    Example:
-        >>> type(task_metric("completion")).__name__
-        'CompletionMetrics'
-    """
-    if task == "seg":
-        if not class_names:
-            raise ValueError("task_metric('seg') needs class_names")
-        return SegmentationMetrics(len(class_names), ignore_index=ignore_index, class_names=list(class_names))
-    if task == "depth":
-        return DepthMetrics(min_depth=min_depth, max_depth=max_depth)
-    if task == "completion":
-        return CompletionMetrics(max_depth=max_depth)
-    raise ValueError(f"task must be one of {TASK_NAMES}, got {task!r}")
+__all__ = ["TaskScorer"]
 
 
 class TaskScorer(nn.Module):
     """A task metric, its incidence-angle rings and (for depth targets) its depth ranges, updated together.
 
     Args:
-        metric_factory: Zero-argument callable returning a fresh task metric (e.g. ``lambda: task_metric("depth")``).
+        metric_factory: Zero-argument callable returning a fresh task metric (e.g.
+            ``get_task("depth").make_metric``, see :mod:`airfisheye_bench.specs`).
         ring_edges_deg: Incidence-angle ring edges in degrees.
         depth_edges_m: Ground-truth range bin edges in metres; ``None`` leaves the range breakdown out
-            (segmentation targets carry no depth).
+            (segmentation targets carry no depth: ``TaskSpec.depth_breakdown``).
 
     Example:
         >>> import torch
-        >>> scorer = TaskScorer(lambda: task_metric("depth"), ring_edges_deg=(0, 45, 95))
+        >>> from airfisheye_bench.metrics import DepthMetrics
+        >>> scorer = TaskScorer(DepthMetrics, ring_edges_deg=(0, 45, 95))
         >>> gt = torch.full((1, 1, 2, 2), 10.0)
         >>> pred = torch.tensor([[[[10.0, 12.0], [12.0, 10.0]]]])
         >>> theta = torch.tensor([[10.0, 50.0], [50.0, 10.0]])

@@ -1,9 +1,10 @@
-"""The LightningModule shared by the three benchmark tasks.
+"""The LightningModule shared by the benchmark tasks.
 
 A task owns a zoo model (built by registry name, so a checkpoint alone rebuilds it), the paper's loss, one set of
 metrics per evaluation stage plus their breakdown by incidence-angle ring, and qualitative panels written every
-validation epoch. Subclasses say which batch keys feed the model, how the loss is computed, which metric to use and
-how to draw a panel row.
+validation epoch. The facts of the task (which batch keys feed the model, the target, the primary output, the
+metric, the breakdowns) come from its :class:`~airfisheye_bench.specs.TaskSpec`; a subclass names its spec
+(``task``), builds its loss and says which metric options it evaluates with.
 """
 
 from __future__ import annotations
@@ -23,14 +24,18 @@ from torchmetrics import MeanMetric, Metric
 
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG
 from airfisheye_bench.metrics.scorer import TaskScorer
-from airfisheye_bench.viz import make_panel, save_png
+from airfisheye_bench.specs import TaskSpec, get_task
+from airfisheye_bench.viz import make_panel, panel_row, save_png
 from models import create_model, model_task
 
 STAGES = ("val", "test")
 
 
 class BenchmarkTask(L.LightningModule):
-    """Base class of :class:`SegmentationTask`, :class:`DepthTask` and :class:`CompletionTask`.
+    """Base class of :class:`SegmentationTask`, :class:`DepthTask`, :class:`CompletionTask` and any new task.
+
+    Subclasses set ``task`` (a registered spec name) and implement :meth:`loss_terms`; they override
+    :meth:`metric_options` when they evaluate with other than the default bounds.
 
     Args:
         model: Registry name and keyword arguments, e.g. ``{"name": "deeplabv3plus", "encoder_name": "resnet50"}``.
@@ -47,6 +52,10 @@ class BenchmarkTask(L.LightningModule):
     """
 
     task: ClassVar[str]
+    #: Class colours ``uint8 [256, 3]`` of the panels (tasks whose spec ``uses_classes``).
+    palette: np.ndarray | None = None
+    #: Far end of the depth colour map of the panels, metres.
+    max_depth: float = 120.0
 
     def __init__(
         self,
@@ -61,6 +70,7 @@ class BenchmarkTask(L.LightningModule):
     ) -> None:
         super().__init__()
         self.save_hyperparameters(ignore=["optimizer", "scheduler"], logger=False)
+        spec = get_task(self.task)
         model = dict(model)
         name = model.pop("name", None)
         if name is None:
@@ -79,8 +89,8 @@ class BenchmarkTask(L.LightningModule):
         )
         self.optimizer_factory = optimizer
         self.scheduler_factory = scheduler
-        # Segmentation targets carry no depth: its breakdown is by incidence angle only.
-        depth_edges = None if self.task == "seg" else DEFAULT_DEPTH_EDGES_M
+        # Label targets carry no depth: their breakdown is by incidence angle only.
+        depth_edges = DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None
         self.scorers = nn.ModuleDict(
             {stage: TaskScorer(self.make_metric, ring_edges_deg, depth_edges) for stage in STAGES}
         )
@@ -92,24 +102,36 @@ class BenchmarkTask(L.LightningModule):
         self._panel_rows: list[list[np.ndarray]] = []
 
     # ------------------------------------------------------------------------------------------ hooks for subclasses
-    def make_metric(self) -> Metric:
-        raise NotImplementedError
-
-    def model_inputs(self, batch: dict) -> tuple[Tensor, ...]:
-        return (batch["image"],)
-
-    def target(self, batch: dict) -> Tensor:
-        raise NotImplementedError
-
     def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
         """``{"loss": total, ...parts}`` from ``forward_with_aux`` outputs."""
         raise NotImplementedError
 
+    def metric_options(self) -> dict[str, Any]:
+        """The :class:`~airfisheye_bench.specs.MetricOptions` this module evaluates with (default: the spec's)."""
+        return {}
+
+    # ------------------------------------------------------------------------------------- facts from the spec
+    @property
+    def spec(self) -> TaskSpec:
+        """The task's spec (inputs, target, output, metric, breakdowns)."""
+        return get_task(self.task)
+
+    def make_metric(self) -> Metric:
+        """A fresh task metric with this module's options."""
+        return self.spec.make_metric(**self.metric_options())
+
+    def model_inputs(self, batch: dict) -> tuple[Tensor, ...]:
+        return tuple(batch[key] for key in self.spec.inputs)
+
+    def target(self, batch: dict) -> Tensor:
+        return batch[self.spec.target]
+
     def prediction(self, outputs: dict[str, Tensor]) -> Tensor:
-        raise NotImplementedError
+        """The metric input from ``forward_with_aux`` outputs (labels from logits, or the range map)."""
+        return self.spec.prediction.from_output(outputs[self.spec.output])
 
     def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
-        raise NotImplementedError
+        return panel_row(self.task, batch, prediction, index, palette=self.palette, max_depth=self.max_depth)
 
     # ------------------------------------------------------------------------------------------ reproducibility
     def on_train_epoch_start(self) -> None:

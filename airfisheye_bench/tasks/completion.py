@@ -4,13 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 from torch import Tensor
 
-from airfisheye_bench.metrics import CompletionMetrics
-from airfisheye_bench.metrics.scorer import task_metric
+from airfisheye_bench.metrics.functional import COMPLETION_VALID_MIN
 from airfisheye_bench.tasks.base import BenchmarkTask
-from airfisheye_bench.viz import panel_row
 from models.losses import L1L2Loss
 
 
@@ -39,20 +36,9 @@ class CompletionTask(BenchmarkTask):
         super().__init__(model, **kwargs)
         self.loss = L1L2Loss(max_depth=max_depth, l1_weight=l1_weight, l2_weight=l2_weight)
 
-    def make_metric(self) -> CompletionMetrics:
-        return task_metric("completion", max_depth=self.max_depth)
-
-    def model_inputs(self, batch: dict) -> tuple[Tensor, ...]:
-        return batch["image"], batch["sparse_depth"]
-
-    def target(self, batch: dict) -> Tensor:
-        return batch["depth"]
+    def metric_options(self) -> dict[str, Any]:
+        # NLSPN's metric has its own lower bound (COMPLETION_VALID_MIN); stated here for the ONNX metadata.
+        return {"min_depth": COMPLETION_VALID_MIN, "max_depth": self.max_depth}
 
     def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
         return self.loss.terms(outputs["depth"], batch["depth"])
-
-    def prediction(self, outputs: dict[str, Tensor]) -> Tensor:
-        return outputs["depth"]
-
-    def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
-        return panel_row("completion", batch, prediction, index, max_depth=self.max_depth)

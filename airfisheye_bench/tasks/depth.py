@@ -4,13 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 from torch import Tensor
 
-from airfisheye_bench.metrics import DepthMetrics
-from airfisheye_bench.metrics.scorer import task_metric
 from airfisheye_bench.tasks.base import BenchmarkTask
-from airfisheye_bench.viz import panel_row
 from models.losses import AdaBinsLoss
 
 
@@ -39,17 +35,8 @@ class DepthTask(BenchmarkTask):
         super().__init__(model, **kwargs)
         self.loss = AdaBinsLoss(w_chamfer=w_chamfer, min_depth=min_depth, max_depth=max_depth)
 
-    def make_metric(self) -> DepthMetrics:
-        return task_metric("depth", min_depth=self.min_depth, max_depth=self.max_depth)
-
-    def target(self, batch: dict) -> Tensor:
-        return batch["depth"]
+    def metric_options(self) -> dict[str, Any]:
+        return {"min_depth": self.min_depth, "max_depth": self.max_depth}
 
     def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
         return self.loss.terms(outputs, batch["depth"])
-
-    def prediction(self, outputs: dict[str, Tensor]) -> Tensor:
-        return outputs["depth"]
-
-    def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
-        return panel_row("depth", batch, prediction, index, max_depth=self.max_depth)

@@ -7,10 +7,7 @@ from typing import Any
 import numpy as np
 from torch import Tensor
 
-from airfisheye_bench.metrics import SegmentationMetrics
-from airfisheye_bench.metrics.scorer import task_metric
 from airfisheye_bench.tasks.base import BenchmarkTask
-from airfisheye_bench.viz import panel_row
 from models.losses import SegmentationCELoss
 
 
@@ -44,17 +41,8 @@ class SegmentationTask(BenchmarkTask):
             pal[: len(palette)] = np.asarray(palette, np.uint8)
         self.palette = pal
 
-    def make_metric(self) -> SegmentationMetrics:
-        return task_metric("seg", class_names=self.class_names, ignore_index=self.ignore_index)
-
-    def target(self, batch: dict) -> Tensor:
-        return batch["label"]
+    def metric_options(self) -> dict[str, Any]:
+        return {"class_names": self.class_names, "ignore_index": self.ignore_index}
 
     def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
         return {"loss": self.loss(outputs["logits"], batch["label"])}
-
-    def prediction(self, outputs: dict[str, Tensor]) -> Tensor:
-        return outputs["logits"].argmax(1)
-
-    def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
-        return panel_row("seg", batch, prediction, index, palette=self.palette)

@@ -13,14 +13,15 @@ import pytest
 
 import airfisheye_bench.evaluation.leaderboard as lb
 from airfisheye_bench.evaluation import (
-    PAPER_BASELINES,
     LeaderboardError,
     build_leaderboard,
     collect_results,
     find_results,
     load_entry,
+    paper_baselines,
     write_results,
 )
+from airfisheye_bench.specs import all_tasks
 
 HASH_A = "a1b2c3d4" + "0" * 56
 HASH_B = "ffee0011" + "1" * 56
@@ -110,7 +111,7 @@ def test_paper_rows_are_included_by_default_in_their_own_group(tmp_path: Path) -
 
 
 def test_paper_rows_hold_the_design_table_as_fractions() -> None:
-    by_task = {e.task: e for e in PAPER_BASELINES}
+    by_task = {e.task: e for e in paper_baselines()}
     assert dict(by_task["seg"].metrics) == {"mIoU": 0.512}
     assert by_task["depth"].metrics["rmse"] == 13.324 and by_task["depth"].metrics["delta3"] == 0.972
     assert (
@@ -118,7 +119,7 @@ def test_paper_rows_hold_the_design_table_as_fractions() -> None:
     )
     # Not reported by the paper: absent, not zero.
     assert "pixel_acc" not in by_task["seg"].metrics and "sq_rel" not in by_task["completion"].metrics
-    assert all(e.paper and e.path is None for e in PAPER_BASELINES)
+    assert all(e.paper and e.path is None for e in paper_baselines())
 
 
 def test_paper_rows_can_be_left_out(tmp_path: Path) -> None:
@@ -286,8 +287,8 @@ def test_csv_round_trips_every_value(tmp_path: Path) -> None:
     _write(tmp_path, "s", "seg", {"mIoU": 0.3, "pixel_acc": 0.7, "IoU/sky": 0.9})
     board = build_leaderboard(collect_results([tmp_path]))
     text = board.to_csv()
-    assert text.splitlines()[0] == ",".join(lb.CSV_COLUMNS)
-    assert set(lb.CSV_COLUMNS) >= {m for cols in lb.TASK_COLUMNS.values() for m in cols}
+    assert text.splitlines()[0] == ",".join(lb.csv_columns())
+    assert set(lb.csv_columns()) >= {m for spec in all_tasks() for m in spec.metric_keys}
     rows = _csv_rows(text)
     assert [r["task"] for r in rows] == ["seg", "seg", "depth", "depth", "completion"]
     mine = next(r for r in rows if r["run"] == "d")

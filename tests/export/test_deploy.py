@@ -23,14 +23,16 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import OutputError
 from airfisheye_bench.export import verify_onnx
 from airfisheye_bench.io.deployment import (
+    COMMON_KEYS,
     KEY_WEIGHTS,
-    TASK_KEYS,
+    PREFIX,
     deployment_metadata,
     parse_deployment_metadata,
     read_deployment_metadata,
     read_onnx_metadata,
 )
 from airfisheye_bench.runs import resolve_checkpoint
+from airfisheye_bench.specs import deployment_keys
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.training import build, train
 from datamodules.config import apply_data_overrides, instantiate_datamodule
@@ -38,6 +40,11 @@ from tests.training.test_configs import compose_train
 from tests.training.test_train import tiny_run_overrides
 
 SIZE = 64
+
+
+def task_keys(task: str) -> set[str]:
+    """Every metadata key of a ``task`` model: the common keys and its spec's own."""
+    return {*COMMON_KEYS, *(PREFIX + k for k in deployment_keys(task))}
 
 
 def _overrides(task: str, tiny_dataset: Path) -> list[str]:
@@ -138,9 +145,9 @@ def test_seg_export_has_a_dynamic_batch(seg_export, seg_run: Path, tiny_dataset:
 def test_seg_metadata_round_trip(seg_export, seg_run: Path) -> None:
     _, _, out, _ = seg_export
     props = read_onnx_metadata(out)
-    assert set(props) == {*TASK_KEYS["seg"], KEY_WEIGHTS}
+    assert set(props) == {*task_keys("seg"), KEY_WEIGHTS}
     assert all(isinstance(v, str) for v in props.values())
-    meta = read_deployment_metadata(out)
+    meta = read_deployment_metadata(out, deployment_keys)
     task = load_task(seg_run)
     assert meta["format_version"] == "1" and meta["task"] == "seg" and meta["model"] == "deeplabv3plus"
     assert meta["model_config"] == dict(task.hparams["model"])
@@ -216,8 +223,8 @@ def test_depth_tasks_export_through_the_cli(task: str, tiny_dataset: Path, tmp_p
         if task == "completion":
             feed["sparse_depth"] = np.zeros((batch, 1, SIZE, SIZE), np.float32)
         assert session.run(["depth"], feed)[0].shape == (batch, 1, SIZE, SIZE)
-    meta = read_deployment_metadata(out)
-    assert set(read_onnx_metadata(out)) == {*TASK_KEYS[task], KEY_WEIGHTS}
+    meta = read_deployment_metadata(out, deployment_keys)
+    assert set(read_onnx_metadata(out)) == {*task_keys(task), KEY_WEIGHTS}
     assert meta["output"] == "depth" and meta["inputs"] == names and meta["max_depth"] == 120.0
     assert meta["min_depth"] == (1e-3 if task == "depth" else 1e-4)
     if task == "completion":
@@ -323,8 +330,12 @@ def test_failed_quantization_exits_with_code_3(monkeypatch, capsys) -> None:
 
 # ------------------------------------------------------------------------------------- metadata contract
 def _depth_meta(**changes):
+    task = changes.pop("task", "depth")
     kwargs = dict(
-        task="depth",
+        task=task,
+        inputs=["image"],
+        output="depth",
+        task_keys=deployment_keys(task),
         model="adabins",
         model_config={"name": "adabins"},
         normalization={"mean": IMAGENET_MEAN, "std": IMAGENET_STD},
@@ -341,9 +352,9 @@ def _depth_meta(**changes):
 
 def test_metadata_encodes_exactly_the_task_keys() -> None:
     meta = _depth_meta()
-    assert set(meta) == set(TASK_KEYS["depth"])
+    assert set(meta) == task_keys("depth")
     assert json.loads(meta["airfisheye.image_size"]) == [24, 32]
-    decoded = parse_deployment_metadata({**meta, "other.key": "ignored"})
+    decoded = parse_deployment_metadata({**meta, "other.key": "ignored"}, deployment_keys)
     assert decoded["camera"]["fov_deg"] == 190.0 and decoded["min_depth"] == 1e-3
     assert "other.key" not in decoded and "key" not in decoded
 
@@ -360,17 +371,17 @@ def test_metadata_rejects_wrong_task_fields() -> None:
 def test_parse_names_the_bad_key() -> None:
     meta = _depth_meta()
     with pytest.raises(ValueError, match=r"no airfisheye\.format_version"):
-        parse_deployment_metadata({})
+        parse_deployment_metadata({}, deployment_keys)
     with pytest.raises(ValueError, match=r"airfisheye\.max_depth is not valid JSON"):
-        parse_deployment_metadata({**meta, "airfisheye.max_depth": "12 m"})
+        parse_deployment_metadata({**meta, "airfisheye.max_depth": "12 m"}, deployment_keys)
     del meta["airfisheye.camera"]
     with pytest.raises(ValueError, match=r"lacks \['airfisheye.camera'\]"):
-        parse_deployment_metadata(meta)
+        parse_deployment_metadata(meta, deployment_keys)
 
 
 def test_read_names_the_file(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match=r"missing\.onnx"):
-        read_deployment_metadata(tmp_path / "missing.onnx")
+        read_deployment_metadata(tmp_path / "missing.onnx", deployment_keys)
 
 
 # ---------------------------------------------------------------------------------------------- slow
