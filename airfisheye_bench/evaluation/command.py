@@ -35,7 +35,12 @@ from airfisheye_bench.evaluation.predictors import (
     OnnxPredictor,
     Predictor,
 )
-from airfisheye_bench.evaluation.results import PRIMARY_METRIC, dataset_identity, write_results
+from airfisheye_bench.evaluation.results import (
+    PRIMARY_METRIC,
+    checkpoint_run_name,
+    dataset_identity,
+    write_results,
+)
 from airfisheye_bench.evaluation.scorer import TaskScorer, task_metric
 from airfisheye_bench.evaluation.submission import SubmissionWriter
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
@@ -185,6 +190,14 @@ def _prediction_writer(cfg: DictConfig, source: str, task: str) -> SubmissionWri
     return SubmissionWriter(cfg.save_predictions, task, depth_format=cfg.prediction_format)
 
 
+def _run_name(identity: dict[str, Any]) -> str:
+    """The training run of the evaluated weights (an ONNX model's source checkpoint), else the file's name."""
+    checkpoint = identity.get("checkpoint") or identity.get("source_checkpoint")
+    if checkpoint:
+        return checkpoint_run_name(checkpoint)
+    return Path(identity.get("onnx") or identity.get("predictions") or "unnamed").name
+
+
 def _write(
     cfg: DictConfig,
     output_dir: Path,
@@ -200,8 +213,8 @@ def _write(
     for sample_id, tiles in result.panels:
         save_png(panels / f"{sample_id.replace('/', '_')}.png", make_panel([tiles]))
     identity = predictor.identity()
-    if cfg.get("name"):
-        identity["run_name"] = cfg.name  # the leaderboard's run label; "name" stays the architecture
+    # The leaderboard's run label ("name" stays the architecture): the name given, else the training run.
+    identity["run_name"] = cfg.get("name") or _run_name(identity)
     split_name = datamodule.split_names[("train", "val", "test").index(cfg.split)]
     path = write_results(
         output_dir / "results.json",
