@@ -11,8 +11,9 @@ so the model sees the camera it expects; ``data.*`` overrides on the command lin
 prediction folder is evaluated with the ``data`` group of ``configs/evaluate.yaml`` (synthetic ``quickstart`` by
 default). ``tta=flip`` averages a checkpoint's or ONNX model's prediction with the mirrored prediction of the
 mirrored input (:func:`~airfisheye_bench.evaluation.predictors.flip_tta`). The output folder receives
-``results.json`` (the leaderboard format; ``model`` records the weights the model started from and the TTA) and
-``panels/``; the table is printed.
+``results.json`` (the leaderboard format; ``model`` records what was evaluated, the training run, the weights
+the model started from and the TTA) and ``panels/`` (frames spread over the split, titled columns, depth colour
+bars in metres); the table is printed.
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ from airfisheye_bench.evaluation.results import (
 from airfisheye_bench.evaluation.scorer import TaskScorer, task_metric
 from airfisheye_bench.evaluation.submission import SubmissionWriter
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
-from airfisheye_bench.viz import make_panel, save_png
+from airfisheye_bench.viz import save_png, task_panel
 
 log = logging.getLogger(__name__)
 
@@ -210,8 +211,11 @@ def _write(
     import json
 
     panels = output_dir / "panels"
+    max_depth = float(data_config.get("max_depth", 120.0))  # the depth colour bar's far end, as the tiles
     for sample_id, tiles in result.panels:
-        save_png(panels / f"{sample_id.replace('/', '_')}.png", make_panel([tiles]))
+        save_png(
+            panels / f"{sample_id.replace('/', '_')}.png", task_panel(task, [tiles], max_depth=max_depth)
+        )
     identity = predictor.identity()
     # The leaderboard's run label ("name" stays the architecture): the name given, else the training run.
     identity["run_name"] = cfg.get("name") or _run_name(identity)

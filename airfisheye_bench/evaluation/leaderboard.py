@@ -46,6 +46,7 @@ from airfisheye_bench.errors import MissingFileError, UserError, report_user_err
 from airfisheye_bench.evaluation.results import (
     PRIMARY_METRIC,
     RESULTS_VERSION,
+    checkpoint_run_name,
     evaluated_label,
     load_results,
 )
@@ -144,7 +145,8 @@ class LeaderboardEntry:
         split: The evaluated split (``test``, ``val``, ...).
         model: Model name with its encoder, e.g. ``deeplabv3plus / resnet18``.
         run: The run's name: ``model.run_name`` of the results (the training run of the evaluated weights, or
-            the evaluation's ``name=``), else the ``results.json`` folder name (files written before it existed).
+            the evaluation's ``name=``); for files written before it existed, the run of the evaluated
+            checkpoint, else the ``results.json`` folder name.
         dataset_name: ``dataset.name`` of the results (``dataset.yaml`` name).
         manifest_sha256: SHA-256 of the dataset's ``manifest.json``, when it had one.
         metrics: Metric values (fractions or metres); ``None`` for missing or non-finite.
@@ -344,7 +346,7 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         task=task,
         split=record["split"],
         model=_model_label(model),
-        run=str(model.get("run_name") or path.resolve().parent.name),
+        run=_run_name(model, path),
         dataset_name=str(dataset.get("name") or "unknown dataset"),
         manifest_sha256=str(manifest) if manifest else None,
         metrics=_numbers(record, "metrics"),
@@ -353,6 +355,14 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         predictor=str(model.get("source") or ("checkpoint" if model.get("checkpoint") else "")),
         evaluated=evaluated_label(model),
     )
+
+
+def _run_name(model: Mapping[str, Any], path: Path) -> str:
+    """``model.run_name``; for files written before it, the run of the checkpoint, else the file's folder."""
+    if model.get("run_name"):
+        return str(model["run_name"])
+    checkpoint = model.get("checkpoint") or model.get("source_checkpoint")
+    return checkpoint_run_name(str(checkpoint)) if checkpoint else path.resolve().parent.name
 
 
 def load_entries(files: Iterable[str | Path]) -> tuple[list[LeaderboardEntry], list[str]]:

@@ -427,14 +427,24 @@ def test_docstring_examples() -> None:
     ("model", "evaluated", "run"),
     [
         (  # train.py's test stage
-            {"source": "checkpoint", "stage": "training", "checkpoint": "/r/checkpoints/epoch_003.ckpt"},
+            {
+                "source": "checkpoint",
+                "stage": "training",
+                "checkpoint": "/r/checkpoints/epoch_003.ckpt",
+                "run_name": "r",
+            },
             "checkpoint epoch_003 (training test)",
-            "folder",
+            "r",
         ),
         (
-            {"source": "checkpoint", "checkpoint": "/r/checkpoints/last.ckpt", "tta": "flip"},
+            {
+                "source": "checkpoint",
+                "checkpoint": "/r/checkpoints/last.ckpt",
+                "tta": "flip",
+                "run_name": "r",
+            },
             "checkpoint last, flip TTA",
-            "folder",
+            "r",
         ),
         (
             {"source": "onnx", "onnx": "/m/model.onnx", "precision": "fp32", "run_name": "adabins-r18"},
@@ -447,9 +457,15 @@ def test_docstring_examples() -> None:
             "adabins-r18",
         ),
         ({"source": "predictions", "predictions": "/p/mine", "run_name": "mine"}, "predictions", "mine"),
-        # Written before the labels: train.py recorded no source, an int8 model only its file name.
-        ({"checkpoint": "/r/checkpoints/epoch_001.ckpt"}, "checkpoint epoch_001 (training test)", "folder"),
-        ({"source": "onnx", "onnx": "/m/model.int8.onnx"}, "ONNX int8", "folder"),
+        # Written before the labels: train.py recorded no source, an int8 model only its file name, and the run
+        # is the checkpoint's run directory, else the results folder.
+        ({"checkpoint": "/r/checkpoints/epoch_001.ckpt"}, "checkpoint epoch_001 (training test)", "r"),
+        (
+            {"source": "onnx", "onnx": "/m/model.int8.onnx", "source_checkpoint": "/q/checkpoints/a.ckpt"},
+            "ONNX int8",
+            "q",
+        ),
+        ({"source": "onnx", "onnx": "/m/model.onnx"}, "ONNX", "folder"),
         ({"name": "deeplabv3plus"}, "", "folder"),
     ],
 )
