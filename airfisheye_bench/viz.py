@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
+from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.io import atomic_write_bytes
 
 # Anchor colours of a perceptually ordered map (near = yellow, far = dark purple), interpolated to 256 entries.
@@ -298,8 +299,6 @@ def panel_row(
         Tiles ``uint8 [H, W, 3]``. The error tile is red where a label is wrong (seg), or the absolute depth error
         with red at :data:`ERROR_SCALE_M` (10 m) or more; pixels without ground truth are dark grey.
     """
-    from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
-
     image = denormalize(batch["image"][index], IMAGENET_MEAN, IMAGENET_STD)
     valid = batch["valid_mask"][index].bool().cpu()
     if task == "seg":

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from airfisheye_bench.evaluation.evaluator import evaluate_predictions
-from airfisheye_bench.evaluation.scorer import TaskScorer, task_metric
+from airfisheye_bench.metrics.scorer import TaskScorer, task_metric
 from airfisheye_bench.viz import (
     DEPTH_COLORMAP,
     ERROR_SCALE_M,

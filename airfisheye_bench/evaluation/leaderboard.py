@@ -46,11 +46,11 @@ from airfisheye_bench.errors import MissingFileError, UserError, report_user_err
 from airfisheye_bench.evaluation.results import (
     PRIMARY_METRIC,
     RESULTS_VERSION,
-    checkpoint_run_name,
     evaluated_label,
     load_results,
 )
 from airfisheye_bench.io import atomic_write_text
+from airfisheye_bench.runs import checkpoint_run_name
 
 __all__ = [
     "METRIC_LABELS",

@@ -152,7 +152,7 @@ class OnnxPredictor:
     ) -> None:
         import onnxruntime as ort
 
-        from airfisheye_bench.export.metadata import read_deployment_metadata
+        from airfisheye_bench.io.deployment import read_deployment_metadata
 
         self.path = Path(path)
         self.tta = check_tta(tta)
@@ -228,7 +228,7 @@ def onnx_precision(path: str | Path) -> str:
         >>> onnx_precision(path)
         'fp32'
     """
-    import onnx
+    import onnx  # optional heavy dependency: only ONNX evaluation needs it
 
     graph = onnx.load(str(path), load_external_data=False).graph
     return "int8" if any(node.op_type in _QUANTISED_OPS for node in graph.node) else "fp32"

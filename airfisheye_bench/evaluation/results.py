@@ -8,9 +8,9 @@
 ``source`` (``checkpoint`` | ``onnx`` | ``predictions``), ``checkpoint`` / ``onnx`` / ``predictions`` (the file
 or folder), ``precision`` of an ONNX model (``fp32`` | ``int8``), ``tta`` (``null`` | ``flip``), ``stage``
 (``training`` for the test at the end of ``train.py``, else absent) and ``run_name``, the training run the weights
-come from (:func:`checkpoint_run_name`) or the ``name=`` given. Files written before these keys existed stay
-readable: a missing key is inferred where it can be (an ``.int8.onnx`` file name) and left out of the label
-otherwise.
+come from (:func:`~airfisheye_bench.runs.checkpoint_run_name`) or the ``name=`` given. Files written before these
+keys existed stay readable: a missing key is inferred where it can be (an ``.int8.onnx`` file name, the run
+directory of the checkpoint) and left out of the label otherwise.
 """
 
 from __future__ import annotations
@@ -68,21 +68,6 @@ def write_results(
     path = Path(path)
     atomic_write_text(path, json.dumps(record, indent=2, sort_keys=False) + "\n")
     return path
-
-
-def checkpoint_run_name(checkpoint: str | Path) -> str:
-    """The name of the training run a checkpoint belongs to: its run directory (``<run>/checkpoints/x.ckpt``).
-
-    A checkpoint outside a run directory is named by its file.
-
-    Example:
-        >>> checkpoint_run_name("logs/depth/runs/adabins-r18/checkpoints/epoch_007.ckpt")
-        'adabins-r18'
-        >>> checkpoint_run_name("/tmp/bare.ckpt")
-        'bare'
-    """
-    path = Path(checkpoint)
-    return path.parent.parent.name if path.parent.name == "checkpoints" else path.stem
 
 
 def evaluated_label(model: Mapping[str, Any]) -> str:
