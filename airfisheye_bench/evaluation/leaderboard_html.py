@@ -1,7 +1,8 @@
 """The leaderboard as one self-contained HTML page: sortable tables per task and a detail view per entry.
 
-The page renders a :class:`~airfisheye_bench.evaluation.leaderboard.Leaderboard` -- the same groups and ranks as
-``leaderboard.md`` (results of different datasets or splits are never ranked together) -- and reads each entry's
+The page renders a :class:`~airfisheye_bench.evaluation.leaderboard.Leaderboard` -- the same groups, ranks and row
+labels (what was evaluated, which run) as ``leaderboard.md`` (results of different datasets or splits are never
+ranked together) -- and reads each entry's
 ``results.json`` again for its detail view: identity and checksums, every metric, the IoU of each class, the
 primary metric by incidence-angle ring and by depth range (matplotlib, inline SVG), a few qualitative panels
 (the evaluation's ``panels/*.png``, downscaled JPEG data URIs) and the configuration.
