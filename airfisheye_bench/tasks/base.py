@@ -196,8 +196,9 @@ class BenchmarkTask(L.LightningModule):
     def _panel_frames(self) -> set[str] | None:
         """Sample ids of the panel frames, spread over the validated frames (``None``: the first frames).
 
-        The validated frames are the split's, or its first ``limit_val_batches`` batches. Under DDP a rank sees
-        its shard only, so rank 0's panel holds the chosen frames that fall in its shard.
+        The validated frames are the split's, or its first ``limit_val_batches`` batches; chosen once per
+        validation run. Under DDP a rank sees its shard only, so rank 0's panel holds the chosen frames that fall
+        in its shard.
         """
         if self._panel_ids is None:
             datamodule = getattr(self.trainer, "datamodule", None)
@@ -219,6 +220,7 @@ class BenchmarkTask(L.LightningModule):
                 self.render_panel(self._panel_rows), f"panels/epoch_{self.current_epoch:03d}.png"
             )
         self._panel_rows = []
+        self._panel_ids = None  # chosen again for the next run (its number of validated batches may differ)
 
     def on_test_epoch_end(self) -> None:
         self.test_results = self._log_stage("test")
