@@ -152,7 +152,7 @@ def task_panel(task: str, rows: list[list[np.ndarray]], max_depth: float = 120.0
     """
     width = len(rows[0]) * (rows[0][0].shape[1] + gap) - gap
     if task == "seg":
-        legends = [_text_strip("error: red = wrong class, black = right, grey = unlabelled", width)]
+        legends = [_text_strip("error: red = wrong class, black = right, dark grey = unlabelled", width)]
     else:
         legends = [depth_colorbar(width, max_depth), error_colorbar(width, ERROR_SCALE_M)]
     return make_panel(rows, gap=gap, titles=PANEL_TITLES[task], legends=legends)
