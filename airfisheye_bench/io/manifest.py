@@ -1,7 +1,8 @@
 """Dataset manifests: per-file SHA-256 checksums and sizes, and :func:`verify` to check a dataset against them.
 
 ``manifest.json`` lives at the dataset root and lists every file of the dataset except itself and the preview
-``contact_sheet.png`` (relative POSIX paths, sorted), so it is deterministic and two identical datasets have identical manifests::
+``contact_sheet.png`` (relative POSIX paths, sorted), so it is deterministic and two identical datasets have
+identical manifests::
 
     {"format": "airfisheye-manifest/1", "algorithm": "sha256",
      "files": {"dataset.yaml": {"sha256": "...", "bytes": 1234}, ...}}
