@@ -296,6 +296,21 @@ def resolve_checkpoint(path: str | Path) -> Path:
     raise MissingFileError(f"run directory {path} has no checkpoints/*.ckpt")
 
 
+def checkpoint_run_name(checkpoint: str | Path) -> str:
+    """The name of the training run a checkpoint belongs to: its run directory (``<run>/checkpoints/x.ckpt``).
+
+    A checkpoint outside a run directory is named by its file.
+
+    Example:
+        >>> checkpoint_run_name("logs/depth/runs/adabins-r18/checkpoints/epoch_007.ckpt")
+        'adabins-r18'
+        >>> checkpoint_run_name("/tmp/bare.ckpt")
+        'bare'
+    """
+    path = Path(checkpoint)
+    return path.parent.parent.name if path.parent.name == "checkpoints" else path.stem
+
+
 def run_config(checkpoint: str | Path) -> DictConfig | None:
     """The resolved ``config.yaml`` of the run that wrote ``checkpoint`` (``<run>/checkpoints/x.ckpt``), if any."""
     checkpoint = Path(checkpoint)

@@ -239,6 +239,9 @@ def train(cfg: DictConfig) -> dict[str, Any]:
                     datamodule.dataset_root(), datamodule.split_dataset("test").spec.name
                 ),
                 model={
+                    "source": "checkpoint",
+                    "stage": "training",  # the leaderboard tells this row from evaluate.py's of the same weights
+                    "run_name": output_dir.name,
                     "name": cfg.model.name,
                     "checkpoint": best or None,
                     "config": OmegaConf.to_container(cfg.model, resolve=True),

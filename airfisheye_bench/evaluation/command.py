@@ -11,8 +11,9 @@ so the model sees the camera it expects; ``data.*`` overrides on the command lin
 prediction folder is evaluated with the ``data`` group of ``configs/evaluate.yaml`` (synthetic ``quickstart`` by
 default). ``tta=flip`` averages a checkpoint's or ONNX model's prediction with the mirrored prediction of the
 mirrored input (:func:`~airfisheye_bench.evaluation.predictors.flip_tta`). The output folder receives
-``results.json`` (the leaderboard format; ``model`` records the weights the model started from and the TTA) and
-``panels/``; the table is printed.
+``results.json`` (the leaderboard format; ``model`` records what was evaluated, the training run, the weights
+the model started from and the TTA) and ``panels/`` (frames spread over the split, titled columns, depth colour
+bars in metres); the table is printed.
 """
 
 from __future__ import annotations
@@ -39,8 +40,9 @@ from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.evaluation.submission import SubmissionWriter
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
 from airfisheye_bench.metrics.scorer import TaskScorer
+from airfisheye_bench.runs import checkpoint_run_name
 from airfisheye_bench.specs import UnknownTaskError, deployment_keys, get_task, task_names
-from airfisheye_bench.viz import make_panel, save_png
+from airfisheye_bench.viz import save_png, task_panel
 
 log = logging.getLogger(__name__)
 
@@ -189,6 +191,14 @@ def _prediction_writer(cfg: DictConfig, source: str, task: str) -> SubmissionWri
     return SubmissionWriter(cfg.save_predictions, task, depth_format=cfg.prediction_format)
 
 
+def _run_name(identity: dict[str, Any]) -> str:
+    """The training run of the evaluated weights (an ONNX model's source checkpoint), else the file's name."""
+    checkpoint = identity.get("checkpoint") or identity.get("source_checkpoint")
+    if checkpoint:
+        return checkpoint_run_name(checkpoint)
+    return Path(identity.get("onnx") or identity.get("predictions") or "unnamed").name
+
+
 def _write(
     cfg: DictConfig,
     output_dir: Path,
@@ -201,11 +211,14 @@ def _write(
     import json
 
     panels = output_dir / "panels"
+    max_depth = float(data_config.get("max_depth", 120.0))  # the depth colour bar's far end, as the tiles
     for sample_id, tiles in result.panels:
-        save_png(panels / f"{sample_id.replace('/', '_')}.png", make_panel([tiles]))
+        save_png(
+            panels / f"{sample_id.replace('/', '_')}.png", task_panel(task, [tiles], max_depth=max_depth)
+        )
     identity = predictor.identity()
-    if cfg.get("name"):
-        identity["run_name"] = cfg.name  # the leaderboard's run label; "name" stays the architecture
+    # The leaderboard's run label ("name" stays the architecture): the name given, else the training run.
+    identity["run_name"] = cfg.get("name") or _run_name(identity)
     split_name = datamodule.split_names[("train", "val", "test").index(cfg.split)]
     path = write_results(
         output_dir / "results.json",

@@ -25,7 +25,7 @@ from airfisheye_bench.evaluation.predictors import FilePredictor, Predictor
 from airfisheye_bench.metrics._state import record_update
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.specs import get_task
-from airfisheye_bench.viz import panel_row
+from airfisheye_bench.viz import panel_row, spread_indices
 
 __all__ = ["EvaluationResult", "evaluate_predictions", "format_results_table"]
 
@@ -39,7 +39,8 @@ class EvaluationResult:
         breakdown: ``{"ring_0-30/rmse": value, "range_0-10/rmse": value, ...}``.
         num_frames: Frames scored.
         seconds: Wall time of the loop (loading, predicting, scoring).
-        panels: ``(sample_id, tiles)`` of the first frames: image | (sparse) | ground truth | prediction | error.
+        panels: ``(sample_id, tiles)`` of frames spread over the split: image | (sparse) | ground truth |
+            prediction | error (:func:`~airfisheye_bench.viz.panel_titles`).
     """
 
     metrics: dict[str, float]
@@ -71,7 +72,8 @@ def evaluate_predictions(
         theta_deg: Incidence angle of every served pixel in degrees ``[H, W]``.
         batch_size: Frames per batch.
         num_workers: DataLoader workers.
-        num_panels: Frames drawn as qualitative panels (the first ones of the split).
+        num_panels: Frames drawn as qualitative panels, spread evenly over the split
+            (:func:`~airfisheye_bench.viz.spread_indices`; the first ones when the dataset lists no ``sample_ids``).
         palette: Class colours (panels of tasks that predict labels).
         max_depth: Far end of the depth colour maps.
         on_batch: Called with ``(batch, prediction)`` after scoring each batch (e.g. to save predictions).
@@ -83,6 +85,8 @@ def evaluate_predictions(
 
     scorer.reset()
     target_key = get_task(predictor.task).target
+    ids = getattr(dataset, "sample_ids", None)
+    panel_ids = None if ids is None else {ids[i] for i in spread_indices(len(ids), num_panels)}
     collate_fn: Callable[[list], dict] = collate
     if isinstance(predictor, FilePredictor):
         dataset = predictor.wrap(dataset)
@@ -110,9 +114,12 @@ def evaluate_predictions(
             else:
                 _merge_states(metrics, states)
             frames += target.shape[0]
-            for i in range(min(target.shape[0], num_panels - len(panels))):
-                tiles = panel_row(predictor.task, batch, prediction, i, palette=palette, max_depth=max_depth)
-                panels.append((batch["sample_id"][i], tiles))
+            for i, sample_id in enumerate(batch["sample_id"]):
+                if len(panels) < num_panels and (panel_ids is None or sample_id in panel_ids):
+                    tiles = panel_row(
+                        predictor.task, batch, prediction, i, palette=palette, max_depth=max_depth
+                    )
+                    panels.append((sample_id, tiles))
             if on_batch is not None:
                 on_batch(batch, prediction)
     seconds = time.perf_counter() - start

@@ -6,6 +6,12 @@ AirFisheye test split, which no synthetic run reproduces. Each task's table show
 design contract plus the outermost incidence-angle ring (the fisheye rim, ``ring_80-95/<primary>`` by default),
 where fisheye distortion hurts most.
 
+Each row says what was evaluated (``evaluated``: a checkpoint, ``ONNX fp32`` / ``ONNX int8``, a prediction
+folder, with ``flip TTA`` when used; :func:`~airfisheye_bench.evaluation.results.evaluated_label`) and the run it
+comes from (``run``: the training run of the weights, or the ``name=`` given to the evaluation), so an ONNX export
+and its checkpoint are two rows of one run. Rows share a rank when their primary metric prints the same
+(competition ranking: 1, 2, 2, 4; :func:`competition_ranks`), the markdown, CSV and HTML alike.
+
 Command line (also ``airfisheye-leaderboard``)::
 
     python scripts/leaderboard.py runs=logs/[,more/ or a results.json] [out=leaderboard] [paper=true] \
@@ -37,8 +43,9 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.errors import MissingFileError, UserError, report_user_errors
-from airfisheye_bench.evaluation.results import RESULTS_VERSION, load_results
+from airfisheye_bench.evaluation.results import RESULTS_VERSION, evaluated_label, load_results
 from airfisheye_bench.io import atomic_write_text
+from airfisheye_bench.runs import checkpoint_run_name
 from airfisheye_bench.specs import MetricColumn, UnknownTaskError, all_tasks, get_task
 
 __all__ = [
@@ -50,6 +57,7 @@ __all__ = [
     "breakdown_bins",
     "build_leaderboard",
     "collect_results",
+    "competition_ranks",
     "csv_columns",
     "find_results",
     "format_value",
@@ -67,6 +75,7 @@ _IDENTITY_COLUMNS = (
     "task",
     "rank",
     "model",
+    "evaluated",
     "source",
     "split",
     "dataset",
@@ -75,7 +84,9 @@ _IDENTITY_COLUMNS = (
     "primary_metric",
 )
 _BIN = re.compile(r"^(?P<kind>ring|range)_(?P<lo>\d+(?:\.\d+)?)-(?P<hi>\d+(?:\.\d+)?)/(?P<metric>.+)$")
-_TEXT_COLUMNS = frozenset({"model", "source", "split", "run"})  # left-aligned; numbers are right-aligned
+_TEXT_COLUMNS = frozenset(
+    {"model", "evaluated", "source", "split", "run"}
+)  # left-aligned; numbers are right-aligned
 MISSING = "–"
 PAPER_SOURCE = "paper (real AirFisheye)"
 PAPER_DATASET = "AirFisheye (real)"
@@ -98,7 +109,9 @@ class LeaderboardEntry:
         task: ``seg``, ``depth`` or ``completion``.
         split: The evaluated split (``test``, ``val``, ...).
         model: Model name with its encoder, e.g. ``deeplabv3plus / resnet18``.
-        run: Short run identity (the ``results.json`` folder name, or ``model.run_name``).
+        run: The run's name: ``model.run_name`` of the results (the training run of the evaluated weights, or
+            the evaluation's ``name=``); for files written before it existed, the run of the evaluated
+            checkpoint, else the ``results.json`` folder name.
         dataset_name: ``dataset.name`` of the results (``dataset.yaml`` name).
         manifest_sha256: SHA-256 of the dataset's ``manifest.json``, when it had one.
         metrics: Metric values (fractions or metres); ``None`` for missing or non-finite.
@@ -107,6 +120,8 @@ class LeaderboardEntry:
         path: The ``results.json`` the row came from (``None`` for the paper's rows).
         predictor: What produced the predictions: ``checkpoint``, ``onnx`` or ``predictions`` (``model.source``
             of the results; empty when unknown or for the paper's rows).
+        evaluated: The row's label of what was evaluated, e.g. ``checkpoint epoch_003``, ``ONNX int8, flip TTA``
+            or ``predictions`` (:func:`~airfisheye_bench.evaluation.results.evaluated_label`; empty when unknown).
     """
 
     task: str
@@ -120,6 +135,7 @@ class LeaderboardEntry:
     paper: bool = False
     path: str | None = None
     predictor: str = ""
+    evaluated: str = ""
 
     @property
     def source(self) -> str:
@@ -272,6 +288,10 @@ def load_entry(path: str | Path) -> LeaderboardEntry:
         >>> e = load_entry(p)
         >>> e.model, e.run, e.source, e.metrics["rmse"], e.metrics["abs_rel"]
         ('adabins / resnet18', 'r1', 'ours (tiny)', 4.2, None)
+        >>> p = write_results(p, "depth", "test", {"rmse": 4.2}, model={"source": "onnx", "precision": "int8",
+        ...                   "run_name": "adabins-r18"})
+        >>> load_entry(p).run, load_entry(p).evaluated
+        ('adabins-r18', 'ONNX int8')
     """
     path = Path(path)
     try:
@@ -303,14 +323,23 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         task=task,
         split=record["split"],
         model=_model_label(model),
-        run=str(model.get("run_name") or path.resolve().parent.name),
+        run=_run_name(model, path),
         dataset_name=str(dataset.get("name") or "unknown dataset"),
         manifest_sha256=str(manifest) if manifest else None,
         metrics=_numbers(record, "metrics"),
         breakdown=_numbers(record, "breakdown"),
         path=str(path),
-        predictor=str(model.get("source") or ""),
+        predictor=str(model.get("source") or ("checkpoint" if model.get("checkpoint") else "")),
+        evaluated=evaluated_label(model),
     )
+
+
+def _run_name(model: Mapping[str, Any], path: Path) -> str:
+    """``model.run_name``; for files written before it, the run of the checkpoint, else the file's folder."""
+    if model.get("run_name"):
+        return str(model["run_name"])
+    checkpoint = model.get("checkpoint") or model.get("source_checkpoint")
+    return checkpoint_run_name(str(checkpoint)) if checkpoint else path.resolve().parent.name
 
 
 def load_entries(files: Iterable[str | Path]) -> tuple[list[LeaderboardEntry], list[str]]:
@@ -428,27 +457,52 @@ def _rim_key(entries: Iterable[LeaderboardEntry], primary: str) -> str | None:
     return max(rings)[2] if rings else None
 
 
+def competition_ranks(metric: str, values: Sequence[float | None]) -> list[int | None]:
+    """Rank of each value, best first, equal values sharing a rank (1, 2, 2, 4); ``None`` for missing values.
+
+    Values are compared as printed (:func:`format_value`): two rows that read the same are not ranked apart by
+    digits nobody sees.
+
+    Args:
+        metric: The ranked metric (its direction and printed precision).
+        values: One value per row, in any order.
+
+    Returns:
+        The rank of each value, in the order given.
+
+    Example:
+        >>> competition_ranks("rmse", [4.2001, 4.2004, 3.9, None, 5.0])  # 4.200 and 4.200 tie
+        [2, 2, 1, None, 4]
+        >>> competition_ranks("mIoU", [0.5123, 0.5118, 0.49])  # 51.2 % twice
+        [1, 1, 3]
+    """
+    printed = [None if v is None else _printed(metric, v) for v in values]
+    present = sorted((v for v in printed if v is not None), reverse=higher_is_better(metric))
+    first = {}
+    for position, value in enumerate(present, start=1):
+        first.setdefault(value, position)
+    return [None if v is None else first[v] for v in printed]
+
+
+def _is_percent(metric: str) -> bool:
+    column = metric_column(metric)
+    return column is not None and column.percent
+
+
+def _printed(metric: str, value: float) -> float:
+    """``value`` rounded as :func:`format_value` prints it (percent metrics stay fractions)."""
+    return float(format_value(metric, value)) / (100.0 if _is_percent(metric) else 1.0)
+
+
 def _rank(
     entries: Sequence[LeaderboardEntry], primary: str
 ) -> tuple[tuple[int | None, LeaderboardEntry], ...]:
-    sign = -1.0 if higher_is_better(primary) else 1.0
-
-    def key(e: LeaderboardEntry) -> tuple:
-        value = e.metrics.get(primary)
-        # Rows without a primary value go last; ties keep a stable, readable order.
-        return (value is None, sign * value if value is not None else 0.0, e.run, e.path or "")
-
-    ordered = sorted(entries, key=key)
-    ranked: list[tuple[int | None, LeaderboardEntry]] = []
-    for i, entry in enumerate(ordered):
-        value = entry.metrics.get(primary)
-        if value is None:
-            rank = None
-        elif i and ordered[i - 1].metrics.get(primary) == value:
-            rank = ranked[-1][0]  # equal scores share a rank (1, 1, 3)
-        else:
-            rank = i + 1
-        ranked.append((rank, entry))
+    ranks = competition_ranks(primary, [e.metrics.get(primary) for e in entries])
+    # Best first, rows without a primary value last; rows of one rank in a stable, readable order.
+    ranked = sorted(
+        zip(ranks, entries, strict=True),
+        key=lambda r: (r[0] is None, r[0] or 0, r[1].run, r[1].evaluated, r[1].path or ""),
+    )
     return tuple(ranked)
 
 
@@ -554,7 +608,7 @@ class Leaderboard:
             >>> print(build_leaderboard([], paper=True).to_markdown())  # doctest: +ELLIPSIS
             # AirFisheye-bench leaderboard
             ...
-            | 1 | DeepLabV3+ / ResNet50 | paper (real AirFisheye) | test | 51.2 | – | paper IV-A |
+            | 1 | DeepLabV3+ / ResNet50 | paper | paper (real AirFisheye) | test | 51.2 | – | paper IV-A |
             ...
         """
         paper = " plus the paper's baselines" if self.paper else ""
@@ -575,21 +629,30 @@ class Leaderboard:
     @staticmethod
     def _table_markdown(table: TaskTable) -> list[str]:
         order = "higher is better" if table.higher_is_better else "lower is better"
-        headers = ["rank", "model", "source", "split", *(metric_label(c) for c in table.columns)]
+        headers = ["rank", "model", "evaluated", "source", "split", *(metric_label(c) for c in table.columns)]
         headers += [rim_label(table.rim_key)] if table.rim_key else []
         headers += ["run"]
         lines = [
             f"## {table.title} ({table.task})",
             "",
-            f"Sorted by {metric_label(table.primary)}, {order}. Rows: each evaluated model on one split; "
-            "the rim column is the outermost incidence-angle ring, where fisheye distortion is strongest.",
+            f"Sorted by {metric_label(table.primary)}, {order}; rows that print the same share a rank. Rows: "
+            "each evaluated model on one split (evaluated: checkpoint, ONNX fp32/int8, prediction folder, TTA; "
+            "run: the training run or the evaluation's name); the rim column is the outermost incidence-angle "
+            "ring, where fisheye distortion is strongest.",
         ]
         for group in table.groups:
             lines += ["", f"### {group.title}", ""]
             lines.append("| " + " | ".join(headers) + " |")
             lines.append("|" + "|".join("---" if h in _TEXT_COLUMNS else "---:" for h in headers) + "|")
             for rank, entry in group.rows:
-                cells = [MISSING if rank is None else str(rank), entry.model, entry.source, entry.split]
+                evaluated = "paper" if entry.paper else entry.evaluated or MISSING
+                cells = [
+                    MISSING if rank is None else str(rank),
+                    entry.model,
+                    evaluated,
+                    entry.source,
+                    entry.split,
+                ]
                 cells += [format_value(c, entry.metrics.get(c)) for c in table.columns]
                 if table.rim_key:
                     cells.append(format_value(table.primary, entry.breakdown.get(table.rim_key)))
@@ -602,7 +665,7 @@ class Leaderboard:
 
         Example:
             >>> print(build_leaderboard([], paper=True).to_csv().splitlines()[1])  # doctest: +ELLIPSIS
-            seg,1,DeepLabV3+ / ResNet50,paper (real AirFisheye),test,AirFisheye (real),,paper IV-A,mIoU,0.512,...
+            seg,1,DeepLabV3+ / ResNet50,paper,paper (real AirFisheye),test,AirFisheye (real),,paper IV-A,mIoU,0.512,...
         """
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
@@ -631,7 +694,8 @@ class Leaderboard:
 
 def _csv_row(table: TaskTable, rank: int | None, e: LeaderboardEntry) -> list[object]:
     rim = e.breakdown.get(table.rim_key) if table.rim_key else None
-    head = [e.task, "" if rank is None else rank, e.model, e.source, e.split, e.dataset_name]
+    evaluated = "paper" if e.paper else e.evaluated
+    head = [e.task, "" if rank is None else rank, e.model, evaluated, e.source, e.split, e.dataset_name]
     head += [e.manifest_sha256 or "", e.run, table.primary]
     return [
         *head,

@@ -1,7 +1,8 @@
 """The leaderboard as one self-contained HTML page: sortable tables per task and a detail view per entry.
 
-The page renders a :class:`~airfisheye_bench.evaluation.leaderboard.Leaderboard` -- the same groups and ranks as
-``leaderboard.md`` (results of different datasets or splits are never ranked together) -- and reads each entry's
+The page renders a :class:`~airfisheye_bench.evaluation.leaderboard.Leaderboard` -- the same groups, ranks and row
+labels (what was evaluated, which run) as ``leaderboard.md`` (results of different datasets or splits are never
+ranked together) -- and reads each entry's
 ``results.json`` again for its detail view: identity and checksums, every metric, the IoU of each class, the
 primary metric by incidence-angle ring and by depth range (matplotlib, inline SVG), a few qualitative panels
 (the evaluation's ``panels/*.png``, downscaled JPEG data URIs) and the configuration.
@@ -48,7 +49,6 @@ from airfisheye_bench.io import atomic_write_text
 __all__ = ["render_html", "write_html"]
 
 _ASSETS = resources.files("airfisheye_bench.evaluation") / "leaderboard_assets"
-_PREDICTOR_LABELS = {"checkpoint": "checkpoint", "onnx": "ONNX", "predictions": "predictions"}
 #: ``model`` keys of ``results.json`` that say which file was evaluated (see the evaluation's predictors).
 _IDENTITY_KEYS = ("checkpoint", "onnx", "source_checkpoint", "predictions", "sha256")
 _RING_AXIS = "incidence angle ring (°)"
@@ -188,7 +188,7 @@ def _header(table: TaskTable, columns: Sequence[str]) -> str:
     cells = [
         th("rank", "number", sorted_=True),
         th("model", "text"),
-        th("source", "text"),
+        th("evaluated", "text"),
         th("split", "text"),
     ]
     cells += [th(metric_label(c), "number", first(c)) for c in columns]
@@ -209,11 +209,11 @@ def _row(
     model = f'<a href="#{anchor}">{model}</a>' if anchor else model
     if e.paper:
         model += ' <span class="badge">paper</span>'
-    source = "paper" if e.paper else _PREDICTOR_LABELS.get(e.predictor, e.predictor or MISSING)
+    evaluated = "paper" if e.paper else e.evaluated or MISSING
     cells = [
         f'<td class="num" data-value="{"" if rank is None else rank}">{rank or MISSING}</td>',
         f"<td>{model}</td>",
-        f"<td>{escape(source)}</td>",
+        f"<td>{escape(evaluated)}</td>",
         f"<td>{escape(e.split)}</td>",
         *(number(c, e.metrics.get(c)) for c in columns),
     ]
@@ -245,7 +245,7 @@ def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardE
 def _detail(table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, panel_width: int) -> str:
     record = load_results(e.path) if e.path else {}
     model = record.get("model") or {}
-    source = _PREDICTOR_LABELS.get(e.predictor, e.predictor or "unknown source")
+    source = e.evaluated or "unknown source"
     out = [
         f'<details id="{anchor}" class="entry">',
         f"<summary>{escape(e.model)} — {escape(e.run)} <span class=muted>({escape(source)}, "
@@ -286,7 +286,7 @@ def _identity(e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str
     rows = [
         ("model", e.model),
         ("run", e.run),
-        ("source", e.predictor or "unknown"),
+        ("evaluated", e.evaluated or "unknown"),
         *((key.replace("_", " "), model[key]) for key in _IDENTITY_KEYS if model.get(key)),
         ("dataset", e.dataset_name),
         ("dataset root", dataset.get("root")),

@@ -192,12 +192,48 @@ class OnnxPredictor:
             "source": "onnx",
             "name": self.metadata.get("model"),
             "onnx": str(self.path),
+            "precision": onnx_precision(self.path),
             "sha256": file_sha256(self.path),
             "config": self.metadata.get("model_config"),
             "source_checkpoint": self.metadata.get("source_checkpoint"),
             "weights": self.metadata.get("weights"),
             "tta": self.tta,
         }
+
+
+#: Operators only a quantised graph holds (onnxruntime.quantization writes them; an fp32 export never does).
+_QUANTISED_OPS = frozenset(
+    {
+        "QuantizeLinear",
+        "DequantizeLinear",
+        "DynamicQuantizeLinear",
+        "QLinearConv",
+        "QLinearMatMul",
+        "ConvInteger",
+        "MatMulInteger",
+    }
+)
+
+
+def onnx_precision(path: str | Path) -> str:
+    """``int8`` for a quantised ONNX model, ``fp32`` otherwise, read from its graph's operators.
+
+    The deployment metadata is copied unchanged onto the int8 model, so the graph is what tells them apart.
+
+    Example:
+        >>> import tempfile, onnx
+        >>> from onnx import TensorProto, helper
+        >>> x = helper.make_tensor_value_info("x", TensorProto.FLOAT, [1])
+        >>> graph = helper.make_graph([helper.make_node("Relu", ["x"], ["y"])], "g", [x], [x])
+        >>> path = tempfile.mkdtemp() + "/m.onnx"
+        >>> onnx.save(helper.make_model(graph), path)
+        >>> onnx_precision(path)
+        'fp32'
+    """
+    import onnx  # optional heavy dependency: only ONNX evaluation needs it
+
+    graph = onnx.load(str(path), load_external_data=False).graph
+    return "int8" if any(node.op_type in _QUANTISED_OPS for node in graph.node) else "fp32"
 
 
 class PredictionFilesDataset(Dataset):

@@ -3,6 +3,14 @@
 ``{"version", "task", "split", "primary_metric", "metrics": {key: value}, "breakdown": {"ring_60-80/rmse": ...},
 "dataset": {...identity...}, "model": {...}, "config": {...}, "created": ISO time}``. Metric values are fractions
 (mIoU 0.512) or metres; NaN (e.g. a class absent from the split) is written as ``null``.
+
+``model`` says what was evaluated, which the leaderboard labels each row with (:func:`evaluated_label`):
+``source`` (``checkpoint`` | ``onnx`` | ``predictions``), ``checkpoint`` / ``onnx`` / ``predictions`` (the file
+or folder), ``precision`` of an ONNX model (``fp32`` | ``int8``), ``tta`` (``null`` | ``flip``), ``stage``
+(``training`` for the test at the end of ``train.py``, else absent) and ``run_name``, the training run the weights
+come from (:func:`~airfisheye_bench.runs.checkpoint_run_name`) or the ``name=`` given. Files written before these
+keys existed stay readable: a missing key is inferred where it can be (an ``.int8.onnx`` file name, the run
+directory of the checkpoint) and left out of the label otherwise.
 """
 
 from __future__ import annotations
@@ -10,6 +18,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +67,41 @@ def write_results(
     path = Path(path)
     atomic_write_text(path, json.dumps(record, indent=2, sort_keys=False) + "\n")
     return path
+
+
+def evaluated_label(model: Mapping[str, Any]) -> str:
+    """What a ``results.json`` measured, from its ``model`` record: the source, its precision and TTA.
+
+    Example:
+        >>> evaluated_label({"source": "checkpoint", "checkpoint": "run/checkpoints/epoch_003.ckpt"})
+        'checkpoint epoch_003'
+        >>> evaluated_label({"source": "checkpoint", "checkpoint": "r/checkpoints/last.ckpt", "stage": "training"})
+        'checkpoint last (training test)'
+        >>> evaluated_label({"source": "onnx", "precision": "int8", "tta": "flip"})
+        'ONNX int8, flip TTA'
+        >>> evaluated_label({"source": "onnx", "onnx": "model.int8.onnx"})  # written before "precision" existed
+        'ONNX int8'
+        >>> evaluated_label({"source": "predictions"}), evaluated_label({})
+        ('predictions', '')
+    """
+    source = model.get("source")
+    checkpoint = model.get("checkpoint")
+    if source is None and checkpoint:  # train.py wrote no source before it recorded the stage
+        source = "checkpoint"
+    if source == "checkpoint":
+        label = f"checkpoint {Path(str(checkpoint)).stem}" if checkpoint else "checkpoint"
+        if model.get("stage") == "training" or "source" not in model:
+            label += " (training test)"
+    elif source == "onnx":
+        precision = model.get("precision")
+        if precision is None and str(model.get("onnx", "")).endswith(".int8.onnx"):
+            precision = "int8"
+        label = f"ONNX {precision}" if precision else "ONNX"
+    else:
+        label = str(source or "")
+    if model.get("tta"):
+        label += f", {model['tta']} TTA"
+    return label
 
 
 def dataset_identity(root: str | Path, name: str) -> dict[str, Any]:

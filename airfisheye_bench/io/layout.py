@@ -9,6 +9,8 @@ from airfisheye_bench.io.splits import parse_sample_id
 
 MODALITIES = ("rgb", "seg", "depth")
 MANIFEST_NAME = "manifest.json"
+#: The generator's preview image at the dataset root: a view of the data, not part of it (not in the manifest).
+CONTACT_SHEET_NAME = "contact_sheet.png"
 
 
 class DatasetLayout:

@@ -1,7 +1,8 @@
 """Dataset manifests: per-file SHA-256 checksums and sizes, and :func:`verify` to check a dataset against them.
 
-``manifest.json`` lives at the dataset root and lists every file of the dataset except itself (relative POSIX
-paths, sorted), so it is deterministic and two identical datasets have identical manifests::
+``manifest.json`` lives at the dataset root and lists every file of the dataset except itself and the preview
+``contact_sheet.png`` (relative POSIX paths, sorted), so it is deterministic and two identical datasets have
+identical manifests::
 
     {"format": "airfisheye-manifest/1", "algorithm": "sha256",
      "files": {"dataset.yaml": {"sha256": "...", "bytes": 1234}, ...}}
@@ -19,10 +20,10 @@ from pathlib import Path
 
 from airfisheye_bench.io.atomic import TEMP_GLOB, atomic_write_text
 from airfisheye_bench.io.errors import DatasetFormatError
-from airfisheye_bench.io.layout import MANIFEST_NAME
+from airfisheye_bench.io.layout import CONTACT_SHEET_NAME, MANIFEST_NAME
 
 MANIFEST_FORMAT = "airfisheye-manifest/1"
-#: Files that never belong in a manifest: the manifest, generator state and temporaries.
+#: Files that never belong in a manifest: the manifest, the contact sheet, generator state and temporaries.
 _EXCLUDED_PREFIXES = (".airfisheye-",)
 
 
@@ -52,7 +53,7 @@ def is_manifest_candidate(relpath: str) -> bool:
     """Whether a file (relative POSIX path) belongs in the manifest."""
     name = relpath.rsplit("/", 1)[-1]
     return (
-        relpath != MANIFEST_NAME
+        relpath not in (MANIFEST_NAME, CONTACT_SHEET_NAME)
         and not name.startswith(_EXCLUDED_PREFIXES)
         and not Path(name).match(TEMP_GLOB)
     )

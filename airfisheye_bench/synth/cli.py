@@ -6,7 +6,7 @@ Hydra-style ``key=value`` arguments::
     airfisheye-generate preset=quickstart                 # no out=: generate into the cache (ensure_dataset)
     airfisheye-generate preset=tiny out=DIR face_size=96 total_frames=30 flight.altitude_m=[5,30]   # overrides
     airfisheye-generate verify root=DIR                   # check a dataset against its manifest.json
-    airfisheye-generate contact_sheet root=DIR [sample=env/traj/frame] [png=sheet.png]
+    airfisheye-generate contact_sheet root=DIR [sample=env/traj/frame] [png=PATH]   # default DIR/contact_sheet.png
     airfisheye-generate presets                           # list the presets
     airfisheye-generate bench [presets=tiny,quickstart,small] [frames=8]   # frames/s of the full frame writer
 
@@ -250,8 +250,9 @@ def bench_markdown(presets: list[str], frames: int = 8, device: str = "cpu") -> 
 def _contact_sheet(root: Path, sample: object, png: object) -> int:
     from airfisheye_bench.synth.contact_sheet import write_contact_sheet
 
-    path = Path(str(png)) if png else root.parent / f"{root.name}_contact_sheet.png"
-    write_contact_sheet(root, path, sample_id=None if sample is None else str(sample))
+    path = write_contact_sheet(
+        root, str(png) if png else None, sample_id=None if sample is None else str(sample)
+    )
     print(f"contact sheet: {path}")
     return 0
 

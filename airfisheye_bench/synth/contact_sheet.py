@@ -5,8 +5,11 @@ depth. Bottom row: the pre-rendered fisheye RGB, the fisheye remapped from the c
 (``CubemapToFisheye``), fisheye labels and depth, and the LiDAR scan projected into the fisheye image
 (motion-compensated ``T_cam_lidar``) coloured by range and by ground-truth visibility (green visible, red occluded).
 
+By default the sheet is written inside the dataset folder, ``<root>/contact_sheet.png``: it travels with the data
+it shows, and the manifest leaves it out (a preview, not data), so verification still passes.
+
 Example:
-    >>> path = write_contact_sheet("/data/tiny", "/tmp/sheet.png")   # doctest: +SKIP
+    >>> path = write_contact_sheet("/data/tiny")   # /data/tiny/contact_sheet.png  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye
 from airfisheye_bench.geometry.transforms import transform_points
 from airfisheye_bench.io.atomic import atomic_write_bytes
 from airfisheye_bench.io.codecs import encode_rgb
+from airfisheye_bench.io.layout import CONTACT_SHEET_NAME
 from airfisheye_bench.io.reader import DatasetReader
 
 _CROSS = {"up": (0, 1), "left": (1, 0), "front": (1, 1), "right": (1, 2), "down": (2, 1)}  # (row, col)
@@ -178,9 +182,16 @@ def make_contact_sheet(root: str | Path, sample_id: str | None = None, tile: int
 
 
 def write_contact_sheet(
-    root: str | Path, out_path: str | Path, sample_id: str | None = None, tile: int = 256
+    root: str | Path, out_path: str | Path | None = None, sample_id: str | None = None, tile: int = 256
 ) -> Path:
-    """Write :func:`make_contact_sheet` as a PNG (atomically) and return its path."""
-    out_path = Path(out_path)
+    """Write :func:`make_contact_sheet` as a PNG (atomically) and return its path.
+
+    Args:
+        root: The dataset folder.
+        out_path: Where to write; default ``<root>/contact_sheet.png`` (:data:`CONTACT_SHEET_NAME`).
+        sample_id: The frame to show (default: the first of the first split).
+        tile: Width of a tile in pixels.
+    """
+    out_path = Path(root) / CONTACT_SHEET_NAME if out_path is None else Path(out_path)
     atomic_write_bytes(out_path, encode_rgb(make_contact_sheet(root, sample_id, tile), ".png"))
     return out_path

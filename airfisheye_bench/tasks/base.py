@@ -25,7 +25,7 @@ from torchmetrics import MeanMetric, Metric
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.specs import TaskSpec, get_task
-from airfisheye_bench.viz import make_panel, panel_row, save_png
+from airfisheye_bench.viz import panel_row, save_png, spread_indices, task_panel
 from models import create_model, model_task
 
 STAGES = ("val", "test")
@@ -48,7 +48,8 @@ class BenchmarkTask(L.LightningModule):
         weights: What the model's weights started from (``models.weights.weights_identity``); recorded from the
             model when ``None``, and kept from the checkpoint when a trained task is rebuilt.
         ring_edges_deg: Incidence-angle ring edges of the fisheye breakdown (degrees).
-        num_panels: Validation samples drawn into the qualitative panel each epoch (0 disables panels).
+        num_panels: Validation frames drawn into the qualitative panel each epoch (0 disables panels), spread
+            evenly over the split (:func:`~airfisheye_bench.viz.spread_indices`), the same frames every epoch.
     """
 
     task: ClassVar[str]
@@ -100,6 +101,7 @@ class BenchmarkTask(L.LightningModule):
         self.eval_losses = nn.ModuleDict({stage: MeanMetric(nan_strategy="disable") for stage in STAGES})
         self._theta: Tensor | None = None
         self._panel_rows: list[list[np.ndarray]] = []
+        self._panel_ids: set[str] | None = None
 
     # ------------------------------------------------------------------------------------------ hooks for subclasses
     def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
@@ -132,6 +134,10 @@ class BenchmarkTask(L.LightningModule):
 
     def panel_row(self, batch: dict, prediction: Tensor, index: int) -> list[np.ndarray]:
         return panel_row(self.task, batch, prediction, index, palette=self.palette, max_depth=self.max_depth)
+
+    def render_panel(self, rows: list[list[np.ndarray]]) -> np.ndarray:
+        """The panel image of :meth:`panel_row` rows: column titles and the task's colour bars."""
+        return task_panel(self.task, rows, max_depth=float(getattr(self, "max_depth", 120.0)))
 
     # ------------------------------------------------------------------------------------------ reproducibility
     def on_train_epoch_start(self) -> None:
@@ -202,14 +208,41 @@ class BenchmarkTask(L.LightningModule):
         self.eval_losses[stage].update(terms["loss"].detach(), weight=batch["image"].shape[0])
         self._log_skipped(batch, stage)
         if stage == "val" and len(self._panel_rows) < self.hparams.num_panels:
-            for i in range(min(batch["image"].shape[0], self.hparams.num_panels - len(self._panel_rows))):
-                self._panel_rows.append(self.panel_row(batch, pred, i))
+            wanted = self._panel_frames() if "sample_id" in batch else None
+            for i in range(batch["image"].shape[0]):
+                if len(self._panel_rows) < self.hparams.num_panels and (
+                    wanted is None or batch["sample_id"][i] in wanted
+                ):
+                    self._panel_rows.append(self.panel_row(batch, pred, i))
+
+    def _panel_frames(self) -> set[str] | None:
+        """Sample ids of the panel frames, spread over the validated frames (``None``: the first frames).
+
+        The validated frames are the split's, or its first ``limit_val_batches`` batches; chosen once per
+        validation run. Under DDP a rank sees its shard only, so rank 0's panel holds the chosen frames that fall
+        in its shard.
+        """
+        if self._panel_ids is None:
+            datamodule = getattr(self.trainer, "datamodule", None)
+            if not hasattr(datamodule, "split_dataset"):
+                return None
+            ids = list(datamodule.split_dataset("val").sample_ids)
+            batches = (getattr(self.trainer, "num_val_batches", None) or [math.inf])[0]
+            batch_size = getattr(datamodule, "eval_batch_size", None)
+            seen = (
+                len(ids) if batch_size is None or math.isinf(batches) else min(len(ids), batches * batch_size)
+            )
+            self._panel_ids = {ids[i] for i in spread_indices(int(seen), self.hparams.num_panels)}
+        return self._panel_ids
 
     def on_validation_epoch_end(self) -> None:
         self._log_stage("val")
         if self._panel_rows and not self.trainer.sanity_checking and self.trainer.is_global_zero:
-            self.write_panel(make_panel(self._panel_rows), f"panels/epoch_{self.current_epoch:03d}.png")
+            self.write_panel(
+                self.render_panel(self._panel_rows), f"panels/epoch_{self.current_epoch:03d}.png"
+            )
         self._panel_rows = []
+        self._panel_ids = None  # chosen again for the next run (its number of validated batches may differ)
 
     def on_test_epoch_end(self) -> None:
         self.test_results = self._log_stage("test")

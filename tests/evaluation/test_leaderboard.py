@@ -6,6 +6,7 @@ import csv
 import io
 import json
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -57,6 +58,31 @@ def test_segmentation_is_ranked_by_miou_higher_first_with_shared_ranks(tmp_path:
     assert board.tables[0].primary == "mIoU" and board.tables[0].higher_is_better
 
 
+def test_rows_that_print_the_same_share_a_rank_in_every_rendering(tmp_path: Path) -> None:
+    # 4.2001 and 4.2004 both print as 4.200: one rank, whatever the hidden digits; then 4 (competition ranking).
+    for run, rmse in (("a", 4.2004), ("b", 3.9), ("c", 4.2001), ("d", 5.0)):
+        _write(tmp_path, run, "depth", {"rmse": rmse})
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert _groups(board, "depth") == [[(1, "b"), (2, "a"), (2, "c"), (4, "d")]]
+    ranks = {row["run"]: row["rank"] for row in _csv_rows(board.to_csv())}
+    assert ranks == {"a": "2", "b": "1", "c": "2", "d": "4"}
+    printed = [line for line in board.to_markdown().splitlines() if "| 4.200 |" in line]
+    assert len(printed) == 2 and all(line.startswith("| 2 |") for line in printed)
+    from airfisheye_bench.evaluation.leaderboard_html import render_html
+
+    html_ranks = re.findall(
+        r'<td class="num" data-value="(\d)">\d</td><td>(?:<a [^>]*>)?deeplab', render_html(board)
+    )
+    assert html_ranks == ["1", "2", "2", "4"]
+
+
+def test_percent_metrics_tie_on_the_printed_percentage(tmp_path: Path) -> None:
+    for run, miou in (("x", 0.51234), ("y", 0.51181), ("z", 0.5)):
+        _write(tmp_path, run, "seg", {"mIoU": miou})
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert _groups(board, "seg") == [[(1, "x"), (1, "y"), (3, "z")]]  # 51.2 and 51.2
+
+
 @pytest.mark.parametrize("task", ["depth", "completion"])
 def test_depth_tasks_are_ranked_by_rmse_lower_first(tmp_path: Path, task: str) -> None:
     for run, rmse, abs_rel in (("mid", 8.0, 0.05), ("best", 4.5, 0.30), ("worst", 15.0, 0.01)):
@@ -101,13 +127,15 @@ def test_paper_rows_are_included_by_default_in_their_own_group(tmp_path: Path) -
     assert paper_row.paper and paper_row.source == "paper (real AirFisheye)" and paper_row.split == "test"
 
     md = board.to_markdown()
-    assert "| 1 | DeepLabV3+ / ResNet50 | paper (real AirFisheye) | test | 51.2 | – |" in md
+    assert "| 1 | DeepLabV3+ / ResNet50 | paper | paper (real AirFisheye) | test | 51.2 | – |" in md
     assert (
-        "| AdaBins / ResNet50 | paper (real AirFisheye) | test | 0.1320 | 2.575 | 13.324 | 0.270 | 0.865 |"
+        "| AdaBins / ResNet50 | paper | paper (real AirFisheye) | test | 0.1320 | 2.575 | 13.324 | 0.270 | 0.865 |"
         in md
     )
-    assert "| NLSPN / ResNet34 | paper (real AirFisheye) | test | 0.0834 | 6.971 | 2.377 | 0.934 |" in md
-    assert "| 1 | deeplabv3plus / resnet18 | ours (synth) | test | 90.0 |" in md
+    assert (
+        "| NLSPN / ResNet34 | paper | paper (real AirFisheye) | test | 0.0834 | 6.971 | 2.377 | 0.934 |" in md
+    )
+    assert "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | 90.0 |" in md
 
 
 def test_paper_rows_hold_the_design_table_as_fractions() -> None:
@@ -154,8 +182,11 @@ def test_nan_and_null_values_are_missing_and_rank_last(tmp_path: Path) -> None:
     board = build_leaderboard(collect_results([tmp_path]), paper=False)
     assert _groups(board, "depth") == [[(1, "ok"), (None, "hand"), (None, "no_rmse")]]
     md = board.to_markdown()
-    assert "| 1 | deeplabv3plus / resnet18 | ours (synth) | test | 0.2000 | – | 9.000 | – | – | – | – |" in md
-    assert "| – | deeplabv3plus / resnet18 | ours (synth) | test | 0.1000 | – | – |" in md
+    assert (
+        "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | 0.2000 | – | 9.000 | – | – | – | – |"
+        in md
+    )
+    assert "| – | deeplabv3plus / resnet18 | – | ours (synth) | test | 0.1000 | – | – |" in md
     rows = {r["run"]: r for r in _csv_rows(board.to_csv())}
     assert rows["no_rmse"]["rank"] == "" and rows["no_rmse"]["rmse"] == "" and rows["ok"]["delta1"] == ""
 
@@ -267,10 +298,10 @@ def test_markdown_has_one_section_per_task_with_order_and_units(tmp_path: Path) 
         "## Monocular depth (depth)",
         "## Depth completion (completion)",
     ]
-    assert "Sorted by mIoU (%), higher is better." in md and "Sorted by RMSE (m), lower is better." in md
+    assert "Sorted by mIoU (%), higher is better;" in md and "Sorted by RMSE (m), lower is better;" in md
     assert "| 24.4 | 69.4 |" in md  # fractions printed as percentages, one decimal like the paper
-    header = "| rank | model | source | split | mIoU (%) | pixel acc (%) | run |"
-    assert header in md and "|---:|---|---|---|---:|---:|---|" in md
+    header = "| rank | model | evaluated | source | split | mIoU (%) | pixel acc (%) | run |"
+    assert header in md and "|---:|---|---|---|---|---:|---:|---|" in md
 
 
 def test_csv_round_trips_every_value(tmp_path: Path) -> None:
@@ -330,7 +361,7 @@ def test_main_writes_both_files_and_prints_the_markdown(tmp_path: Path, capsys) 
     assert lb.main([f"runs={tmp_path / 'a'},{other}", f"out={out}"]) == 0
     printed = capsys.readouterr()
     assert printed.out == (out / "leaderboard.md").read_text()
-    assert "| 1 | deeplabv3plus / resnet18 | ours (synth) | test | 30.0 |" in printed.out
+    assert "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | 30.0 |" in printed.out
     assert "paper IV-A" in printed.out and str(out / "leaderboard.csv") in printed.err
     assert {r["run"] for r in _csv_rows((out / "leaderboard.csv").read_text())} >= {"s", "d"}
 
@@ -383,3 +414,80 @@ def test_console_script_is_declared_and_runs(tmp_path: Path, monkeypatch, capsys
         cli.leaderboard()
     assert info.value.code == 0 and (tmp_path / "o" / "leaderboard.md").is_file()
     assert "# AirFisheye-bench leaderboard" in capsys.readouterr().out
+
+
+# ------------------------------------------------------------------------------------------------ row labels
+
+
+@pytest.mark.parametrize(
+    ("model", "evaluated", "run"),
+    [
+        (  # train.py's test stage
+            {
+                "source": "checkpoint",
+                "stage": "training",
+                "checkpoint": "/r/checkpoints/epoch_003.ckpt",
+                "run_name": "r",
+            },
+            "checkpoint epoch_003 (training test)",
+            "r",
+        ),
+        (
+            {
+                "source": "checkpoint",
+                "checkpoint": "/r/checkpoints/last.ckpt",
+                "tta": "flip",
+                "run_name": "r",
+            },
+            "checkpoint last, flip TTA",
+            "r",
+        ),
+        (
+            {"source": "onnx", "onnx": "/m/model.onnx", "precision": "fp32", "run_name": "adabins-r18"},
+            "ONNX fp32",
+            "adabins-r18",
+        ),
+        (
+            {"source": "onnx", "onnx": "/m/model.int8.onnx", "precision": "int8", "run_name": "adabins-r18"},
+            "ONNX int8",
+            "adabins-r18",
+        ),
+        ({"source": "predictions", "predictions": "/p/mine", "run_name": "mine"}, "predictions", "mine"),
+        # Written before the labels: train.py recorded no source, an int8 model only its file name, and the run
+        # is the checkpoint's run directory, else the results folder.
+        ({"checkpoint": "/r/checkpoints/epoch_001.ckpt"}, "checkpoint epoch_001 (training test)", "r"),
+        (
+            {"source": "onnx", "onnx": "/m/model.int8.onnx", "source_checkpoint": "/q/checkpoints/a.ckpt"},
+            "ONNX int8",
+            "q",
+        ),
+        ({"source": "onnx", "onnx": "/m/model.onnx"}, "ONNX", "folder"),
+        ({"name": "deeplabv3plus"}, "", "folder"),
+    ],
+)
+def test_rows_say_what_was_evaluated_and_which_run(
+    tmp_path: Path, model: dict, evaluated: str, run: str
+) -> None:
+    entry = load_entry(_write(tmp_path, "folder", "depth", {"rmse": 4.0}, model={"name": "adabins", **model}))
+    assert (entry.evaluated, entry.run) == (evaluated, run)
+    board = build_leaderboard([entry], paper=False)
+    row = _csv_rows(board.to_csv())[0]
+    assert (row["evaluated"], row["run"]) == (evaluated, run)
+    assert f"| {evaluated or '–'} | ours (synth) |" in board.to_markdown()
+
+
+def test_onnx_and_its_checkpoint_are_two_rows_of_one_run(tmp_path: Path) -> None:
+    for folder, model in (
+        ("eval1", {"source": "checkpoint", "checkpoint": "/logs/runs/r18/checkpoints/epoch_002.ckpt"}),
+        ("eval2", {"source": "onnx", "onnx": "/x/model.onnx", "precision": "fp32"}),
+        ("eval3", {"source": "onnx", "onnx": "/x/model.int8.onnx", "precision": "int8"}),
+    ):
+        _write(
+            tmp_path, folder, "depth", {"rmse": 4.0}, model={"name": "adabins", "run_name": "r18", **model}
+        )
+    rows = _csv_rows(build_leaderboard(collect_results([tmp_path]), paper=False).to_csv())
+    assert sorted((r["run"], r["evaluated"], r["rank"]) for r in rows) == [
+        ("r18", "ONNX fp32", "1"),
+        ("r18", "ONNX int8", "1"),
+        ("r18", "checkpoint epoch_002", "1"),
+    ]

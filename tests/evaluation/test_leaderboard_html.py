@@ -165,14 +165,14 @@ def test_tables_follow_the_leaderboard_groups_and_ranks(board: lb.Leaderboard, p
     assert found[4][1] == [("1", "depth_val")] and found[5][1] == [("1", "depth_other_data")]
 
 
-def test_rows_show_source_split_and_every_metric(page: str) -> None:
+def test_rows_show_what_was_evaluated_split_and_every_metric(page: str) -> None:
     seg = _tables(page)[1]
     header = re.search(r'<table class="board" id="table-seg-1">.*?</thead>', page, re.DOTALL)[0]
     labels = re.findall(r"<button type=\"button\">([^<]*)</button>", header)
     assert labels == [
         "rank",
         "model",
-        "source",
+        "evaluated",
         "split",
         "mIoU (%)",
         "pixel acc (%)",
@@ -182,7 +182,7 @@ def test_rows_show_source_split_and_every_metric(page: str) -> None:
     assert seg["rows"][0] == [
         "1",
         "deeplabv3plus / resnet18",
-        "checkpoint",
+        "checkpoint last",
         "test",
         "42.0",
         "71.0",
@@ -191,7 +191,7 @@ def test_rows_show_source_split_and_every_metric(page: str) -> None:
     ]
     assert seg["rows"][1][2] == "ONNX"
     depth = _tables(page)[3]
-    assert [row[2:4] for row in depth["rows"]] == [["checkpoint", "test"]] * 3
+    assert [row[2:4] for row in depth["rows"]] == [["checkpoint last", "test"]] * 3
 
 
 def test_paper_rows_are_marked_and_have_no_detail_view(page: str) -> None:

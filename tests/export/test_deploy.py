@@ -176,6 +176,10 @@ def test_seg_dynamic_quantization_report(seg_export) -> None:
     assert {"mIoU", "pixel_acc"} <= set(q.metrics_fp32) and set(q.metrics_fp32) == set(q.metrics_int8)
     assert q.fp32_ms > 0 and q.int8_ms > 0 and q.speedup == pytest.approx(q.fp32_ms / q.int8_ms)
     assert "mIoU" in q.metric_deltas
+    # Evaluation tells the two apart by their graphs (their metadata is the same).
+    from airfisheye_bench.evaluation.predictors import onnx_precision
+
+    assert (onnx_precision(out), onnx_precision(q.path)) == ("fp32", "int8")
 
 
 def test_parity_failure_leaves_nothing_at_out(
@@ -390,6 +394,9 @@ def test_seg_dynamic_spatial_and_static_quantization(seg_run: Path, tmp_path: Pa
     out = tmp_path / "seg.onnx"
     report = deploy.export_deployment(seg_run, out, dynamic_spatial=True, quantize="static", repeats=2)
     assert report.dynamic_spatial and report.quantization.ok
+    from airfisheye_bench.evaluation.predictors import onnx_precision
+
+    assert onnx_precision(report.quantization.path) == "int8"  # QLinearConv / QuantizeLinear
     session = ort.InferenceSession(str(out), providers=["CPUExecutionProvider"])
     (logits,) = session.run(["logits"], {"image": np.zeros((2, 3, 96, 96), np.float32)})
     assert logits.shape[-2:] == (96, 96)

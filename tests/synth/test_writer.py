@@ -366,11 +366,15 @@ def test_cli_generates_and_writes_a_contact_sheet(tiny_dataset, tmp_path):
                 "lidar_points_per_channel=16",
                 "scene_size_m=60",
                 "verify=true",
+                "contact_sheet=true",
                 "progress=false",
             ]
         )
         == 0
     )
+    # The contact sheet lands inside the dataset folder, and the dataset still verifies (it is not data).
+    assert (out / "contact_sheet.png").is_file() and not list(tmp_path.glob("*contact_sheet*"))
+    assert verify(out).ok and "contact_sheet.png" not in read_manifest(out)
     spec = DatasetSpec.load(out)
     assert spec.generator["config"]["face_size"] == 8 and spec.name == "airfisheye-synthetic-tiny-custom"
 
