@@ -52,12 +52,12 @@ from lightning.pytorch.loggers import CSVLogger
 from omegaconf import DictConfig, OmegaConf
 from torch.utils.data import DataLoader, Dataset
 
+from airfisheye_bench.constants import config_dir
 from airfisheye_bench.synth.classes import TRAIN_CLASSES
 from airfisheye_bench.tasks import BenchmarkTask
 from datamodules.dataset import collate
 
 ROOT = Path(__file__).resolve().parents[1]
-CONFIG_DIR = ROOT / "configs"
 DOCS = ROOT / "docs" / "benchmarks.md"
 SECTION = "## Lightning overhead"
 TASKS = ("seg", "depth", "completion")
@@ -72,7 +72,7 @@ def compose_config(task: str, size: int) -> DictConfig:
     if task == "depth":
         # As configs/model/adabins.yaml says: patch 4 at 128^2, 16 at 512^2 (the mini-ViT needs >= 129 patches).
         overrides.append(f"model.patch_size={max(1, size // 32)}")
-    with initialize_config_dir(config_dir=str(CONFIG_DIR), version_base="1.3"):
+    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
         return compose(config_name="train", overrides=overrides)
 
 
