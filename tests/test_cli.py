@@ -137,3 +137,13 @@ def test_a_script_reports_a_bad_option_without_traceback(tmp_path: Path) -> None
     assert done.stderr.splitlines() == [
         "error: paper=maybe: expected a boolean (true/false, yes/no, on/off, 1/0)"
     ]
+
+
+def test_generate_presets_answers_help_and_takes_no_options(capsys) -> None:
+    assert (
+        commands.generate(["presets", "--help"]) == 0
+        and "usage: airfisheye-generate presets" in capsys.readouterr().out
+    )
+    assert exit_status(commands.generate, ["presets", "seed=1"]) == EXIT_USER_ERROR
+    assert exit_status(commands.generate, ["presetz"]) == EXIT_USER_ERROR
+    assert "unknown subcommand 'presetz'" in capsys.readouterr().err

@@ -5,6 +5,9 @@ typed, struct mode, one ``--help``) and calls its library function. A bad argume
 (:class:`~airfisheye_bench.errors.ConfigError` under :func:`~airfisheye_bench.errors.report_user_errors`: exit
 status 2); each function returns the command's exit status otherwise.
 
+Each command imports its library when it runs, not when this module loads: ``--help`` and a bad option are answered
+in well under a second, where importing the libraries (torch, Lightning, ONNX Runtime) takes 3 to 9 s.
+
 Example:
     >>> inspect(["root=/nowhere", "deep=maybe"])  # doctest: +ELLIPSIS
     Traceback (most recent call last):
@@ -32,13 +35,10 @@ from collections.abc import Sequence
 from concurrent.futures import BrokenExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 from airfisheye_bench.cli.options import Command, Parsed, option, parse, render_help, wants_help
 from airfisheye_bench.errors import ConfigError, debug_requested, report_user_errors
-
-# OmegaConf reads these annotations at run time: typing's spellings (Optional, list[...]) on Python 3.10.
-# ruff: noqa: UP045
 
 
 def _run(command: Command, argv: Sequence[str] | None) -> Parsed | None:
@@ -69,7 +69,7 @@ INSPECT = Command(
 @report_user_errors
 def inspect(argv: Sequence[str] | None = None) -> int:
     """``airfisheye-inspect root=DIR [deep=true] [limit=20]``; exit status 1 when problems are found."""
-    from airfisheye_bench.io.inspect import inspect_dataset
+    from airfisheye_bench.io.inspect import inspect_dataset  # at run time: see the module docstring
 
     parsed = _run(INSPECT, argv)
     if parsed is None:
@@ -103,7 +103,7 @@ TRANSCODE = Command(
 @report_user_errors
 def transcode(argv: Sequence[str] | None = None) -> int:
     """``airfisheye-transcode src=DIR dst=DIR [rgb=jpg] [depth=npy] [...]``; exit status 2 on an error."""
-    from airfisheye_bench.io.errors import DatasetFormatError
+    from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
     from airfisheye_bench.io.transcode import transcode_dataset
 
     parsed = _run(TRANSCODE, argv)
@@ -125,7 +125,7 @@ class LeaderboardOptions:
     out: str = option("folder of leaderboard.md and leaderboard.csv")
     paper: bool = option("rank next to the paper's baselines")
     skip_invalid: bool = option("leave invalid results.json out (listed in the outputs) instead of failing")
-    html: Optional[str] = option("also write a self-contained HTML page to this .html file")
+    html: str | None = option("also write a self-contained HTML page to this .html file")
 
 
 LEADERBOARD = Command(
@@ -155,7 +155,7 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
         >>> sorted(p.name for p in (root / "board").iterdir())
         ['leaderboard.csv', 'leaderboard.md']
     """
-    from airfisheye_bench.evaluation.leaderboard import (
+    from airfisheye_bench.evaluation.leaderboard import (  # at run time: see the module docstring
         LeaderboardError,
         build_leaderboard,
         find_results,
@@ -187,7 +187,7 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
     board = build_leaderboard(entries, paper=opts.paper, invalid=problems)
     written = list(board.write(opts.out))
     if opts.html is not None:
-        from airfisheye_bench.evaluation.leaderboard_html import write_html
+        from airfisheye_bench.evaluation.leaderboard_html import write_html  # matplotlib, only for html=
 
         written.append(write_html(board, opts.html))
     print(board.to_markdown(), end="")
@@ -228,7 +228,11 @@ def export(argv: Sequence[str] | None = None) -> int:
         0 success, 1 export or parity failure (nothing written at ``out``), 2 bad arguments or inputs (checkpoint,
         run config, overrides), 3 the fp32 model was exported and verified but the int8 quantisation failed.
     """
-    from airfisheye_bench.export.deploy import ExportError, export_deployment, log
+    from airfisheye_bench.export.deploy import (  # at run time: see the module docstring
+        ExportError,
+        export_deployment,
+        log,
+    )
     from airfisheye_bench.export.onnx import OnnxParityError
 
     parsed = _run(EXPORT, argv)
@@ -262,9 +266,9 @@ def export(argv: Sequence[str] | None = None) -> int:
 @dataclass
 class GenerateOptions:
     preset: str = option("the preset to generate (airfisheye-generate presets lists them)")
-    out: Optional[str] = option("the dataset folder to write (null: the cache, unmodified presets only)")
+    out: str | None = option("the dataset folder to write (null: the cache, unmodified presets only)")
     seed: int = option("random seed of the scenes and flights")
-    workers: Optional[int] = option("worker processes (null: 1 with out=, automatic for the cache)")
+    workers: int | None = option("worker processes (null: 1 with out=, automatic for the cache)")
     device: str = option("torch device of the renderer")
     verify: bool = option("check the written dataset against its manifest.json")
     contact_sheet: bool = option("also write a contact sheet PNG next to the dataset")
@@ -279,8 +283,8 @@ class VerifyOptions:
 @dataclass
 class ContactSheetOptions:
     root: str = option("the dataset root")
-    sample: Optional[str] = option("the frame to show, env/traj/frame (null: the first)")
-    png: Optional[str] = option("the PNG to write (null: <root>_contact_sheet.png next to the dataset)")
+    sample: str | None = option("the frame to show, env/traj/frame (null: the first)")
+    png: str | None = option("the PNG to write (null: <root>_contact_sheet.png next to the dataset)")
 
 
 @dataclass
@@ -291,7 +295,7 @@ class BenchOptions:
 
 
 def _synth_key(key: str) -> bool:
-    from airfisheye_bench.synth.presets import SynthConfig
+    from airfisheye_bench.synth.presets import SynthConfig  # at run time: see the module docstring
 
     return key.startswith("flight.") or key in {f.name for f in dataclasses.fields(SynthConfig)}
 
@@ -334,12 +338,17 @@ def generate(argv: Sequence[str] | None = None) -> int:
     preset (any :class:`~airfisheye_bench.synth.presets.SynthConfig` field, ``flight.<field>`` for its
     :class:`~airfisheye_bench.synth.trajectory.FlightConfig`).
     """
-    from airfisheye_bench.synth import cli as synth
+    from airfisheye_bench.synth import cli as synth  # at run time: see the module docstring
 
     argv = list(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     name = argv.pop(0) if argv and "=" not in argv[0] and argv[0] not in ("-h", "--help") else "generate"
     if name == "presets":
+        if wants_help(argv):
+            print(
+                "List the presets: frames, trajectories, image sizes, LiDAR pattern.\n\nusage: airfisheye-generate presets"
+            )
+            return 0
         if argv:
             raise ConfigError(f"airfisheye-generate presets takes no arguments, got {argv}")
         print(synth.presets_table())

@@ -19,10 +19,18 @@ override grammar, as every option is.
 from __future__ import annotations
 
 import dataclasses
+import tempfile
+import time
 from pathlib import Path
 
+import torch
+
 from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.io.manifest import verify as verify_manifest
+from airfisheye_bench.synth.contact_sheet import write_contact_sheet
 from airfisheye_bench.synth.presets import PRESETS, SynthConfig, get_preset, plan_trajectories
+from airfisheye_bench.synth.scene import ENVIRONMENTS
+from airfisheye_bench.synth.writer import _Job, _Worker, ensure_dataset, generate_dataset
 
 
 def build_config(preset: str, overrides: dict[str, object]) -> SynthConfig:
@@ -87,8 +95,6 @@ def generate(
     Raises:
         ConfigError: An unknown override, or overrides without ``out`` (the cache holds unmodified presets only).
     """
-    from airfisheye_bench.synth.writer import ensure_dataset, generate_dataset
-
     config = build_config(preset, overrides)
     if out is None:
         if config != get_preset(preset):
@@ -107,17 +113,13 @@ def generate(
 
 def verify_dataset(root: Path, progress: bool = True) -> int:
     """Check ``root`` against its ``manifest.json`` and print the summary; the exit status (1: a mismatch)."""
-    from airfisheye_bench.synth.manifest import verify
-
-    report = verify(root, progress=progress)
+    report = verify_manifest(root, progress=progress)
     print(report.summary())
     return 0 if report.ok else 1
 
 
 def write_sheet(root: Path, sample: str | None = None, png: str | Path | None = None) -> int:
     """Write the contact sheet of one frame of ``root`` (default: ``<root>_contact_sheet.png``); exit status 0."""
-    from airfisheye_bench.synth.contact_sheet import write_contact_sheet
-
     path = Path(png) if png else root.parent / f"{root.name}_contact_sheet.png"
     write_contact_sheet(root, path, sample_id=sample)
     print(f"contact sheet: {path}")
@@ -130,14 +132,6 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
     Runs in this process with one torch thread on the first trajectory of the preset, after one warm-up frame;
     the one-off scene + flight construction is timed separately.
     """
-    import tempfile
-    import time
-
-    import torch
-
-    from airfisheye_bench.synth.scene import ENVIRONMENTS
-    from airfisheye_bench.synth.writer import _Job, _Worker
-
     cfg = get_preset(preset)
     plans = plan_trajectories(cfg, ENVIRONMENTS)
     frames = max(1, min(frames, plans[0].num_frames - 1))
