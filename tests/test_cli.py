@@ -147,3 +147,23 @@ def test_generate_presets_answers_help_and_takes_no_options(capsys) -> None:
     assert exit_status(commands.generate, ["presets", "seed=1"]) == EXIT_USER_ERROR
     assert exit_status(commands.generate, ["presetz"]) == EXIT_USER_ERROR
     assert "unknown subcommand 'presetz'" in capsys.readouterr().err
+
+
+def test_help_and_bad_options_do_not_import_torch() -> None:
+    """``--help`` and a mistyped option are answered before the libraries (torch, Lightning) are imported."""
+    probe = (
+        "import sys\n"
+        "from airfisheye_bench.cli import commands\n"
+        "for command in (commands.inspect, commands.transcode, commands.leaderboard, commands.export):\n"
+        "    command(['--help'])\n"
+        "commands.generate(['verify', '--help'])\n"
+        "try:\n"
+        "    commands.inspect(['root=/nowhere', 'deep=maybe'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print('torch' in sys.modules)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == "False"

@@ -69,11 +69,12 @@ INSPECT = Command(
 @report_user_errors
 def inspect(argv: Sequence[str] | None = None) -> int:
     """``airfisheye-inspect root=DIR [deep=true] [limit=20]``; exit status 1 when problems are found."""
-    from airfisheye_bench.io.inspect import inspect_dataset  # at run time: see the module docstring
-
     parsed = _run(INSPECT, argv)
     if parsed is None:
         return 0
+
+    from airfisheye_bench.io.inspect import inspect_dataset  # at run time: see the module docstring
+
     opts = parsed.options
     report = inspect_dataset(opts.root, deep=opts.deep)
     print(report.summary(limit=opts.limit))
@@ -103,12 +104,13 @@ TRANSCODE = Command(
 @report_user_errors
 def transcode(argv: Sequence[str] | None = None) -> int:
     """``airfisheye-transcode src=DIR dst=DIR [rgb=jpg] [depth=npy] [...]``; exit status 2 on an error."""
-    from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
-    from airfisheye_bench.io.transcode import transcode_dataset
-
     parsed = _run(TRANSCODE, argv)
     if parsed is None:
         return 0
+
+    from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
+    from airfisheye_bench.io.transcode import transcode_dataset
+
     try:
         report = transcode_dataset(**parsed.options)
     except (DatasetFormatError, ValueError, OSError, BrokenExecutor) as err:
@@ -155,6 +157,10 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
         >>> sorted(p.name for p in (root / "board").iterdir())
         ['leaderboard.csv', 'leaderboard.md']
     """
+    parsed = _run(LEADERBOARD, argv)
+    if parsed is None:
+        return 0
+
     from airfisheye_bench.evaluation.leaderboard import (  # at run time: see the module docstring
         LeaderboardError,
         build_leaderboard,
@@ -162,9 +168,6 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
         load_entries,
     )
 
-    parsed = _run(LEADERBOARD, argv)
-    if parsed is None:
-        return 0
     opts = parsed.options
     runs = [opts.runs] if isinstance(opts.runs, str) else opts.runs
     if not isinstance(runs, Sequence) or not runs or not all(isinstance(r, str) and r.strip() for r in runs):
@@ -228,6 +231,10 @@ def export(argv: Sequence[str] | None = None) -> int:
         0 success, 1 export or parity failure (nothing written at ``out``), 2 bad arguments or inputs (checkpoint,
         run config, overrides), 3 the fp32 model was exported and verified but the int8 quantisation failed.
     """
+    parsed = _run(EXPORT, argv)
+    if parsed is None:
+        return 0
+
     from airfisheye_bench.export.deploy import (  # at run time: see the module docstring
         ExportError,
         export_deployment,
@@ -235,9 +242,6 @@ def export(argv: Sequence[str] | None = None) -> int:
     )
     from airfisheye_bench.export.onnx import OnnxParityError
 
-    parsed = _run(EXPORT, argv)
-    if parsed is None:
-        return 0
     # Progress of this command only: the exporter and the quantiser log pages of INFO lines.
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     log.setLevel(logging.INFO)
@@ -338,20 +342,19 @@ def generate(argv: Sequence[str] | None = None) -> int:
     preset (any :class:`~airfisheye_bench.synth.presets.SynthConfig` field, ``flight.<field>`` for its
     :class:`~airfisheye_bench.synth.trajectory.FlightConfig`).
     """
-    from airfisheye_bench.synth import cli as synth  # at run time: see the module docstring
-
     argv = list(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     name = argv.pop(0) if argv and "=" not in argv[0] and argv[0] not in ("-h", "--help") else "generate"
     if name == "presets":
         if wants_help(argv):
-            print(
-                "List the presets: frames, trajectories, image sizes, LiDAR pattern.\n\nusage: airfisheye-generate presets"
-            )
+            print("List the presets: frames, trajectories, image sizes, LiDAR pattern.")
+            print("\nusage: airfisheye-generate presets")
             return 0
         if argv:
             raise ConfigError(f"airfisheye-generate presets takes no arguments, got {argv}")
-        print(synth.presets_table())
+        from airfisheye_bench.synth.cli import presets_table  # at run time: see the module docstring
+
+        print(presets_table())
         return 0
     if name != "generate" and name not in GENERATE_SUBCOMMANDS:
         raise ConfigError(
@@ -361,6 +364,9 @@ def generate(argv: Sequence[str] | None = None) -> int:
     parsed = _run(GENERATE_SUBCOMMANDS.get(name, GENERATE), argv)
     if parsed is None:
         return 0
+
+    from airfisheye_bench.synth import cli as synth  # at run time: see the module docstring
+
     opts = parsed.options
     if name == "verify":
         return synth.verify_dataset(Path(opts.root))
