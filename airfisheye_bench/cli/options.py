@@ -89,6 +89,10 @@ def parse(command: Command, argv: Sequence[str]) -> Parsed:
     overrides, extra = [], {}
     for override in _parse_overrides(argv):
         key = override.key_or_group
+        if override.is_delete():
+            raise ConfigError(
+                f"{override.input_line}: an option cannot be deleted; give {key}=<value> or leave it out"
+            )
         if override.is_sweep_override():
             items = ",".join(map(str, getattr(override.value(), "list", ["a", "b"])))
             raise ConfigError(
@@ -96,7 +100,7 @@ def parse(command: Command, argv: Sequence[str]) -> Parsed:
             )
         if command.extra is not None and command.extra(key):
             extra[key] = override.value()
-        elif key.split(".")[0] in _fields(command.schema) and not override.is_delete():
+        elif key.split(".")[0] in _fields(command.schema):
             overrides.append(override.input_line.lstrip("+"))
         else:
             raise ConfigError(
