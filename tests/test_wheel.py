@@ -38,27 +38,45 @@ def _run(argv: list[str], cwd: Path, env: dict[str, str], timeout: int = 600) ->
     return done
 
 
+def _copy_source(target: Path) -> Path:
+    """The files a wheel is built from, copied out of the checkout (no build folders left in it)."""
+    for name in PACKAGED:
+        src = ROOT / name
+        if src.is_dir():
+            shutil.copytree(src, target / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        else:
+            target.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, target / name)
+    return target
+
+
+def _venv(path: Path, env: dict[str, str]) -> Path:
+    """A virtual environment over the system's packages; without its own pip, so the system's pip and
+    setuptools (the versions ``pyproject.toml`` asks for) install into it."""
+    _run(
+        [sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(path)], path.parent, env
+    )
+    return path / "bin"
+
+
+def _clean_env() -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PROJECT_ROOT", "HYDRA_FULL_ERROR")}
+    env["PIP_NO_INDEX"] = "1"  # no network: nothing may be fetched
+    return env
+
+
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str]]:
     """A virtual environment with the wheel installed (no dependencies: they come from the system)."""
     tmp = tmp_path_factory.mktemp("wheel")
-    source = tmp / "source"
-    for name in PACKAGED:
-        src = ROOT / name
-        if src.is_dir():
-            shutil.copytree(src, source / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-        else:
-            source.mkdir(exist_ok=True)
-            shutil.copy2(src, source / name)
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PROJECT_ROOT", "HYDRA_FULL_ERROR")}
-    env["PIP_NO_INDEX"] = "1"  # no network: nothing may be fetched
+    source = _copy_source(tmp / "source")
+    env = _clean_env()
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-cache-dir",
           "-w", str(tmp / "dist"), str(source)], tmp, env)  # fmt: skip
     (wheel,) = (tmp / "dist").glob("airfisheye_bench-*.whl")
-    venv = tmp / "venv"
-    _run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], tmp, env)
-    _run([str(venv / "bin" / "python"), "-m", "pip", "install", "--no-deps", str(wheel)], tmp, env)
-    env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    bin_dir = _venv(tmp / "venv", env)
+    _run([str(bin_dir / "python"), "-m", "pip", "install", "--no-deps", str(wheel)], tmp, env)
+    env["PATH"] = f"{bin_dir}{os.pathsep}{env.get('PATH', '')}"
     env["AIRFISHEYE_DATA"] = str(tmp / "data")  # the tiny preset is generated into this cache
     work = tmp / "work"  # not the checkout: nothing may be read from there
     work.mkdir()
@@ -98,3 +116,18 @@ def test_train_runs_outside_the_checkout(installed: tuple[Path, dict[str, str]])
     assert (results.parent / "config.yaml").is_file() and (
         results.parent / "checkpoints" / "last.ckpt"
     ).is_file()
+
+
+@pytest.mark.slow
+def test_an_editable_install_reads_the_checkout_configs(tmp_path: Path) -> None:
+    source = _copy_source(tmp_path / "source")
+    env = _clean_env()
+    bin_dir = _venv(tmp_path / "venv", env)
+    _run([str(bin_dir / "python"), "-m", "pip", "install", "--no-deps", "--no-build-isolation", "--no-cache-dir",
+          "-e", str(source)], tmp_path, env)  # fmt: skip
+    work = tmp_path / "work"
+    work.mkdir()
+    probe = "from airfisheye_bench.constants import config_dir; print(config_dir())"
+    assert _run([str(bin_dir / "python"), "-c", probe], work, env).stdout.strip() == str(source / "configs")
+    assert "deep" in _run([str(bin_dir / "airfisheye-inspect"), "--help"], work, env).stdout
+    assert "task" in _run([str(bin_dir / "airfisheye-train"), "--help"], work, env).stdout
