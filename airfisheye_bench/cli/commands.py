@@ -109,7 +109,7 @@ def transcode(argv: Sequence[str] | None = None) -> int:
         return 0
 
     from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
-    from airfisheye_bench.io.transcode import transcode_dataset
+    from airfisheye_bench.io.transcode import transcode_dataset  # at run time: see the module docstring
 
     try:
         report = transcode_dataset(**parsed.options)
@@ -240,7 +240,7 @@ def export(argv: Sequence[str] | None = None) -> int:
         export_deployment,
         log,
     )
-    from airfisheye_bench.export.onnx import OnnxParityError
+    from airfisheye_bench.export.onnx import OnnxParityError  # at run time: see the module docstring
 
     # Progress of this command only: the exporter and the quantiser log pages of INFO lines.
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
