@@ -25,6 +25,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
 from airfisheye_bench.config_checks import check_common_values
+from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.io.atomic import atomic_write_text, remove_stale_temporaries
@@ -86,7 +87,7 @@ def check_config(cfg: DictConfig) -> None:
 
 
 def _model_configs(task: str) -> list[str]:
-    folder = Path(__file__).resolve().parents[1] / "configs" / "model"
+    folder = config_dir() / "model"
     names = [p.stem for p in sorted(folder.glob("*.yaml"))]
     return [n for n in names if (OmegaConf.load(folder / f"{n}.yaml").get("name") in list_models(task))]
 

@@ -20,7 +20,12 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import hydra
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.errors import HydraException, InstantiationException
 from omegaconf import DictConfig, OmegaConf
+
+from airfisheye_bench.errors import ConfigError, UserError
 
 
 def apply_data_overrides(
@@ -51,13 +56,29 @@ def apply_data_overrides(
 
 
 def parse_data_overrides(dotlist: Sequence[str]) -> dict[str, Any]:
-    """``["data.camera.size=128", ...]`` (command-line form) -> ``{"camera.size": 128}``; values parsed as YAML."""
+    """``["data.camera.size=128", ...]`` (command-line form) -> ``{"camera.size": 128}``.
+
+    Values are read by Hydra's override parser, so they mean what they mean to ``train.py`` (``null``, lists
+    ``[a,b]``, quoted strings); ``export`` gets its ``data.*`` values from the same parser.
+
+    Raises:
+        ConfigError: An item that is not ``data.<key>=<value>``, or a sweep (``a,b``).
+
+    Example:
+        >>> parse_data_overrides(["data.camera.size=128", "+data.camera.k=[1.0,0.1]", "data.root=null"])
+        {'camera.size': 128, 'camera.k': [1.0, 0.1], 'root': None}
+    """
     out: dict[str, Any] = {}
+    parser = OverridesParser.create()
     for item in dotlist:
-        key, sep, value = item.lstrip("+").partition("=")
-        if not sep or not key.startswith("data."):
-            raise ValueError(f"data overrides must look like data.<key>=<value>, got {item!r}")
-        out[key.removeprefix("data.")] = OmegaConf.from_dotlist([f"v={value}"]).v
+        try:
+            (override,) = parser.parse_overrides([item])
+        except HydraException as err:
+            raise ConfigError(f"{item}: not a key=value override ({str(err).splitlines()[0]})") from None
+        key = override.key_or_group
+        if not key.startswith("data.") or override.is_delete() or override.is_sweep_override():
+            raise ConfigError(f"data overrides look like data.<key>=<value> (one value), got {item!r}")
+        out[key.removeprefix("data.")] = override.value()
     return out
 
 
@@ -68,11 +89,6 @@ def instantiate_datamodule(data: DictConfig, stage: str | None = None):
         UserError: The datamodule's own message for a wrong value or file (e.g. ``data.root`` is not a folder).
         ValueError: The datamodule cannot be built otherwise; the message says how to fix it with overrides.
     """
-    import hydra
-    from hydra.errors import InstantiationException
-
-    from airfisheye_bench.errors import UserError
-
     cfg = OmegaConf.merge(data, {"num_workers": 0, "persistent_workers": False})
     try:
         datamodule = hydra.utils.instantiate(cfg, _convert_="partial")

@@ -52,13 +52,13 @@ from lightning.pytorch.loggers import CSVLogger
 from omegaconf import DictConfig, OmegaConf
 from torch.utils.data import DataLoader, Dataset
 
+from airfisheye_bench.constants import config_dir
 from airfisheye_bench.specs import get_task, task_names
 from airfisheye_bench.synth.classes import TRAIN_CLASSES
 from airfisheye_bench.tasks import BenchmarkTask
 from datamodules.dataset import collate
 
 ROOT = Path(__file__).resolve().parents[1]
-CONFIG_DIR = ROOT / "configs"
 DOCS = ROOT / "docs" / "benchmarks.md"
 SECTION = "## Lightning overhead"
 VARIANTS = ("plain", "trainer", "trainer_csv")
@@ -69,7 +69,7 @@ CLOCKS = ("cpu", "wall")
 def compose_config(task: str, size: int) -> DictConfig:
     """The quick-start training config of ``task`` at ``size`` (no LR scheduler: the plain loop has none)."""
     overrides = [f"task={task}", f"data.camera.size={size}", "task.module.scheduler=null"]
-    with initialize_config_dir(config_dir=str(CONFIG_DIR), version_base="1.3"):
+    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
         cfg = compose(config_name="train", overrides=overrides)
     if cfg.model.name == "adabins":
         # As configs/model/adabins.yaml says: patch 4 at 128^2, 16 at 512^2 (the mini-ViT needs >= 129 patches).

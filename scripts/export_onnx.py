@@ -1,4 +1,4 @@
-"""Export a trained run to a verified ONNX file (thin wrapper of ``airfisheye_bench.export.deploy``).
+"""Export a trained run to a verified ONNX file (the same as ``airfisheye-export``; ``--help`` lists the options).
 
 python scripts/export_onnx.py ckpt_path=<ckpt or run dir> out=model.onnx [dynamic_spatial=false] [batch=2]
     [parity_samples=4] [quantize=none|dynamic|static] [opset=20] [data.<key>=<value> ...]
@@ -6,7 +6,7 @@ python scripts/export_onnx.py ckpt_path=<ckpt or run dir> out=model.onnx [dynami
 
 import sys
 
-from airfisheye_bench.export.deploy import main
+from airfisheye_bench.cli.commands import export
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(export())

@@ -48,7 +48,7 @@ done
 
 E="$OUT/eval"
 python scripts/leaderboard.py out="$OUT/leaderboard" html="$OUT/leaderboard/leaderboard.html" \
-  runs="$E/seg_ckpt,$E/seg_onnx,$E/depth_ckpt,$E/depth_onnx,$E/completion_ordering_ckpt,$E/completion_ordering_onnx"
+  runs="[$E/seg_ckpt,$E/seg_onnx,$E/depth_ckpt,$E/depth_onnx,$E/completion_ordering_ckpt,$E/completion_ordering_onnx]"
 python scripts/plot_rings.py "$OUT/eval/depth_ckpt/results.json" "$OUT/eval/completion_ordering_ckpt/results.json" \
   --labels "AdaBins (image only),NLSPN + LiDAR (ordering)" \
   --metric abs_rel --title "Depth AbsRel by incidence angle, synthetic quickstart test split" --out "$OUT/absrel_by_ring.svg"

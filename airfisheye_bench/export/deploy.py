@@ -13,9 +13,9 @@
 4. optionally quantise to int8 (``quantize=dynamic|static``, ``<out stem>.int8.onnx``) and report the change of
    the task's metrics on the validation split (fp32 ONNX vs int8 ONNX against ground truth) with the speed-up.
 
-Exit codes of :func:`main`: 0 success, 1 export or parity failure (nothing written at ``out``), 2 bad
-arguments or inputs (checkpoint, run config, overrides), 3 the fp32 model was exported and verified but the
-requested int8 quantisation failed.
+Exit codes of the command (:func:`airfisheye_bench.cli.commands.export`; ``--help`` lists the options): 0
+success, 1 export or parity failure (nothing written at ``out``), 2 bad arguments or inputs (checkpoint, run
+config, overrides), 3 the fp32 model was exported and verified but the requested int8 quantisation failed.
 """
 
 from __future__ import annotations
@@ -25,7 +25,6 @@ import logging
 import math
 import os
 import shutil
-import sys
 import tempfile
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
@@ -39,8 +38,7 @@ from omegaconf import DictConfig, OmegaConf
 from torch import Tensor
 
 from airfisheye_bench.config_checks import check_common_values
-from airfisheye_bench.errors import debug_requested, report_user_errors
-from airfisheye_bench.export.onnx import OnnxParityError, ParityReport, _median_ms, export_onnx, verify_onnx
+from airfisheye_bench.export.onnx import ParityReport, _median_ms, export_onnx, verify_onnx
 from airfisheye_bench.io import file_sha256
 from airfisheye_bench.io.atomic import check_writable
 from airfisheye_bench.io.deployment import deployment_metadata
@@ -52,18 +50,12 @@ __all__ = [
     "ExportError",
     "QuantizationReport",
     "export_deployment",
-    "main",
     "parity_tolerance",
 ]
 
 log = logging.getLogger(__name__)
 
 QUANTIZE_MODES = ("none", "dynamic", "static")
-_USAGE = (
-    "usage: python scripts/export_onnx.py ckpt_path=<ckpt or run dir> out=model.onnx [dynamic_spatial=false] "
-    "[batch=2] [parity_samples=4] [quantize=none|dynamic|static] [opset=20] [calib_samples=16] "
-    "[eval_samples=0] [repeats=10] [data.<key>=<value> ...]"
-)
 
 
 def parity_tolerance(task: str) -> tuple[float, float]:
@@ -279,95 +271,6 @@ def export_deployment(
         dynamic_spatial=dynamic_spatial,
         quantization=quantization,
     )
-
-
-@report_user_errors
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line of :func:`export_deployment` (``key=value`` arguments); returns the exit code.
-
-    Example:
-        >>> main(["out=model.onnx"])  # usage and "error: ckpt_path= is required" go to stderr
-        2
-    """
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if any(a in ("-h", "--help") for a in argv):
-        print(__doc__ + "\n" + _USAGE)
-        return 0
-    # Progress of this module only: the exporter and the quantiser log pages of INFO lines.
-    logging.basicConfig(level=logging.WARNING, format="%(message)s")
-    log.setLevel(logging.INFO)
-    try:
-        kwargs = _parse_args(argv)
-    except ValueError as err:
-        print(f"{_USAGE}\nerror: {err}", file=sys.stderr)
-        return 2
-    try:
-        report = export_deployment(**kwargs)
-    except OnnxParityError as err:
-        print(f"error: parity check failed, {kwargs['out']} was not written: {err}", file=sys.stderr)
-        return 1
-    except ExportError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
-    except (FileNotFoundError, ValueError) as err:
-        if debug_requested():
-            raise
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    print(report.summary())
-    if report.quantization is not None and not report.quantization.ok:
-        return 3
-    return 0
-
-
-# ----------------------------------------------------------------------------------------------- arguments
-def _parse_args(argv: Sequence[str]) -> dict[str, Any]:
-    """``key=value`` strings -> keyword arguments of :func:`export_deployment` (``data.*`` -> overrides)."""
-    parsers = {
-        "ckpt_path": str,
-        "out": str,
-        "dynamic_spatial": _bool,
-        "batch": int,
-        "parity_samples": int,
-        "quantize": str,
-        "opset": int,
-        "calib_samples": int,
-        "eval_samples": int,
-        "repeats": int,
-    }
-    from datamodules.config import parse_data_overrides
-
-    kwargs: dict[str, Any] = {}
-    overrides: dict[str, Any] = {}
-    for arg in argv:
-        key, sep, value = arg.partition("=")
-        key = key.lstrip("+")
-        if not sep or not key:
-            raise ValueError(f"arguments must look like key=value, got {arg!r}")
-        if key.startswith("data."):
-            overrides.update(parse_data_overrides([arg]))
-        elif key in parsers:
-            try:
-                kwargs[key] = parsers[key](value)
-            except ValueError:
-                raise ValueError(f"{key}={value!r}: expected {parsers[key].__name__.lstrip('_')}") from None
-        else:
-            raise ValueError(f"unknown argument {key!r}; expected one of {sorted(parsers)} or data.<key>")
-    for required in ("ckpt_path", "out"):
-        if not kwargs.get(required):
-            raise ValueError(f"{required}= is required")
-    if overrides:
-        kwargs["data_overrides"] = overrides
-    return kwargs
-
-
-def _bool(value: str) -> bool:
-    lowered = value.strip().lower()
-    if lowered in ("1", "true", "yes"):
-        return True
-    if lowered in ("0", "false", "no"):
-        return False
-    raise ValueError(value)
 
 
 def _check_arguments(

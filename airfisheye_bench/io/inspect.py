@@ -4,9 +4,9 @@ By default only headers are read (image size and mode, ``.npy`` shape and dtype 
 release is checked in minutes; ``deep=True`` also decodes every file and checks its values (non-finite depth,
 label ids unknown to ``dataset.yaml``, empty or non-finite LiDAR scans).
 
-Command line (also ``airfisheye-inspect``)::
+Command line (:func:`airfisheye_bench.cli.commands.inspect`; ``--help`` lists the options)::
 
-    python -m airfisheye_bench.io.inspect root=/path/to/AirFisheye [deep=true] [limit=20]
+    airfisheye-inspect root=/path/to/AirFisheye [deep=true] [limit=20]
 
 Example:
     >>> report = inspect_dataset("/path/to/AirFisheye")   # doctest: +SKIP
@@ -16,14 +16,12 @@ Example:
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
-from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import trajectory_of
@@ -231,20 +229,3 @@ def _check_array(path: Path, ndim: int, cols: int | None, kind, deep: bool, repo
         elif not np.isfinite(np.asarray(arr[:, :3])).all():
             report.add(path, "the LiDAR scan has non-finite coordinates")
     return int(arr.shape[0])
-
-
-@report_user_errors
-def main(argv: list[str] | None = None) -> int:
-    """``python -m airfisheye_bench.io.inspect root=DIR [deep=true] [limit=20]``; exit 1 when problems are found."""
-    args = dict(arg.split("=", 1) for arg in (sys.argv[1:] if argv is None else argv) if "=" in arg)
-    unknown = set(args) - {"root", "deep", "limit"}
-    if "root" not in args or unknown:
-        print("usage: python -m airfisheye_bench.io.inspect root=DIR [deep=true] [limit=20]", file=sys.stderr)
-        return 2
-    report = inspect_dataset(args["root"], deep=args.get("deep", "false").lower() in ("1", "true", "yes"))
-    print(report.summary(limit=int(args.get("limit", 20))))
-    return 0 if report.ok else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

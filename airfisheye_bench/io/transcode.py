@@ -18,9 +18,9 @@ end: ``dst`` either does not exist or is complete. Hard-linked files share their
 this project replace files atomically (new inode), so they never change the other root, but a tool that edits a
 file in place would change both.
 
-Command line (also ``airfisheye-transcode``)::
+Command line (:func:`airfisheye_bench.cli.commands.transcode`; ``--help`` lists the options)::
 
-    python -m airfisheye_bench.io.transcode src=/data/AirFisheye dst=/data/AirFisheye-jpg \\
+    airfisheye-transcode src=/data/AirFisheye dst=/data/AirFisheye-jpg \\
         [rgb=jpg|png] [depth=npy|png16|pfm] [jpeg_quality=95] [workers=N] [link=true|false]
 
 Example:
@@ -37,16 +37,14 @@ import os
 import re
 import shutil
 import string
-import sys
 import uuid
-from concurrent.futures import BrokenExecutor, ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from airfisheye_bench.errors import OutputExistsError, report_user_errors
+from airfisheye_bench.errors import OutputExistsError
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.atomic import TEMP_GLOB
-from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import MANIFEST_NAME
 from airfisheye_bench.io.manifest import create_manifest
 from airfisheye_bench.io.reader import DatasetReader
@@ -56,10 +54,6 @@ from airfisheye_bench.io.spec import DATASET_YAML, DEPTH_ENCODINGS, RGB_ENCODING
 _ENCODED_TEMPLATES = ("cubemap", "fisheye")
 #: Files that are never carried over: generator state and journal (the manifest and temporaries are also skipped).
 _SKIPPED_PREFIX = ".airfisheye-"
-_USAGE = (
-    "usage: python -m airfisheye_bench.io.transcode src=DIR dst=DIR [rgb=jpg|png] [depth=npy|png16|pfm] "
-    "[jpeg_quality=95] [workers=N] [link=true|false]"
-)
 
 
 @dataclass
@@ -325,52 +319,3 @@ def _human(n: int) -> str:
             return f"{size:.1f} {unit}"
         size /= 1000
     return f"{size:.1f} GB"
-
-
-# ------------------------------------------------------------------------------------------ command line
-def _flag(name: str, value: str) -> bool:
-    if value.lower() in ("1", "true", "yes"):
-        return True
-    if value.lower() in ("0", "false", "no"):
-        return False
-    raise ValueError(f"{name} must be true or false, got {value!r}")
-
-
-def _integer(name: str, value: str) -> int:
-    try:
-        return int(value)
-    except ValueError:
-        raise ValueError(f"{name} must be an integer, got {value!r}") from None
-
-
-@report_user_errors
-def main(argv: list[str] | None = None) -> int:
-    """``python -m airfisheye_bench.io.transcode src=DIR dst=DIR [rgb=jpg] [depth=npy] [...]``; exit 2 on an error."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    allowed = {"src", "dst", "rgb", "depth", "jpeg_quality", "workers", "link"}
-    args = dict(arg.split("=", 1) for arg in argv if "=" in arg)
-    bad = [arg for arg in argv if "=" not in arg or arg.split("=", 1)[0] not in allowed]
-    missing = [key for key in ("src", "dst") if key not in args]
-    if bad or missing:
-        reason = f"unknown argument(s) {bad}" if bad else f"{' and '.join(missing)} required"
-        print(f"{_USAGE}\nerror: {reason}", file=sys.stderr)
-        return 2
-    try:
-        report = transcode_dataset(
-            args["src"],
-            args["dst"],
-            rgb=args.get("rgb", "jpg"),
-            depth=args.get("depth", "npy"),
-            jpeg_quality=_integer("jpeg_quality", args.get("jpeg_quality", "95")),
-            workers=_integer("workers", args.get("workers", "1")),
-            link=_flag("link", args.get("link", "true")),
-        )
-    except (DatasetFormatError, ValueError, OSError, BrokenExecutor) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    print(report.summary())
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -19,6 +19,7 @@ import torch
 from omegaconf import OmegaConf, open_dict
 
 import airfisheye_bench.export.deploy as deploy
+from airfisheye_bench.cli import export as export_command
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import OutputError
 from airfisheye_bench.export import verify_onnx
@@ -36,6 +37,7 @@ from airfisheye_bench.specs import deployment_keys
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.training import build, train
 from datamodules.config import apply_data_overrides, instantiate_datamodule
+from tests.commands import exit_status
 from tests.training.test_configs import compose_train
 from tests.training.test_train import tiny_run_overrides
 
@@ -76,7 +78,7 @@ def untrained_run(task: str, tiny_dataset: Path, run_dir: Path) -> Path:
 
 
 def run_cli(args: list[str], capsys) -> tuple[int, str, str]:
-    code = deploy.main(args)
+    code = exit_status(export_command, args)
     captured = capsys.readouterr()
     return code, captured.out, captured.err
 
@@ -107,7 +109,7 @@ def seg_export(seg_run: Path, tmp_path_factory: pytest.TempPathFactory):
     # capsys is function-scoped; this fixture is shared by the module.
     with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(stdout):
         mp.setattr(deploy, "export_deployment", spy)
-        code = deploy.main([f"ckpt_path={seg_run}", f"out={out}", "quantize=dynamic", "repeats=3"])
+        code = export_command([f"ckpt_path={seg_run}", f"out={out}", "quantize=dynamic", "repeats=3"])
     return code, stdout.getvalue(), out, spy.report
 
 
@@ -265,15 +267,16 @@ def test_checkpoint_without_run_config_is_a_clear_error(seg_run: Path, tmp_path:
     ("args", "message"),
     [
         (["out=x.onnx"], "ckpt_path= is required"),
-        (["ckpt_path=r", "out=x.onnx", "colour=red"], "unknown argument 'colour'"),
-        (["ckpt_path=r", "out=x.onnx", "batch=two"], "batch='two'"),
-        (["ckpt_path=r", "out=x.onnx", "dynamic_spatial=maybe"], "dynamic_spatial"),
+        (["ckpt_path=r", "out=x.onnx", "colour=red"], "unknown option 'colour'"),
+        (["ckpt_path=r", "out=x.onnx", "batch=two"], "batch=two: expected an integer"),
+        (["ckpt_path=r", "out=x.onnx", "dynamic_spatial=maybe"], "dynamic_spatial=maybe: expected a boolean"),
         (["ckpt_path=r", "out=x.onnx", "quantize"], "key=value"),
+        (["ckpt_path=r", "out=x.onnx", "data.camera.size=1,2"], "a comma list is a sweep"),
     ],
 )
-def test_bad_arguments_print_the_usage(args: list[str], message: str, capsys) -> None:
+def test_bad_arguments_are_one_line_naming_the_key(args: list[str], message: str, capsys) -> None:
     code, _, err = run_cli(args, capsys)
-    assert code == 2 and message in err and "usage:" in err
+    assert code == 2 and err.startswith("error: ") and message in err and len(err.splitlines()) == 1
 
 
 def test_bad_values_and_overrides_are_rejected(seg_run: Path, tmp_path: Path) -> None:

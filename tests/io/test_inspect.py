@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from airfisheye_bench.cli import inspect
 from airfisheye_bench.io import DatasetReader, write_label
-from airfisheye_bench.io.inspect import inspect_dataset, main
+from airfisheye_bench.io.inspect import inspect_dataset
+from tests.commands import exit_status
 
 
 @pytest.fixture
@@ -24,7 +26,7 @@ def test_a_clean_dataset_has_no_problems(tiny_dataset: Path) -> None:
     report = inspect_dataset(tiny_dataset, deep=True)
     assert report.ok, report.summary()
     assert report.samples == 12 and report.files > 12 * 15
-    assert main([f"root={tiny_dataset}"]) == 0
+    assert inspect([f"root={tiny_dataset}"]) == 0
 
 
 def test_damage_is_reported_with_the_file(copy: Path) -> None:
@@ -57,10 +59,10 @@ def test_damage_is_reported_with_the_file(copy: Path) -> None:
     # Label values are only read in deep mode.
     assert not any(p == str(bad_ids) for p, _ in shallow.problems)
     assert any(p == str(bad_ids) and "[201]" in m for p, m in deep.problems)
-    assert main([f"root={copy}"]) == 1
+    assert inspect([f"root={copy}"]) == 1
 
 
 def test_not_a_dataset(tmp_path: Path) -> None:
     report = inspect_dataset(tmp_path)
     assert not report.ok and "dataset.yaml" in report.problems[0][0]
-    assert main([]) == 2
+    assert exit_status(inspect, []) == 2  # root= is required

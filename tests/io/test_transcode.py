@@ -11,13 +11,15 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from airfisheye_bench.cli import transcode
 from airfisheye_bench.io import DatasetFormatError, DatasetReader, DatasetSpec, FileEncodings
 from airfisheye_bench.io import transcode as transcode_module
 from airfisheye_bench.io.inspect import inspect_dataset
 from airfisheye_bench.io.manifest import read_manifest, verify
 from airfisheye_bench.io.spec import FACE_NAMES
-from airfisheye_bench.io.transcode import TranscodeReport, main, transcode_dataset
+from airfisheye_bench.io.transcode import TranscodeReport, transcode_dataset
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
+from tests.commands import exit_status
 
 
 @pytest.fixture(scope="module")
@@ -171,21 +173,25 @@ def test_a_failure_half_way_leaves_nothing(
         transcode_dataset(tiny_dataset, out)
     assert len(calls) == 3 and not out.exists()
     _no_leftovers(out.parent)
-    assert main([f"src={tiny_dataset}", f"dst={out}"]) == 2  # the command line reports it too
+    assert transcode([f"src={tiny_dataset}", f"dst={out}"]) == 2  # the command line reports it too
     assert not out.exists()
     _no_leftovers(out.parent)
 
 
 def test_command_line(tiny_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "cli"
-    assert main([f"src={tiny_dataset}", f"dst={out}", "depth=pfm", "rgb=png", "link=false"]) == 0
+    assert transcode([f"src={tiny_dataset}", f"dst={out}", "depth=pfm", "rgb=png", "link=false"]) == 0
     assert "72 files transcoded" in capsys.readouterr().out  # depth only, PNG RGB is carried over
     assert DatasetSpec.load(out).files == FileEncodings(rgb="png", depth="pfm")
     assert verify(out).ok and inspect_dataset(out).ok
-    assert main([f"src={tiny_dataset}", f"dst={out}"]) == 2
+    assert transcode([f"src={tiny_dataset}", f"dst={out}"]) == 2
     assert str(out) in capsys.readouterr().err
-    assert main([f"src={tiny_dataset}"]) == 2
-    assert main([f"src={tiny_dataset}", f"dst={tmp_path / 'y'}", "colour=rgb"]) == 2
-    assert main([f"src={tiny_dataset}", f"dst={tmp_path / 'y'}", "link=maybe"]) == 2
-    assert "link must be true or false" in capsys.readouterr().err
+    assert exit_status(transcode, [f"src={tiny_dataset}"]) == 2
+    assert "dst= is required" in capsys.readouterr().err
+    assert exit_status(transcode, [f"src={tiny_dataset}", f"dst={tmp_path / 'y'}", "colour=rgb"]) == 2
+    assert "unknown option 'colour'" in capsys.readouterr().err
+    assert exit_status(transcode, [f"src={tiny_dataset}", f"dst={tmp_path / 'y'}", "link=maybe"]) == 2
+    assert "error: link=maybe: expected a boolean" in capsys.readouterr().err
+    assert exit_status(transcode, [f"src={tiny_dataset}", f"dst={tmp_path / 'y'}", "workers=two"]) == 2
+    assert "error: workers=two: expected an integer" in capsys.readouterr().err
     _no_leftovers(tmp_path)

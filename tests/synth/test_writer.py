@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from airfisheye_bench.cli import generate as cli_main
 from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye, face_rotation
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.transforms import make_transform, transform_points
@@ -17,10 +18,10 @@ from airfisheye_bench.io import DatasetReader, DatasetSpec, trajectory_of
 from airfisheye_bench.io.manifest import read_manifest, verify
 from airfisheye_bench.synth import writer
 from airfisheye_bench.synth.classes import RAW_CLASSES, RAW_ID, RAW_TO_TRAIN, TRAIN_CLASSES
-from airfisheye_bench.synth.cli import main as cli_main
 from airfisheye_bench.synth.presets import PRESETS, get_preset, plan_trajectories
 from airfisheye_bench.synth.scene import ENVIRONMENTS
 from airfisheye_bench.synth.sensors import lidar_visibility, scan_lidar
+from tests.commands import exit_status
 
 #: A very small configuration for the tests that generate several times.
 MICRO = get_preset("tiny").replace(
@@ -351,7 +352,10 @@ def test_cli_generates_and_writes_a_contact_sheet(tiny_dataset, tmp_path):
 
     img = np.asarray(Image.open(png))
     assert img.ndim == 3 and img.shape[1] > 1000 and img.std() > 20
-    assert cli_main(["preset=tiny", f"out={tmp_path / 'x'}", "bogus=1"]) == 2
+    assert exit_status(cli_main, ["preset=tiny", f"out={tmp_path / 'x'}", "bogus=1"]) == 2
+    assert exit_status(cli_main, ["preset=tiny", f"out={tmp_path / 'x'}", "flight.bogus=1"]) == 2
+    assert exit_status(cli_main, ["preset=tiny", f"out={tmp_path / 'x'}", "verify=maybe"]) == 2
+    assert exit_status(cli_main, ["presetz"]) == 2 and not (tmp_path / "x").exists()
     assert cli_main(["presets"]) == 0
     out = tmp_path / "custom"
     assert (

@@ -9,10 +9,11 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig, open_dict
 
+from airfisheye_bench.constants import config_dir
 from airfisheye_bench.training import check_config
 from models.weights import pretrained_weights_disabled
 
-CONFIG_DIR = str(Path(__file__).resolve().parents[2] / "configs")
+CONFIG_DIR = str(config_dir())
 EXPERIMENTS = sorted(
     str(p.relative_to(Path(CONFIG_DIR) / "experiment").with_suffix(""))
     for p in (Path(CONFIG_DIR) / "experiment").rglob("*.yaml")

@@ -1,0 +1,43 @@
+"""``airfisheye-train`` and ``airfisheye-evaluate``: the Hydra applications over ``configs/train.yaml`` and
+``configs/evaluate.yaml`` (:func:`airfisheye_bench.constants.config_dir`, so they run from any folder, installed
+from a wheel too). ``python train.py`` and ``python scripts/evaluate.py`` are the same functions.
+"""
+
+from __future__ import annotations
+
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig
+
+from airfisheye_bench.config_checks import check_common_values
+from airfisheye_bench.constants import config_dir
+from airfisheye_bench.errors import report_user_errors
+from airfisheye_bench.runs import register_resolvers, resume_config
+
+register_resolvers()  # ${run_suffix:} in hydra.run.dir
+
+
+@hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="train")
+@report_user_errors  # a user error: one line on stderr, exit status 2 (README, "When something goes wrong")
+def train(cfg: DictConfig) -> float | None:
+    """``airfisheye-train task=seg|depth|completion [group=option ...] [key=value ...]``; the primary metric."""
+    # `ckpt_path=last hydra.run.dir=<run>` alone resumes with the run's saved configuration, not the defaults.
+    cfg = resume_config(cfg, HydraConfig.get().overrides.task)
+    # A mistyped value is answered at once, before the seconds of importing Lightning.
+    check_common_values(cfg)
+    from airfisheye_bench.training import train as fit  # Lightning: seconds to import, not needed by --help
+
+    results = fit(cfg)
+    metric = results.get("metrics", {}).get(cfg.task.primary_metric) if results else None
+    return float(metric) if metric is not None else None
+
+
+@hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="evaluate")
+@report_user_errors  # a user error: one line on stderr, exit status 2
+def evaluate(cfg: DictConfig) -> None:
+    """``airfisheye-evaluate ckpt_path=... | onnx_path=... | task=... predictions=DIR [split=test]``."""
+    check_common_values(cfg)  # a mistyped value is answered before the imports below
+    from airfisheye_bench.evaluation.command import evaluate as score  # Lightning and ONNX Runtime: seconds
+
+    overrides = [o.lstrip("+") for o in HydraConfig.get().overrides.task if o.lstrip("+").startswith("data.")]
+    score(cfg, data_overrides=overrides)

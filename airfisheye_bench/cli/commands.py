@@ -1,0 +1,390 @@
+"""The small commands: inspect, transcode, leaderboard, export and the synthetic generator.
+
+Each takes ``key=value`` arguments composed onto ``configs/<command>.yaml`` (:mod:`airfisheye_bench.cli.options`:
+typed, struct mode, one ``--help``) and calls its library function. A bad argument ends in one line naming the key
+(:class:`~airfisheye_bench.errors.ConfigError` under :func:`~airfisheye_bench.errors.report_user_errors`: exit
+status 2); each function returns the command's exit status otherwise.
+
+Each command imports its library when it runs, not when this module loads: ``--help`` and a bad option are answered
+in well under a second, where importing the libraries (torch, Lightning, ONNX Runtime) takes 3 to 9 s.
+
+Example:
+    >>> inspect(["root=/nowhere", "deep=maybe"])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    SystemExit: 2
+    >>> print(render_help(INSPECT))  # doctest: +NORMALIZE_WHITESPACE
+    Report missing or malformed files of a dataset (exit status 1 when there are any).
+    <BLANKLINE>
+    usage: airfisheye-inspect root=DIR [key=value ...]
+    <BLANKLINE>
+    options (key=value; defaults from configs/inspect.yaml):
+      root   str   (required)  the dataset root folder (it holds dataset.yaml)
+      deep   bool  false       also decode every image and array (slower)
+      limit  int   20          problems listed in the summary
+    <BLANKLINE>
+    Booleans: true/false, yes/no, on/off, 1/0. Lists: key=[a,b].
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import sys
+from collections.abc import Sequence
+from concurrent.futures import BrokenExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.cli.options import Command, Parsed, option, parse, render_help, wants_help
+from airfisheye_bench.errors import ConfigError, debug_requested, report_user_errors
+
+
+def _run(command: Command, argv: Sequence[str] | None) -> Parsed | None:
+    """The parsed arguments, or ``None`` after printing ``--help``."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if wants_help(argv):
+        print(render_help(command))
+        return None
+    return parse(command, argv)
+
+
+# ------------------------------------------------------------------------------------------------ inspect
+@dataclass
+class InspectOptions:
+    root: str = option("the dataset root folder (it holds dataset.yaml)")
+    deep: bool = option("also decode every image and array (slower)")
+    limit: int = option("problems listed in the summary")
+
+
+INSPECT = Command(
+    "inspect",
+    InspectOptions,
+    "Report missing or malformed files of a dataset (exit status 1 when there are any).",
+    "airfisheye-inspect root=DIR",
+)
+
+
+@report_user_errors
+def inspect(argv: Sequence[str] | None = None) -> int:
+    """``airfisheye-inspect root=DIR [deep=true] [limit=20]``; exit status 1 when problems are found."""
+    parsed = _run(INSPECT, argv)
+    if parsed is None:
+        return 0
+
+    from airfisheye_bench.io.inspect import inspect_dataset  # at run time: see the module docstring
+
+    opts = parsed.options
+    report = inspect_dataset(opts.root, deep=opts.deep)
+    print(report.summary(limit=opts.limit))
+    return 0 if report.ok else 1
+
+
+# ---------------------------------------------------------------------------------------------- transcode
+@dataclass
+class TranscodeOptions:
+    src: str = option("the dataset root to read")
+    dst: str = option("the new dataset root (must not exist)")
+    rgb: str = option("RGB encoding: jpg | png")
+    depth: str = option("depth encoding: npy | png16 | pfm")
+    jpeg_quality: int = option("JPEG quality, 1..100")
+    workers: int = option("worker processes")
+    link: bool = option("hard-link files that keep their encoding (copy where linking fails)")
+
+
+TRANSCODE = Command(
+    "transcode",
+    TranscodeOptions,
+    "Copy a dataset with its RGB and depth files in other encodings (the manifest is rewritten).",
+    "airfisheye-transcode src=DIR dst=DIR",
+)
+
+
+@report_user_errors
+def transcode(argv: Sequence[str] | None = None) -> int:
+    """``airfisheye-transcode src=DIR dst=DIR [rgb=jpg] [depth=npy] [...]``; exit status 2 on an error."""
+    parsed = _run(TRANSCODE, argv)
+    if parsed is None:
+        return 0
+
+    from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
+    from airfisheye_bench.io.transcode import transcode_dataset  # at run time: see the module docstring
+
+    try:
+        report = transcode_dataset(**parsed.options)
+    except (DatasetFormatError, ValueError, OSError, BrokenExecutor) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(report.summary())
+    return 0
+
+
+# -------------------------------------------------------------------------------------------- leaderboard
+@dataclass
+class LeaderboardOptions:
+    runs: Any = option("a folder or a results.json file, or a list of them: [a,b]", "str|list[str]")
+    out: str = option("folder of leaderboard.md and leaderboard.csv")
+    paper: bool = option("rank next to the paper's baselines")
+    skip_invalid: bool = option("leave invalid results.json out (listed in the outputs) instead of failing")
+    html: str | None = option("also write a self-contained HTML page to this .html file")
+
+
+LEADERBOARD = Command(
+    "leaderboard",
+    LeaderboardOptions,
+    "Rank every results.json by task next to the paper's baselines.",
+    "airfisheye-leaderboard runs=DIR|[DIR,FILE,...]",
+)
+
+
+@report_user_errors
+def leaderboard(argv: Sequence[str] | None = None) -> int:
+    """``airfisheye-leaderboard runs=DIR|[DIR,...] [out=leaderboard] [paper=true] [skip_invalid=false] [html=FILE]``.
+
+    Returns:
+        0 on success, 1 for missing paths, no results or invalid files.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from airfisheye_bench.evaluation import write_results
+        >>> root = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = write_results(root / "runs" / "a" / "results.json", "seg", "test", {"mIoU": 0.3})
+        >>> leaderboard([f"runs={root / 'runs'}", f"out={root / 'board'}"])  # doctest: +ELLIPSIS
+        # AirFisheye-bench leaderboard
+        ...
+        0
+        >>> sorted(p.name for p in (root / "board").iterdir())
+        ['leaderboard.csv', 'leaderboard.md']
+    """
+    parsed = _run(LEADERBOARD, argv)
+    if parsed is None:
+        return 0
+
+    from airfisheye_bench.evaluation.leaderboard import (  # at run time: see the module docstring
+        LeaderboardError,
+        build_leaderboard,
+        find_results,
+        load_entries,
+    )
+
+    opts = parsed.options
+    runs = [opts.runs] if isinstance(opts.runs, str) else opts.runs
+    if not isinstance(runs, Sequence) or not runs or not all(isinstance(r, str) and r.strip() for r in runs):
+        raise ConfigError(f"runs={opts.runs}: expected a folder or results.json, or a list of them [a,b]")
+    if opts.html is not None and not opts.html.endswith((".html", ".htm")):
+        raise ConfigError(f"html={opts.html}: expected an .html file name")
+    try:
+        entries, problems = load_entries(find_results([r.strip() for r in runs]))
+    except FileNotFoundError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    if problems and not opts.skip_invalid:
+        print(f"error: {LeaderboardError(problems)}\n(skip_invalid=true leaves them out)", file=sys.stderr)
+        return 1
+    for problem in problems:
+        print(f"warning: skipped invalid results.json: {problem}", file=sys.stderr)
+    if not entries:
+        print("error: no valid results.json to rank", file=sys.stderr)
+        return 1
+    board = build_leaderboard(entries, paper=opts.paper, invalid=problems)
+    written = list(board.write(opts.out))
+    if opts.html is not None:
+        from airfisheye_bench.evaluation.leaderboard_html import write_html  # matplotlib, only for html=
+
+        written.append(write_html(board, opts.html))
+    print(board.to_markdown(), end="")
+    print(f"wrote {', '.join(map(str, written))}", file=sys.stderr)
+    return 0
+
+
+# ------------------------------------------------------------------------------------------------- export
+@dataclass
+class ExportOptions:
+    ckpt_path: str = option("a checkpoint, or a run directory (its best checkpoint)")
+    out: str = option("the ONNX file to write")
+    dynamic_spatial: bool = option("export with dynamic height and width (else fixed at the run's size)")
+    batch: int = option("batch size of the example input (>= 2; the batch dimension is dynamic)")
+    parity_samples: int = option("validation frames of the ONNX Runtime vs PyTorch parity check")
+    quantize: str = option("also write <out stem>.int8.onnx: none | dynamic | static")
+    opset: int = option("ONNX opset")
+    calib_samples: int = option("validation frames calibrating static quantisation")
+    eval_samples: int = option("validation frames scoring the int8 model (0: the whole split)")
+    repeats: int = option("timed runs of the latency comparison")
+
+
+EXPORT = Command(
+    "export",
+    ExportOptions,
+    "Export a trained run to one verified, self-describing ONNX file (optionally also int8).",
+    "airfisheye-export ckpt_path=<ckpt or run dir> out=model.onnx",
+    extra=lambda key: key.startswith("data."),
+    extra_help="data.<key>=<value>: changes to the run's data config (e.g. data.camera.size=256)",
+)
+
+
+@report_user_errors
+def export(argv: Sequence[str] | None = None) -> int:
+    """``airfisheye-export ckpt_path=<ckpt or run dir> out=model.onnx [...]`` (:func:`export_deployment`).
+
+    Returns:
+        0 success, 1 export or parity failure (nothing written at ``out``), 2 bad arguments or inputs (checkpoint,
+        run config, overrides), 3 the fp32 model was exported and verified but the int8 quantisation failed.
+    """
+    parsed = _run(EXPORT, argv)
+    if parsed is None:
+        return 0
+
+    from airfisheye_bench.export.deploy import (  # at run time: see the module docstring
+        ExportError,
+        export_deployment,
+        log,
+    )
+    from airfisheye_bench.export.onnx import OnnxParityError  # at run time: see the module docstring
+
+    # Progress of this command only: the exporter and the quantiser log pages of INFO lines.
+    logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    log.setLevel(logging.INFO)
+    kwargs = dict(parsed.options)
+    data_overrides = {key.removeprefix("data."): value for key, value in parsed.extra.items()}
+    try:
+        report = export_deployment(**kwargs, data_overrides=data_overrides or None)
+    except OnnxParityError as err:
+        print(f"error: parity check failed, {kwargs['out']} was not written: {err}", file=sys.stderr)
+        return 1
+    except ExportError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    except (FileNotFoundError, ValueError) as err:
+        if debug_requested():
+            raise
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(report.summary())
+    if report.quantization is not None and not report.quantization.ok:
+        return 3
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------- generate
+@dataclass
+class GenerateOptions:
+    preset: str = option("the preset to generate (airfisheye-generate presets lists them)")
+    out: str | None = option("the dataset folder to write (null: the cache, unmodified presets only)")
+    seed: int = option("random seed of the scenes and flights")
+    workers: int | None = option("worker processes (null: 1 with out=, automatic for the cache)")
+    device: str = option("torch device of the renderer")
+    verify: bool = option("check the written dataset against its manifest.json")
+    contact_sheet: bool = option(
+        "also write a contact sheet PNG inside the dataset folder (contact_sheet.png)"
+    )
+    progress: bool = option("show progress bars")
+
+
+@dataclass
+class VerifyOptions:
+    root: str = option("the dataset root to check against its manifest.json")
+
+
+@dataclass
+class ContactSheetOptions:
+    root: str = option("the dataset root")
+    sample: str | None = option("the frame to show, env/traj/frame (null: the first)")
+    png: str | None = option("the PNG to write (null: <root>/contact_sheet.png)")
+
+
+@dataclass
+class BenchOptions:
+    presets: list[str] = option("presets to time")
+    frames: int = option("frames timed per preset (after one warm-up frame)")
+    device: str = option("torch device of the renderer")
+
+
+def _synth_key(key: str) -> bool:
+    from airfisheye_bench.synth.presets import SynthConfig  # at run time: see the module docstring
+
+    return key.startswith("flight.") or key in {f.name for f in dataclasses.fields(SynthConfig)}
+
+
+GENERATE = Command(
+    "generate",
+    GenerateOptions,
+    "Generate a synthetic AirFisheye dataset (subcommands: verify, contact_sheet, presets, bench; each has --help).",
+    "airfisheye-generate [preset=tiny] [out=DIR]",
+    extra=_synth_key,
+    extra_help="<field>=<value>, flight.<field>=<value>: a field of the preset's SynthConfig / FlightConfig",
+)
+GENERATE_SUBCOMMANDS = {
+    "verify": Command(
+        "generate_verify",
+        VerifyOptions,
+        "Check a dataset against its manifest.json (exit status 1 on a mismatch).",
+        "airfisheye-generate verify root=DIR",
+    ),
+    "contact_sheet": Command(
+        "generate_contact_sheet",
+        ContactSheetOptions,
+        "Write a contact sheet PNG of one frame (every modality).",
+        "airfisheye-generate contact_sheet root=DIR",
+    ),
+    "bench": Command(
+        "generate_bench",
+        BenchOptions,
+        "Time the full frame writer of presets (a markdown table).",
+        "airfisheye-generate bench",
+    ),
+}
+
+
+@report_user_errors
+def generate(argv: Sequence[str] | None = None) -> int:
+    """``airfisheye-generate [verify|contact_sheet|presets|bench] [key=value ...]``; 1 when verification fails.
+
+    ``airfisheye-generate preset=tiny out=DIR face_size=96 flight.altitude_m=[5,30]`` generates a modified
+    preset (any :class:`~airfisheye_bench.synth.presets.SynthConfig` field, ``flight.<field>`` for its
+    :class:`~airfisheye_bench.synth.trajectory.FlightConfig`).
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    name = argv.pop(0) if argv and "=" not in argv[0] and argv[0] not in ("-h", "--help") else "generate"
+    if name == "presets":
+        if wants_help(argv):
+            print("List the presets: frames, trajectories, image sizes, LiDAR pattern.")
+            print("\nusage: airfisheye-generate presets")
+            return 0
+        if argv:
+            raise ConfigError(f"airfisheye-generate presets takes no arguments, got {argv}")
+        from airfisheye_bench.synth.cli import presets_table  # at run time: see the module docstring
+
+        print(presets_table())
+        return 0
+    if name != "generate" and name not in GENERATE_SUBCOMMANDS:
+        raise ConfigError(
+            f"unknown subcommand {name!r} of airfisheye-generate; expected key=value options or one of "
+            f"{['presets', *GENERATE_SUBCOMMANDS]}"
+        )
+    parsed = _run(GENERATE_SUBCOMMANDS.get(name, GENERATE), argv)
+    if parsed is None:
+        return 0
+
+    from airfisheye_bench.synth import cli as synth  # at run time: see the module docstring
+
+    opts = parsed.options
+    if name == "verify":
+        return synth.verify_dataset(Path(opts.root))
+    if name == "contact_sheet":
+        return synth.write_sheet(Path(opts.root), opts.sample, opts.png)
+    if name == "bench":
+        print(synth.bench_markdown(list(opts.presets), opts.frames, opts.device))
+        return 0
+    return synth.generate(
+        opts.preset,
+        parsed.extra,
+        None if opts.out is None else Path(opts.out),
+        seed=opts.seed,
+        workers=opts.workers,
+        device=opts.device,
+        verify=opts.verify,
+        contact_sheet=opts.contact_sheet,
+        progress=opts.progress,
+    )
