@@ -12,7 +12,7 @@ prediction folder is evaluated with the ``data`` group of ``configs/evaluate.yam
 default). ``tta=flip`` averages a checkpoint's or ONNX model's prediction with the mirrored prediction of the
 mirrored input (:func:`~airfisheye_bench.evaluation.predictors.flip_tta`). The output folder receives
 ``results.json`` (the leaderboard format; ``model`` records the weights the model started from and the TTA) and
-``panels/``; the table is printed.
+``panels/``; the table is printed and written to the command's log (``evaluate.log``).
 """
 
 from __future__ import annotations
@@ -123,9 +123,23 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
             on_batch=writer.add_batch if writer else None,
         )
     record = _write(cfg, output_dir, task, datamodule, data_config, predictor, result)
-    print(format_results_table(task, result, PRIMARY_METRIC[task]))
-    print(f"\n{result.num_frames} frames in {result.seconds:.1f} s; results: {output_dir / 'results.json'}")
+    summary = "\n".join(
+        [
+            format_results_table(task, result, PRIMARY_METRIC[task]),
+            f"\n{result.num_frames} frames in {result.seconds:.1f} s; results: {output_dir / 'results.json'}",
+        ]
+    )
+    print(summary)
+    _to_log_files(summary)
     return record
+
+
+def _to_log_files(text: str) -> None:
+    """Write the printed table to the command's log files (Hydra's ``evaluate.log``), not to the console again."""
+    record = log.makeRecord(log.name, logging.INFO, __file__, 0, text, None, None)
+    for handler in logging.getLogger().handlers:
+        if isinstance(handler, logging.FileHandler):
+            handler.handle(record)
 
 
 def _agree(requested: str | None, found: str, what: str) -> str:
