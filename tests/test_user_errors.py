@@ -75,6 +75,12 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
     a_file = tmp / "a_file"
     a_file.write_text("x")
     train = [*tiny_run_overrides("seg", dataset)]
+    nan_predictions = tmp / "nan_predictions"
+    for i, sample_id in enumerate((dataset / "splits" / "test.txt").read_text().split()):
+        depth = np.full((64, 64), 10.0, np.float32)  # the served size of tiny_run_overrides
+        depth[0, : i + 1] = np.nan
+        (nan_predictions / sample_id).parent.mkdir(parents=True, exist_ok=True)
+        np.save(nan_predictions / f"{sample_id}.npy", depth)
     return {
         "max_epochs": (
             TRAIN,
@@ -97,6 +103,17 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
                 f"hydra.run.dir={tmp}/r3",
             ],
             ("data.camera.model", "fisheye9000", "equidistant"),
+        ),
+        "predictions_nan": (
+            EVALUATE,
+            [
+                "task=depth",
+                f"predictions={nan_predictions}",
+                f"data.root={dataset}",
+                "data.camera.size=64",
+                f"hydra.run.dir={tmp}/e0",
+            ],
+            (str(nan_predictions),),
         ),
         "onnx_garbage": (EVALUATE, [f"onnx_path={onnx}", f"hydra.run.dir={tmp}/e1"], (str(onnx), "ONNX")),
         "ckpt_garbage": (EVALUATE, [f"ckpt_path={garbage}", f"hydra.run.dir={tmp}/e2"], (str(garbage),)),
@@ -138,6 +155,7 @@ def fast_rows(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> F
         "max_epochs",
         "camera_size",
         "lens_model",
+        "predictions_nan",
         "onnx_garbage",
         "ckpt_garbage",
         "export_proc",
@@ -152,6 +170,11 @@ def test_fast_rows(row: str, fast_rows: FastRows) -> None:
         assert "weights_only" not in message  # PyTorch's advice to unpickle anything is not repeated
     if row == "lens_model":  # refused before the dataset was generated
         assert not any((fast_rows.tmp / "cache").rglob("dataset.yaml"))
+    if row == "predictions_nan":  # every file is listed under the error line, with its count of NaN
+        folder = fast_rows.tmp / "nan_predictions"
+        for path in folder.rglob("*.npy"):
+            nan = int(np.isnan(np.load(path)).sum())
+            assert f"{path.relative_to(folder)}: {nan} of " in fast_rows.outcomes[row].stderr
     if row.startswith("export_"):
         assert not list(fast_rows.tmp.glob("*x.onnx*"))
 

@@ -7,8 +7,8 @@ One file per frame of the split, at the frame's id: ``<dir>/<env>/<trajectory>/<
   256 m) or ``.npy`` float32/float16 of the range in metres, ``[H, W]`` or ``[1, H, W]``.
 
 Submissions come from other people, so nothing in them is trusted: every problem (missing, extra, ambiguous,
-wrongly sized or typed files, links leading out of the folder) is collected and reported in one error, headers are
-read without decoding, and ``.npy`` files are loaded with ``allow_pickle=False``.
+wrongly sized or typed files, links leading out of the folder, NaN or infinite values) is collected and reported in
+one error, headers are read before any value, and ``.npy`` files are loaded with ``allow_pickle=False``.
 """
 
 from __future__ import annotations
@@ -61,7 +61,10 @@ class SubmissionError(UserError, ValueError):
 def validate_submission(
     root: str | Path, task: str, sample_ids: Sequence[str], shape: tuple[int, int]
 ) -> dict[str, Path]:
-    """Check a prediction folder against the frames of a split before anything is decoded.
+    """Check a prediction folder against the frames of a split before anything is scored.
+
+    Each file's header is checked first (type, size); the values of a well-formed ``.npy`` are then scanned for NaN
+    and infinity, which the metrics would otherwise average in silently (a PNG holds integers only).
 
     Args:
         root: The prediction folder.
@@ -73,7 +76,8 @@ def validate_submission(
         The prediction file of every frame id.
 
     Raises:
-        SubmissionError: listing all missing, extra, ambiguous, escaping, wrongly sized or typed files.
+        SubmissionError: listing all missing, extra, ambiguous, escaping, wrongly sized or typed files, and the
+            files holding NaN or infinite values with their counts.
 
     Example:
         >>> import tempfile, numpy as np
@@ -110,7 +114,7 @@ def validate_submission(
             problems.append(f"{sample_id}: ambiguous, both {' and '.join(_rel(p, root) for p in present)}")
             continue
         path = present[0]
-        problem = _check_inside(path, base, root) or _check_file(path, task, shape)
+        problem = _check_inside(path, base, root) or _check_file(path, task, shape) or _check_finite(path)
         if problem:
             problems.append(f"{_rel(path, root)}: {problem}")
         else:
@@ -290,6 +294,24 @@ def _check_npy(path: Path, shape: tuple[int, int]) -> str | None:
     if tuple(array_shape) not in (tuple(shape), (1, *shape)):
         return f"shape {tuple(array_shape)}, expected {tuple(shape)} or {(1, *shape)}"
     return None
+
+
+def _check_finite(path: Path) -> str | None:
+    """The count of NaN and infinite values of a ``.npy`` prediction whose header was accepted."""
+    if path.suffix != ".npy":
+        return None  # PNG predictions hold integers
+    try:
+        array = np.load(path, mmap_mode="r", allow_pickle=False)
+        finite = int(np.count_nonzero(np.isfinite(array)))
+        nan = int(np.count_nonzero(np.isnan(array)))
+    except (OSError, ValueError) as err:  # e.g. truncated after its header
+        return f"not a readable .npy file ({err})"
+    if finite == array.size:
+        return None
+    return (
+        f"{array.size - finite} of {array.size} values are not finite ({nan} NaN, {array.size - finite - nan} "
+        "infinite); write 0 where there is no prediction"
+    )
 
 
 def _extra_files(root: Path, expected: set[Path]) -> list[Path]:
