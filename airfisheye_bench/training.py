@@ -80,11 +80,9 @@ def check_config(cfg: DictConfig) -> None:
     Raises:
         ConfigError: the key, the value given and what to write instead (a ``ValueError``).
     """
-    check_common_values(cfg)
+    check_common_values(cfg)  # types, ranges, choices (model.name among them), files
     task = cfg.task.name
-    name = cfg.model.get("name")
-    if name not in list_models():
-        raise ConfigError(f"model.name={name!r} is not a registered model; choose one of {list_models()}")
+    name = cfg.model.name
     if model_task(name) != task:
         raise ConfigError(
             f"model={name} solves task={model_task(name)}, not task={task}; use one of "

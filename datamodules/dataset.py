@@ -33,13 +33,14 @@ from torch.utils.data import Dataset
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
+from airfisheye_bench.io.spec import IMAGE_SOURCES
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
 from datamodules.sampling import SharedEpoch, draw_seed
 
 log = logging.getLogger(__name__)
 
 TASKS = ("seg", "depth", "completion")
-SOURCES = ("cubemap", "fisheye")
+SOURCES = IMAGE_SOURCES
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
 

@@ -26,10 +26,11 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf, open_dict
 
-from airfisheye_bench.config_checks import check_common_values
+from airfisheye_bench.config_checks import ValueRule, check_common_values
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.evaluator import EvaluationResult, evaluate_predictions, format_results_table
 from airfisheye_bench.evaluation.predictors import (
+    TTA_MODES,
     CheckpointPredictor,
     FilePredictor,
     OnnxPredictor,
@@ -37,7 +38,7 @@ from airfisheye_bench.evaluation.predictors import (
 )
 from airfisheye_bench.evaluation.results import PRIMARY_METRIC, dataset_identity, write_results
 from airfisheye_bench.evaluation.scorer import TaskScorer, task_metric
-from airfisheye_bench.evaluation.submission import SubmissionWriter
+from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
 from airfisheye_bench.viz import make_panel, save_png
 
@@ -46,6 +47,18 @@ log = logging.getLogger(__name__)
 __all__ = ["evaluate"]
 
 _SOURCES = ("ckpt_path", "onnx_path", "predictions")
+SPLITS = ("val", "test")
+DEVICES = ("auto", "cpu", "cuda")
+
+EVALUATE_RULES: dict[str, ValueRule] = {
+    "split": ValueRule("choice", choices=SPLITS),
+    "device": ValueRule("choice", choices=DEVICES, hint="checkpoint inference; auto: cuda if available"),
+    "tta": ValueRule("choice", choices=[m for m in TTA_MODES if m], nullable=True, hint="null: none"),
+    "prediction_format": ValueRule("choice", choices=DEPTH_FORMATS, hint="of saved depth predictions"),
+    "num_panels": ValueRule("int", minimum=0),
+    "threads": ValueRule("int", minimum=1, nullable=True, hint="null: ONNX Runtime's default"),
+}
+"""``evaluate.yaml``'s own options (the common keys are :data:`airfisheye_bench.config_checks.RULES`)."""
 
 
 def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[str, Any]:
@@ -59,14 +72,13 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     Returns:
         The ``results.json`` record.
     """
+    check_common_values(cfg, EVALUATE_RULES)
     given = [key for key in _SOURCES if cfg.get(key)]
     if len(given) != 1:
         raise ConfigError(
             f"give exactly one of ckpt_path=<.ckpt or run dir>, onnx_path=<.onnx>, predictions=<dir>; got {given or 'none'}"
         )
     source = given[0]
-    if cfg.split not in ("val", "test"):
-        raise ConfigError(f"split must be 'val' or 'test', got {cfg.split!r}")
 
     module, checkpoint, source_data = None, None, None
     task = cfg.task.name if cfg.get("task") else None

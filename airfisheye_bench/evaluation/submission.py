@@ -27,6 +27,7 @@ from airfisheye_bench.errors import MissingFileError, OutputExistsError, UserErr
 from airfisheye_bench.io import atomic_write_bytes
 
 __all__ = [
+    "DEPTH_FORMATS",
     "DEPTH_PNG_SCALE",
     "SubmissionError",
     "SubmissionWriter",
@@ -38,7 +39,9 @@ __all__ = [
 
 #: Depth PNGs hold ``round(range * 256)`` like the dataset's depth files.
 DEPTH_PNG_SCALE = 256.0
-_SUFFIXES = {"seg": (".png",), "depth": (".png", ".npy"), "completion": (".png", ".npy")}
+#: Encodings of a depth or completion prediction: 16-bit PNG of ``round(range * 256)`` or float ``.npy``.
+DEPTH_FORMATS = ("png", "npy")
+_SUFFIXES = {"seg": (".png",), **{task: tuple(f".{f}" for f in DEPTH_FORMATS) for task in ("depth", "completion")}}
 _NPY_DTYPES = (np.dtype("<f4"), np.dtype("<f2"))
 _MAX_LISTED = 20
 
@@ -193,8 +196,8 @@ class SubmissionWriter:
             raise OutputExistsError(f"{self.root} already exists; choose a new folder for the predictions")
         if task not in _SUFFIXES:
             raise ValueError(f"task must be one of {sorted(_SUFFIXES)}, got {task!r}")
-        if depth_format not in ("png", "npy"):
-            raise ValueError(f"depth_format must be 'png' or 'npy', got {depth_format!r}")
+        if depth_format not in DEPTH_FORMATS:
+            raise ValueError(f"depth_format must be one of {DEPTH_FORMATS}, got {depth_format!r}")
         self.task = task
         self.suffix = ".png" if task == "seg" else f".{depth_format}"
         self._tmp: Path | None = None
