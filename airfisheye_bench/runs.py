@@ -1,22 +1,29 @@
-"""Run directories: unique names, and resuming one with the configuration it was started with.
+"""Run directories: unique names, resuming one with the configuration it was started with, and finding its checkpoint.
 
-A run directory holds ``config.yaml`` (the resolved configuration), ``checkpoints/last.ckpt`` and ``metrics.csv``.
-Resuming it (``ckpt_path=last hydra.run.dir=<run>``) re-uses that configuration; a resume whose configuration
-differs is refused with the differing keys unless ``resume_overrides_ok=true``. Kept light (no torch import): the
-entry points register :func:`register_resolvers` before Hydra composes.
+A run directory (``logs/<task>/runs/<time>_<suffix>``) holds ``config.yaml`` (the resolved configuration),
+``checkpoints/`` (``last.ckpt`` and the best ones), ``metrics.csv`` and, after testing, ``results.json`` naming the
+best checkpoint. Resuming it (``ckpt_path=last hydra.run.dir=<run>``) re-uses that configuration; a resume whose
+configuration differs is refused with the differing keys unless ``resume_overrides_ok=true``. Evaluation and export
+accept the directory or a ``.ckpt`` file (:func:`resolve_checkpoint`); the run's data configuration travels with it
+(:func:`run_config`). Kept light (no torch import at module level): the entry points register
+:func:`register_resolvers` before Hydra composes.
 """
 
 from __future__ import annotations
 
 import functools
+import json
 import logging
 import os
+import pickle
 import secrets
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
+
+from airfisheye_bench.errors import InputFileError, MissingFileError
 
 log = logging.getLogger(__name__)
 
@@ -208,3 +215,70 @@ def keep_metric_rows(path: Path, rows: int) -> None:
 
 def _plain(config: DictConfig | dict) -> Any:
     return OmegaConf.to_container(config, resolve=True) if isinstance(config, DictConfig) else config
+
+
+def resolve_checkpoint(path: str | Path) -> Path:
+    """The checkpoint file for ``path``: the file itself, or a run directory's best (else last) checkpoint.
+
+    Raises:
+        FileNotFoundError: no such file or directory, or a run directory without checkpoints.
+    """
+    path = Path(path).expanduser()
+    if path.is_file():
+        return path
+    if not path.is_dir():
+        raise MissingFileError(f"checkpoint {path} does not exist (give a .ckpt file or a run directory)")
+    results = path / "results.json"
+    if results.is_file():
+        try:
+            best = json.loads(results.read_text()).get("model", {}).get("checkpoint")
+        except (OSError, json.JSONDecodeError, AttributeError):
+            best = None
+        if best and Path(best).is_file():
+            return Path(best)
+    folder = path / "checkpoints"
+    candidates = sorted(p for p in folder.glob("*.ckpt") if p.name != "last.ckpt")
+    if (folder / "last.ckpt").is_file() and not candidates:
+        return folder / "last.ckpt"
+    if len(candidates) == 1:
+        return candidates[0]
+    if candidates:
+        # Several monitored checkpoints and no results.json to say which is best: the newest is the safe guess.
+        return max(candidates, key=lambda p: p.stat().st_mtime)
+    raise MissingFileError(f"run directory {path} has no checkpoints/*.ckpt")
+
+
+def run_config(checkpoint: str | Path) -> DictConfig | None:
+    """The resolved ``config.yaml`` of the run that wrote ``checkpoint`` (``<run>/checkpoints/x.ckpt``), if any."""
+    checkpoint = Path(checkpoint)
+    for folder in (checkpoint.parent, checkpoint.parent.parent):
+        candidate = folder / "config.yaml"
+        if candidate.is_file():
+            return OmegaConf.load(candidate)
+    return None
+
+
+def read_checkpoint(path: str | Path, mmap: bool = False) -> dict[str, Any]:
+    """The contents of a checkpoint file, read with ``weights_only=True`` (tensors and plain containers only).
+
+    Raises:
+        InputFileError: the file is not a readable checkpoint (the message names it).
+    """
+    import torch  # on use: every entry point imports this module before Hydra composes, and it stays light
+
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True, mmap=mmap)
+    except pickle.UnpicklingError as err:
+        # PyTorch's message advises weights_only=False, which would run any code the file holds: not repeated here.
+        raise InputFileError(
+            f"{path}: not a readable checkpoint (it holds something other than tensors and plain containers: "
+            "corrupt, or not written by train.py); give a .ckpt file of a run"
+        ) from err
+    except (RuntimeError, EOFError, OSError, ValueError) as err:
+        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise InputFileError(
+            f"{path}: not a readable checkpoint ({reason}); give a .ckpt file of a run"
+        ) from err
+    if not isinstance(state, dict):
+        raise InputFileError(f"{path}: not a checkpoint (it holds a {type(state).__name__}, not a dict)")
+    return state

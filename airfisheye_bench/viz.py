@@ -8,6 +8,7 @@ import numpy as np
 import torch
 from PIL import Image
 
+from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.io import atomic_write_bytes
 
 # Anchor colours of a perceptually ordered map (near = yellow, far = dark purple), interpolated to 256 entries.
@@ -123,8 +124,6 @@ def panel_row(
         Tiles ``uint8 [H, W, 3]``. The error tile is red where a label is wrong (seg), or the absolute depth error
         with red at 10 m or more; pixels without ground truth are dark grey.
     """
-    from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
-
     image = denormalize(batch["image"][index], IMAGENET_MEAN, IMAGENET_STD)
     valid = batch["valid_mask"][index].bool().cpu()
     if task == "seg":

@@ -16,11 +16,12 @@ import torch
 from lightning.pytorch.trainer.states import TrainerFn
 from torch.utils.data import DataLoader
 
+from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
 from datamodules.augment import FisheyeAugment
-from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD, AirFisheyeDataset, CameraConfig, collate
+from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 from datamodules.sampling import (
     EpochSeededSampler,
     EvaluationLoader,

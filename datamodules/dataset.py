@@ -30,6 +30,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import Dataset
 
+from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
@@ -41,8 +42,6 @@ log = logging.getLogger(__name__)
 
 TASKS = ("seg", "depth", "completion")
 SOURCES = IMAGE_SOURCES
-IMAGENET_MEAN = (0.485, 0.456, 0.406)
-IMAGENET_STD = (0.229, 0.224, 0.225)
 
 
 @dataclass(frozen=True)
@@ -354,4 +353,4 @@ def collate(samples: list[dict | None]) -> dict:
     return batch
 
 
-__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "AirFisheyeDataset", "CameraConfig", "collate"]
+__all__ = ["AirFisheyeDataset", "CameraConfig", "collate"]

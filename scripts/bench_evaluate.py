@@ -46,9 +46,9 @@ from torch.utils.data import Dataset
 
 from airfisheye_bench.evaluation.evaluator import evaluate_predictions
 from airfisheye_bench.evaluation.predictors import FilePredictor
-from airfisheye_bench.evaluation.scorer import TaskScorer, task_metric
 from airfisheye_bench.evaluation.submission import SubmissionWriter, read_prediction
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
+from airfisheye_bench.metrics.scorer import TaskScorer, task_metric
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 
 ROOT = Path(__file__).resolve().parents[1]

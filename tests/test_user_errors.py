@@ -372,7 +372,9 @@ def test_schema_table(config: str, overrides: list[str], expected: str) -> None:
     assert expected in str(caught.value)
 
 
-@pytest.mark.parametrize("module", ["airfisheye_bench.errors", "airfisheye_bench.config_checks"])
+@pytest.mark.parametrize(
+    "module", ["airfisheye_bench.errors", "airfisheye_bench.constants", "airfisheye_bench.config_checks"]
+)
 def test_docstring_examples(module: str) -> None:
     assert_doctests_pass(module)
 
@@ -473,7 +475,7 @@ def test_corrupt_dataset_rows(row: str, tiny_dataset: Path, tmp_path: Path) -> N
 def test_pickle_free_checkpoint_message_is_ours(tmp_path: Path) -> None:
     """The in-process reader gives the same message the commands print (no advice to unpickle anything)."""
     from airfisheye_bench.errors import InputFileError
-    from airfisheye_bench.tasks.checkpoint import read_checkpoint
+    from airfisheye_bench.runs import read_checkpoint
 
     path = tmp_path / "evil.ckpt"
     path.write_bytes(pickle.dumps(ConfigError("an arbitrary object"), protocol=2))

@@ -1,4 +1,4 @@
-"""Evaluation: scoring (shared with training), prediction sources, submissions, ``results.json`` and the leaderboard.
+"""Evaluation: prediction sources, submissions, ``results.json`` and the leaderboard.
 
 The evaluation command itself is :func:`airfisheye_bench.evaluation.command.evaluate` (``scripts/evaluate.py``).
 """
@@ -21,7 +21,6 @@ from airfisheye_bench.evaluation.results import (
     load_results,
     write_results,
 )
-from airfisheye_bench.evaluation.scorer import TaskScorer, task_metric
 from airfisheye_bench.evaluation.submission import (
     SubmissionError,
     SubmissionWriter,
@@ -40,7 +39,6 @@ __all__ = [
     "LeaderboardError",
     "SubmissionError",
     "SubmissionWriter",
-    "TaskScorer",
     "build_leaderboard",
     "collect_results",
     "dataset_identity",
@@ -49,7 +47,6 @@ __all__ = [
     "load_entry",
     "load_results",
     "read_prediction",
-    "task_metric",
     "validate_submission",
     "write_prediction",
     "write_results",

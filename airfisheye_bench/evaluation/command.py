@@ -37,9 +37,9 @@ from airfisheye_bench.evaluation.predictors import (
     Predictor,
 )
 from airfisheye_bench.evaluation.results import PRIMARY_METRIC, dataset_identity, write_results
-from airfisheye_bench.evaluation.scorer import TaskScorer, task_metric
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
+from airfisheye_bench.metrics.scorer import TaskScorer, task_metric
 from airfisheye_bench.viz import make_panel, save_png
 
 log = logging.getLogger(__name__)
@@ -83,7 +83,8 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     module, checkpoint, source_data = None, None, None
     task = cfg.task.name if cfg.get("task") else None
     if source == "ckpt_path":
-        from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint, run_config
+        from airfisheye_bench.runs import resolve_checkpoint, run_config
+        from airfisheye_bench.tasks.checkpoint import load_task
 
         checkpoint = resolve_checkpoint(cfg.ckpt_path)
         module = load_task(checkpoint)
@@ -91,7 +92,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
         source_data = run.data if run is not None else None
         task = _agree(task, module.task, f"checkpoint {checkpoint}")
     elif source == "onnx_path":
-        from airfisheye_bench.export.metadata import read_deployment_metadata
+        from airfisheye_bench.io.deployment import read_deployment_metadata
 
         metadata = read_deployment_metadata(cfg.onnx_path)
         source_data = OmegaConf.create(metadata["data_config"]) if metadata.get("data_config") else None

@@ -2,7 +2,7 @@
 
 The ground truth is served by the same :class:`~datamodules.AirFisheyeDataset` as in training (the split's
 evaluation form: no augmentation), the predictions come from a :mod:`~airfisheye_bench.evaluation.predictors`
-object, and a :class:`~airfisheye_bench.evaluation.scorer.TaskScorer` accumulates the metrics and their breakdown.
+object, and a :class:`~airfisheye_bench.metrics.scorer.TaskScorer` accumulates the metrics and their breakdown.
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from torchmetrics import Metric
 from torchmetrics.utilities.data import dim_zero_sum
 
 from airfisheye_bench.evaluation.predictors import FilePredictor, Predictor
-from airfisheye_bench.evaluation.scorer import TaskScorer
 from airfisheye_bench.metrics._state import record_update
+from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.viz import panel_row
 
 __all__ = ["EvaluationResult", "evaluate_predictions", "format_results_table"]

@@ -152,7 +152,7 @@ class OnnxPredictor:
     ) -> None:
         import onnxruntime as ort
 
-        from airfisheye_bench.export.metadata import read_deployment_metadata
+        from airfisheye_bench.io.deployment import read_deployment_metadata
 
         self.path = Path(path)
         self.tta = check_tta(tta)

@@ -4,8 +4,7 @@ from airfisheye_bench.export.onnx import (
     OnnxParityError,
     ParityReport,
     export_onnx,
-    read_onnx_metadata,
     verify_onnx,
 )
 
-__all__ = ["OnnxParityError", "ParityReport", "export_onnx", "read_onnx_metadata", "verify_onnx"]
+__all__ = ["OnnxParityError", "ParityReport", "export_onnx", "verify_onnx"]

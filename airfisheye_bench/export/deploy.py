@@ -6,7 +6,7 @@
 1. rebuild the task from the checkpoint (:func:`~airfisheye_bench.tasks.checkpoint.load_task`) and its data
    module from the run's ``config.yaml`` (``data.*`` overrides applied, e.g. another lens or size);
 2. export the zoo model (:func:`~airfisheye_bench.export.onnx.export_onnx`): one file, dynamic batch, fixed or
-   dynamic spatial size, named inputs/output, the metadata of :mod:`airfisheye_bench.export.metadata`;
+   dynamic spatial size, named inputs/output, the metadata of :mod:`airfisheye_bench.io.deployment`;
 3. check ONNX Runtime (CPU) against PyTorch on real validation frames (no augmentation): segmentation logits
    within 1e-4 absolute, depth within 1e-3 relative (+ 1e-4 m). The file is written under a temporary name and
    only renamed to ``out`` once it passes, so a failed export never leaves a bad model behind;
@@ -40,10 +40,10 @@ from torch import Tensor
 
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import debug_requested, report_user_errors
-from airfisheye_bench.export.metadata import TASK_INPUTS, TASK_OUTPUT, deployment_metadata
 from airfisheye_bench.export.onnx import OnnxParityError, ParityReport, _median_ms, export_onnx, verify_onnx
 from airfisheye_bench.io import file_sha256
 from airfisheye_bench.io.atomic import check_writable
+from airfisheye_bench.io.deployment import TASK_INPUTS, TASK_OUTPUT, deployment_metadata
 
 __all__ = [
     "QUANTIZE_MODES",
@@ -140,7 +140,7 @@ class DeploymentReport:
         task: ``seg``, ``depth`` or ``completion``.
         model: registry name of the model.
         checkpoint: the source checkpoint file.
-        metadata: the ``metadata_props`` written (see :mod:`airfisheye_bench.export.metadata`).
+        metadata: the ``metadata_props`` written (see :mod:`airfisheye_bench.io.deployment`).
         parity: ONNX Runtime vs PyTorch on ``parity_frames`` validation frames (one batch).
         parity_frames: validation frames in the parity batch.
         atol: absolute tolerance of the parity check.
@@ -228,7 +228,8 @@ def export_deployment(
     """
     _check_arguments(batch, parity_samples, quantize, calib_samples, eval_samples, repeats)
     out = check_writable(out, "out")  # before the minutes of loading, exporting and verifying
-    from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint
+    from airfisheye_bench.runs import resolve_checkpoint
+    from airfisheye_bench.tasks.checkpoint import load_task
 
     checkpoint = resolve_checkpoint(ckpt_path)
     task = load_task(checkpoint)
@@ -388,7 +389,7 @@ def _check_arguments(
 # ---------------------------------------------------------------------------------------- run and data
 def _run_data(checkpoint: Path) -> DictConfig:
     """The ``data`` section of the run that wrote ``checkpoint``."""
-    from airfisheye_bench.tasks.checkpoint import run_config
+    from airfisheye_bench.runs import run_config
 
     cfg = run_config(checkpoint)
     if cfg is None or "data" not in cfg:
@@ -628,7 +629,7 @@ def _copy_metadata(source: Path, target: Path) -> None:
     """The quantisers drop ``metadata_props``; the int8 model carries the same deployment metadata."""
     import onnx
 
-    from airfisheye_bench.export.onnx import read_onnx_metadata
+    from airfisheye_bench.io.deployment import read_onnx_metadata
 
     model = onnx.load(str(target))
     del model.metadata_props[:]

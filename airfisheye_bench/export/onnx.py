@@ -33,7 +33,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-__all__ = ["OnnxParityError", "ParityReport", "export_onnx", "read_onnx_metadata", "verify_onnx"]
+__all__ = ["OnnxParityError", "ParityReport", "export_onnx", "verify_onnx"]
 
 
 class OnnxParityError(AssertionError):
@@ -105,6 +105,7 @@ def export_onnx(
         >>> net = torch.nn.Conv2d(3, 2, 1)
         >>> path = export_onnx(net, {"input": torch.randn(2, 3, 8, 8)}, tempfile.mkdtemp() + "/conv.onnx",
         ...                    output_name="logits", metadata={"task": "seg"})
+        >>> from airfisheye_bench.io.deployment import read_onnx_metadata
         >>> read_onnx_metadata(path)["task"]
         'seg'
     """
@@ -262,22 +263,6 @@ def verify_onnx(
             f"(allowed |diff| <= {atol:g} + {rtol:g} * |torch|), shape {report.output_shape}"
         )
     return report
-
-
-def read_onnx_metadata(path: str | os.PathLike) -> dict[str, str]:
-    """The ``metadata_props`` of an ONNX file as a dict (weights are not loaded).
-
-    Example:
-        >>> import tempfile, torch
-        >>> p = export_onnx(torch.nn.ReLU(), {"input": torch.zeros(2, 1)}, tempfile.mkdtemp() + "/i.onnx",
-        ...                 output_name="depth", metadata={"max_depth": "120"})
-        >>> read_onnx_metadata(p)
-        {'max_depth': '120'}
-    """
-    import onnx
-
-    model = onnx.load(str(path), load_external_data=False)
-    return {prop.key: prop.value for prop in model.metadata_props}
 
 
 def _check_inputs(inputs: Mapping[str, Tensor], arg: str) -> None:

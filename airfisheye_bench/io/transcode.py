@@ -48,6 +48,7 @@ from airfisheye_bench.io import codecs
 from airfisheye_bench.io.atomic import TEMP_GLOB
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import MANIFEST_NAME
+from airfisheye_bench.io.manifest import create_manifest
 from airfisheye_bench.io.reader import DatasetReader
 from airfisheye_bench.io.spec import DATASET_YAML, DEPTH_ENCODINGS, RGB_ENCODINGS, FileEncodings
 
@@ -193,9 +194,6 @@ def transcode_dataset(
         description = f"{spec.description} {note}" if spec.description else note
         spec.with_updates(files=new, description=description).save(tmp / DATASET_YAML)
         if (src / MANIFEST_NAME).is_file():
-            # Imported here: io does not import synth when it is loaded.
-            from airfisheye_bench.synth.manifest import create_manifest
-
             create_manifest(tmp)
         if os.path.lexists(dst):
             raise OutputExistsError(f"dst {str(dst)!r} appeared while transcoding; the result was discarded")

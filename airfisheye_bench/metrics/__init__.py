@@ -1,5 +1,6 @@
 """Benchmark metrics: segmentation (pooled mIoU), monocular depth (Eigen), depth completion (NLSPN), and a
-fisheye breakdown by incidence-angle ring or depth range.
+fisheye breakdown by incidence-angle ring or depth range; :class:`TaskScorer` updates a task's metric and its
+breakdown together (training and evaluation score through it).
 
 Every class is a :class:`torchmetrics.Metric` with sum-reduced states, so a DDP run gives the same numbers
 as one process. The maths lives in :mod:`airfisheye_bench.metrics.functional`.
@@ -24,6 +25,7 @@ from airfisheye_bench.metrics.functional import (
     mean_iou_from_confusion,
     pixel_accuracy_from_confusion,
 )
+from airfisheye_bench.metrics.scorer import TaskScorer, task_metric
 from airfisheye_bench.metrics.segmentation import SegmentationMetrics
 
 __all__ = [
@@ -35,6 +37,7 @@ __all__ = [
     "CompletionMetrics",
     "DepthMetrics",
     "SegmentationMetrics",
+    "TaskScorer",
     "bin_index",
     "completion_errors",
     "confusion_matrix",
@@ -43,4 +46,5 @@ __all__ = [
     "iou_from_confusion",
     "mean_iou_from_confusion",
     "pixel_accuracy_from_confusion",
+    "task_metric",
 ]

@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _dispatch(command: str, args: dict[str, object]) -> int:
-    from airfisheye_bench.synth.manifest import verify
+    from airfisheye_bench.io.manifest import verify
 
     if command == "presets":
         for name, cfg in PRESETS.items():

@@ -13,7 +13,7 @@ each point's beam and each frame's scan phase), then writes the split files,
   line per finished unit (a trajectory's metadata or one frame) to a journal; an interrupted run started again
   with the same arguments skips the journaled units, redoes the rest and ends byte-identical to an
   uninterrupted run. The journal and state file are removed at the end.
-* **Verifiable.** ``manifest.json`` lists every file's SHA-256; :func:`~airfisheye_bench.synth.manifest.verify`
+* **Verifiable.** ``manifest.json`` lists every file's SHA-256; :func:`~airfisheye_bench.io.manifest.verify`
   checks a dataset against it.
 
 :func:`ensure_dataset` returns a cached preset (generating it on first use, safely against concurrent processes).
@@ -42,11 +42,11 @@ from airfisheye_bench.io import codecs
 from airfisheye_bench.io.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.io.calib import Calibration
 from airfisheye_bench.io.layout import DatasetLayout
+from airfisheye_bench.io.manifest import FileEntry, sha256_bytes, sha256_file, write_manifest
 from airfisheye_bench.io.poses import ImuTable, PoseTable
 from airfisheye_bench.io.spec import DATASET_YAML, DatasetSpec, FileEncodings, SplitsSpec, classes_from
 from airfisheye_bench.io.splits import write_split
 from airfisheye_bench.synth.classes import IGNORE_ID, RAW_CLASSES, RAW_TO_TRAIN, TRAIN_CLASSES
-from airfisheye_bench.synth.manifest import FileEntry, sha256_bytes, sha256_file, write_manifest
 from airfisheye_bench.synth.presets import (
     GENERATOR_VERSION,
     SPLIT_NAMES,
@@ -441,7 +441,7 @@ def generate_dataset(
 
     Example:
         >>> root = generate_dataset("tiny", "/tmp/airfisheye-tiny", workers=2)     # doctest: +SKIP
-        >>> from airfisheye_bench.synth.manifest import verify; verify(root).ok   # doctest: +SKIP
+        >>> from airfisheye_bench.io.manifest import verify; verify(root).ok   # doctest: +SKIP
         True
     """
     if isinstance(config, str):

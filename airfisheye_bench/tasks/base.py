@@ -21,8 +21,8 @@ import torch
 from torch import Tensor, nn
 from torchmetrics import MeanMetric, Metric
 
-from airfisheye_bench.evaluation.scorer import TaskScorer
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG
+from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.viz import make_panel, save_png
 from models import create_model, model_task
 

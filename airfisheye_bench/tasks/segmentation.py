@@ -7,8 +7,8 @@ from typing import Any
 import numpy as np
 from torch import Tensor
 
-from airfisheye_bench.evaluation.scorer import task_metric
 from airfisheye_bench.metrics import SegmentationMetrics
+from airfisheye_bench.metrics.scorer import task_metric
 from airfisheye_bench.tasks.base import BenchmarkTask
 from airfisheye_bench.viz import panel_row
 from models.losses import SegmentationCELoss

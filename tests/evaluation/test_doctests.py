@@ -10,7 +10,6 @@ from tests.doctests import assert_doctests_pass
 
 MODULES = [
     "airfisheye_bench.evaluation.predictors",
-    "airfisheye_bench.evaluation.scorer",
     "airfisheye_bench.evaluation.submission",
     "airfisheye_bench.tasks.checkpoint",
     "datamodules.sampling",

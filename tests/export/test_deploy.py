@@ -19,20 +19,22 @@ import torch
 from omegaconf import OmegaConf, open_dict
 
 import airfisheye_bench.export.deploy as deploy
-import airfisheye_bench.export.metadata as metadata_module
+import airfisheye_bench.io.deployment as deployment_module
+from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import OutputError
-from airfisheye_bench.export import read_onnx_metadata, verify_onnx
-from airfisheye_bench.export.metadata import (
+from airfisheye_bench.export import verify_onnx
+from airfisheye_bench.io.deployment import (
     KEY_WEIGHTS,
     TASK_KEYS,
     deployment_metadata,
     parse_deployment_metadata,
     read_deployment_metadata,
+    read_onnx_metadata,
 )
-from airfisheye_bench.tasks.checkpoint import load_task, resolve_checkpoint
+from airfisheye_bench.runs import resolve_checkpoint
+from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.training import build, train
 from datamodules.config import apply_data_overrides, instantiate_datamodule
-from datamodules.dataset import IMAGENET_MEAN, IMAGENET_STD
 from tests.doctests import assert_doctests_pass
 from tests.training.test_configs import compose_train
 from tests.training.test_train import tiny_run_overrides
@@ -374,7 +376,7 @@ def test_read_names_the_file(tmp_path: Path) -> None:
 
 
 def test_docstring_examples() -> None:
-    for module in (metadata_module, deploy):
+    for module in (deployment_module, deploy):
         assert_doctests_pass(module)
 
 

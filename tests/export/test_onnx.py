@@ -9,7 +9,8 @@ import torch
 from torch import nn
 
 import airfisheye_bench.export.onnx as onnx_module
-from airfisheye_bench.export import OnnxParityError, export_onnx, read_onnx_metadata, verify_onnx
+from airfisheye_bench.export import OnnxParityError, export_onnx, verify_onnx
+from airfisheye_bench.io.deployment import read_onnx_metadata
 
 
 class TwoInputNet(nn.Module):

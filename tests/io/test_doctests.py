@@ -13,6 +13,7 @@ MODULES = [
     "codecs",
     "errors",
     "layout",
+    "manifest",
     "poses",
     "reader",
     "spec",

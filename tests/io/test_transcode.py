@@ -14,9 +14,9 @@ from PIL import Image
 from airfisheye_bench.io import DatasetFormatError, DatasetReader, DatasetSpec, FileEncodings
 from airfisheye_bench.io import transcode as transcode_module
 from airfisheye_bench.io.inspect import inspect_dataset
+from airfisheye_bench.io.manifest import read_manifest, verify
 from airfisheye_bench.io.spec import FACE_NAMES
 from airfisheye_bench.io.transcode import TranscodeReport, main, transcode_dataset
-from airfisheye_bench.synth.manifest import read_manifest, verify
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 
 

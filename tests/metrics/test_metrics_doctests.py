@@ -12,6 +12,7 @@ MODULES = [
     "airfisheye_bench.metrics.depth",
     "airfisheye_bench.metrics.completion",
     "airfisheye_bench.metrics.binned",
+    "airfisheye_bench.metrics.scorer",
 ]
 
 

@@ -25,7 +25,8 @@ import torch
 from torch import Tensor, nn
 
 import models
-from airfisheye_bench.export import export_onnx, read_onnx_metadata, verify_onnx
+from airfisheye_bench.export import export_onnx, verify_onnx
+from airfisheye_bench.io.deployment import read_onnx_metadata
 
 _PRIMARY_KEY = {"seg": "logits", "depth": "depth", "completion": "depth"}
 

@@ -90,6 +90,7 @@ __all__ = [
     "deployment_metadata",
     "parse_deployment_metadata",
     "read_deployment_metadata",
+    "read_onnx_metadata",
 ]
 
 PREFIX = "airfisheye."
@@ -315,6 +316,24 @@ def parse_deployment_metadata(props: Mapping[str, str]) -> dict[str, Any]:
     return decoded
 
 
+def read_onnx_metadata(path: str | os.PathLike) -> dict[str, str]:
+    """The ``metadata_props`` of an ONNX file as a dict (weights are not loaded).
+
+    Example:
+        >>> import onnx, tempfile
+        >>> model = onnx.helper.make_model(onnx.helper.make_graph([], "empty", [], []))
+        >>> onnx.helper.set_model_props(model, {"max_depth": "120"})
+        >>> path = tempfile.mkdtemp() + "/empty.onnx"
+        >>> onnx.save(model, path)
+        >>> read_onnx_metadata(path)
+        {'max_depth': '120'}
+    """
+    import onnx  # on use: reading metadata is rare, and onnx (protobuf) is slow to import
+
+    model = onnx.load(str(path), load_external_data=False)
+    return {prop.key: prop.value for prop in model.metadata_props}
+
+
 def read_deployment_metadata(path: str | os.PathLike) -> dict[str, Any]:
     """:func:`parse_deployment_metadata` of an ``.onnx`` file (the weights are not loaded).
 
@@ -322,8 +341,6 @@ def read_deployment_metadata(path: str | os.PathLike) -> dict[str, Any]:
         FileNotFoundError: ``path`` does not exist.
         ValueError: see :func:`parse_deployment_metadata` (the message names the file).
     """
-    from airfisheye_bench.export.onnx import read_onnx_metadata
-
     if not os.path.isfile(path):
         raise MissingFileError(f"ONNX model {path} does not exist")
     try:

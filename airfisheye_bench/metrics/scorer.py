@@ -13,14 +13,10 @@ from collections.abc import Callable, Sequence
 from torch import Tensor, nn
 from torchmetrics import Metric
 
-from airfisheye_bench.metrics import (
-    DEFAULT_DEPTH_EDGES_M,
-    DEFAULT_RING_EDGES_DEG,
-    BinnedMetrics,
-    CompletionMetrics,
-    DepthMetrics,
-    SegmentationMetrics,
-)
+from airfisheye_bench.metrics.binned import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, BinnedMetrics
+from airfisheye_bench.metrics.completion import CompletionMetrics
+from airfisheye_bench.metrics.depth import DepthMetrics
+from airfisheye_bench.metrics.segmentation import SegmentationMetrics
 
 __all__ = ["TaskScorer", "task_metric"]
 
