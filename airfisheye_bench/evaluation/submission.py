@@ -41,7 +41,10 @@ __all__ = [
 DEPTH_PNG_SCALE = 256.0
 #: Encodings of a depth or completion prediction: 16-bit PNG of ``round(range * 256)`` or float ``.npy``.
 DEPTH_FORMATS = ("png", "npy")
-_SUFFIXES = {"seg": (".png",), **{task: tuple(f".{f}" for f in DEPTH_FORMATS) for task in ("depth", "completion")}}
+_SUFFIXES = {
+    "seg": (".png",),
+    **{task: tuple(f".{f}" for f in DEPTH_FORMATS) for task in ("depth", "completion")},
+}
 _NPY_DTYPES = (np.dtype("<f4"), np.dtype("<f2"))
 _MAX_LISTED = 20
 
