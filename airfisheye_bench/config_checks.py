@@ -207,7 +207,10 @@ RULES: dict[str, ValueRule] = {
     "compile": ValueRule("bool"),
     "resume_overrides_ok": ValueRule("bool"),
     "ckpt_path": ValueRule(
-        "path", nullable=True, keywords=("last",), hint="a checkpoint, a run directory, or last (train)"
+        "path",
+        nullable=True,
+        keywords=("last",),
+        hint="a checkpoint or a run directory; train also takes last",
     ),
     "onnx_path": ValueRule("file", nullable=True, hint="a model written by scripts/export_onnx.py"),
     "predictions": ValueRule("folder", nullable=True, hint="a folder of prediction files"),
