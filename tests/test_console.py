@@ -20,6 +20,7 @@ def test_fresh_train_and_evaluate_print_each_message_once(tiny_dataset: Path, tm
     assert train.returncode == 0, output[-3000:]
     assert not WARNING_LINE.findall(output), output
     assert "INFO: " not in output  # Lightning's own console handler: its messages came twice
+    assert "litlogger" not in output  # Lightning's advertisement of its cloud logger
     logged = LOG_LINE.findall((run / "train.log").read_text())
     assert any("Seed set to" in m for m in logged)  # Lightning's messages reach the log file too
     for message in logged:
