@@ -153,6 +153,11 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             [*train, f"data.root={tmp}/nowhere", f"hydra.run.dir={tmp}/r12"],
             (f"data.root='{tmp}/nowhere'", "no such folder"),
         ),
+        "preset": (
+            TRAIN,
+            [*fresh, "data.preset=tiniest", f"hydra.run.dir={tmp}/r15"],
+            ("data.preset='tiniest'", "tiny, quickstart"),
+        ),
         "root_unset": (
             TRAIN,
             [*fresh, "data.preset=null", f"hydra.run.dir={tmp}/r13"],
@@ -236,6 +241,7 @@ FAIL_FAST = (
     "precision",
     "accelerator",
     "encoder_weights",
+    "preset",
     "root_unset",
 )
 """Rows on the synthetic preset with an empty cache, refused before the dataset is generated."""
@@ -264,6 +270,7 @@ SLOW_ROWS = (
     "precision",
     "accelerator",
     "encoder_weights",
+    "preset",
     "root_unset",
     "ckpt_missing",
     "tta",
@@ -352,6 +359,17 @@ SCHEMA_TABLE = [
 
 
 # ---------------------------------------------------------------------------------- the schema and the wrapper
+def test_unknown_preset_is_refused_before_generation(tmp_path: Path) -> None:
+    """The preset names live in the generator (above the schema): the datamodule checks them when built."""
+    from airfisheye_bench.synth.presets import PRESETS
+    from datamodules import AirFisheyeDataModule
+
+    with pytest.raises(ConfigError, match=r"data\.preset='tiniest': expected one of") as caught:
+        AirFisheyeDataModule("seg", preset="tiniest", cache_dir=tmp_path)
+    assert all(name in str(caught.value) for name in PRESETS)
+    assert not any(tmp_path.iterdir())
+
+
 def _compose(config: str, overrides: list[str]) -> DictConfig:
     with initialize_config_dir(config_dir=str(ROOT / "configs"), version_base="1.3"):
         return compose(config_name=config, overrides=overrides)
