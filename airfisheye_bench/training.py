@@ -40,6 +40,39 @@ log = logging.getLogger(__name__)
 warnings.filterwarnings(
     "ignore", message="You're resuming from a checkpoint that ended before the epoch ended"
 )
+# Lightning's own code builds a torch pytree LeafSpec, which this torch deprecates: nothing a user can change.
+warnings.filterwarnings(
+    "ignore", message=r"`isinstance\(treespec, LeafSpec\)` is deprecated", category=FutureWarning
+)
+
+
+class _NoAdvert(logging.Filter):
+    """Drops Lightning's "💡 Tip:" advertisement of its cloud logger, printed at the start of every run."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not str(record.msg).startswith("💡 Tip:")
+
+
+_NO_ADVERT = _NoAdvert()
+
+
+def log_lightning_once() -> None:
+    """Let Lightning's messages reach the console once, through the command's logging (Hydra's handlers).
+
+    Importing ``lightning`` gives the ``lightning`` logger a console handler of its own (``INFO: <message>``); the
+    messages also propagate to the root logger, where Hydra prints them and writes them to ``train.log``, so each
+    was printed twice. With logging set up (root has handlers) that handler is removed; otherwise (a library
+    caller) Lightning keeps its own console output.
+    """
+    logging.getLogger("lightning.pytorch.utilities.rank_zero").addFilter(_NO_ADVERT)
+    if not logging.getLogger().handlers:
+        return
+    for name in ("lightning", "lightning.pytorch", "lightning.fabric"):
+        logger = logging.getLogger(name)
+        for handler in list(logger.handlers):
+            if type(handler) is logging.StreamHandler:  # Lightning's console handler, not a file or capture
+                logger.removeHandler(handler)
+                logger.propagate = True  # lightning.pytorch and .fabric stop propagating when they add one
 
 
 def check_config(cfg: DictConfig) -> None:
@@ -48,7 +81,7 @@ def check_config(cfg: DictConfig) -> None:
     Raises:
         ConfigError: the key, the value given and what to write instead (a ``ValueError``).
     """
-    check_common_values(cfg)
+    check_common_values(cfg)  # types, ranges, choices (model.name among them), files
     task = cfg.task.name
     try:
         spec = get_task(task)
@@ -206,6 +239,7 @@ def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule
 def train(cfg: DictConfig) -> dict[str, Any]:
     """Train, validate and test as configured; returns the test metrics (empty when ``test=false``)."""
     check_config(cfg)
+    log_lightning_once()
     L.seed_everything(cfg.seed, workers=True)
     output_dir = Path(cfg.paths.output_dir)
     ckpt_path = prepare_run_dir(cfg, output_dir)

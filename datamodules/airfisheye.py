@@ -20,6 +20,7 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
+from airfisheye_bench.synth.presets import PRESETS
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 from datamodules.sampling import (
@@ -98,6 +99,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
         if root is None and preset is None:
             raise ConfigError(
                 "give data.root (a dataset folder) or data.preset (a synthetic preset such as quickstart)"
+            )
+        if root is None and preset not in PRESETS:  # refused before anything is generated
+            raise ConfigError(
+                f"data.preset={preset!r}: expected one of {', '.join(PRESETS)} (or give data.root)"
             )
         if root is not None and not Path(root).is_dir():
             raise ConfigError(

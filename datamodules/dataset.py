@@ -38,6 +38,7 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
+from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
 from datamodules.sampling import SharedEpoch, draw_seed
@@ -46,7 +47,7 @@ log = logging.getLogger(__name__)
 
 #: The task-dependent keys a sample can hold, in the order they are loaded.
 SAMPLE_KEYS = ("label", "depth", "sparse_depth")
-SOURCES = ("cubemap", "fisheye")
+SOURCES = IMAGE_SOURCES
 
 
 @dataclass(frozen=True)

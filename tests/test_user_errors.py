@@ -1,8 +1,10 @@
 """Bad inputs to the real commands end in one line, ``error: <message naming the key or file>``, exit status 2.
 
 Each row of the tables runs a console command as a subprocess (the way a user meets it) and checks the exit
-status, that the message names the key or file, and that no traceback is printed. The fast rows run
-concurrently in one module fixture; the rows that need a corrupted dataset load frames in a DataLoader worker
+status, that the message names the key or file, and that no traceback is printed. The rows run concurrently in
+module fixtures: a representative set in the default suite, the other schema rows ``slow`` (every kind of schema
+key is also checked in-process by ``test_schema_table``). Rows on an empty dataset cache check that the command
+stopped before generating the dataset. The rows that need a corrupted dataset load frames in a DataLoader worker
 and are ``slow``.
 """
 
@@ -21,9 +23,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from hydra import compose, initialize_config_dir
+from omegaconf import DictConfig
 from torch.utils.data import DataLoader, Dataset
 
-from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError, report_user_errors, user_message
+from airfisheye_bench.config_checks import RULES, check_common_values
+from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError, UserError, report_user_errors, user_message
 from airfisheye_bench.io.errors import DatasetFormatError
 from tests.training.test_train import tiny_run_overrides
 
@@ -64,7 +69,14 @@ def assert_one_line_error(outcome: Outcome, *names: str) -> str:
     return errors[0]
 
 
-# ------------------------------------------------------------------------------------ fast rows (no dataset)
+# ------------------------------------------------------------------- rows run as commands (no corrupt dataset)
+def test_debug_switch_shows_the_traceback(tiny_dataset: Path, tmp_path: Path) -> None:
+    args = [*tiny_run_overrides("seg", tiny_dataset), "trainer.max_epochs=abc", f"hydra.run.dir={tmp_path}"]
+    outcome = run_command(TRAIN, args, debug=True)
+    assert outcome.returncode != 0
+    assert "Traceback" in outcome.stderr and "ConfigError: trainer.max_epochs='abc'" in outcome.stderr
+
+
 def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tuple[str, ...]]]:
     """Row name -> (script, arguments, strings the message must contain)."""
     garbage = tmp / "garbage.bin"
@@ -74,6 +86,14 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
     a_file = tmp / "a_file"
     a_file.write_text("x")
     train = [*tiny_run_overrides("seg", dataset)]
+    # On the synthetic preset with an empty cache: a row refused before any work leaves the cache without a dataset.
+    fresh = [*train, "data.root=null", "data.preset=tiny", f"paths.data_dir={tmp}/cache"]
+    nan_predictions = tmp / "nan_predictions"
+    for i, sample_id in enumerate((dataset / "splits" / "test.txt").read_text().split()):
+        depth = np.full((64, 64), 10.0, np.float32)  # the served size of tiny_run_overrides
+        depth[0, : i + 1] = np.nan
+        (nan_predictions / sample_id).parent.mkdir(parents=True, exist_ok=True)
+        np.save(nan_predictions / f"{sample_id}.npy", depth)
     return {
         "max_epochs": (
             TRAIN,
@@ -87,15 +107,96 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
         ),
         "lens_model": (
             TRAIN,
-            [
-                *tiny_run_overrides("seg", dataset),
-                "data.root=null",
-                "data.preset=tiny",
-                f"paths.data_dir={tmp}/cache",
-                "data.camera.model=fisheye9000",
-                f"hydra.run.dir={tmp}/r3",
-            ],
+            [*fresh, "data.camera.model=fisheye9000", f"hydra.run.dir={tmp}/r3"],
             ("data.camera.model", "fisheye9000", "equidistant"),
+        ),
+        # The schema (airfisheye_bench.config_checks.RULES): types, ranges, choices, files.
+        "max_epochs_negative": (
+            TRAIN,
+            [*fresh, "trainer.max_epochs=-3", f"hydra.run.dir={tmp}/r4"],
+            ("trainer.max_epochs=-3", ">= -1"),
+        ),
+        "occlusion": (
+            TRAIN,
+            [*fresh, "data.occlusion=zbufer", f"hydra.run.dir={tmp}/r5"],
+            ("data.occlusion='zbufer'", "zbuffer"),
+        ),
+        "source": (
+            TRAIN,
+            [*fresh, "data.source=pinhole", f"hydra.run.dir={tmp}/r6"],
+            ("data.source='pinhole'", "cubemap, fisheye"),
+        ),
+        "hflip": (
+            TRAIN,
+            [*fresh, "data.augment.hflip=2", f"hydra.run.dir={tmp}/r7"],
+            ("data.augment.hflip=2", "[0, 1]"),
+        ),
+        "bool": (TRAIN, [*fresh, "test=maybe", f"hydra.run.dir={tmp}/r8"], ("test='maybe'", "true or false")),
+        "precision": (
+            TRAIN,
+            [*fresh, "trainer.precision=15-mixed", f"hydra.run.dir={tmp}/r9"],
+            ("trainer.precision='15-mixed'", "16-mixed"),
+        ),
+        "accelerator": (
+            TRAIN,
+            [*fresh, "trainer.accelerator=gpx", f"hydra.run.dir={tmp}/r10"],
+            ("trainer.accelerator='gpx'", "cuda"),
+        ),
+        "encoder_weights": (
+            TRAIN,
+            [*fresh, f"model.encoder_weights={tmp}/nope/resnet18.pth", f"hydra.run.dir={tmp}/r11"],
+            ("model.encoder_weights", f"{tmp}/nope/resnet18.pth"),
+        ),
+        "root_missing": (
+            TRAIN,
+            [*train, f"data.root={tmp}/nowhere", f"hydra.run.dir={tmp}/r12"],
+            (f"data.root='{tmp}/nowhere'", "no such folder"),
+        ),
+        "preset": (
+            TRAIN,
+            [*fresh, "data.preset=tiniest", f"hydra.run.dir={tmp}/r15"],
+            ("data.preset='tiniest'", "tiny, quickstart"),
+        ),
+        "root_unset": (
+            TRAIN,
+            [*fresh, "data.preset=null", f"hydra.run.dir={tmp}/r13"],
+            ("data.root", "data.preset"),
+        ),
+        "ckpt_missing": (
+            TRAIN,
+            [*train, f"ckpt_path={tmp}/nope.ckpt", f"hydra.run.dir={tmp}/r14"],
+            (f"ckpt_path='{tmp}/nope.ckpt'", "no such file"),
+        ),
+        "encoding": (
+            EVALUATE,
+            [f"ckpt_path={garbage}", "prediction_format=tiff", f"hydra.run.dir={tmp}/e3"],
+            ("prediction_format='tiff'", "png, npy"),
+        ),
+        "tta": (
+            EVALUATE,
+            [f"ckpt_path={garbage}", "tta=flop", f"hydra.run.dir={tmp}/e4"],
+            ("tta='flop'", "flip"),
+        ),
+        "split": (
+            EVALUATE,
+            [f"ckpt_path={garbage}", "split=train", f"hydra.run.dir={tmp}/e5"],
+            ("split='train'", "val, test"),
+        ),
+        "onnx_missing": (
+            EVALUATE,
+            [f"onnx_path={tmp}/nope.onnx", f"hydra.run.dir={tmp}/e6"],
+            (f"onnx_path='{tmp}/nope.onnx'", "no such file"),
+        ),
+        "predictions_nan": (
+            EVALUATE,
+            [
+                "task=depth",
+                f"predictions={nan_predictions}",
+                f"data.root={dataset}",
+                "data.camera.size=64",
+                f"hydra.run.dir={tmp}/e0",
+            ],
+            (str(nan_predictions),),
         ),
         "onnx_garbage": (EVALUATE, [f"onnx_path={onnx}", f"hydra.run.dir={tmp}/e1"], (str(onnx), "ONNX")),
         "ckpt_garbage": (EVALUATE, [f"ckpt_path={garbage}", f"hydra.run.dir={tmp}/e2"], (str(garbage),)),
@@ -111,55 +212,181 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
 
 
 @dataclass(frozen=True)
-class FastRows:
+class RowOutcomes:
     tmp: Path
     outcomes: dict[str, Outcome]
     names: dict[str, tuple[str, ...]]
 
 
-@pytest.fixture(scope="module")
-def fast_rows(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> FastRows:
-    """Every fast row run once, three at a time (the commands spend most of their time importing)."""
-    tmp = tmp_path_factory.mktemp("user_errors")
-    rows = _fast_rows(tmp, tiny_dataset)
+def _run_rows(tmp: Path, dataset: Path, selected: tuple[str, ...]) -> RowOutcomes:
+    """The selected rows run once each, three at a time (the commands spend most of their time importing)."""
+    rows = {name: row for name, row in _fast_rows(tmp, dataset).items() if name in selected}
     with ThreadPoolExecutor(max_workers=3) as pool:
         futures = {name: pool.submit(run_command, script, args) for name, (script, args, _) in rows.items()}
-    return FastRows(
+    return RowOutcomes(
         tmp,
         {name: future.result() for name, future in futures.items()},
         {name: names for name, (_, _, names) in rows.items()},
     )
 
 
-@pytest.mark.parametrize(
-    "row",
-    [
-        "max_epochs",
-        "camera_size",
-        "lens_model",
-        "onnx_garbage",
-        "ckpt_garbage",
-        "export_proc",
-        "export_sys",
-        "export_parent_file",
-        "export_ckpt_garbage",
-    ],
+FAIL_FAST = (
+    "lens_model",
+    "max_epochs_negative",
+    "occlusion",
+    "source",
+    "hflip",
+    "bool",
+    "precision",
+    "accelerator",
+    "encoder_weights",
+    "preset",
+    "root_unset",
 )
-def test_fast_rows(row: str, fast_rows: FastRows) -> None:
-    message = assert_one_line_error(fast_rows.outcomes[row], *fast_rows.names[row])
+"""Rows on the synthetic preset with an empty cache, refused before the dataset is generated."""
+
+DEFAULT_ROWS = (
+    "max_epochs",
+    "camera_size",
+    "lens_model",
+    "occlusion",
+    "root_missing",
+    "encoding",
+    "predictions_nan",
+    "onnx_garbage",
+    "ckpt_garbage",
+    "export_proc",
+    "export_sys",
+    "export_parent_file",
+    "export_ckpt_garbage",
+)
+"""Rows of the default suite; the other schema rows are ``slow`` (test_schema_table covers them in-process)."""
+SLOW_ROWS = (
+    "max_epochs_negative",
+    "source",
+    "hflip",
+    "bool",
+    "precision",
+    "accelerator",
+    "encoder_weights",
+    "preset",
+    "root_unset",
+    "ckpt_missing",
+    "tta",
+    "split",
+    "onnx_missing",
+)
+
+
+@pytest.fixture(scope="module")
+def fast_rows(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> RowOutcomes:
+    return _run_rows(tmp_path_factory.mktemp("user_errors"), tiny_dataset, DEFAULT_ROWS)
+
+
+@pytest.fixture(scope="module")
+def slow_rows(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> RowOutcomes:
+    return _run_rows(tmp_path_factory.mktemp("user_errors_slow"), tiny_dataset, SLOW_ROWS)
+
+
+def _check_row(row: str, rows: RowOutcomes) -> None:
+    message = assert_one_line_error(rows.outcomes[row], *rows.names[row])
     if row in ("ckpt_garbage", "export_ckpt_garbage"):
         assert "weights_only" not in message  # PyTorch's advice to unpickle anything is not repeated
-    if row == "lens_model":  # refused before the dataset was generated
-        assert not any((fast_rows.tmp / "cache").rglob("dataset.yaml"))
+    if row in FAIL_FAST:  # refused before the dataset was generated (none of them gets that far)
+        assert not any((rows.tmp / "cache").rglob("dataset.yaml"))
+    if row == "predictions_nan":  # every file is listed under the error line, with its count of NaN
+        folder = rows.tmp / "nan_predictions"
+        for path in folder.rglob("*.npy"):
+            nan = int(np.isnan(np.load(path)).sum())
+            assert f"{path.relative_to(folder)}: {nan} of " in rows.outcomes[row].stderr
     if row.startswith("export_"):
-        assert not list(fast_rows.tmp.glob("*x.onnx*"))
+        assert not list(rows.tmp.glob("*x.onnx*"))
 
 
-def test_debug_switch_shows_the_traceback(tiny_dataset: Path, tmp_path: Path) -> None:
-    args = [*tiny_run_overrides("seg", tiny_dataset), "trainer.max_epochs=abc", f"hydra.run.dir={tmp_path}"]
-    outcome = run_command(TRAIN, args, debug=True)
-    assert outcome.returncode != 0
-    assert "Traceback" in outcome.stderr and "ConfigError: trainer.max_epochs='abc'" in outcome.stderr
+@pytest.mark.parametrize("row", DEFAULT_ROWS)
+def test_fast_rows(row: str, fast_rows: RowOutcomes) -> None:
+    _check_row(row, fast_rows)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("row", SLOW_ROWS)
+def test_slow_rows(row: str, slow_rows: RowOutcomes) -> None:
+    _check_row(row, slow_rows)
+
+
+SCHEMA_TABLE = [
+    # (config, overrides, what the message must contain)
+    ("train", ["trainer.max_epochs=abc"], "trainer.max_epochs='abc': expected an integer >= -1"),
+    ("train", ["trainer.max_epochs=-3"], "trainer.max_epochs=-3: expected an integer >= -1"),
+    ("train", ["trainer.devices=0"], "trainer.devices=0: expected a device count"),
+    (
+        "train",
+        ["trainer=debug", "trainer.limit_train_batches=-1"],
+        "trainer.limit_train_batches=-1: expected a number",
+    ),
+    ("train", ["trainer.accelerator=gpx"], "trainer.accelerator='gpx': expected one of auto, gpu"),
+    ("train", ["trainer.precision=15-mixed"], "trainer.precision='15-mixed': expected one of"),
+    ("train", ["data.camera.size=abc"], "data.camera.size='abc': expected an integer >= 8"),
+    ("train", ["data.camera.fov_deg=wide"], "data.camera.fov_deg='wide': expected a number"),
+    (
+        "train",
+        ["data.camera.model=fisheye9000"],
+        "data.camera.model='fisheye9000': expected one of equidistant",
+    ),
+    ("train", ["data.occlusion=zbufer"], "data.occlusion='zbufer': expected one of ordering"),
+    ("train", ["data.source=pinhole"], "data.source='pinhole': expected one of cubemap, fisheye"),
+    ("train", ["data.augment.hflip=2"], "data.augment.hflip=2: expected a number in [0, 1]"),
+    ("train", ["data.batch_size=0"], "data.batch_size=0: expected an integer >= 1"),
+    ("train", ["data.motion_compensation=maybe"], "data.motion_compensation='maybe': expected true or false"),
+    ("train", ["data.root=/nonexistent/airfisheye"], "data.root='/nonexistent/airfisheye': no such folder"),
+    ("train", ["ckpt_path=/nonexistent.ckpt"], "ckpt_path='/nonexistent.ckpt': no such file or folder"),
+    ("train", ["model.encoder_weights=/nonexistent/r18.pth"], "model.encoder_weights='/nonexistent/r18.pth'"),
+    (
+        "train",
+        ["+model.weights_path=/nonexistent/m.pt"],
+        "model.weights_path='/nonexistent/m.pt': no such file",
+    ),
+    ("train", ["compile=1"], "compile=1: expected true or false"),
+    ("evaluate", ["prediction_format=tiff"], "prediction_format='tiff': expected one of png, npy"),
+    ("evaluate", ["tta=flop"], "tta='flop': expected one of flip"),
+    ("evaluate", ["split=train"], "split='train': expected one of val, test"),
+    ("evaluate", ["device=tpu"], "device='tpu': expected one of auto, cpu, cuda"),
+    ("evaluate", ["num_panels=-1"], "num_panels=-1: expected an integer >= 0"),
+    ("evaluate", ["onnx_path=/nonexistent.onnx"], "onnx_path='/nonexistent.onnx': no such file"),
+    ("evaluate", ["predictions=/nonexistent/preds"], "predictions='/nonexistent/preds': no such folder"),
+]
+
+
+# ---------------------------------------------------------------------------------- the schema and the wrapper
+def test_unknown_preset_is_refused_before_generation(tmp_path: Path) -> None:
+    """The preset names live in the generator (above the schema): the datamodule checks them when built."""
+    from airfisheye_bench.synth.presets import PRESETS
+    from datamodules import AirFisheyeDataModule
+
+    with pytest.raises(ConfigError, match=r"data\.preset='tiniest': expected one of") as caught:
+        AirFisheyeDataModule("seg", preset="tiniest", cache_dir=tmp_path)
+    assert all(name in str(caught.value) for name in PRESETS)
+    assert not any(tmp_path.iterdir())
+
+
+def _compose(config: str, overrides: list[str]) -> DictConfig:
+    with initialize_config_dir(config_dir=str(ROOT / "configs"), version_base="1.3"):
+        return compose(config_name=config, overrides=overrides)
+
+
+@pytest.mark.parametrize(("config", "overrides", "expected"), SCHEMA_TABLE)
+def test_schema_table(config: str, overrides: list[str], expected: str) -> None:
+    """Every kind of checked key: the message names the key, the value and what is expected (in-process)."""
+    from airfisheye_bench.evaluation.command import EVALUATE_RULES
+
+    rules = [RULES, EVALUATE_RULES] if config == "evaluate" else [RULES]
+    for table in rules:  # the defaults pass
+        check_common_values(_compose(config, []), table)
+    cfg = _compose(config, overrides)
+    with pytest.raises(UserError) as caught:
+        for table in rules:
+            check_common_values(cfg, table)
+    assert expected in str(caught.value)
 
 
 # ------------------------------------------------------------------------------------- the wrapper in-process

@@ -13,7 +13,7 @@ default). ``tta=flip`` averages a checkpoint's or ONNX model's prediction with t
 mirrored input (:func:`~airfisheye_bench.evaluation.predictors.flip_tta`). The output folder receives
 ``results.json`` (the leaderboard format; ``model`` records what was evaluated, the training run, the weights
 the model started from and the TTA) and ``panels/`` (frames spread over the split, titled columns, depth colour
-bars in metres); the table is printed.
+bars in metres); the table is printed and written to the command's log (``evaluate.log``).
 """
 
 from __future__ import annotations
@@ -27,17 +27,18 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf, open_dict
 
-from airfisheye_bench.config_checks import check_common_values
+from airfisheye_bench.config_checks import ValueRule, check_common_values
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.evaluator import EvaluationResult, evaluate_predictions, format_results_table
 from airfisheye_bench.evaluation.predictors import (
+    TTA_MODES,
     CheckpointPredictor,
     FilePredictor,
     OnnxPredictor,
     Predictor,
 )
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
-from airfisheye_bench.evaluation.submission import SubmissionWriter
+from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.runs import checkpoint_run_name
@@ -49,6 +50,18 @@ log = logging.getLogger(__name__)
 __all__ = ["evaluate"]
 
 _SOURCES = ("ckpt_path", "onnx_path", "predictions")
+SPLITS = ("val", "test")
+DEVICES = ("auto", "cpu", "cuda")
+
+EVALUATE_RULES: dict[str, ValueRule] = {
+    "split": ValueRule("choice", choices=SPLITS),
+    "device": ValueRule("choice", choices=DEVICES, hint="checkpoint inference; auto: cuda if available"),
+    "tta": ValueRule("choice", choices=[m for m in TTA_MODES if m], nullable=True, hint="null: none"),
+    "prediction_format": ValueRule("choice", choices=DEPTH_FORMATS, hint="of saved depth predictions"),
+    "num_panels": ValueRule("int", minimum=0),
+    "threads": ValueRule("int", minimum=1, nullable=True, hint="null: ONNX Runtime's default"),
+}
+"""``evaluate.yaml``'s own options (the common keys are :data:`airfisheye_bench.config_checks.RULES`)."""
 
 
 def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[str, Any]:
@@ -62,14 +75,13 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     Returns:
         The ``results.json`` record.
     """
+    check_common_values(cfg, EVALUATE_RULES)
     given = [key for key in _SOURCES if cfg.get(key)]
     if len(given) != 1:
         raise ConfigError(
             f"give exactly one of ckpt_path=<.ckpt or run dir>, onnx_path=<.onnx>, predictions=<dir>; got {given or 'none'}"
         )
     source = given[0]
-    if cfg.split not in ("val", "test"):
-        raise ConfigError(f"split must be 'val' or 'test', got {cfg.split!r}")
 
     module, checkpoint, source_data = None, None, None
     task = cfg.task.name if cfg.get("task") else None
@@ -129,9 +141,23 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
             on_batch=writer.add_batch if writer else None,
         )
     record = _write(cfg, output_dir, task, datamodule, data_config, predictor, result)
-    print(format_results_table(task, result, spec.primary_metric))
-    print(f"\n{result.num_frames} frames in {result.seconds:.1f} s; results: {output_dir / 'results.json'}")
+    summary = "\n".join(
+        [
+            format_results_table(task, result, spec.primary_metric),
+            f"\n{result.num_frames} frames in {result.seconds:.1f} s; results: {output_dir / 'results.json'}",
+        ]
+    )
+    print(summary)
+    _to_log_files(summary)
     return record
+
+
+def _to_log_files(text: str) -> None:
+    """Write the printed table to the command's log files (Hydra's ``evaluate.log``), not to the console again."""
+    record = log.makeRecord(log.name, logging.INFO, __file__, 0, text, None, None)
+    for handler in logging.getLogger().handlers:
+        if isinstance(handler, logging.FileHandler):
+            handler.handle(record)
 
 
 def _agree(requested: str | None, found: str, what: str) -> str:

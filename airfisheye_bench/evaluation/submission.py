@@ -8,8 +8,8 @@ prediction format (``TaskSpec.prediction``, :mod:`airfisheye_bench.specs.formats
   256 m) or ``.npy`` float32/float16 of the range in metres, ``[H, W]`` or ``[1, H, W]``.
 
 Submissions come from other people, so nothing in them is trusted: every problem (missing, extra, ambiguous,
-wrongly sized or typed files, links leading out of the folder) is collected and reported in one error, headers are
-read without decoding, and ``.npy`` files are loaded with ``allow_pickle=False``.
+wrongly sized or typed files, links leading out of the folder, NaN or infinite values) is collected and reported in
+one error, headers are read before any value, and ``.npy`` files are loaded with ``allow_pickle=False``.
 """
 
 from __future__ import annotations
@@ -25,8 +25,10 @@ import torch
 from airfisheye_bench.errors import MissingFileError, OutputExistsError, UserError
 from airfisheye_bench.io import atomic_write_bytes
 from airfisheye_bench.specs import DEPTH_PNG_SCALE, get_task
+from airfisheye_bench.specs.formats import RANGE
 
 __all__ = [
+    "DEPTH_FORMATS",
     "DEPTH_PNG_SCALE",
     "SubmissionError",
     "SubmissionWriter",
@@ -36,6 +38,9 @@ __all__ = [
     "write_submission",
 ]
 
+#: Encodings of a depth or completion prediction (``prediction_format``): 16-bit PNG of ``round(range * 256)``
+#: or float ``.npy``.
+DEPTH_FORMATS = tuple(suffix.lstrip(".") for suffix in RANGE.suffixes)
 _MAX_LISTED = 20
 
 
@@ -57,7 +62,10 @@ class SubmissionError(UserError, ValueError):
 def validate_submission(
     root: str | Path, task: str, sample_ids: Sequence[str], shape: tuple[int, int]
 ) -> dict[str, Path]:
-    """Check a prediction folder against the frames of a split before anything is decoded.
+    """Check a prediction folder against the frames of a split before anything is scored.
+
+    Each file's header is checked first (type, size); the values of a well-formed ``.npy`` are then scanned for NaN
+    and infinity, which the metrics would otherwise average in silently (a PNG holds integers only).
 
     Args:
         root: The prediction folder.
@@ -69,7 +77,8 @@ def validate_submission(
         The prediction file of every frame id.
 
     Raises:
-        SubmissionError: listing all missing, extra, ambiguous, escaping, wrongly sized or typed files.
+        SubmissionError: listing all missing, extra, ambiguous, escaping, wrongly sized or typed files, and the
+            files holding NaN or infinite values with their counts.
 
     Example:
         >>> import tempfile, numpy as np
@@ -105,7 +114,7 @@ def validate_submission(
             problems.append(f"{sample_id}: ambiguous, both {' and '.join(_rel(p, root) for p in present)}")
             continue
         path = present[0]
-        problem = _check_inside(path, base, root) or fmt.check(path, shape)
+        problem = _check_inside(path, base, root) or fmt.check(path, shape) or _check_finite(path)
         if problem:
             problems.append(f"{_rel(path, root)}: {problem}")
         else:
@@ -169,8 +178,8 @@ class SubmissionWriter:
         if self.root.exists():
             raise OutputExistsError(f"{self.root} already exists; choose a new folder for the predictions")
         fmt = get_task(task).prediction
-        if depth_format not in ("png", "npy"):
-            raise ValueError(f"depth_format must be 'png' or 'npy', got {depth_format!r}")
+        if depth_format not in DEPTH_FORMATS:
+            raise ValueError(f"depth_format must be one of {DEPTH_FORMATS}, got {depth_format!r}")
         self.task = task
         self.suffix = fmt.suffix(depth_format)
         self._tmp: Path | None = None
@@ -231,6 +240,24 @@ def _check_inside(path: Path, base: Path, root: Path) -> str | None:
     if not resolved.is_file():
         return "not a regular file"
     return None
+
+
+def _check_finite(path: Path) -> str | None:
+    """The count of NaN and infinite values of a ``.npy`` prediction whose header was accepted."""
+    if path.suffix != ".npy":
+        return None  # PNG predictions hold integers
+    try:
+        array = np.load(path, mmap_mode="r", allow_pickle=False)
+        finite = int(np.count_nonzero(np.isfinite(array)))
+        nan = int(np.count_nonzero(np.isnan(array)))
+    except (OSError, ValueError) as err:  # e.g. truncated after its header
+        return f"not a readable .npy file ({err})"
+    if finite == array.size:
+        return None
+    return (
+        f"{array.size - finite} of {array.size} values are not finite ({nan} NaN, {array.size - finite - nan} "
+        "infinite); write 0 where there is no prediction"
+    )
 
 
 def _extra_files(root: Path, expected: set[Path]) -> list[Path]:

@@ -39,6 +39,8 @@ FACE_NAMES = ("front", "left", "right", "up", "down")  # mirrors airfisheye_benc
 
 #: Modalities a release may contain (``contents`` key).
 KNOWN_CONTENTS = ("cubemap", "fisheye", "lidar", "lidar_visible", "lidar_beam", "lidar_scan", "poses", "imu")
+#: The stored images a loader can serve from: the raw cube faces (remapped on the fly) or pre-rendered fisheye.
+IMAGE_SOURCES = ("cubemap", "fisheye")
 RGB_ENCODINGS = ("png", "jpg")
 SEG_ENCODINGS = ("png",)
 DEPTH_ENCODINGS = ("png16", "npy", "pfm")

@@ -68,6 +68,31 @@ def test_every_problem_listed_at_once(tmp_path: Path) -> None:
     assert "env/traj/999999.png: extra file" in text
 
 
+def test_non_finite_predictions_named_with_their_counts(tmp_path: Path) -> None:
+    root = tmp_path / "sub"
+    nan, inf, fine = _depth(0), _depth(1), _depth(2)
+    nan[0, :3] = np.nan
+    inf[1, 1], inf[2, 2] = np.inf, -np.inf
+    for sample_id, depth in zip(IDS, (nan, inf, fine), strict=True):
+        (root / sample_id).parent.mkdir(parents=True, exist_ok=True)
+        np.save(root / f"{sample_id}.npy", depth)
+    with pytest.raises(SubmissionError, match=r"\(2 problems\)") as err:
+        validate_submission(root, "depth", IDS, SHAPE)
+    size = nan.size
+    assert err.value.problems == [
+        f"{IDS[0]}.npy: 3 of {size} values are not finite (3 NaN, 0 infinite); write 0 where there is no prediction",
+        f"{IDS[1]}.npy: 2 of {size} values are not finite (0 NaN, 2 infinite); write 0 where there is no prediction",
+    ]
+
+
+def test_truncated_npy_body_is_named(tmp_path: Path) -> None:
+    path = tmp_path / "sub" / f"{IDS[0]}.npy"
+    write_prediction(path, _depth(0), "depth")
+    path.write_bytes(path.read_bytes()[:-10])
+    with pytest.raises(SubmissionError, match=r"000000\.npy: not a readable \.npy file"):
+        validate_submission(tmp_path / "sub", "depth", IDS[:1], SHAPE)
+
+
 def test_wrong_png_types(tmp_path: Path) -> None:
     root = tmp_path / "sub"
     (root / "env/traj").mkdir(parents=True)

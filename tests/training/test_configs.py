@@ -7,7 +7,7 @@ from pathlib import Path
 import hydra
 import pytest
 from hydra import compose, initialize_config_dir
-from omegaconf import DictConfig, open_dict
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.training import check_config
@@ -36,6 +36,20 @@ def test_each_task_picks_its_model(task: str, model: str) -> None:
     assert cfg.task.name == task and cfg.model.name == model
     assert cfg.data.task == task
     check_config(cfg)
+
+
+@pytest.mark.parametrize("task", ["seg", "depth", "completion"])
+def test_the_trainer_group_sets_the_epochs_over_the_task(task: str) -> None:
+    """A task sets its quick-start length; trainer=debug (after it in the defaults list) and experiments win."""
+    quick_start = OmegaConf.load(Path(CONFIG_DIR) / "task" / f"{task}.yaml").trainer.max_epochs
+    debug = OmegaConf.load(Path(CONFIG_DIR) / "trainer" / "debug.yaml").max_epochs
+    assert quick_start != debug  # otherwise the test could not tell which group won
+    assert compose_train([f"task={task}"]).trainer.max_epochs == quick_start
+    assert compose_train([f"task={task}", "trainer=gpu"]).trainer.max_epochs == quick_start
+    assert compose_train([f"task={task}", "trainer=debug"]).trainer.max_epochs == debug
+    paper = compose_train([f"experiment=paper/{task}"]).trainer.max_epochs
+    assert compose_train([f"experiment=paper/{task}", "trainer=debug"]).trainer.max_epochs == paper
+    assert compose_train([f"task={task}", "trainer=debug", "trainer.max_epochs=3"]).trainer.max_epochs == 3
 
 
 @pytest.mark.parametrize("experiment", EXPERIMENTS)

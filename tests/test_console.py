@@ -1,0 +1,34 @@
+"""What a fresh run prints: each log message once, no warning that is not the user's business, the table logged."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from tests.test_user_errors import EVALUATE, TRAIN, run_command
+from tests.training.test_train import tiny_run_overrides
+
+# A warning as Python prints it (`file.py:12: UserWarning: ...`) or as Lightning does (`file.py:12: ...`).
+WARNING_LINE = re.compile(r"^\S+\.py:\d+: ", re.MULTILINE)
+LOG_LINE = re.compile(r"^\[[\d\- :,]+\]\[[\w.]+\]\[\w+\] - (.*)$", re.MULTILINE)
+
+
+def test_fresh_train_and_evaluate_print_each_message_once(tiny_dataset: Path, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    train = run_command(TRAIN, [*tiny_run_overrides("seg", tiny_dataset), f"hydra.run.dir={run}"])
+    output = train.stdout + train.stderr
+    assert train.returncode == 0, output[-3000:]
+    assert not WARNING_LINE.findall(output), output
+    assert "INFO: " not in output  # Lightning's own console handler: its messages came twice
+    assert "litlogger" not in output  # Lightning's advertisement of its cloud logger
+    logged = LOG_LINE.findall((run / "train.log").read_text())
+    assert any("Seed set to" in m for m in logged)  # Lightning's messages reach the log file too
+    for message in logged:
+        assert output.count(message) == 1, message
+
+    evaluated = run_command(EVALUATE, [f"ckpt_path={run}", f"hydra.run.dir={tmp_path / 'eval'}"])
+    assert evaluated.returncode == 0, evaluated.stderr[-3000:]
+    assert not WARNING_LINE.findall(evaluated.stdout + evaluated.stderr), evaluated.stderr
+    log = (tmp_path / "eval" / "evaluate.log").read_text()
+    table = evaluated.stdout.strip()
+    assert "mIoU" in table and table in log  # the printed table, in the command's log
