@@ -8,8 +8,15 @@ function runs under :func:`airfisheye_bench.errors.report_user_errors`: a user e
 
 from __future__ import annotations
 
+import runpy
 import sys
 from pathlib import Path
+
+from airfisheye_bench.evaluation import leaderboard_command
+from airfisheye_bench.export import deploy as export_command
+from airfisheye_bench.io import inspect as inspect_command
+from airfisheye_bench.io import transcode as transcode_command
+from airfisheye_bench.synth import cli as generate_command
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = PROJECT_ROOT / "configs"
@@ -17,16 +24,12 @@ CONFIG_DIR = PROJECT_ROOT / "configs"
 
 def train() -> None:
     """``airfisheye-train``: the same as ``python train.py``."""
-    import runpy
-
     sys.argv[0] = str(PROJECT_ROOT / "train.py")
     runpy.run_path(str(PROJECT_ROOT / "train.py"), run_name="__main__")
 
 
 def evaluate() -> None:
     """``airfisheye-evaluate``: the same as ``python scripts/evaluate.py``."""
-    import runpy
-
     script = PROJECT_ROOT / "scripts" / "evaluate.py"
     sys.argv[0] = str(script)
     runpy.run_path(str(script), run_name="__main__")
@@ -34,34 +37,24 @@ def evaluate() -> None:
 
 def generate() -> None:
     """``airfisheye-generate``: the same as ``python scripts/generate_synthetic.py``."""
-    from airfisheye_bench.synth.cli import main
-
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(generate_command.main(sys.argv[1:]))
 
 
 def inspect() -> None:
     """``airfisheye-inspect root=DIR [deep=true]``: report missing or malformed files of a dataset."""
-    from airfisheye_bench.io.inspect import main
-
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(inspect_command.main(sys.argv[1:]))
 
 
 def transcode() -> None:
     """``airfisheye-transcode src=DIR dst=DIR [rgb=jpg] [depth=npy] [workers=N]``: re-encode a dataset's files."""
-    from airfisheye_bench.io.transcode import main
-
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(transcode_command.main(sys.argv[1:]))
 
 
 def leaderboard() -> None:
     """``airfisheye-leaderboard runs=DIR[,DIR] [out=leaderboard] [paper=true] [skip_invalid=false] [html=FILE]``."""
-    from airfisheye_bench.evaluation.leaderboard import main
-
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(leaderboard_command.main(sys.argv[1:]))
 
 
 def export() -> None:
     """``airfisheye-export ckpt_path=<ckpt or run dir> out=model.onnx [...]``: ``scripts/export_onnx.py``."""
-    from airfisheye_bench.export.deploy import main
-
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(export_command.main(sys.argv[1:]))

@@ -9,12 +9,13 @@ from the config are skipped, so the same table serves ``train.yaml``, ``evaluate
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from airfisheye_bench.constants import LENS_MODELS
 from airfisheye_bench.errors import ConfigError
 
 _ABSENT = object()
@@ -26,7 +27,7 @@ class ValueRule:
 
     kind: str  # "int" | "number" | "choice"
     minimum: float | None = None
-    choices: Sequence[str] | Callable[[], Sequence[str]] = ()  # a callable defers a costly import
+    choices: Sequence[str] = ()
     nullable: bool = False
     hint: str = ""
 
@@ -35,8 +36,7 @@ class ValueRule:
         if value is None:
             return None if self.nullable else "must be set"
         if self.kind == "choice":
-            choices = self.choices() if callable(self.choices) else self.choices
-            return None if value in choices else f"expected one of {', '.join(choices)}"
+            return None if value in self.choices else f"expected one of {', '.join(self.choices)}"
         numeric = (int,) if self.kind == "int" else (int, float)
         what = "an integer" if self.kind == "int" else "a number"
         if self.minimum is not None:
@@ -46,12 +46,6 @@ class ValueRule:
         if self.minimum is not None and value < self.minimum:
             return f"expected {what}"
         return None
-
-
-def _lens_models() -> tuple[str, ...]:
-    from airfisheye_bench.geometry.camera import MODELS  # imports torch: only when a lens model is given
-
-    return MODELS
 
 
 RULES: dict[str, ValueRule] = {
@@ -65,7 +59,7 @@ RULES: dict[str, ValueRule] = {
     "data.camera.size": ValueRule("int", minimum=8, nullable=True, hint="pixels, the served image side"),
     "data.camera.fov_deg": ValueRule("number", minimum=1, nullable=True, hint="degrees; null: the release's"),
     "data.camera.model": ValueRule(
-        "choice", choices=_lens_models, nullable=True, hint="null: the release's lens"
+        "choice", choices=LENS_MODELS, nullable=True, hint="null: the release's lens"
     ),
     "data.batch_size": ValueRule("int", minimum=1),
     "data.eval_batch_size": ValueRule("int", minimum=1, nullable=True),

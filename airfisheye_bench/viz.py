@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 import torch
 from PIL import Image
 
+from airfisheye_bench.atomic import atomic_write_bytes
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
-from airfisheye_bench.io import atomic_write_bytes
 
 # Anchor colours of a perceptually ordered map (near = yellow, far = dark purple), interpolated to 256 entries.
 _ANCHORS = np.array(
@@ -92,8 +93,6 @@ def make_panel(rows: list[list[np.ndarray]], gap: int = 2) -> np.ndarray:
 
 def save_png(path: str | Path, image: np.ndarray) -> Path:
     """Write ``uint8 [H, W, 3]`` as PNG atomically."""
-    import io
-
     buf = io.BytesIO()
     Image.fromarray(image).save(buf, format="PNG")
     path = Path(path)

@@ -20,6 +20,7 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
+from airfisheye_bench.synth.writer import ensure_dataset
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 from datamodules.sampling import (
@@ -222,7 +223,6 @@ class AirFisheyeDataModule(L.LightningDataModule):
         """The dataset folder (generating the synthetic preset if needed)."""
         if self.root is not None:
             return self.root
-        from airfisheye_bench.synth.writer import ensure_dataset
 
         self.root = ensure_dataset(self.preset, root=self.cache_dir, seed=self.dataset_seed)
         return self.root

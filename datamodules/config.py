@@ -20,7 +20,11 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import hydra
+from hydra.errors import InstantiationException
 from omegaconf import DictConfig, OmegaConf
+
+from airfisheye_bench.errors import UserError
 
 
 def apply_data_overrides(
@@ -68,11 +72,6 @@ def instantiate_datamodule(data: DictConfig, stage: str | None = None):
         UserError: The datamodule's own message for a wrong value or file (e.g. ``data.root`` is not a folder).
         ValueError: The datamodule cannot be built otherwise; the message says how to fix it with overrides.
     """
-    import hydra
-    from hydra.errors import InstantiationException
-
-    from airfisheye_bench.errors import UserError
-
     cfg = OmegaConf.merge(data, {"num_workers": 0, "persistent_workers": False})
     try:
         datamodule = hydra.utils.instantiate(cfg, _convert_="partial")

@@ -6,7 +6,7 @@ python scripts/leaderboard.py runs=logs/[,other/,path/to/results.json] [out=lead
 
 import sys
 
-from airfisheye_bench.evaluation.leaderboard import main
+from airfisheye_bench.evaluation.leaderboard_command import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -165,7 +165,13 @@ def test_debug_switch_shows_the_traceback(tiny_dataset: Path, tmp_path: Path) ->
 
 # ------------------------------------------------------------------------------------- the wrapper in-process
 @pytest.mark.parametrize(
-    "module", ["airfisheye_bench.errors", "airfisheye_bench.constants", "airfisheye_bench.config_checks"]
+    "module",
+    [
+        "airfisheye_bench.errors",
+        "airfisheye_bench.constants",
+        "airfisheye_bench.atomic",
+        "airfisheye_bench.config_checks",
+    ],
 )
 def test_docstring_examples(module: str) -> None:
     assert_doctests_pass(module)

@@ -8,12 +8,13 @@
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import json
 import math
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.io import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_text
 
 RESULTS_VERSION = 1
 PRIMARY_METRIC = {"seg": "mIoU", "depth": "rmse", "completion": "rmse"}
@@ -63,8 +64,6 @@ def write_results(
 
 def dataset_identity(root: str | Path, name: str) -> dict[str, Any]:
     """Which data a result was measured on: name, root and the SHA-256 of its ``manifest.json`` when present."""
-    import hashlib
-
     root = Path(root)
     identity: dict[str, Any] = {"root": str(root), "name": name}
     manifest = root / "manifest.json"

@@ -23,8 +23,8 @@ import numpy as np
 import torch
 from PIL import Image
 
+from airfisheye_bench.atomic import atomic_write_bytes
 from airfisheye_bench.errors import MissingFileError, OutputExistsError, UserError
-from airfisheye_bench.io import atomic_write_bytes
 
 __all__ = [
     "DEPTH_PNG_SCALE",

@@ -30,7 +30,7 @@ def task_metric(
     min_depth: float = 1e-3,
     max_depth: float = 120.0,
 ) -> Metric:
-    """A fresh metric of ``task`` with the paper's conventions (see DESIGN, Metrics).
+    """A fresh metric of ``task`` with the paper's conventions (``docs/design.md``, Metrics).
 
     Args:
         task: ``seg``, ``depth`` or ``completion``.

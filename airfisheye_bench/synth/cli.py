@@ -19,12 +19,19 @@ from __future__ import annotations
 import dataclasses
 import logging
 import sys
+import tempfile
+import time
 from pathlib import Path
 
+import torch
 import yaml
 
 from airfisheye_bench.errors import report_user_errors
+from airfisheye_bench.io.manifest import verify
+from airfisheye_bench.synth.contact_sheet import write_contact_sheet
 from airfisheye_bench.synth.presets import PRESETS, SynthConfig, get_preset, plan_trajectories
+from airfisheye_bench.synth.scene import ENVIRONMENTS
+from airfisheye_bench.synth.writer import _Job, _Worker, ensure_dataset, generate_dataset
 
 _RUN_KEYS = {
     "preset",
@@ -116,8 +123,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _dispatch(command: str, args: dict[str, object]) -> int:
-    from airfisheye_bench.io.manifest import verify
-
     if command == "presets":
         for name, cfg in PRESETS.items():
             print(
@@ -146,8 +151,6 @@ def _dispatch(command: str, args: dict[str, object]) -> int:
         if root is None:
             raise ValueError("usage: contact_sheet root=DIR [sample=env/traj/frame] [png=PATH]")
         return _contact_sheet(Path(str(root)), args.pop("sample", None), args.pop("png", None))
-
-    from airfisheye_bench.synth.writer import ensure_dataset, generate_dataset
 
     preset = str(args.pop("preset", "tiny"))
     out = args.pop("out", None)
@@ -189,14 +192,6 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
     Runs in this process with one torch thread on the first trajectory of the preset, after one warm-up frame;
     the one-off scene + flight construction is timed separately.
     """
-    import tempfile
-    import time
-
-    import torch
-
-    from airfisheye_bench.synth.scene import ENVIRONMENTS
-    from airfisheye_bench.synth.writer import _Job, _Worker
-
     cfg = get_preset(preset)
     plans = plan_trajectories(cfg, ENVIRONMENTS)
     frames = max(1, min(frames, plans[0].num_frames - 1))
@@ -248,8 +243,6 @@ def bench_markdown(presets: list[str], frames: int = 8, device: str = "cpu") -> 
 
 
 def _contact_sheet(root: Path, sample: object, png: object) -> int:
-    from airfisheye_bench.synth.contact_sheet import write_contact_sheet
-
     path = Path(str(png)) if png else root.parent / f"{root.name}_contact_sheet.png"
     write_contact_sheet(root, path, sample_id=None if sample is None else str(sample))
     print(f"contact sheet: {path}")

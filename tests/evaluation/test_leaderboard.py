@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 import airfisheye_bench.evaluation.leaderboard as lb
+import airfisheye_bench.evaluation.leaderboard_command as leaderboard_command
 from airfisheye_bench.evaluation import (
     PAPER_BASELINES,
     LeaderboardError,
@@ -327,45 +328,49 @@ def test_main_writes_both_files_and_prints_the_markdown(tmp_path: Path, capsys) 
     _write(tmp_path / "a", "s", "seg", {"mIoU": 0.3})
     other = _write(tmp_path / "b", "d", "depth", {"rmse": 4.0})
     out = tmp_path / "board"
-    assert lb.main([f"runs={tmp_path / 'a'},{other}", f"out={out}"]) == 0
+    assert leaderboard_command.main([f"runs={tmp_path / 'a'},{other}", f"out={out}"]) == 0
     printed = capsys.readouterr()
     assert printed.out == (out / "leaderboard.md").read_text()
     assert "| 1 | deeplabv3plus / resnet18 | ours (synth) | test | 30.0 |" in printed.out
     assert "paper IV-A" in printed.out and str(out / "leaderboard.csv") in printed.err
     assert {r["run"] for r in _csv_rows((out / "leaderboard.csv").read_text())} >= {"s", "d"}
 
-    assert lb.main([f"runs={tmp_path / 'a'}", f"out={out}", "paper=false"]) == 0
+    assert leaderboard_command.main([f"runs={tmp_path / 'a'}", f"out={out}", "paper=false"]) == 0
     assert "paper (real AirFisheye)" not in (out / "leaderboard.md").read_text()
 
 
 def test_main_errors(tmp_path: Path, capsys) -> None:
-    assert lb.main([]) == 2 and "runs= is required" in capsys.readouterr().err
-    assert lb.main(["runs=x", "colour=red"]) == 2 and "unknown argument(s): colour" in capsys.readouterr().err
+    assert leaderboard_command.main([]) == 2 and "runs= is required" in capsys.readouterr().err
     assert (
-        lb.main(["runs=x", "paper=maybe"]) == 2 and "paper=maybe is not a boolean" in capsys.readouterr().err
+        leaderboard_command.main(["runs=x", "colour=red"]) == 2
+        and "unknown argument(s): colour" in capsys.readouterr().err
     )
-    assert lb.main([f"runs={tmp_path / 'missing'}"]) == 1
+    assert (
+        leaderboard_command.main(["runs=x", "paper=maybe"]) == 2
+        and "paper=maybe is not a boolean" in capsys.readouterr().err
+    )
+    assert leaderboard_command.main([f"runs={tmp_path / 'missing'}"]) == 1
     assert "missing: no such file or directory" in capsys.readouterr().err
     (tmp_path / "empty").mkdir()
-    assert lb.main([f"runs={tmp_path / 'empty'}"]) == 1
+    assert leaderboard_command.main([f"runs={tmp_path / 'empty'}"]) == 1
     assert "no results.json found" in capsys.readouterr().err
 
     _write(tmp_path / "runs", "good", "seg", {"mIoU": 0.3})
     bad = _bad_files(tmp_path / "runs")
     out = tmp_path / "board"
-    assert lb.main([f"runs={tmp_path / 'runs'}", f"out={out}"]) == 1
+    assert leaderboard_command.main([f"runs={tmp_path / 'runs'}", f"out={out}"]) == 1
     err = capsys.readouterr().err
     assert all(str(p) in err for p in bad) and "skip_invalid=true" in err
     assert not out.exists()  # nothing written when the input is rejected
 
-    assert lb.main([f"runs={tmp_path / 'runs'}", f"out={out}", "skip_invalid=true"]) == 0
+    assert leaderboard_command.main([f"runs={tmp_path / 'runs'}", f"out={out}", "skip_invalid=true"]) == 0
     captured = capsys.readouterr()
     assert captured.err.count("warning: skipped invalid results.json") == len(bad)
     assert "| good |" in captured.out
 
     only_bad = tmp_path / "only_bad"
     _bad_files(only_bad)
-    assert lb.main([f"runs={only_bad}", "skip_invalid=true", f"out={out}"]) == 1
+    assert leaderboard_command.main([f"runs={only_bad}", "skip_invalid=true", f"out={out}"]) == 1
     assert "no valid results.json" in capsys.readouterr().err
 
 
@@ -385,5 +390,6 @@ def test_console_script_is_declared_and_runs(tmp_path: Path, monkeypatch, capsys
     assert "# AirFisheye-bench leaderboard" in capsys.readouterr().out
 
 
-def test_docstring_examples() -> None:
-    assert_doctests_pass(lb, min_examples=11)
+@pytest.mark.parametrize("module", [lb, leaderboard_command])
+def test_docstring_examples(module) -> None:
+    assert_doctests_pass(module)

@@ -17,6 +17,7 @@ from PIL import Image
 
 import airfisheye_bench.evaluation.leaderboard as lb
 import airfisheye_bench.evaluation.leaderboard_charts as charts
+import airfisheye_bench.evaluation.leaderboard_command as leaderboard_command
 import airfisheye_bench.evaluation.leaderboard_html as page_module
 from airfisheye_bench.evaluation import build_leaderboard, load_entries, write_results
 from airfisheye_bench.evaluation.leaderboard import find_results
@@ -268,14 +269,17 @@ def test_invalid_files_are_listed_with_their_reason(runs: Path, page: str, board
 def test_command_writes_the_page(runs: Path, tmp_path: Path, capsys) -> None:
     html = tmp_path / "site" / "board.html"
     args = [f"runs={runs}", f"out={tmp_path / 'board'}", f"html={html}", "skip_invalid=true"]
-    assert lb.main(args) == 0
+    assert leaderboard_command.main(args) == 0
     assert html.is_file() and "AirFisheye-bench leaderboard" in html.read_text()
     assert str(html) in capsys.readouterr().err
     assert not list(html.parent.glob(".*"))  # written atomically, no temporary left
     # Without skip_invalid the broken file still stops the command, as for the markdown.
-    assert lb.main([f"runs={runs}", f"out={tmp_path / 'b2'}", f"html={tmp_path / 'b2.html'}"]) == 1
+    assert (
+        leaderboard_command.main([f"runs={runs}", f"out={tmp_path / 'b2'}", f"html={tmp_path / 'b2.html'}"])
+        == 1
+    )
     assert not (tmp_path / "b2.html").exists()
-    assert lb.main([f"runs={runs}", "html=board.txt"]) == 2
+    assert leaderboard_command.main([f"runs={runs}", "html=board.txt"]) == 2
     assert "html=board.txt is not an .html file name" in capsys.readouterr().err
 
 

@@ -7,9 +7,7 @@ import pytest
 from tests.doctests import assert_doctests_pass
 
 MODULES = [
-    "atomic",
     "calib",
-    "checksum",
     "codecs",
     "errors",
     "layout",

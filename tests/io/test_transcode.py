@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.io import DatasetFormatError, DatasetReader, DatasetSpec, FileEncodings
 from airfisheye_bench.io import transcode as transcode_module
 from airfisheye_bench.io.inspect import inspect_dataset
 from airfisheye_bench.io.manifest import read_manifest, verify
-from airfisheye_bench.io.spec import FACE_NAMES
 from airfisheye_bench.io.transcode import TranscodeReport, main, transcode_dataset
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 
