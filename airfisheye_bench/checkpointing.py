@@ -28,7 +28,7 @@ from lightning.pytorch.loggers import CSVLogger
 from lightning.pytorch.loggers.csv_logs import ExperimentWriter
 from lightning.pytorch.plugins.io import TorchCheckpointIO
 
-from airfisheye_bench.io.atomic import atomic_write
+from airfisheye_bench.atomic import atomic_write
 
 #: Checkpoint key: how many ``metrics.csv`` rows had been written when the checkpoint was.
 METRIC_ROWS_KEY = "metrics_csv_rows"

@@ -28,6 +28,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import InterpolationResolutionError
 
+from airfisheye_bench.constants import LENS_MODELS
 from airfisheye_bench.errors import ConfigError, MissingFileError
 
 _ABSENT = object()
@@ -119,38 +120,36 @@ class ValueRule:
 
 
 def _lens_models() -> tuple[str, ...]:
-    from airfisheye_bench.geometry.camera import MODELS  # imports torch: only when a lens model is given
-
-    return MODELS
+    return LENS_MODELS
 
 
 def _occlusion_methods() -> tuple[str, ...]:
-    from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS
+    from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS  # imports torch: only when checked
 
     return OCCLUSION_METHODS
 
 
 def _image_sources() -> tuple[str, ...]:
-    from airfisheye_bench.io.spec import IMAGE_SOURCES
+    from airfisheye_bench.io.spec import IMAGE_SOURCES  # imports torch: only when checked
 
     return IMAGE_SOURCES
 
 
 def _tasks() -> tuple[str, ...]:
-    from airfisheye_bench.specs import task_names
+    from airfisheye_bench.specs import task_names  # imports torchmetrics: only when checked
 
     return tuple(task_names())
 
 
 def _model_names() -> list[str]:
-    from models import list_models
+    from models import list_models  # imports the model zoo: only when checked
 
     return list_models()
 
 
 def _encoder_weights_problem(value: Any) -> str | None:
     """The model zoo's own reading of ``encoder_weights``: null, a pretrained tag, or an existing weights file."""
-    from models.weights import resolve_encoder_weights
+    from models.weights import resolve_encoder_weights  # imports the model zoo: only when checked
 
     try:
         resolve_encoder_weights(value)
@@ -241,7 +240,7 @@ RULES: dict[str, ValueRule] = {
     "data.camera.size": ValueRule("int", minimum=8, nullable=True, hint="pixels, the served image side"),
     "data.camera.fov_deg": ValueRule("number", minimum=1, nullable=True, hint="degrees; null: the release's"),
     "data.camera.model": ValueRule(
-        "choice", choices=_lens_models, nullable=True, hint="null: the release's lens"
+        "choice", choices=LENS_MODELS, nullable=True, hint="null: the release's lens"
     ),
     "data.occlusion": ValueRule("choice", choices=_occlusion_methods, hint="the LiDAR occlusion correction"),
     "data.motion_compensation": ValueRule("bool"),

@@ -26,6 +26,7 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.errors import InputFileError, MissingFileError
 
 log = logging.getLogger(__name__)
@@ -198,8 +199,6 @@ def check_resume(cfg: DictConfig, output_dir: Path, write: bool) -> None:
     Raises:
         ValueError: the configurations differ and ``resume_overrides_ok`` is not set; lists the keys.
     """
-    from airfisheye_bench.io.atomic import atomic_write_text
-
     saved = output_dir / "config.yaml"
     if not saved.is_file():
         if write:
@@ -252,8 +251,6 @@ def keep_metric_rows(path: Path, rows: int) -> None:
         >>> p.read_text().splitlines()
         ['step,loss', '0,1.5', '1,1.2']
     """
-    from airfisheye_bench.io.atomic import atomic_write_text
-
     if not path.is_file():
         return
     lines = path.read_text().splitlines(keepends=True)

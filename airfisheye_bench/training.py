@@ -23,12 +23,12 @@ from hydra.errors import InstantiationException
 from lightning.pytorch.utilities import rank_zero_only
 from omegaconf import DictConfig, OmegaConf
 
+from airfisheye_bench.atomic import atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
-from airfisheye_bench.io.atomic import atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.runs import check_resume, keep_metric_rows, numbered_sibling, read_checkpoint
 from airfisheye_bench.specs import UnknownTaskError, get_task
 from models import list_models, model_task

@@ -8,6 +8,7 @@ drawn with Pillow's bundled font: nothing here needs matplotlib, so training wri
 from __future__ import annotations
 
 import functools
+import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -16,8 +17,8 @@ import numpy as np
 import torch
 from PIL import Image, ImageDraw, ImageFont
 
+from airfisheye_bench.atomic import atomic_write_bytes
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
-from airfisheye_bench.io import atomic_write_bytes
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.specs.formats import LabelMaps
 
@@ -275,8 +276,6 @@ def spread_indices(total: int, count: int) -> list[int]:
 
 def save_png(path: str | Path, image: np.ndarray) -> Path:
     """Write ``uint8 [H, W, 3]`` as PNG atomically."""
-    import io
-
     buf = io.BytesIO()
     Image.fromarray(image).save(buf, format="PNG")
     path = Path(path)

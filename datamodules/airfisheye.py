@@ -21,6 +21,7 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
 from airfisheye_bench.synth.presets import PRESETS
+from airfisheye_bench.synth.writer import ensure_dataset
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 from datamodules.sampling import (
@@ -227,7 +228,6 @@ class AirFisheyeDataModule(L.LightningDataModule):
         """The dataset folder (generating the synthetic preset if needed)."""
         if self.root is not None:
             return self.root
-        from airfisheye_bench.synth.writer import ensure_dataset
 
         self.root = ensure_dataset(self.preset, root=self.cache_dir, seed=self.dataset_seed)
         return self.root

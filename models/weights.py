@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import os
+import urllib.error
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
@@ -31,6 +32,7 @@ import torch
 from torch import Tensor, nn
 
 from airfisheye_bench.errors import UserError
+from airfisheye_bench.io.manifest import sha256_file
 
 __all__ = [
     "IMAGENET",
@@ -119,10 +121,8 @@ def resolve_weights_path(path: str | os.PathLike | None) -> Path | None:
 
 def file_identity(path: str | os.PathLike, **extra: Any) -> dict[str, Any]:
     """``{**extra, "file": absolute path, "sha256": hex digest}`` of a weights file."""
-    from airfisheye_bench.io.checksum import file_sha256
-
     path = Path(path)
-    return {**extra, "file": str(path.resolve()), "sha256": file_sha256(path)}
+    return {**extra, "file": str(path.resolve()), "sha256": sha256_file(path)}
 
 
 def weights_identity(encoder: dict[str, Any] | None, weights_path: Path | None) -> dict[str, Any]:
@@ -158,7 +158,7 @@ def read_state_dict(path: str | os.PathLike, what: str = "weights file") -> dict
         raise ValueError(f"{what} {str(path)!r} does not exist or is not a file")
     try:
         if path.suffix == ".safetensors":
-            from safetensors.torch import load_file
+            from safetensors.torch import load_file  # only .safetensors files need it (it comes with timm)
 
             state = load_file(str(path), device="cpu")
         else:
@@ -226,6 +226,7 @@ def smp_pretrained(build: Callable[[str | bool], T], encoder_name: str, tag: str
         encoder_name: smp encoder name (``resnet50``) or ``tu-<timm name>``.
         tag: pretrained tag, ``"imagenet"`` for every ResNet.
     """
+    # smp's encoder table and the hub client take seconds to import: loaded when pretrained weights are looked up
     from huggingface_hub import constants, try_to_load_from_cache
     from segmentation_models_pytorch.encoders import encoders
 
@@ -294,7 +295,7 @@ def torchvision_imagenet_state(name: str) -> tuple[dict[str, Tensor], dict[str, 
         WeightsUnavailableError: not in ``<TORCH_HOME>/hub/checkpoints`` and not downloadable; the message
             gives the URL and the exact path to place the file at.
     """
-    import torchvision
+    import torchvision  # seconds to import: loaded when torchvision's weights are looked up
 
     weights = torchvision.models.get_model_weights(name).DEFAULT
     path = Path(torch.hub.get_dir()) / "checkpoints" / os.path.basename(weights.url)
@@ -314,7 +315,7 @@ def torchvision_imagenet_state(name: str) -> tuple[dict[str, Tensor], dict[str, 
 
 def _timm_hub_file(timm_name: str) -> tuple[str | None, str, str | None]:
     """The Hugging Face repo and file timm loads ``timm_name``'s pretrained weights from (``None`` if elsewhere)."""
-    import timm
+    import timm  # seconds to import: loaded when a timm encoder's weights are looked up
 
     cfg = timm.models.get_pretrained_cfg(timm_name)
     repo = getattr(cfg, "hf_hub_id", None) if cfg is not None else None
@@ -323,9 +324,7 @@ def _timm_hub_file(timm_name: str) -> tuple[str | None, str, str | None]:
 
 def _is_download_failure(err: BaseException) -> bool:
     """Whether ``err`` (or what caused it) is a failed fetch: no network, offline mode, or not in the cache."""
-    import urllib.error
-
-    from huggingface_hub import errors as hub_errors
+    from huggingface_hub import errors as hub_errors  # loaded on a failed fetch only
 
     kinds: tuple[type[BaseException], ...] = (
         urllib.error.URLError,

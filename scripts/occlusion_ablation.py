@@ -31,8 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.geometry import occlusion
-from airfisheye_bench.io.atomic import atomic_write_text
 
 REPO = Path(__file__).resolve().parents[1]
 #: Metrics of the table, in this order (others in results.json are kept in the JSON).

@@ -14,8 +14,8 @@ import re
 from html import escape
 from pathlib import Path
 
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.evaluation import load_results
-from airfisheye_bench.io import atomic_write_text
 
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
 _RING = re.compile(r"^ring_([0-9.]+)-([0-9.]+)/(.+)$")

@@ -19,6 +19,7 @@ bars in metres); the table is printed and written to the command's log (``evalua
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 from functools import partial
 from pathlib import Path
@@ -39,11 +40,14 @@ from airfisheye_bench.evaluation.predictors import (
 )
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
+from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
 from airfisheye_bench.metrics.scorer import TaskScorer
-from airfisheye_bench.runs import checkpoint_run_name
+from airfisheye_bench.runs import checkpoint_run_name, resolve_checkpoint, run_config
 from airfisheye_bench.specs import UnknownTaskError, deployment_keys, get_task, task_names
+from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.viz import save_png, task_panel
+from datamodules.config import apply_data_overrides, instantiate_datamodule, parse_data_overrides
 
 log = logging.getLogger(__name__)
 
@@ -86,17 +90,12 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     module, checkpoint, source_data = None, None, None
     task = cfg.task.name if cfg.get("task") else None
     if source == "ckpt_path":
-        from airfisheye_bench.runs import resolve_checkpoint, run_config
-        from airfisheye_bench.tasks.checkpoint import load_task
-
         checkpoint = resolve_checkpoint(cfg.ckpt_path)
         module = load_task(checkpoint)
         run = run_config(checkpoint)
         source_data = run.data if run is not None else None
         task = _agree(task, module.task, f"checkpoint {checkpoint}")
     elif source == "onnx_path":
-        from airfisheye_bench.io.deployment import read_deployment_metadata
-
         metadata = read_deployment_metadata(cfg.onnx_path, deployment_keys)
         source_data = OmegaConf.create(metadata["data_config"]) if metadata.get("data_config") else None
         task = _agree(task, metadata["task"], f"ONNX model {cfg.onnx_path}")
@@ -172,8 +171,6 @@ def _datamodule(
     cfg: DictConfig, task: str, source_data: DictConfig | None, overrides: list[str]
 ) -> tuple[Any, dict[str, Any]]:
     """The datamodule to evaluate on, and its configuration (recorded in ``results.json``)."""
-    from datamodules.config import apply_data_overrides, instantiate_datamodule, parse_data_overrides
-
     if source_data is not None:  # the model's own data config, command-line data.* on top
         data = apply_data_overrides(source_data, parse_data_overrides(overrides), task=task)
     else:  # configs/evaluate.yaml's data group, overrides already composed in by Hydra
@@ -234,8 +231,6 @@ def _write(
     predictor: Predictor,
     result: EvaluationResult,
 ) -> dict[str, Any]:
-    import json
-
     panels = output_dir / "panels"
     max_depth = float(data_config.get("max_depth", 120.0))  # the depth colour bar's far end, as the tiles
     for sample_id, tiles in result.panels:

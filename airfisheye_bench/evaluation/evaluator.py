@@ -19,13 +19,13 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset
 from torchmetrics import Metric
-from torchmetrics.utilities.data import dim_zero_sum
 
 from airfisheye_bench.evaluation.predictors import FilePredictor, Predictor
-from airfisheye_bench.metrics._state import record_update
+from airfisheye_bench.metrics._torchmetrics_compat import record_update, state_names, sums_every_state
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.viz import panel_row, spread_indices
+from datamodules.dataset import collate
 
 __all__ = ["EvaluationResult", "evaluate_predictions", "format_results_table"]
 
@@ -81,8 +81,6 @@ def evaluate_predictions(
     Returns:
         An :class:`EvaluationResult`.
     """
-    from datamodules.dataset import collate
-
     scorer.reset()
     target_key = get_task(predictor.task).target
     ids = getattr(dataset, "sample_ids", None)
@@ -143,7 +141,7 @@ def _check_shape(prediction: torch.Tensor, target: torch.Tensor) -> None:
 
 def _stateful_metrics(scorer: TaskScorer) -> list[Metric]:
     """The scorer's metrics that hold states (the task metric and every bin's child), in a fixed order."""
-    return [m for m in scorer.modules() if isinstance(m, Metric) and m._defaults]
+    return [m for m in scorer.modules() if isinstance(m, Metric) and state_names(m)]
 
 
 def _can_score_in_workers(scorer: TaskScorer, theta_deg: torch.Tensor) -> bool:
@@ -154,7 +152,7 @@ def _can_score_in_workers(scorer: TaskScorer, theta_deg: torch.Tensor) -> bool:
     for metric in metrics:
         if metric.full_state_update is not False or metric.dist_sync_on_step:
             return False
-        if any(metric._reductions[name] is not dim_zero_sum for name in metric._defaults):
+        if not sums_every_state(metric):
             return False
         if any(
             not isinstance(v, torch.Tensor) or v.device.type != "cpu" for v in metric.metric_state.values()
@@ -184,8 +182,6 @@ class _ScoringCollate:
         self.task, self.scorer, self.theta_deg = task, scorer, theta_deg
 
     def __call__(self, samples: list[dict | None]) -> dict:
-        from datamodules.dataset import collate
-
         batch = collate(samples)
         if "image" not in batch:
             return batch

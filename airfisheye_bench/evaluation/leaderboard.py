@@ -41,9 +41,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.errors import MissingFileError, UserError
 from airfisheye_bench.evaluation.results import RESULTS_VERSION, evaluated_label, load_results
-from airfisheye_bench.io import atomic_write_text
 from airfisheye_bench.runs import checkpoint_run_name
 from airfisheye_bench.specs import MetricColumn, UnknownTaskError, all_tasks, get_task
 

@@ -71,7 +71,7 @@ def binned_chart(
     """
     bins = sorted({(lo, hi) for rows in series.values() for lo, hi, _ in rows})
     position = {b: i for i, b in enumerate(bins)}
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # matplotlib takes seconds to import: only a page with charts pays
 
     with _style(key):
         fig = Figure(
@@ -119,7 +119,7 @@ def bar_chart(
         >>> "n/a" in svg and "90.0" in svg
         True
     """
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # matplotlib takes seconds to import: only a page with charts pays
 
     names = list(values)
     numbers = [math.nan if values[n] is None else values[n] * scale for n in names]
@@ -144,7 +144,7 @@ def _plain(text: str) -> str:
 
 def _style(key: str):
     """matplotlib's settings for one chart; SVG ids are salted with its key, so they are unique on the page."""
-    import matplotlib as mpl
+    import matplotlib as mpl  # matplotlib takes seconds to import: only a page with charts pays
 
     return mpl.rc_context({**_STYLE, "svg.hashsalt": key})
 

@@ -30,6 +30,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from PIL import Image
+
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.evaluation.leaderboard import (
     MISSING,
     Leaderboard,
@@ -44,7 +47,6 @@ from airfisheye_bench.evaluation.leaderboard import (
 )
 from airfisheye_bench.evaluation.leaderboard_charts import bar_chart, binned_chart
 from airfisheye_bench.evaluation.results import load_results
-from airfisheye_bench.io import atomic_write_text
 
 __all__ = ["render_html", "write_html"]
 
@@ -349,8 +351,6 @@ def _panel(path: Path, width: int) -> str:
 
 
 def _data_uri(path: Path, width: int) -> str:
-    from PIL import Image
-
     with Image.open(path) as image:
         image = image.convert("RGB")
         if image.width > width:

@@ -18,7 +18,8 @@ from torch.utils.data import Dataset
 
 from airfisheye_bench.errors import MissingFileError
 from airfisheye_bench.evaluation.submission import read_prediction, validate_submission
-from airfisheye_bench.io import file_sha256
+from airfisheye_bench.io.deployment import read_deployment_metadata
+from airfisheye_bench.io.manifest import sha256_file
 from airfisheye_bench.specs import deployment_keys, get_task
 
 __all__ = [
@@ -130,7 +131,7 @@ class CheckpointPredictor:
         model = dict(self.module.hparams.get("model", {}))
         out: dict[str, Any] = {"source": "checkpoint", "name": model.get("name"), "config": model}
         if self.checkpoint is not None:
-            out.update(checkpoint=str(self.checkpoint), sha256=file_sha256(self.checkpoint))
+            out.update(checkpoint=str(self.checkpoint), sha256=sha256_file(self.checkpoint))
         out.update(weights=self.module.hparams.get("weights"), tta=self.tta)
         return out
 
@@ -152,9 +153,7 @@ class OnnxPredictor:
         providers: list[str] | None = None,
         tta: str | None = None,
     ) -> None:
-        import onnxruntime as ort
-
-        from airfisheye_bench.io.deployment import read_deployment_metadata
+        import onnxruntime as ort  # loaded on use: only ONNX predictions need it
 
         self.path = Path(path)
         self.tta = check_tta(tta)
@@ -193,7 +192,7 @@ class OnnxPredictor:
             "name": self.metadata.get("model"),
             "onnx": str(self.path),
             "precision": onnx_precision(self.path),
-            "sha256": file_sha256(self.path),
+            "sha256": sha256_file(self.path),
             "config": self.metadata.get("model_config"),
             "source_checkpoint": self.metadata.get("source_checkpoint"),
             "weights": self.metadata.get("weights"),
@@ -294,7 +293,7 @@ class FilePredictor:
     def identity(self) -> dict[str, Any]:
         digest = hashlib.sha256()
         for sample_id in sorted(self.files):
-            digest.update(f"{sample_id}:{file_sha256(self.files[sample_id])}\n".encode())
+            digest.update(f"{sample_id}:{sha256_file(self.files[sample_id])}\n".encode())
         return {
             "source": "predictions",
             "name": self.name,

@@ -16,13 +16,14 @@ directory of the checkpoint) and left out of the label otherwise.
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.io import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.specs import get_task
 
 RESULTS_VERSION = 1
@@ -106,8 +107,6 @@ def evaluated_label(model: Mapping[str, Any]) -> str:
 
 def dataset_identity(root: str | Path, name: str) -> dict[str, Any]:
     """Which data a result was measured on: name, root and the SHA-256 of its ``manifest.json`` when present."""
-    import hashlib
-
     root = Path(root)
     identity: dict[str, Any] = {"root": str(root), "name": name}
     manifest = root / "manifest.json"

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from airfisheye_bench.atomic import atomic_write_bytes
 from airfisheye_bench.errors import MissingFileError, OutputExistsError, UserError
-from airfisheye_bench.io import atomic_write_bytes
 from airfisheye_bench.specs import DEPTH_PNG_SCALE, get_task
 from airfisheye_bench.specs.formats import RANGE
 

@@ -33,16 +33,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import onnx
+import onnxruntime as ort
 import torch
 from omegaconf import DictConfig, OmegaConf
 from torch import Tensor
 
+from airfisheye_bench.atomic import check_writable
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.export.onnx import ParityReport, _median_ms, export_onnx, verify_onnx
-from airfisheye_bench.io import file_sha256
-from airfisheye_bench.io.atomic import check_writable
-from airfisheye_bench.io.deployment import deployment_metadata
+from airfisheye_bench.io.deployment import deployment_metadata, read_onnx_metadata
+from airfisheye_bench.io.manifest import sha256_file
+from airfisheye_bench.runs import resolve_checkpoint, run_config
 from airfisheye_bench.specs import get_task
+from airfisheye_bench.tasks.checkpoint import load_task
+from datamodules.config import apply_data_overrides, instantiate_datamodule
 
 __all__ = [
     "QUANTIZE_MODES",
@@ -220,12 +225,9 @@ def export_deployment(
     """
     _check_arguments(batch, parity_samples, quantize, calib_samples, eval_samples, repeats)
     out = check_writable(out, "out")  # before the minutes of loading, exporting and verifying
-    from airfisheye_bench.runs import resolve_checkpoint
-    from airfisheye_bench.tasks.checkpoint import load_task
 
     checkpoint = resolve_checkpoint(ckpt_path)
     task = load_task(checkpoint)
-    from datamodules.config import apply_data_overrides, instantiate_datamodule
 
     data_cfg = apply_data_overrides(_run_data(checkpoint), data_overrides, task=task.task)
     check_common_values(OmegaConf.create({"data": data_cfg}))
@@ -292,8 +294,6 @@ def _check_arguments(
 # ---------------------------------------------------------------------------------------- run and data
 def _run_data(checkpoint: Path) -> DictConfig:
     """The ``data`` section of the run that wrote ``checkpoint``."""
-    from airfisheye_bench.runs import run_config
-
     cfg = run_config(checkpoint)
     if cfg is None or "data" not in cfg:
         raise ValueError(
@@ -367,7 +367,7 @@ def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[
         normalization=datamodule.normalization,
         camera=datamodule.camera.to_dict(),
         data_config=OmegaConf.to_container(data_cfg, resolve=True),
-        checkpoint_sha256=file_sha256(checkpoint),
+        checkpoint_sha256=sha256_file(checkpoint),
         source_checkpoint=str(checkpoint.resolve()),
         weights=task.hparams.get("weights"),
         **{k: available[k] for k in spec.export.metadata},
@@ -480,8 +480,7 @@ def _preprocess(fp32: Path, workdir: Path, notes: list[str]) -> Path:
     annotations (AdaBins: "Inferred shape and existing shape differ") although ONNX Runtime runs the graph
     correctly (parity passed); the annotations are optional, so they are dropped and inferred afresh.
     """
-    import onnx
-    from onnxruntime.quantization import quant_pre_process
+    from onnxruntime.quantization import quant_pre_process  # loaded on use: only quantize= needs it
 
     model = onnx.load(str(fp32))
     del model.graph.value_info[:]
@@ -500,6 +499,7 @@ def _preprocess(fp32: Path, workdir: Path, notes: list[str]) -> Path:
 def _run_quantizer(
     source: Path, target: Path, mode: str, datamodule, task: str, calib_samples: int, notes: list[str]
 ) -> None:
+    # loaded on use: only quantize= needs the quantisers
     from onnxruntime.quantization import QuantType, quantize_dynamic, quantize_static
 
     with warnings.catch_warnings():
@@ -516,7 +516,7 @@ def _run_quantizer(
 
 def _calibration_reader(datamodule, names: Sequence[str], limit: int):
     """A ``CalibrationDataReader`` of validation frames, one frame per call (calibration needs no batching)."""
-    from onnxruntime.quantization import CalibrationDataReader
+    from onnxruntime.quantization import CalibrationDataReader  # loaded on use: only quantize=static needs it
 
     class ValidationReader(CalibrationDataReader):
         def __init__(self) -> None:
@@ -532,10 +532,6 @@ def _calibration_reader(datamodule, names: Sequence[str], limit: int):
 
 def _copy_metadata(source: Path, target: Path) -> None:
     """The quantisers drop ``metadata_props``; the int8 model carries the same deployment metadata."""
-    import onnx
-
-    from airfisheye_bench.io.deployment import read_onnx_metadata
-
     model = onnx.load(str(target))
     del model.metadata_props[:]
     for key, value in read_onnx_metadata(source).items():
@@ -544,8 +540,6 @@ def _copy_metadata(source: Path, target: Path) -> None:
 
 
 def _session(path: Path):
-    import onnxruntime as ort
-
     options = ort.SessionOptions()
     options.intra_op_num_threads = torch.get_num_threads()
     options.inter_op_num_threads = 1

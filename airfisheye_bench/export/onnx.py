@@ -23,7 +23,6 @@ import inspect
 import io
 import os
 import time
-import uuid
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -32,6 +31,9 @@ from pathlib import Path
 import numpy as np
 import torch
 from torch import Tensor, nn
+from torch.export import Dim
+
+from airfisheye_bench.atomic import atomic_write
 
 __all__ = ["OnnxParityError", "ParityReport", "export_onnx", "verify_onnx"]
 
@@ -157,15 +159,7 @@ def export_onnx(
         raise ValueError(f"model must return exactly one tensor to export, got outputs {outputs}")
     program.model.metadata_props.update(metadata)
 
-    # Not mkstemp: its 0600 mode would survive the rename, and a model is meant to be shared.
-    tmp_name = str(path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp"))
-    try:
-        program.save(tmp_name, external_data=False)
-        os.replace(tmp_name, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp_name)
-        raise
+    atomic_write(path, lambda tmp: program.save(str(tmp), external_data=False))
     return path
 
 
@@ -210,7 +204,7 @@ def verify_onnx(
         >>> report.max_abs_diff < 1e-5
         True
     """
-    import onnxruntime as ort
+    import onnxruntime as ort  # loaded on use: exporting alone does not need it
 
     _check_inputs(inputs, "inputs")
     if atol < 0 or rtol < 0:
@@ -289,7 +283,6 @@ def _dynamic_shapes(
 ) -> dict[str, dict[int, object]] | None:
     if not (dynamic_batch or dynamic_spatial):
         return None
-    from torch.export import Dim
 
     # One shared Dim ties the batch of every input together, which is what the model requires anyway.
     batch = Dim("batch", min=1, max=65536)

@@ -27,9 +27,10 @@ from typing import Any
 
 import torch
 
+from airfisheye_bench.constants import LENS_MODELS
 from airfisheye_bench.geometry._arrays import ArrayLike, as_tensor, back, check_last_dim
 
-MODELS = ("equidistant", "equisolid", "stereographic", "orthographic", "kannala_brandt")
+MODELS = LENS_MODELS  # the projection models implemented below (defined in constants for the config checks)
 
 _MAX_FOV = {"equidistant": 360.0, "equisolid": 360.0, "stereographic": 360.0, "orthographic": 180.0}
 

@@ -28,7 +28,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +35,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from airfisheye_bench.atomic import atomic_write
 from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.camera import FisheyeCamera
@@ -369,15 +369,11 @@ def _check_face_size(face_size: int) -> None:
 
 
 def _save_atomic(path: Path, lut: RemapTable) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp.npz")
-    os.close(fd)
-    try:
-        np.savez(tmp, pixels=lut.pixels.numpy(), index=lut.index.numpy(), weight=lut.weight.numpy())
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    def write(tmp: Path) -> None:
+        with tmp.open("wb") as f:  # a file object: np.savez would append ".npz" to the temporary's name
+            np.savez(f, pixels=lut.pixels.numpy(), index=lut.index.numpy(), weight=lut.weight.numpy())
+
+    atomic_write(path, write)
 
 
 class _LRU:

@@ -4,9 +4,7 @@ This package is the one place that knows file names and encodings; the generator
 datamodules read through it (:class:`DatasetReader`).
 """
 
-from airfisheye_bench.io.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.io.calib import Calibration
-from airfisheye_bench.io.checksum import file_sha256
 from airfisheye_bench.io.codecs import (
     read_depth,
     read_label,
@@ -48,11 +46,8 @@ __all__ = [
     "ImuTable",
     "PoseTable",
     "SplitsSpec",
-    "atomic_write_bytes",
-    "atomic_write_text",
     "camera_from_lidar",
     "classes_from",
-    "file_sha256",
     "parse_sample_id",
     "read_depth",
     "read_label",
@@ -61,7 +56,6 @@ __all__ = [
     "read_rgb",
     "read_split",
     "read_visibility",
-    "remove_stale_temporaries",
     "trajectory_of",
     "write_depth",
     "write_label",

@@ -22,6 +22,9 @@ from typing import Any
 
 import numpy as np
 
+from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.transforms import check_rigid, relative_transform
 from airfisheye_bench.io.yamlio import FieldReader, read_yaml, write_yaml
 
 _KNOWN_KEYS = {"camera", "cubemap", "T_body_cam", "T_body_lidar", "lidar"}
@@ -49,21 +52,15 @@ class Calibration:
 
     def fisheye_camera(self):
         """The :class:`~airfisheye_bench.geometry.FisheyeCamera` described by ``camera``."""
-        from airfisheye_bench.geometry import FisheyeCamera
-
         return FisheyeCamera.from_dict(self.camera)
 
     def lidar_spec(self):
         """The :class:`~airfisheye_bench.geometry.lidar.LidarSpec` described by ``lidar``."""
-        from airfisheye_bench.geometry.lidar import LidarSpec
-
         return LidarSpec.from_dict(self.lidar)
 
     @property
     def T_cam_lidar_static(self) -> np.ndarray:
         """``T_cam_lidar`` for a stationary platform (no motion between the two sensors' timestamps)."""
-        from airfisheye_bench.geometry.transforms import relative_transform
-
         return relative_transform(self.T_body_cam, self.T_body_lidar)
 
     def to_dict(self) -> dict[str, Any]:
@@ -89,8 +86,6 @@ class Calibration:
 
     @classmethod
     def from_dict(cls, data: dict, path: str | Path = "calib.yaml") -> Calibration:
-        from airfisheye_bench.geometry.transforms import check_rigid
-
         r = FieldReader(path, data)
         camera = r.mapping("camera")
         for key in ("width", "height"):
@@ -105,8 +100,6 @@ class Calibration:
                 raise r.error(key, str(exc)) from None
         lidar = r.mapping("lidar")
         # Validate the sensor models with their own constructors so that errors point at the right key.
-        from airfisheye_bench.geometry import FisheyeCamera
-        from airfisheye_bench.geometry.lidar import LidarSpec
 
         for key, build, value in (
             ("camera", FisheyeCamera.from_dict, camera),

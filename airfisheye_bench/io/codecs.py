@@ -39,7 +39,7 @@ import numpy as np
 import torch
 from PIL import Image
 
-from airfisheye_bench.io.atomic import atomic_write_bytes
+from airfisheye_bench.atomic import atomic_write_bytes
 from airfisheye_bench.io.errors import DatasetFormatError
 
 #: Default depth PNG scale: ``value = round(range * 256)`` (KITTI convention).
@@ -102,7 +102,7 @@ def _torchvision_io() -> ModuleType | None:
     """
     probe = np.frombuffer(encode_label(np.zeros((1, 1), np.uint8)), dtype=np.uint8).copy()
     try:
-        from torchvision import io as tvio
+        from torchvision import io as tvio  # a probe: a torchvision without its image extension fails here
 
         _quietly(tvio.decode_png, torch.from_numpy(probe), tvio.ImageReadMode.UNCHANGED)
     except Exception:  # a torchvision without its image extension

@@ -22,11 +22,11 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import trajectory_of
 from airfisheye_bench.io.reader import DatasetReader
-from airfisheye_bench.io.spec import FACE_NAMES
 
 _IMAGE_MODES = {"rgb": ("RGB", "RGBA", "L"), "seg": ("L", "P"), "depth": ("I;16", "I;16B", "I;16L", "I")}
 

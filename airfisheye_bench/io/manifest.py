@@ -1,4 +1,4 @@
-"""Dataset manifests: per-file SHA-256 checksums and sizes, and :func:`verify` to check a dataset against them.
+"""File checksums, dataset manifests (per-file SHA-256 and size), and :func:`verify` to check a dataset against them.
 
 ``manifest.json`` lives at the dataset root and lists every file of the dataset except itself and the preview
 ``contact_sheet.png`` (relative POSIX paths, sorted), so it is deterministic and two identical datasets have
@@ -18,7 +18,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from airfisheye_bench.io.atomic import TEMP_GLOB, atomic_write_text
+from tqdm.auto import tqdm
+
+from airfisheye_bench.atomic import TEMP_GLOB, atomic_write_text
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import CONTACT_SHEET_NAME, MANIFEST_NAME
 
@@ -36,12 +38,28 @@ class FileEntry:
 
 
 def sha256_bytes(data: bytes) -> str:
-    """Hex SHA-256 of ``data``."""
+    """Hex SHA-256 of ``data``.
+
+    Example:
+        >>> sha256_bytes(b"abc")[:16]
+        'ba7816bf8f01cfea'
+    """
     return hashlib.sha256(data).hexdigest()
 
 
 def sha256_file(path: str | Path, chunk_size: int = 1 << 20) -> str:
-    """Hex SHA-256 of a file, read in chunks."""
+    """Hex SHA-256 of a file, read in ``chunk_size``-byte blocks (checkpoints are hundreds of MB).
+
+    The one file checksum of the project: dataset manifests, and the checkpoint, weights and prediction files that
+    results and exported models name.
+
+    Example:
+        >>> import tempfile
+        >>> path = Path(tempfile.mkdtemp()) / "x.bin"
+        >>> _ = path.write_bytes(b"abc")
+        >>> sha256_file(path) == sha256_bytes(b"abc")
+        True
+    """
     h = hashlib.sha256()
     with open(path, "rb") as f:
         while block := f.read(chunk_size):
@@ -168,8 +186,6 @@ def verify(root: str | Path, check_unexpected: bool = True, progress: bool = Fal
     report = VerifyReport()
     items: Iterable = sorted(entries.items())
     if progress:
-        from tqdm.auto import tqdm
-
         items = tqdm(items, total=len(entries), desc="verify", unit="file")
     for rel, entry in items:
         path = root / rel

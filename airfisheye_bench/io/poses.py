@@ -24,7 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from airfisheye_bench.io.atomic import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.geometry.transforms import (
+    make_transform,
+    matrix_to_quaternion,
+    quaternion_to_matrix,
+    relative_transform,
+)
 from airfisheye_bench.io.errors import DatasetFormatError
 
 _POSE_FIELDS = ("tx", "ty", "tz", "qw", "qx", "qy", "qz")
@@ -39,14 +45,10 @@ IMU_HEADER = ("t", "ax", "ay", "az", "wx", "wy", "wz")
 
 
 def _pose_to_row(T: np.ndarray) -> np.ndarray:
-    from airfisheye_bench.geometry.transforms import matrix_to_quaternion
-
     return np.concatenate([T[..., :3, 3], matrix_to_quaternion(T[..., :3, :3])], axis=-1)
 
 
 def _row_to_pose(row: np.ndarray) -> np.ndarray:
-    from airfisheye_bench.geometry.transforms import make_transform, quaternion_to_matrix
-
     return make_transform(quaternion_to_matrix(row[..., 3:7]), row[..., :3])
 
 
@@ -150,8 +152,6 @@ def camera_from_lidar(poses: PoseTable, T_body_cam: np.ndarray, T_body_lidar: np
         >>> camera_from_lidar(table, np.eye(4), np.eye(4))[0, :3, 3].tolist()  # the body moved 1 m forward
         [1.0, 0.0, 0.0]
     """
-    from airfisheye_bench.geometry.transforms import relative_transform
-
     T_world_cam = poses.T_world_body_cam @ np.asarray(T_body_cam, np.float64)
     T_world_lidar = poses.T_world_body_lidar @ np.asarray(T_body_lidar, np.float64)
     return relative_transform(T_world_cam, T_world_lidar)

@@ -30,12 +30,12 @@ from typing import Any
 
 import numpy as np
 
+from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.yamlio import FieldReader, check_int, read_yaml, write_yaml
 
 FORMAT_VERSION = 1
 DATASET_YAML = "dataset.yaml"
-FACE_NAMES = ("front", "left", "right", "up", "down")  # mirrors airfisheye_bench.geometry.cubemap.FACE_NAMES
 
 #: Modalities a release may contain (``contents`` key).
 KNOWN_CONTENTS = ("cubemap", "fisheye", "lidar", "lidar_visible", "lidar_beam", "lidar_scan", "poses", "imu")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from airfisheye_bench.io.atomic import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.io.errors import DatasetFormatError
 
 

@@ -42,9 +42,9 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
+from airfisheye_bench.atomic import TEMP_GLOB
 from airfisheye_bench.errors import OutputExistsError
 from airfisheye_bench.io import codecs
-from airfisheye_bench.io.atomic import TEMP_GLOB
 from airfisheye_bench.io.layout import MANIFEST_NAME
 from airfisheye_bench.io.manifest import create_manifest
 from airfisheye_bench.io.reader import DatasetReader

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from airfisheye_bench.io.atomic import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.io.errors import DatasetFormatError
 
 

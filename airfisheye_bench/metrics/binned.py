@@ -19,7 +19,7 @@ from torchmetrics import Metric
 from torchmetrics.wrappers.abstract import WrapperMetric
 
 from airfisheye_bench.metrics._per_image import PerImageAverage
-from airfisheye_bench.metrics._state import record_update
+from airfisheye_bench.metrics._torchmetrics_compat import record_update
 from airfisheye_bench.metrics.functional import _check_mask
 
 __all__ = ["DEFAULT_DEPTH_EDGES_M", "DEFAULT_RING_EDGES_DEG", "BinnedMetrics", "bin_index"]

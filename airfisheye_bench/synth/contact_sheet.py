@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
+from airfisheye_bench.atomic import atomic_write_bytes
 from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye
 from airfisheye_bench.geometry.transforms import transform_points
-from airfisheye_bench.io.atomic import atomic_write_bytes
 from airfisheye_bench.io.codecs import encode_rgb
 from airfisheye_bench.io.layout import CONTACT_SHEET_NAME
 from airfisheye_bench.io.reader import DatasetReader

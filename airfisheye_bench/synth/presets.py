@@ -46,6 +46,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.synth.sensors import ScanModel
 from airfisheye_bench.synth.trajectory import FlightConfig, SensorRig
 
@@ -161,8 +163,6 @@ class SynthConfig:
         )
 
     def lidar_spec(self):
-        from airfisheye_bench.geometry.lidar import LidarSpec
-
         return LidarSpec(
             channels=self.lidar_channels,
             points_per_channel=self.lidar_points_per_channel,
@@ -173,8 +173,6 @@ class SynthConfig:
 
     def fisheye_camera(self):
         """The pre-rendered fisheye camera, or ``None`` if there is none."""
-        from airfisheye_bench.geometry import FisheyeCamera
-
         if self.fisheye_size == 0:
             return None
         return FisheyeCamera(

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+import torch
 
 from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, euler_to_matrix, make_transform
 
@@ -366,8 +367,6 @@ def _bounds(scene: TerrainQuery) -> np.ndarray:
 
 def _heights(fn, xy: np.ndarray) -> np.ndarray:
     """Call a scene height query with a float32 torch tensor and return float64 numpy (accepts numpy answers)."""
-    import torch
-
     out = fn(torch.as_tensor(np.ascontiguousarray(xy), dtype=torch.float32))
     if isinstance(out, torch.Tensor):
         out = out.detach().cpu().numpy()

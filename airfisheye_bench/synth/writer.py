@@ -35,11 +35,12 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from tqdm.auto import tqdm
 
+from airfisheye_bench.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.io import codecs
-from airfisheye_bench.io.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.io.calib import Calibration
 from airfisheye_bench.io.layout import DatasetLayout
 from airfisheye_bench.io.manifest import FileEntry, sha256_bytes, sha256_file, write_manifest
@@ -184,7 +185,7 @@ def dataset_spec(config: SynthConfig, seed: int, plans: list[TrajectoryPlan]) ->
         sensors["cubemap"] = {
             "face_size": config.face_size,
             "faces": list(FACE_NAMES),
-            "model": "90-deg OpenCV pinhole per face, f = S/2, c = (S-1)/2; orientations as in DESIGN.md",
+            "model": "90-deg OpenCV pinhole per face, f = S/2, c = (S-1)/2; orientations as in docs/design.md",
         }
     if config.fisheye_size > 0:
         contents.append("fisheye")
@@ -586,7 +587,6 @@ class _NoBar:
 def _progress_bar(enabled: bool, total: int, initial: int, name: str):
     if not enabled:
         return _NoBar()
-    from tqdm.auto import tqdm
 
     return tqdm(total=total, initial=initial, desc=f"generate {name}", unit="frame", dynamic_ncols=True)
 
@@ -655,7 +655,7 @@ def _exclusive_lock(path: Path):
     """Blocking inter-process lock on ``path`` (``fcntl`` on POSIX; best effort elsewhere)."""
     with open(path, "a+") as f:
         try:
-            import fcntl
+            import fcntl  # POSIX only
         except ImportError:  # Windows: rely on the atomic rename of the finished dataset
             yield
             return

@@ -13,6 +13,7 @@ import torch
 
 from airfisheye_bench.errors import InputFileError
 from airfisheye_bench.runs import read_checkpoint, resolve_checkpoint
+from airfisheye_bench.tasks import TASKS
 from airfisheye_bench.tasks.base import BenchmarkTask
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
@@ -52,8 +53,6 @@ def load_task(path: str | Path, map_location: str | torch.device = "cpu") -> Ben
         >>> type(load_task(ckpt)).__name__
         'DepthTask'
     """
-    from airfisheye_bench.tasks import TASKS
-
     checkpoint = resolve_checkpoint(path)
     state = read_checkpoint(checkpoint)
     hparams: dict[str, Any] = state.get("hyper_parameters", {})

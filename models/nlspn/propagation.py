@@ -60,6 +60,7 @@ from typing import NamedTuple
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
+from torchvision.ops import deform_conv2d
 
 __all__ = [
     "AFFINITY_TYPES",
@@ -171,8 +172,6 @@ def sample_neighbours(x: Tensor, displacement: Tensor, impl: str = "grid_sample"
             b, n, h, w
         )
     if impl == "deform_conv":
-        from torchvision.ops import deform_conv2d
-
         kernel_size = round((n + 1) ** 0.5)
         if kernel_size * kernel_size != n + 1:
             raise ValueError(f"deform_conv sampling needs n = k*k - 1 neighbours, got n={n}")
@@ -336,8 +335,6 @@ class NonLocalPropagation(nn.Module):
                 )
                 depth = aff_centre * depth + (aff * neighbours.view(b, n, h, w)).sum(dim=1, keepdim=True)
         else:
-            from torchvision.ops import deform_conv2d
-
             dcn_offset = _dcn_offset(displacement - taps)
             dcn_mask = _insert_centre(aff, aff_centre)
             ones = torch.ones(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from airfisheye_bench.atomic import atomic_write_bytes, remove_stale_temporaries
 from airfisheye_bench.io import (
     DatasetFormatError,
     read_depth,
@@ -20,7 +21,6 @@ from airfisheye_bench.io import (
     write_rgb,
     write_visibility,
 )
-from airfisheye_bench.io.atomic import atomic_write_bytes, remove_stale_temporaries
 
 
 @pytest.fixture

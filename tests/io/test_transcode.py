@@ -12,11 +12,11 @@ import pytest
 from PIL import Image
 
 from airfisheye_bench.cli import transcode
+from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.io import DatasetFormatError, DatasetReader, DatasetSpec, FileEncodings
 from airfisheye_bench.io import transcode as transcode_module
 from airfisheye_bench.io.inspect import inspect_dataset
 from airfisheye_bench.io.manifest import read_manifest, verify
-from airfisheye_bench.io.spec import FACE_NAMES
 from airfisheye_bench.io.transcode import TranscodeReport, transcode_dataset
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 from tests.commands import exit_status

@@ -18,6 +18,7 @@ from airfisheye_bench.metrics import (
     depth_errors,
     functional,
 )
+from airfisheye_bench.metrics._torchmetrics_compat import state_reduction
 from tests.metrics.metric_refs import ref_average, ref_depth_image, ref_nlspn_image
 
 MAX = 120.0
@@ -186,7 +187,7 @@ def test_bad_depth_bounds_raise():
 def test_states_are_summed_float64_and_attributes_are_set(metric_cls):
     metric = metric_cls()
     assert metric.sum_values.dtype == torch.float64
-    assert all(metric._reductions[name] is dim_zero_sum for name in ("sum_values", "num_images"))
+    assert all(state_reduction(metric, name) is dim_zero_sum for name in ("sum_values", "num_images"))
     assert metric.full_state_update is False
     assert metric_cls.primary == "rmse"
     assert metric.higher_is_better is False

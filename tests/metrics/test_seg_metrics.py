@@ -11,6 +11,7 @@ from torchmetrics.classification import MulticlassJaccardIndex
 from torchmetrics.utilities.data import dim_zero_sum
 
 from airfisheye_bench.metrics import SegmentationMetrics, confusion_matrix
+from airfisheye_bench.metrics._torchmetrics_compat import state_reduction
 from airfisheye_bench.metrics.functional import _argmax_channels
 from tests.metrics.metric_refs import ref_confusion, ref_seg_scores
 
@@ -181,4 +182,4 @@ def test_metric_attributes_for_the_leaderboard():
         "IoU/sky": True,
         "IoU/road": True,
     }
-    assert metric._reductions["confmat"] is dim_zero_sum
+    assert state_reduction(metric, "confmat") is dim_zero_sum
