@@ -122,11 +122,17 @@ class RangeMaps(PredictionFormat):
         return f".{file_format}"
 
     def encode(self, suffix: str, array: np.ndarray) -> bytes:
+        # A file holds finite values only (a submission holding others is refused): NaN and -inf become 0 (no
+        # prediction) and +inf the largest value the file can hold, which the metrics clamp to max_depth as they
+        # clamp +inf, so saved predictions score as the model's own output did.
         buf = io.BytesIO()
         if suffix == ".npy":
-            np.save(buf, array.astype(np.float32), allow_pickle=False)
+            top = float(np.finfo(np.float32).max)
+            clean = np.nan_to_num(array.astype(np.float32), nan=0.0, posinf=top, neginf=0.0)
+            np.save(buf, clean, allow_pickle=False)
         else:
-            clean = np.clip(np.nan_to_num(array, nan=0.0, posinf=0.0), 0, 65535 / DEPTH_PNG_SCALE)
+            top = 65535 / DEPTH_PNG_SCALE
+            clean = np.clip(np.nan_to_num(array, nan=0.0, posinf=top, neginf=0.0), 0, top)
             Image.fromarray(np.round(clean * DEPTH_PNG_SCALE).astype(np.uint16)).save(buf, format="PNG")
         return buf.getvalue()
 

@@ -18,6 +18,7 @@ from airfisheye_bench.evaluation import (
     write_prediction,
     write_submission,
 )
+from airfisheye_bench.specs import get_task
 
 IDS = ["env/traj/000000", "env/traj/000001", "other/traj/000002"]
 SHAPE = (6, 8)
@@ -39,6 +40,26 @@ def test_depth_round_trip(tmp_path: Path, fmt: str) -> None:
     tol = 0.5 / 256 + 1e-6 if fmt == "png" else 0.0
     assert np.abs(back[0].numpy() - depth).max() <= tol
     assert back[0, 0, 0] == 0.0
+
+
+@pytest.mark.parametrize("fmt", ["png", "npy"])
+@pytest.mark.parametrize("task", ["depth", "completion"])
+def test_saved_non_finite_outputs_score_as_the_model_output(tmp_path: Path, task: str, fmt: str) -> None:
+    """A model that outputs NaN or +-inf (an fp16 overflow): its saved files are valid and score as it did.
+
+    The metrics map +inf to max_depth and NaN to "no prediction"; the files hold finite values only.
+    """
+    depth = np.round(_depth(1) * 256) / 256  # on the PNG grid: the comparison is exact
+    depth[0, :4] = [np.inf, np.nan, -np.inf, 0.0]
+    target = torch.from_numpy(_depth(2))[None, None]
+    root = write_submission(tmp_path / "sub", task, [(IDS[0], depth)], depth_format=fmt)
+    saved = read_prediction(validate_submission(root, task, IDS[:1], SHAPE)[IDS[0]], task)
+    scores = []
+    for prediction in (torch.from_numpy(depth)[None, None], saved[None]):
+        metric = get_task(task).make_metric()
+        metric.update(prediction, target)
+        scores.append({k: float(v) for k, v in metric.compute().items()})
+    assert scores[0] == scores[1]
 
 
 def test_labels_round_trip(tmp_path: Path) -> None:
