@@ -41,7 +41,7 @@ from airfisheye_bench.evaluation.predictors import (
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
 from airfisheye_bench.io.deployment import read_deployment_metadata
-from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
+from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.runs import checkpoint_run_name, resolve_checkpoint, run_config
 from airfisheye_bench.specs import UnknownTaskError, deployment_keys, get_task, task_names
@@ -121,7 +121,12 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     else:
         class_names = datamodule.class_names if spec.uses_classes else None
         factory = partial(spec.make_metric, class_names=class_names, max_depth=max_depth)
-    scorer = TaskScorer(factory, depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None)
+    rings = module.hparams.ring_edges_deg if module is not None else DEFAULT_RING_EDGES_DEG
+    scorer = TaskScorer(
+        factory,
+        ring_edges_deg=ring_edges_for(camera.fov_deg, rings),
+        depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None,
+    )
     theta = torch.rad2deg(camera.theta_grid()).float()
 
     output_dir = Path(cfg.output_dir)

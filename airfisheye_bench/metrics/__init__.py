@@ -12,6 +12,7 @@ from airfisheye_bench.metrics.binned import (
     DEFAULT_RING_EDGES_DEG,
     BinnedMetrics,
     bin_index,
+    ring_edges_for,
 )
 from airfisheye_bench.metrics.completion import CompletionMetrics
 from airfisheye_bench.metrics.depth import DepthMetrics
@@ -46,4 +47,5 @@ __all__ = [
     "iou_from_confusion",
     "mean_iou_from_confusion",
     "pixel_accuracy_from_confusion",
+    "ring_edges_for",
 ]

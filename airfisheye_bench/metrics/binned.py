@@ -10,6 +10,7 @@ each one syncs its own summed states under DDP.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable, Sequence
 from typing import Any, Literal
 
@@ -22,7 +23,7 @@ from airfisheye_bench.metrics._per_image import PerImageAverage
 from airfisheye_bench.metrics._torchmetrics_compat import record_update
 from airfisheye_bench.metrics.functional import _check_mask
 
-__all__ = ["DEFAULT_DEPTH_EDGES_M", "DEFAULT_RING_EDGES_DEG", "BinnedMetrics", "bin_index"]
+__all__ = ["DEFAULT_DEPTH_EDGES_M", "DEFAULT_RING_EDGES_DEG", "BinnedMetrics", "bin_index", "ring_edges_for"]
 
 #: Rings of incidence angle theta (deg) for the default 190 deg lens: centre, mid, outer, rim beyond 80 deg.
 DEFAULT_RING_EDGES_DEG: tuple[float, ...] = (0.0, 30.0, 60.0, 80.0, 95.0)
@@ -30,6 +31,21 @@ DEFAULT_RING_EDGES_DEG: tuple[float, ...] = (0.0, 30.0, 60.0, 80.0, 95.0)
 DEFAULT_DEPTH_EDGES_M: tuple[float, ...] = (0.0, 10.0, 20.0, 40.0, 80.0, 120.0)
 
 _PREFIX = {"theta": "ring", "depth": "range"}
+
+
+def ring_edges_for(fov_deg: float, edges: Sequence[float] = DEFAULT_RING_EDGES_DEG) -> tuple[float, ...]:
+    """Ring edges that cover a lens of ``fov_deg``: ``edges``, plus a ring out to its rim when it sees further.
+
+    The default rings end at 95 deg (a 190 deg lens); a wider lens (220 deg) would otherwise score its outermost
+    pixels in the overall metric but in no ring.
+
+    Example:
+        >>> ring_edges_for(190.0), ring_edges_for(220.0)
+        ((0.0, 30.0, 60.0, 80.0, 95.0), (0.0, 30.0, 60.0, 80.0, 95.0, 110.0))
+    """
+    edges = tuple(float(e) for e in edges)
+    rim = math.ceil(fov_deg / 2.0)
+    return (*edges, float(rim)) if rim > edges[-1] else edges
 
 
 def bin_index(values: Tensor, edges: Sequence[float], include_lowest: bool) -> Tensor:

@@ -49,3 +49,22 @@ def test_fast_dev_run(task: str, tiny_dataset: Path, tmp_path: Path) -> None:
     assert (tmp_path / "checkpoints" / "last.ckpt").is_file()
     assert (tmp_path / "config.yaml").is_file() and (tmp_path / "metrics.csv").is_file()
     assert list((tmp_path / "panels").glob("epoch_*.png"))
+
+
+def test_a_lens_wider_than_190_degrees_is_scored_out_to_its_rim(tiny_dataset: Path, tmp_path: Path) -> None:
+    """The default rings end at 95 deg; a 220 deg lens gets one more ring, so its rim pixels land in a ring."""
+    overrides = ["data.source=cubemap", "data.camera.fov_deg=220"]
+    cfg = compose_train([*tiny_run_overrides("depth", tiny_dataset), *overrides])
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(tmp_path)
+    train(cfg)
+    breakdown = json.loads((tmp_path / "results.json").read_text())["breakdown"]
+    assert {"ring_80-95/rmse", "ring_95-110/rmse"} <= set(breakdown)
+    assert not any(key.startswith("ring_95-110") for key in _default_lens_breakdown(tiny_dataset, tmp_path))
+
+
+def _default_lens_breakdown(root: Path, tmp_path: Path) -> dict:
+    cfg = compose_train(tiny_run_overrides("depth", root))
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(tmp_path / "default")
+    return train(cfg)["breakdown"]
