@@ -61,6 +61,7 @@ __all__ = [
     "find_results",
     "format_value",
     "higher_is_better",
+    "is_percent",
     "load_entries",
     "load_entry",
     "metric_column",
@@ -187,6 +188,12 @@ def higher_is_better(metric: str) -> bool:
     """Whether a larger ``metric`` is better (unknown metrics rank ascending, like errors)."""
     column = metric_column(metric)
     return column is not None and column.higher_is_better
+
+
+def is_percent(metric: str) -> bool:
+    """Whether ``metric`` prints as a percentage (its task column says so; files keep fractions)."""
+    column = metric_column(metric)
+    return column is not None and column.percent
 
 
 def csv_columns() -> tuple[str, ...]:
@@ -482,14 +489,9 @@ def competition_ranks(metric: str, values: Sequence[float | None]) -> list[int |
     return [None if v is None else first[v] for v in printed]
 
 
-def _is_percent(metric: str) -> bool:
-    column = metric_column(metric)
-    return column is not None and column.percent
-
-
 def _printed(metric: str, value: float) -> float:
     """``value`` rounded as :func:`format_value` prints it (percent metrics stay fractions)."""
-    return float(format_value(metric, value)) / (100.0 if _is_percent(metric) else 1.0)
+    return float(format_value(metric, value)) / (100.0 if is_percent(metric) else 1.0)
 
 
 def _rank(
@@ -566,9 +568,9 @@ def format_value(metric: str, value: float | None) -> str:
     """
     if value is None:
         return MISSING
-    column = metric_column(metric)
-    if column is not None and column.percent:
+    if is_percent(metric):
         return f"{100.0 * value:.1f}"
+    column = metric_column(metric)
     return f"{value:.{column.decimals if column is not None else 3}f}"
 
 

@@ -41,7 +41,7 @@ from airfisheye_bench.evaluation.leaderboard import (
     breakdown_bins,
     format_value,
     higher_is_better,
-    metric_column,
+    is_percent,
     metric_label,
     rim_label,
 )
@@ -314,7 +314,7 @@ def _metrics_table(e: LeaderboardEntry) -> str:
 
 
 def _binned(series: Mapping[str, list], metric: str, axis: str, key: str, label: str) -> str:
-    percent = (column := metric_column(metric)) is not None and column.percent
+    percent = is_percent(metric)
     return binned_chart(
         series,
         metric=metric_label(metric),
