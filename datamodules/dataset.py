@@ -47,7 +47,6 @@ log = logging.getLogger(__name__)
 
 #: The task-dependent keys a sample can hold, in the order they are loaded.
 SAMPLE_KEYS = ("label", "depth", "sparse_depth")
-SOURCES = IMAGE_SOURCES
 
 
 @dataclass(frozen=True)
@@ -132,7 +131,7 @@ class AirFisheyeDataset(Dataset):
     ) -> None:
         task_spec = get_task(task)
         for name, value, allowed in (
-            ("source", source, SOURCES),
+            ("source", source, IMAGE_SOURCES),
             ("occlusion", occlusion, OCCLUSION_METHODS),
         ):
             if value not in allowed:
