@@ -119,10 +119,6 @@ class ValueRule:
         return None
 
 
-def _lens_models() -> tuple[str, ...]:
-    return LENS_MODELS
-
-
 def _occlusion_methods() -> tuple[str, ...]:
     from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS  # imports torch: only when checked
 
