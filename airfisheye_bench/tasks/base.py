@@ -50,6 +50,10 @@ class BenchmarkTask(L.LightningModule):
         ring_edges_deg: Incidence-angle ring edges of the fisheye breakdown (degrees).
         num_panels: Validation frames drawn into the qualitative panel each epoch (0 disables panels), spread
             evenly over the split (:func:`~airfisheye_bench.viz.spread_indices`), the same frames every epoch.
+        warmup_epochs: Linear learning-rate warm-up over the first ``warmup_epochs`` epochs (0: none), as upstream
+            NLSPN's ``--warm_up`` does over its first epoch: step ``s`` of the ``S`` warm-up steps runs at
+            ``(s + 1) / (S + 1)`` x the scheduled lr of every group. The factor is applied to the step alone
+            (:meth:`optimizer_step`), so checkpoints hold the scheduled lr and a resume needs no extra state.
     """
 
     task: ClassVar[str]
@@ -68,6 +72,7 @@ class BenchmarkTask(L.LightningModule):
         num_panels: int = 4,
         lr_multipliers: dict[str, float] | None = None,
         weights: dict[str, Any] | None = None,
+        warmup_epochs: int = 0,
     ) -> None:
         super().__init__()
         self.save_hyperparameters(ignore=["optimizer", "scheduler"], logger=False)
@@ -83,6 +88,8 @@ class BenchmarkTask(L.LightningModule):
             )
         if scheduler_interval not in ("epoch", "step"):
             raise ValueError(f"scheduler_interval must be 'epoch' or 'step', got {scheduler_interval!r}")
+        if isinstance(warmup_epochs, bool) or not isinstance(warmup_epochs, int) or warmup_epochs < 0:
+            raise ValueError(f"warmup_epochs must be a whole number >= 0, got {warmup_epochs!r}")
         self.net = create_model(name, **model)
         # Saved with the hyperparameters, so results.json and the ONNX metadata say which weights a run started from.
         self.hparams["weights"] = (
@@ -331,6 +338,36 @@ class BenchmarkTask(L.LightningModule):
                 group["lr"] = lr * factor
             groups.append(group)
         return groups
+
+    def warmup_factor(self, epoch: int, batch_idx: int) -> float:
+        """The warm-up multiplier of the learning rate at ``(epoch, batch_idx)`` (1.0 once warmed up).
+
+        Upstream NLSPN (``main.py``) counts the batches of its first epoch and sets ``lr = initial_lr * count /
+        (len(loader) + 1)``; over ``warmup_epochs`` epochs of ``N`` batches this is ``(s + 1) / (E N + 1)`` at
+        warm-up step ``s``.
+        """
+        epochs = int(self.hparams.get("warmup_epochs", 0))
+        if epoch >= epochs:
+            return 1.0
+        per_epoch = int(self.trainer.num_training_batches)
+        return (epoch * per_epoch + batch_idx + 1) / (epochs * per_epoch + 1)
+
+    def optimizer_step(
+        self, epoch: int, batch_idx: int, optimizer: Any, optimizer_closure: Any = None
+    ) -> None:
+        factor = self.warmup_factor(epoch, batch_idx)
+        if factor == 1.0:
+            optimizer.step(closure=optimizer_closure)
+            return
+        # Scale this step only: the groups keep the scheduled lr, which the LR scheduler and checkpoints read.
+        scheduled = [group["lr"] for group in optimizer.param_groups]
+        for group in optimizer.param_groups:
+            group["lr"] = group["lr"] * factor
+        try:
+            optimizer.step(closure=optimizer_closure)
+        finally:
+            for group, lr in zip(optimizer.param_groups, scheduled, strict=True):
+                group["lr"] = lr
 
     def configure_optimizers(self) -> Any:
         if self.optimizer_factory is None:

@@ -97,6 +97,10 @@ def test_paper_recipes_follow_upstream() -> None:
     assert (module.scheduler.div_factor, module.scheduler.final_div_factor) == (25, 100)
     comp = compose_train(["experiment=paper/completion"])
     assert comp.model.preserve_input is False and comp.model.confidence_sampling == "offset"
+    assert comp.task.module.warmup_epochs == 1  # upstream's --warm_up (on by default): lr ramps over epoch 1
+    assert (
+        compose_train(["task=completion"]).task.module.get("warmup_epochs", 0) == 0
+    )  # not in the quick start
 
 
 def test_quick_start_downloads_nothing() -> None:

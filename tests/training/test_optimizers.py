@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from functools import partial
+from unittest.mock import PropertyMock, patch
 
 import pytest
 import torch
@@ -74,3 +75,36 @@ def test_the_most_specific_multiplier_wins():
     assert ids(groups["encoder"]["params"]) == ids(task.net.get_1x_lr_params()) - ids(
         task.net.encoder.layer4.parameters()
     )
+
+
+def test_warmup_scales_each_first_epoch_step_like_upstream_nlspn():
+    """Upstream NLSPN (src/main.py): ``lr = initial_lr * warm_up_cnt / (len(loader_train) + 1)`` in epoch 1."""
+    schedule = partial(torch.optim.lr_scheduler.MultiStepLR, milestones=[1], gamma=0.2)
+    task = adabins_task(scheduler=schedule, lr_multipliers={"encoder": 0.1}, warmup_epochs=1)
+    config = task.configure_optimizers()
+    optimizer, scheduler = config["optimizer"], config["lr_scheduler"]["scheduler"]
+    seen: list[list[float]] = []
+    optimizer.register_step_pre_hook(
+        lambda opt, args, kwargs: seen.append([g["lr"] for g in opt.param_groups])
+    )
+    batches = 4
+    with patch.object(type(task), "trainer", new_callable=PropertyMock) as trainer:
+        trainer.return_value.num_training_batches = batches
+        for epoch, gamma in ((0, 1.0), (1, 0.2)):
+            for batch_idx in range(batches):
+                task.optimizer_step(epoch, batch_idx, optimizer, optimizer_closure=None)
+                # The step alone is scaled: the groups (and so checkpoints and the scheduler) keep the schedule.
+                assert [g["lr"] for g in optimizer.param_groups] == pytest.approx(
+                    [LR / 10 * gamma, LR * gamma]
+                )
+            scheduler.step()
+    for batch_idx in range(batches):
+        factor = (batch_idx + 1) / (batches + 1)
+        assert seen[batch_idx] == pytest.approx([LR / 10 * factor, LR * factor])
+    for step in seen[batches:]:  # warmed up: the schedule as it is (x0.2 after the milestone)
+        assert step == pytest.approx([LR / 10 * 0.2, LR * 0.2])
+
+
+def test_warmup_epochs_must_be_a_whole_number():
+    with pytest.raises(ValueError, match="warmup_epochs"):
+        adabins_task(warmup_epochs=0.5)
