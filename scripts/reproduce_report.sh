@@ -8,7 +8,7 @@
 #
 # Steps whose output already exists are skipped, so an interrupted run can simply be started again.
 # On a 2-core CPU the five trainings take about 50 minutes on an otherwise idle machine. The occlusion-rig ablation
-# (3 methods x 3 seeds) is sized by OCCLUSION_ABLATION (Hydra overrides for train.py; default: 128^2, 5 epochs);
+# (4 methods x 3 seeds) is sized by OCCLUSION_ABLATION (Hydra overrides for train.py; default: 128^2, 5 epochs);
 # at the paper's 512^2 it wants a GPU, e.g. OCCLUSION_ABLATION="data.camera.size=512 trainer=gpu trainer.max_epochs=25".
 set -euo pipefail
 OUT=${1:-runs/report}
