@@ -40,12 +40,8 @@ class CompletionMetrics(PerImageAverage):
 
     keys: ClassVar[tuple[str, ...]] = COMPLETION_METRIC_KEYS
     errors_fn = staticmethod(completion_errors)
-    #: The key a leaderboard ranks by.
-    primary: ClassVar[str] = "rmse"
-    higher_is_better = False  # of the primary key
-    higher_is_better_by_key: ClassVar[dict[str, bool]] = {
-        k: k.startswith("delta") for k in COMPLETION_METRIC_KEYS
-    }
+    # torchmetrics' direction of the main output (MetricTracker); the task spec holds every column's direction.
+    higher_is_better = False
 
     def __init__(self, max_depth: float = 120.0, **kwargs) -> None:
         if not max_depth > COMPLETION_VALID_MIN:

@@ -38,10 +38,8 @@ class DepthMetrics(PerImageAverage):
 
     keys: ClassVar[tuple[str, ...]] = DEPTH_METRIC_KEYS
     errors_fn = staticmethod(depth_errors)
-    #: The key a leaderboard ranks by.
-    primary: ClassVar[str] = "rmse"
-    higher_is_better = False  # of the primary key
-    higher_is_better_by_key: ClassVar[dict[str, bool]] = {k: k.startswith("delta") for k in DEPTH_METRIC_KEYS}
+    # torchmetrics' direction of the main output (MetricTracker); the task spec holds every column's direction.
+    higher_is_better = False
 
     def __init__(self, min_depth: float = 1e-3, max_depth: float = 120.0, **kwargs) -> None:
         if not 0 < min_depth < max_depth:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import ClassVar
 
 import torch
 from torch import Tensor
@@ -49,8 +48,7 @@ class SegmentationMetrics(Metric):
         {'mIoU': 0.5, 'pixel_acc': 0.667, 'IoU/sky': 1.0, 'IoU/road': 0.5, 'IoU/tree': 0.0}
     """
 
-    #: The key a leaderboard ranks by.
-    primary: ClassVar[str] = "mIoU"
+    # torchmetrics' direction of the main output (MetricTracker); the task spec holds every column's direction.
     higher_is_better = True
     is_differentiable = False
     full_state_update = False
@@ -81,11 +79,6 @@ class SegmentationMetrics(Metric):
         self.add_state(
             "confmat", torch.zeros(num_classes, num_classes, dtype=torch.int64), dist_reduce_fx="sum"
         )
-
-    @property
-    def higher_is_better_by_key(self) -> dict[str, bool]:
-        """Direction of every output key (all higher-is-better)."""
-        return dict.fromkeys(["mIoU", "pixel_acc", *(f"IoU/{n}" for n in self.class_names)], True)
 
     def update(self, preds: Tensor, target: Tensor, mask: Tensor | None = None) -> None:
         """Add a batch.

@@ -19,6 +19,7 @@ from airfisheye_bench.metrics import (
     functional,
 )
 from airfisheye_bench.metrics._torchmetrics_compat import state_reduction
+from airfisheye_bench.specs import get_task
 from tests.metrics.metric_refs import ref_average, ref_depth_image, ref_nlspn_image
 
 MAX = 120.0
@@ -189,10 +190,11 @@ def test_states_are_summed_float64_and_attributes_are_set(metric_cls):
     assert metric.sum_values.dtype == torch.float64
     assert all(state_reduction(metric, name) is dim_zero_sum for name in ("sum_values", "num_images"))
     assert metric.full_state_update is False
-    assert metric_cls.primary == "rmse"
-    assert metric.higher_is_better is False
-    assert metric.higher_is_better_by_key["delta1"] is True
-    assert metric.higher_is_better_by_key["rmse"] is False
+    spec = get_task("depth" if metric_cls is DepthMetrics else "completion")  # the one source of directions
+    assert spec.primary_metric == "rmse"
+    assert metric.higher_is_better is spec.higher_is_better is False
+    assert spec.column("delta1").higher_is_better is True
+    assert spec.column("rmse").higher_is_better is False
 
 
 @pytest.mark.parametrize("chunk_pixels", [1, 170])  # one image per slice; two images (80 px each) per slice

@@ -13,6 +13,7 @@ from torchmetrics.utilities.data import dim_zero_sum
 from airfisheye_bench.metrics import SegmentationMetrics, confusion_matrix
 from airfisheye_bench.metrics._torchmetrics_compat import state_reduction
 from airfisheye_bench.metrics.functional import _argmax_channels
+from airfisheye_bench.specs import get_task
 from tests.metrics.metric_refs import ref_confusion, ref_seg_scores
 
 C = 5
@@ -171,15 +172,13 @@ def test_bad_constructor_arguments_raise():
         SegmentationMetrics(0)
 
 
-def test_metric_attributes_for_the_leaderboard():
+def test_metric_attributes_agree_with_the_task_spec():
     metric = SegmentationMetrics(2, class_names=["sky", "road"])
-    assert SegmentationMetrics.primary == "mIoU"
-    assert metric.higher_is_better is True
+    spec = get_task("seg")  # the one source of the ranking key and the directions
+    assert spec.primary_metric == "mIoU"
+    assert metric.higher_is_better is spec.higher_is_better is True
     assert metric.full_state_update is False
-    assert metric.higher_is_better_by_key == {
-        "mIoU": True,
-        "pixel_acc": True,
-        "IoU/sky": True,
-        "IoU/road": True,
-    }
+    assert {c.key: c.higher_is_better for c in spec.columns} == {"mIoU": True, "pixel_acc": True}
+    metric.update(torch.tensor([[[0, 1]]]), torch.tensor([[[0, 1]]]))
+    assert set(spec.metric_keys) <= set(metric.compute())  # every ranked column is an output of the metric
     assert state_reduction(metric, "confmat") is dim_zero_sum
