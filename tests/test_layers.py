@@ -45,6 +45,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("datamodules",),
     ("viz",),
     ("runs", "checkpointing"),
+    ("tracking",),
     ("tasks",),
     ("evaluation",),
     ("training",),

@@ -14,7 +14,7 @@ from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.runs import register_resolvers, resume_config
 
-register_resolvers()  # ${run_suffix:} in hydra.run.dir
+register_resolvers()  # ${run_name:} in hydra.run.dir, ${sweep_name:} in hydra.sweep.dir
 
 
 @hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="train")
