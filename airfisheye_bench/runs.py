@@ -352,14 +352,20 @@ def checkpoint_run_name(checkpoint: str | Path) -> str:
     return run_label(path.parent.parent) if path.parent.name == "checkpoints" else path.stem
 
 
-def run_config(checkpoint: str | Path) -> DictConfig | None:
-    """The resolved ``config.yaml`` of the run that wrote ``checkpoint`` (``<run>/checkpoints/x.ckpt``), if any."""
+def run_directory(checkpoint: str | Path) -> Path | None:
+    """The run directory that wrote ``checkpoint`` (``<run>/checkpoints/x.ckpt``): the folder of its
+    ``config.yaml``, if any."""
     checkpoint = Path(checkpoint)
     for folder in (checkpoint.parent, checkpoint.parent.parent):
-        candidate = folder / "config.yaml"
-        if candidate.is_file():
-            return OmegaConf.load(candidate)
+        if (folder / "config.yaml").is_file():
+            return folder
     return None
+
+
+def run_config(checkpoint: str | Path) -> DictConfig | None:
+    """The resolved ``config.yaml`` of the run that wrote ``checkpoint`` (``<run>/checkpoints/x.ckpt``), if any."""
+    folder = run_directory(checkpoint)
+    return OmegaConf.load(folder / "config.yaml") if folder is not None else None
 
 
 def read_checkpoint(path: str | Path, mmap: bool = False) -> dict[str, Any]:
