@@ -115,6 +115,13 @@ def check_config(cfg: DictConfig) -> None:
             "callbacks.model_checkpoint.every_n_train_steps is unsupported (that callback keeps the best checkpoints "
             "by a validation metric); use callbacks.last_checkpoint.every_n_train_steps to save last.ckpt every N steps"
         )
+    optimized = cfg.get("optimized_metric")
+    if optimized is not None and optimized != model_checkpoint.get("monitor"):
+        raise ConfigError(
+            f"optimized_metric={optimized}: a sweep optimises the best value of the monitored validation metric; "
+            f"write optimized_metric=val/{cfg.task.get('primary_metric')} (callbacks.model_checkpoint.monitor), "
+            "or null for the test primary metric"
+        )
     if cfg.data.get("root") is None and cfg.data.get("preset") is None:
         raise ConfigError(
             "data.root is unset and data.preset is null: give data.root=/path or data.preset=quickstart"
