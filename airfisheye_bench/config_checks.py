@@ -15,6 +15,10 @@ the model registry, Lightning's accelerators and precisions), read only when the
 imports (the model zoo, Lightning) come last, after every cheap key passed. Options that only ``evaluate`` has
 take their choices from the evaluation modules, above this one: their rules sit there
 (:data:`airfisheye_bench.evaluation.command.EVALUATE_RULES`), checked with the same function.
+
+:data:`EXTRAS` is the second table: keys that need an optional package when set (``logger.mlflow`` needs
+``mlflow``), answered with the extra of ``pyproject.toml`` to install (:func:`check_extras`, run by
+:func:`check_common_values` with the default rules).
 """
 
 from __future__ import annotations
