@@ -19,6 +19,8 @@ import pytest
 from airfisheye_bench.tracking import RUN_RECORD, local_store, read_run_record
 from tests.training.test_train import tiny_run_overrides
 
+# No network in tests: MLflow 3 sends usage telemetry unless told not to (inherited by the commands and the server).
+os.environ["MLFLOW_DISABLE_TELEMETRY"] = "true"
 pytest.importorskip("mlflow", reason='the mlflow extra: pip install -e ".[mlflow]"')
 from mlflow.tracking import MlflowClient  # after the skip: an optional dependency
 
