@@ -68,8 +68,8 @@ class RunMLFlowLogger(MLFlowLogger):
         save_dir: The run directory.
         experiment_name: The MLflow experiment (created when missing).
         run_name: The MLflow run's name; ``None``: the run directory's (:func:`~airfisheye_bench.runs.run_label`).
-        tracking_uri: ``http://host:port`` of an ``mlflow server``, a database URI, or ``None``: the run's own
-            SQLite store (:func:`local_store`).
+        tracking_uri: ``http://host:port`` of an ``mlflow server``, a database URI, or ``None``:
+            ``$MLFLOW_TRACKING_URI`` when set, else the run's own SQLite store (:func:`local_store`).
         artifact_location: Where a new experiment keeps artifacts; ``None``: beside a local store, the server's
             choice otherwise.
         tags: Tags of the MLflow run.
@@ -84,6 +84,7 @@ class RunMLFlowLogger(MLFlowLogger):
         artifact_location: str | None = None,
         tags: Mapping[str, Any] | None = None,
     ) -> None:
+        tracking_uri = tracking_uri or os.environ.get("MLFLOW_TRACKING_URI") or None
         if tracking_uri is None:
             tracking_uri, default_artifacts = local_store(save_dir)
             artifact_location = artifact_location or default_artifacts
