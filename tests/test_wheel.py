@@ -57,7 +57,8 @@ def _venv(path: Path, env: dict[str, str]) -> Path:
 
     A venv is made from a base interpreter: inside a venv (the README's set-up) that is ``sys._base_executable``,
     whose ``--system-site-packages`` lack what the running venv installed (torch, Lightning, Hydra, pip), so a
-    ``.pth`` file adds the running venv's site-packages after the new one's (the wheel's own copy comes first).
+    ``.pth`` file adds the running venv's site-packages after the new one's (the wheel's own copy comes first),
+    as a site directory: its own ``.pth`` files are read too.
     """
     base = getattr(sys, "_base_executable", sys.executable)
     _run([base, "-m", "venv", "--system-site-packages", "--without-pip", str(path)], path.parent, env)
@@ -65,7 +66,9 @@ def _venv(path: Path, env: dict[str, str]) -> Path:
         probe = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
         purelib = Path(_run([str(path / "bin" / "python"), "-c", probe], path.parent, env).stdout.strip())
         parent = [p for p in site.getsitepackages() if Path(p).is_relative_to(sys.prefix)]
-        (purelib / "_tests_parent_venv.pth").write_text("".join(f"{p}\n" for p in parent))
+        (purelib / "_tests_parent_venv.pth").write_text(
+            "".join(f"import site; site.addsitedir({p!r})\n" for p in parent)
+        )
     return path / "bin"
 
 
