@@ -1,7 +1,8 @@
 """``train(cfg)``: compose data, task, trainer, callbacks and loggers from a Hydra config; fit, test, write results.
 
 The run directory (``hydra.run.dir``) ends up holding ``config.yaml`` (resolved), ``checkpoints/`` (best and
-last), ``metrics.csv``, ``panels/`` and the test ``results.json`` in the leaderboard format.
+last), ``metrics.csv``, ``panels/`` and the test ``results.json`` in the leaderboard format; with ``logger=mlflow``
+the run is also an MLflow run (:mod:`airfisheye_bench.tracking`), recorded in ``mlflow_run.json``.
 
 Resuming (``ckpt_path=last``) continues the run exactly (see README, "Resume and DDP"): its configuration must be
 the run's (:func:`airfisheye_bench.runs.check_resume`), ``metrics.csv`` is cut back to the rows the checkpoint
@@ -248,7 +249,12 @@ def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule
 
 
 def train(cfg: DictConfig) -> dict[str, Any]:
-    """Train, validate and test as configured; returns the test metrics (empty when ``test=false``)."""
+    """Train, validate and test as configured.
+
+    Returns:
+        The test results (``metrics``, ``breakdown``; none when ``test=false``) and ``best_val``: the best value of
+        the monitored validation metric, ``{"val/<metric>": value}``, what a sweep optimises.
+    """
     check_config(cfg)
     log_lightning_once()
     L.seed_everything(cfg.seed, workers=True)
