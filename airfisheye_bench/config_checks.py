@@ -15,10 +15,15 @@ the model registry, Lightning's accelerators and precisions), read only when the
 imports (the model zoo, Lightning) come last, after every cheap key passed. Options that only ``evaluate`` has
 take their choices from the evaluation modules, above this one: their rules sit there
 (:data:`airfisheye_bench.evaluation.command.EVALUATE_RULES`), checked with the same function.
+
+:data:`EXTRAS` is the second table: keys that need an optional package when set (``logger.mlflow`` needs
+``mlflow``), answered with the extra of ``pyproject.toml`` to install (:func:`check_extras`, run by
+:func:`check_common_values` with the default rules).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -269,6 +274,37 @@ RULES: dict[str, ValueRule] = {
 """The checked keys (dotted, from the config root) and what each accepts."""
 
 
+EXTRAS: dict[str, tuple[str, str]] = {
+    "logger.mlflow": ("mlflow", "mlflow"),
+    "mlflow_run": ("mlflow", "mlflow"),
+}
+"""Keys that need an optional package when set (not null): key -> (the module imported, the extra of
+``pyproject.toml`` that installs it)."""
+
+
+def check_extras(cfg: DictConfig, extras: Mapping[str, tuple[str, str]] | None = None) -> None:
+    """Raise when a set key of ``extras`` needs a package that is not installed, naming the extra to install.
+
+    Raises:
+        ConfigError: ``<key> needs the Python package <module>: pip install -e ".[<extra>]"``.
+
+    Example:
+        >>> check_extras(OmegaConf.create({"logger": {"x": {}}}), {"logger.x": ("no_such_module_0", "x")})
+        Traceback (most recent call last):
+        ...
+        airfisheye_bench.errors.ConfigError: logger.x needs the Python package no_such_module_0, which is not installed: pip install -e ".[x]" (or pip install "airfisheye-bench[x]")
+        >>> check_extras(OmegaConf.create({"logger": {"x": None}}), {"logger.x": ("no_such_module_0", "x")})
+    """
+    for key, (module, extra) in (EXTRAS if extras is None else extras).items():
+        if OmegaConf.select(cfg, key, default=None, throw_on_missing=False) is None:
+            continue
+        if importlib.util.find_spec(module) is None:
+            raise ConfigError(
+                f"{key} needs the Python package {module}, which is not installed: "
+                f'pip install -e ".[{extra}]" (or pip install "airfisheye-bench[{extra}]")'
+            )
+
+
 def check_common_values(cfg: DictConfig, rules: Mapping[str, ValueRule] | None = None) -> None:
     """Raise for the first key of ``rules`` whose value has the wrong type or range, or names a missing file.
 
@@ -292,6 +328,8 @@ def check_common_values(cfg: DictConfig, rules: Mapping[str, ValueRule] | None =
         ...
         airfisheye_bench.errors.ConfigError: data.occlusion='zbufer': expected one of ordering, zbuffer, hpr, none (the LiDAR occlusion correction)
     """
+    if rules is None:
+        check_extras(cfg)
     for key, rule in (RULES if rules is None else rules).items():
         try:
             value = OmegaConf.select(cfg, key, default=_ABSENT, throw_on_missing=False)

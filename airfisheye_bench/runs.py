@@ -94,10 +94,51 @@ def _safe(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "_", text)
 
 
+#: The environment variable that hands a multirun's folder name to jobs that a launcher runs in other processes.
+SWEEP_NAME_ENV = "AIRFISHEYE_SWEEP_NAME"
+
+
+def sweep_name() -> str:
+    """The sweep folder's name (``hydra.sweep.dir`` ends in ``${sweep_name:}``): one for every job of a multirun.
+
+    Hydra's basic launcher runs the jobs in the process that resolved the folder, but the submitit launcher
+    resolves ``hydra.sweep.dir`` again in each job's own process (another pid, another host): the first resolution
+    is kept in :data:`SWEEP_NAME_ENV`, which those processes inherit (locally and through ``sbatch``).
+
+    Example:
+        >>> os.environ.pop(SWEEP_NAME_ENV, None) and None
+        >>> sweep_name() == run_name() == os.environ.pop(SWEEP_NAME_ENV)
+        True
+    """
+    name = os.environ.get(SWEEP_NAME_ENV)
+    if not name:
+        name = os.environ[SWEEP_NAME_ENV] = run_name()
+    return name
+
+
+def run_label(run_dir: str | Path) -> str:
+    """The name a run goes by (leaderboard rows, MLflow runs): its folder's, with the sweep's for a multirun job.
+
+    A multirun job's folder is its number under the sweep folder (``hydra.sweep.subdir``); a run directory's
+    name never is a bare number (:func:`run_name`).
+
+    Example:
+        >>> run_label("logs/seg/runs/2026-11-24_09-30-05_812-a3f0")
+        '2026-11-24_09-30-05_812-a3f0'
+        >>> run_label("logs/seg/multiruns/2026-11-24_09-30-05_812-a3f0/3")
+        '2026-11-24_09-30-05_812-a3f0/3'
+    """
+    path = Path(run_dir)
+    return f"{path.parent.name}/{path.name}" if path.name.isdigit() and path.parent.name else path.name
+
+
 def register_resolvers() -> None:
-    """Register ``${run_name:}`` (used by ``hydra.run.dir``) with OmegaConf; safe to call more than once."""
+    """Register ``${run_name:}`` and ``${sweep_name:}`` (``hydra.run.dir``, ``hydra.sweep.dir``) with OmegaConf;
+    safe to call more than once."""
     if not OmegaConf.has_resolver("run_name"):
         OmegaConf.register_new_resolver("run_name", run_name)
+    if not OmegaConf.has_resolver("sweep_name"):
+        OmegaConf.register_new_resolver("sweep_name", sweep_name)
 
 
 def flatten(config: Any, prefix: str = "") -> dict[str, Any]:
@@ -294,28 +335,37 @@ def resolve_checkpoint(path: str | Path) -> Path:
 
 
 def checkpoint_run_name(checkpoint: str | Path) -> str:
-    """The name of the training run a checkpoint belongs to: its run directory (``<run>/checkpoints/x.ckpt``).
+    """The name of the training run a checkpoint belongs to: its run directory's (``<run>/checkpoints/x.ckpt``,
+    :func:`run_label`).
 
     A checkpoint outside a run directory is named by its file.
 
     Example:
         >>> checkpoint_run_name("logs/depth/runs/adabins-r18/checkpoints/epoch_007.ckpt")
         'adabins-r18'
+        >>> checkpoint_run_name("logs/depth/multiruns/sweep-1/2/checkpoints/epoch_000.ckpt")
+        'sweep-1/2'
         >>> checkpoint_run_name("/tmp/bare.ckpt")
         'bare'
     """
     path = Path(checkpoint)
-    return path.parent.parent.name if path.parent.name == "checkpoints" else path.stem
+    return run_label(path.parent.parent) if path.parent.name == "checkpoints" else path.stem
+
+
+def run_directory(checkpoint: str | Path) -> Path | None:
+    """The run directory that wrote ``checkpoint`` (``<run>/checkpoints/x.ckpt``): the folder of its
+    ``config.yaml``, if any."""
+    checkpoint = Path(checkpoint)
+    for folder in (checkpoint.parent, checkpoint.parent.parent):
+        if (folder / "config.yaml").is_file():
+            return folder
+    return None
 
 
 def run_config(checkpoint: str | Path) -> DictConfig | None:
     """The resolved ``config.yaml`` of the run that wrote ``checkpoint`` (``<run>/checkpoints/x.ckpt``), if any."""
-    checkpoint = Path(checkpoint)
-    for folder in (checkpoint.parent, checkpoint.parent.parent):
-        candidate = folder / "config.yaml"
-        if candidate.is_file():
-            return OmegaConf.load(candidate)
-    return None
+    folder = run_directory(checkpoint)
+    return OmegaConf.load(folder / "config.yaml") if folder is not None else None
 
 
 def read_checkpoint(path: str | Path, mmap: bool = False) -> dict[str, Any]:

@@ -1,7 +1,8 @@
 """``train(cfg)``: compose data, task, trainer, callbacks and loggers from a Hydra config; fit, test, write results.
 
 The run directory (``hydra.run.dir``) ends up holding ``config.yaml`` (resolved), ``checkpoints/`` (best and
-last), ``metrics.csv``, ``panels/`` and the test ``results.json`` in the leaderboard format.
+last), ``metrics.csv``, ``panels/`` and the test ``results.json`` in the leaderboard format; with ``logger=mlflow``
+the run is also an MLflow run (:mod:`airfisheye_bench.tracking`), recorded in ``mlflow_run.json``.
 
 Resuming (``ckpt_path=last``) continues the run exactly (see README, "Resume and DDP"): its configuration must be
 the run's (:func:`airfisheye_bench.runs.check_resume`), ``metrics.csv`` is cut back to the rows the checkpoint
@@ -30,8 +31,9 @@ from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
-from airfisheye_bench.runs import check_resume, keep_metric_rows, numbered_sibling, read_checkpoint
+from airfisheye_bench.runs import check_resume, keep_metric_rows, numbered_sibling, read_checkpoint, run_label
 from airfisheye_bench.specs import UnknownTaskError, get_task
+from airfisheye_bench.tracking import log_run_outputs, start_tracking
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
 
@@ -113,6 +115,13 @@ def check_config(cfg: DictConfig) -> None:
         raise ConfigError(
             "callbacks.model_checkpoint.every_n_train_steps is unsupported (that callback keeps the best checkpoints "
             "by a validation metric); use callbacks.last_checkpoint.every_n_train_steps to save last.ckpt every N steps"
+        )
+    optimized = cfg.get("optimized_metric")
+    if optimized is not None and optimized != model_checkpoint.get("monitor"):
+        raise ConfigError(
+            f"optimized_metric={optimized}: a sweep optimises the best value of the monitored validation metric; "
+            f"write optimized_metric=val/{cfg.task.get('primary_metric')} (callbacks.model_checkpoint.monitor), "
+            "or null for the test primary metric"
         )
     if cfg.data.get("root") is None and cfg.data.get("preset") is None:
         raise ConfigError(
@@ -240,7 +249,12 @@ def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule
 
 
 def train(cfg: DictConfig) -> dict[str, Any]:
-    """Train, validate and test as configured; returns the test metrics (empty when ``test=false``)."""
+    """Train, validate and test as configured.
+
+    Returns:
+        The test results (``metrics``, ``breakdown``; none when ``test=false``) and ``best_val``: the best value of
+        the monitored validation metric, ``{"val/<metric>": value}``, what a sweep optimises.
+    """
     check_config(cfg)
     log_lightning_once()
     L.seed_everything(cfg.seed, workers=True)
@@ -254,14 +268,16 @@ def train(cfg: DictConfig) -> dict[str, Any]:
     trainer: L.Trainer = hydra.utils.instantiate(
         cfg.trainer, callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
     )
+    if trainer.is_global_zero:
+        start_tracking(loggers, OmegaConf.to_container(cfg, resolve=True))
 
     if cfg.get("train", True):
         check_training_batches(trainer, datamodule)
         trainer.fit(module, datamodule=datamodule, ckpt_path=ckpt_path)
 
     results: dict[str, Any] = {}
+    best = trainer.checkpoint_callback.best_model_path if trainer.checkpoint_callback else ""
     if cfg.get("test", True):
-        best = trainer.checkpoint_callback.best_model_path if trainer.checkpoint_callback else ""
         if not best:
             log.warning("no best checkpoint: testing the current weights")
         trainer.test(module, datamodule=datamodule, ckpt_path=best or None)
@@ -279,7 +295,7 @@ def train(cfg: DictConfig) -> dict[str, Any]:
                 model={
                     "source": "checkpoint",
                     "stage": "training",  # the leaderboard tells this row from evaluate.py's of the same weights
-                    "run_name": output_dir.name,
+                    "run_name": run_label(output_dir),
                     "name": cfg.model.name,
                     "checkpoint": best or None,
                     "config": OmegaConf.to_container(cfg.model, resolve=True),
@@ -288,4 +304,12 @@ def train(cfg: DictConfig) -> dict[str, Any]:
                 config=OmegaConf.to_container(cfg, resolve=True),
             )
             log.info("test results written to %s", path)
+    if trainer.is_global_zero:
+        log_run_outputs(loggers, best or None)
+    results = dict(results)
+    # What a hyper-parameter search optimises (optimized_metric=val/<metric>): the best validation score, which
+    # the test split plays no part in choosing.
+    callback = trainer.checkpoint_callback
+    if callback is not None and getattr(callback, "best_model_score", None) is not None:
+        results["best_val"] = {str(callback.monitor): float(callback.best_model_score)}
     return results

@@ -369,6 +369,30 @@ def test_unknown_preset_is_refused_before_generation(tmp_path: Path) -> None:
     assert not any(tmp_path.iterdir())
 
 
+def test_a_missing_optional_package_names_its_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``logger=mlflow`` / ``mlflow_run=`` without mlflow installed (``EXTRAS``): one line naming the key and the
+    extra to install, before any work (the dataset cache stays empty). The package is hidden from the commands by
+    a ``sitecustomize`` that marks it absent, as if it were not installed."""
+    hide = tmp_path / "hide"
+    hide.mkdir()
+    (hide / "sitecustomize.py").write_text("import sys\nsys.modules['mlflow'] = None  # not installed\n")
+    monkeypatch.setenv("PYTHONPATH", str(hide) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    cache = [f"paths.data_dir={tmp_path}/cache"]
+    rows = {
+        TRAIN: ["task=seg", "data.preset=tiny", *cache, "logger=mlflow", f"hydra.run.dir={tmp_path}/r"],
+        EVALUATE: [f"ckpt_path={tmp_path}", "mlflow_run=auto", *cache, f"hydra.run.dir={tmp_path}/e"],
+        EXPORT: [f"ckpt_path={tmp_path}", f"out={tmp_path}/x.onnx", "mlflow_run=auto"],
+    }
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        outcomes = {script: pool.submit(run_command, script, args) for script, args in rows.items()}
+    for script, outcome in outcomes.items():
+        key = "logger.mlflow" if script == TRAIN else "mlflow_run"
+        assert_one_line_error(
+            outcome.result(), f"{key} needs the Python package mlflow", 'pip install -e ".[mlflow]"'
+        )
+    assert not (tmp_path / "cache").exists() and not (tmp_path / "x.onnx").exists()
+
+
 def _compose(config: str, overrides: list[str]) -> DictConfig:
     with initialize_config_dir(config_dir=str(ROOT / "configs"), version_base="1.3"):
         return compose(config_name=config, overrides=overrides)

@@ -1,8 +1,8 @@
 """The package works installed from its wheel, outside the checkout: configs ship inside it, every script runs.
 
 The wheel is built offline from a copy of the packaged files (``pip wheel --no-deps --no-build-isolation``) and
-installed without dependencies into a virtual environment that sees the system's packages (torch, Lightning,
-...). Every console script is then run from a temporary folder that is not the checkout.
+installed without dependencies into a virtual environment that sees the packages of the interpreter running the
+tests (torch, Lightning, ...: the system's, or those of the venv the project is installed in). Every console script is then run from a temporary folder that is not the checkout.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import site
 import subprocess
 import sys
 from pathlib import Path
@@ -51,11 +52,23 @@ def _copy_source(target: Path) -> Path:
 
 
 def _venv(path: Path, env: dict[str, str]) -> Path:
-    """A virtual environment over the system's packages; without its own pip, so the system's pip and
-    setuptools (the versions ``pyproject.toml`` asks for) install into it."""
-    _run(
-        [sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(path)], path.parent, env
-    )
+    """A virtual environment over the packages of the interpreter running the tests; without its own pip, so that
+    interpreter's pip and setuptools (the versions ``pyproject.toml`` asks for) install into it.
+
+    A venv is made from a base interpreter: inside a venv (the README's set-up) that is ``sys._base_executable``,
+    whose ``--system-site-packages`` lack what the running venv installed (torch, Lightning, Hydra, pip), so a
+    ``.pth`` file adds the running venv's site-packages after the new one's (the wheel's own copy comes first),
+    as a site directory: its own ``.pth`` files are read too.
+    """
+    base = getattr(sys, "_base_executable", sys.executable)
+    _run([base, "-m", "venv", "--system-site-packages", "--without-pip", str(path)], path.parent, env)
+    if sys.prefix != sys.base_prefix:
+        probe = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
+        purelib = Path(_run([str(path / "bin" / "python"), "-c", probe], path.parent, env).stdout.strip())
+        parent = [p for p in site.getsitepackages() if Path(p).is_relative_to(sys.prefix)]
+        (purelib / "_tests_parent_venv.pth").write_text(
+            "".join(f"import site; site.addsitedir({p!r})\n" for p in parent)
+        )
     return path / "bin"
 
 

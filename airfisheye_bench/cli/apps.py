@@ -14,13 +14,14 @@ from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import report_user_errors
 from airfisheye_bench.runs import register_resolvers, resume_config
 
-register_resolvers()  # ${run_suffix:} in hydra.run.dir
+register_resolvers()  # ${run_name:} in hydra.run.dir, ${sweep_name:} in hydra.sweep.dir
 
 
 @hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="train")
 @report_user_errors  # a user error: one line on stderr, exit status 2 (README, "When something goes wrong")
 def train(cfg: DictConfig) -> float | None:
-    """``airfisheye-train task=seg|depth|completion [group=option ...] [key=value ...]``; the primary metric."""
+    """``airfisheye-train task=seg|depth|completion [group=option ...] [key=value ...]``; the objective of a sweep:
+    the test primary metric, or with ``optimized_metric=val/<metric>`` the best validation score."""
     # `ckpt_path=last hydra.run.dir=<run>` alone resumes with the run's saved configuration, not the defaults.
     cfg = resume_config(cfg, HydraConfig.get().overrides.task)
     # A mistyped value is answered at once, before the seconds of importing Lightning.
@@ -28,7 +29,10 @@ def train(cfg: DictConfig) -> float | None:
     from airfisheye_bench.training import train as fit  # Lightning: seconds to import, not needed by --help
 
     results = fit(cfg)
-    metric = results.get("metrics", {}).get(cfg.task.primary_metric) if results else None
+    if cfg.get("optimized_metric"):  # a sweep's objective: the best validation score (hparams_search)
+        metric = results.get("best_val", {}).get(cfg.optimized_metric)
+    else:
+        metric = results.get("metrics", {}).get(cfg.task.primary_metric) if results else None
     return float(metric) if metric is not None else None
 
 

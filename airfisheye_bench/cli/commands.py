@@ -211,6 +211,12 @@ class ExportOptions:
     calib_samples: int = option("validation frames calibrating static quantisation")
     eval_samples: int = option("validation frames scoring the int8 model (0: the whole split)")
     repeats: int = option("timed runs of the latency comparison")
+    mlflow_run: str | None = option(
+        "log the ONNX file(s) and parity numbers to an MLflow run: auto (the checkpoint's run) or a run id"
+    )
+    mlflow_tracking_uri: str | None = option(
+        "with a run id: its store or server (null: the run's recorded one)"
+    )
 
 
 EXPORT = Command(
@@ -239,6 +245,7 @@ def export(argv: Sequence[str] | None = None) -> int:
         ExportError,
         export_deployment,
         log,
+        log_export,
     )
     from airfisheye_bench.export.onnx import OnnxParityError  # at run time: see the module docstring
 
@@ -246,6 +253,13 @@ def export(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     log.setLevel(logging.INFO)
     kwargs = dict(parsed.options)
+    mlflow_run, mlflow_uri = kwargs.pop("mlflow_run"), kwargs.pop("mlflow_tracking_uri")
+    if mlflow_run:
+        from omegaconf import OmegaConf  # with the checks below: nothing is imported for --help
+
+        from airfisheye_bench.config_checks import check_extras  # before the minutes of exporting
+
+        check_extras(OmegaConf.create({"mlflow_run": mlflow_run}))
     data_overrides = {key.removeprefix("data."): value for key, value in parsed.extra.items()}
     try:
         report = export_deployment(**kwargs, data_overrides=data_overrides or None)
@@ -261,6 +275,8 @@ def export(argv: Sequence[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(report.summary())
+    if mlflow_run:
+        log_export(report, mlflow_run, mlflow_uri)
     if report.quantization is not None and not report.quantization.ok:
         return 3
     return 0

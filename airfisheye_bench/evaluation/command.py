@@ -43,9 +43,10 @@ from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWrit
 from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.metrics.scorer import TaskScorer
-from airfisheye_bench.runs import checkpoint_run_name, resolve_checkpoint, run_config
+from airfisheye_bench.runs import checkpoint_run_name, resolve_checkpoint, run_config, run_directory
 from airfisheye_bench.specs import UnknownTaskError, deployment_keys, get_task, task_names
 from airfisheye_bench.tasks.checkpoint import load_task
+from airfisheye_bench.tracking import log_to_run, resolve_run
 from airfisheye_bench.viz import save_png, task_panel
 from datamodules.config import apply_data_overrides, instantiate_datamodule, parse_data_overrides
 
@@ -153,7 +154,28 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     )
     print(summary)
     _to_log_files(summary)
+    if cfg.get("mlflow_run"):
+        _log_to_mlflow(cfg, output_dir, record)
     return record
+
+
+def _log_to_mlflow(cfg: DictConfig, output_dir: Path, record: dict[str, Any]) -> None:
+    """Log the scores, ``results.json`` and panels to the MLflow run ``mlflow_run=`` names (``auto``: the one the
+    evaluated weights were trained in), under ``evaluate/<what>/<split>/``: ``<what>`` is ``name=``, else
+    ``checkpoint`` or the ONNX file's stem, with ``_flip`` for flip TTA."""
+    model = record["model"]
+    source = model.get("checkpoint") or model.get("source_checkpoint")
+    uri, run_id = resolve_run(
+        str(cfg.mlflow_run), run_directory(source) if source else None, cfg.get("mlflow_tracking_uri")
+    )
+    what = cfg.get("name") or (Path(cfg.onnx_path).stem if cfg.get("onnx_path") else str(model.get("source")))
+    prefix = f"evaluate/{what}{'_' + cfg.tta if cfg.get('tta') else ''}/{cfg.split}"
+    artifacts = {f"{prefix}/results.json": output_dir / "results.json"}
+    if (output_dir / "panels").is_dir():
+        artifacts[f"{prefix}/panels"] = output_dir / "panels"
+    metrics = {f"{prefix}/{key}": value for key, value in record["metrics"].items()}
+    log_to_run(uri, run_id, metrics=metrics, artifacts=artifacts)
+    log.info("logged to MLflow run %s (%s) under %s/", run_id, uri, prefix)
 
 
 def _to_log_files(text: str) -> None:

@@ -44,9 +44,10 @@ from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.export.onnx import ParityReport, _median_ms, export_onnx, verify_onnx
 from airfisheye_bench.io.deployment import deployment_metadata, read_onnx_metadata
 from airfisheye_bench.io.manifest import sha256_file
-from airfisheye_bench.runs import resolve_checkpoint, run_config
+from airfisheye_bench.runs import resolve_checkpoint, run_config, run_directory
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
+from airfisheye_bench.tracking import log_to_run, resolve_run
 from datamodules.config import apply_data_overrides, instantiate_datamodule
 
 __all__ = [
@@ -55,6 +56,7 @@ __all__ = [
     "ExportError",
     "QuantizationReport",
     "export_deployment",
+    "log_export",
     "parity_tolerance",
 ]
 
@@ -607,3 +609,27 @@ def _first_line(err: BaseException) -> str:
 
 def _mb(path: Path | None) -> str:
     return f"{path.stat().st_size / 1e6:.1f} MB" if path is not None and path.exists() else "?"
+
+
+def log_export(report: DeploymentReport, mlflow_run: str, tracking_uri: str | None = None) -> None:
+    """Log the exported ONNX file(s) (artifacts under ``export/``), the parity and latency numbers (metrics
+    ``export/...``) and the file's path (tag ``onnx_path``) to an MLflow run: ``auto``, the run the checkpoint was
+    trained in with ``logger=mlflow``, or a run id (:func:`~airfisheye_bench.tracking.resolve_run`)."""
+    uri, run_id = resolve_run(mlflow_run, run_directory(report.checkpoint), tracking_uri)
+    p = report.parity
+    metrics = {
+        "export/parity_max_abs_diff": p.max_abs_diff,
+        "export/parity_max_rel_diff": p.max_rel_diff,
+        "export/ort_ms": p.ort_ms,
+        "export/torch_ms": p.torch_ms,
+    }
+    artifacts = {f"export/{report.path.name}": report.path}
+    q = report.quantization
+    if q is not None and q.ok and q.path is not None:
+        artifacts[f"export/{q.path.name}"] = q.path
+        metrics |= {"export/int8_ms": q.int8_ms, "export/fp32_ms": q.fp32_ms}
+        metrics |= {f"export/int8_delta/{k}": v for k, v in q.metric_deltas.items()}
+    log_to_run(
+        uri, run_id, metrics=metrics, artifacts=artifacts, tags={"onnx_path": str(report.path.absolute())}
+    )
+    log.info("logged %s to MLflow run %s (%s)", report.path, run_id, uri)
