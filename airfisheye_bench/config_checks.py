@@ -201,6 +201,8 @@ RULES: dict[str, ValueRule] = {
     "test": ValueRule("bool"),
     "compile": ValueRule("bool"),
     "resume_overrides_ok": ValueRule("bool"),
+    "retest": ValueRule("bool"),
+    "print_breakdown": ValueRule("bool"),
     "ckpt_path": ValueRule(
         "path",
         nullable=True,
@@ -227,6 +229,9 @@ RULES: dict[str, ValueRule] = {
     "trainer.num_sanity_val_steps": ValueRule("int", minimum=-1, nullable=True, hint="-1: the whole split"),
     "trainer.gradient_clip_val": ValueRule("number", minimum=0, nullable=True),
     "callbacks.last_checkpoint.every_n_train_steps": ValueRule("int", minimum=1, nullable=True),
+    "callbacks.progress.every_n_steps": ValueRule(
+        "int", minimum=0, nullable=True, hint="0 or null: epochs only"
+    ),
     "data.root": ValueRule(
         "folder",
         nullable=True,

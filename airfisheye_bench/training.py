@@ -10,15 +10,18 @@ covers and appended to, and the data loader restarts at the checkpoint's batch.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import hydra
 import lightning as L
 import torch
+from hydra.core.hydra_config import HydraConfig
 from hydra.errors import InstantiationException
 from lightning.pytorch.utilities import rank_zero_only
 from omegaconf import DictConfig, OmegaConf
@@ -28,19 +31,31 @@ from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
+from airfisheye_bench.evaluation.evaluator import format_results_table
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
-from airfisheye_bench.runs import check_resume, keep_metric_rows, numbered_sibling, read_checkpoint
+from airfisheye_bench.runs import (
+    check_resume,
+    keep_metric_rows,
+    numbered_sibling,
+    read_checkpoint,
+    resolve_checkpoint,
+)
 from airfisheye_bench.specs import UnknownTaskError, get_task
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
 
 log = logging.getLogger(__name__)
 
+#: The format of log lines when no handler gives one (Hydra's job logging: ``[time][logger][level] - message``).
+LOG_FORMAT = "[%(asctime)s][%(name)s][%(levelname)s] - %(message)s"
+
 # The datamodule, not the DataLoader, restores the position in the epoch (AirFisheyeDataModule.load_state_dict).
 warnings.filterwarnings(
     "ignore", message="You're resuming from a checkpoint that ended before the epoch ended"
 )
+# A resumed run's checkpoint folder holds its checkpoints: that is what a resume is.
+warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and is not empty")
 # Lightning's own code builds a torch pytree LeafSpec, which this torch deprecates: nothing a user can change.
 warnings.filterwarnings(
     "ignore", message=r"`isinstance\(treespec, LeafSpec\)` is deprecated", category=FutureWarning
@@ -181,23 +196,17 @@ def check_fresh_run_dir(output_dir: Path) -> None:
         )
 
 
-def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
-    """Set up the run directory for a new run or a resume; return the checkpoint to resume from, if any.
+def check_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
+    """Check, writing nothing, that the run directory can be used; return the checkpoint to resume from, if any.
 
-    A new run writes ``config.yaml`` and starts ``metrics.csv`` afresh. A resume checks the configuration against
-    the run's and cuts ``metrics.csv`` back to the rows its checkpoint covers (rows a killed process logged after
-    it are logged again). A checkpoint that does not record its rows (a best ``epoch_*.ckpt``: the history after
-    it is rewritten) moves ``metrics.csv`` aside to ``metrics.<n>.csv`` and starts a new one. Files are written by
-    the first process only (DDP starts one per device).
+    Raises:
+        ConfigError: a new run in a directory that holds one, or a resume changing what the checkpoint means.
+        MissingFileError: ``ckpt_path`` names no checkpoint.
     """
-    first = rank_zero_only.rank == 0
-    output_dir.mkdir(parents=True, exist_ok=True)
     ckpt_path = cfg.get("ckpt_path")
     if ckpt_path is None:
-        if first:
+        if rank_zero_only.rank == 0:
             check_fresh_run_dir(output_dir)
-            atomic_write_text(output_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
-            (output_dir / "metrics.csv").unlink(missing_ok=True)
         return None
     if ckpt_path == "last":
         ckpt_path = str(output_dir / "checkpoints" / "last.ckpt")
@@ -207,6 +216,59 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
             "hydra.run.dir=<run> (it has checkpoints/last.ckpt once its first epoch ended, or every "
             "callbacks.last_checkpoint.every_n_train_steps steps); otherwise start the run without ckpt_path"
         )
+    check_resume(cfg, output_dir, write=False)
+    return ckpt_path
+
+
+def finished_run(cfg: DictConfig, output_dir: Path, ckpt_path: str) -> str | None:
+    """Why the run has nothing left to do, or ``None``: it has ``results.json`` and trained as configured.
+
+    ``ckpt_path`` holds the epochs and steps trained (Lightning's loop counters); the run is finished when they
+    reach ``trainer.max_epochs`` (or ``trainer.max_steps``) of ``cfg``, so a resume with more epochs continues.
+    """
+    if not (output_dir / "results.json").is_file():
+        return None
+    state = read_checkpoint(ckpt_path, mmap=True)
+    epochs = (
+        state.get("loops", {})
+        .get("fit_loop", {})
+        .get("epoch_progress", {})
+        .get("current", {})
+        .get("processed")
+    )
+    steps = state.get("global_step")
+    max_epochs, max_steps = cfg.trainer.get("max_epochs"), cfg.trainer.get("max_steps")
+    if epochs is not None and max_epochs is not None and max_epochs >= 0 and epochs >= max_epochs:
+        done = f"{epochs} of trainer.max_epochs={max_epochs} epochs"
+    elif steps is not None and max_steps is not None and max_steps > 0 and steps >= max_steps:
+        done = f"{steps} of trainer.max_steps={max_steps} steps"
+    else:
+        return None
+    return (
+        f"{output_dir} is finished ({done} trained, tested in results.json): nothing to do; "
+        f"retest=true tests it again, trainer.max_epochs=<more> trains on"
+    )
+
+
+def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
+    """Set up the run directory for a new run or a resume; return the checkpoint to resume from, if any.
+
+    A new run writes ``config.yaml`` and starts ``metrics.csv`` afresh. A resume checks the configuration against
+    the run's (:func:`check_run_dir`), records an accepted change, and cuts ``metrics.csv`` back to the rows its
+    checkpoint covers (rows a killed process logged after it are logged again). A checkpoint that does not record
+    its rows (a best ``epoch_*.ckpt``: the history after it is rewritten) moves ``metrics.csv`` aside to
+    ``metrics.<n>.csv`` and starts a new one. Files are written by the first process only (DDP starts one per
+    device).
+    """
+    first = rank_zero_only.rank == 0
+    ckpt_path = check_run_dir(cfg, output_dir)
+    output_dir.mkdir(parents=True, exist_ok=True)
+    if ckpt_path is None:
+        if first:
+            atomic_write_text(output_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+            (output_dir / "metrics.csv").unlink(missing_ok=True)
+        return None
+    log.info("resuming %s from %s with the run's config.yaml", output_dir, ckpt_path)
     check_resume(cfg, output_dir, write=first)
     rows = read_checkpoint(ckpt_path, mmap=True).get(METRIC_ROWS_KEY)
     if first:
@@ -221,6 +283,30 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
                 "%s does not record its metrics.csv rows: the earlier rows are kept in %s", ckpt_path, aside
             )
     return ckpt_path
+
+
+@contextlib.contextmanager
+def run_log(output_dir: Path) -> Iterator[None]:
+    """Write the command's log to ``<run>/<job name>.log`` (``train.log``) while active.
+
+    Attached only once the checks passed, so a refused command writes nothing into the run directory (Hydra's
+    own file handler is switched off in ``configs/hydra/default.yaml``). Outside a Hydra application (a library
+    caller) nothing is attached.
+    """
+    if not HydraConfig.initialized():
+        yield
+        return
+    root = logging.getLogger()
+    console = next((h for h in root.handlers if h.formatter is not None), None)
+    output_dir.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(output_dir / f"{HydraConfig.get().job.name}.log")
+    handler.setFormatter(console.formatter if console else logging.Formatter(LOG_FORMAT))
+    root.addHandler(handler)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+        handler.close()
 
 
 def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule) -> None:
@@ -240,11 +326,26 @@ def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule
 
 
 def train(cfg: DictConfig) -> dict[str, Any]:
-    """Train, validate and test as configured; returns the test metrics (empty when ``test=false``)."""
+    """Train, validate and test as configured; returns the test results (empty when nothing was tested).
+
+    Everything that can refuse the command is checked before anything is written into the run directory. A resume
+    of a finished run (:func:`finished_run`) says so and stops, unless ``retest=true``: then it tests the run's
+    best checkpoint again and rewrites ``results.json``.
+    """
     check_config(cfg)
+    output_dir = Path(cfg.paths.output_dir)
+    resume_from = check_run_dir(cfg, output_dir)
+    finished = finished_run(cfg, output_dir, resume_from) if resume_from is not None else None
+    if finished is not None and not cfg.get("retest"):
+        log.info(finished)
+        return {}
+    with run_log(output_dir):
+        return _train(cfg, output_dir, retest_only=finished is not None)
+
+
+def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, Any]:
     log_lightning_once()
     L.seed_everything(cfg.seed, workers=True)
-    output_dir = Path(cfg.paths.output_dir)
     ckpt_path = prepare_run_dir(cfg, output_dir)
 
     datamodule, module = build(cfg, resume_from=ckpt_path)
@@ -255,18 +356,23 @@ def train(cfg: DictConfig) -> dict[str, Any]:
         cfg.trainer, callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
     )
 
-    if cfg.get("train", True):
+    if cfg.get("train", True) and not retest_only:
         check_training_batches(trainer, datamodule)
         trainer.fit(module, datamodule=datamodule, ckpt_path=ckpt_path)
 
     results: dict[str, Any] = {}
     if cfg.get("test", True):
-        best = trainer.checkpoint_callback.best_model_path if trainer.checkpoint_callback else ""
+        if retest_only:
+            best = str(resolve_checkpoint(output_dir))
+            log.info("retest=true: testing %s again", best)
+        else:
+            best = trainer.checkpoint_callback.best_model_path if trainer.checkpoint_callback else ""
         if not best:
             log.warning("no best checkpoint: testing the current weights")
-        trainer.test(module, datamodule=datamodule, ckpt_path=best or None)
+        trainer.test(module, datamodule=datamodule, ckpt_path=best or None, verbose=False)
         results = module.test_results
         if trainer.is_global_zero:
+            log.info("%s", summarise_test(cfg, results))
             path = write_results(
                 output_dir / "results.json",
                 task=cfg.task.name,
@@ -289,3 +395,16 @@ def train(cfg: DictConfig) -> dict[str, Any]:
             )
             log.info("test results written to %s", path)
     return results
+
+
+def summarise_test(cfg: DictConfig, results: dict[str, Any]) -> str:
+    """The test metrics as a compact table (as ``evaluate.py`` prints them); with ``print_breakdown=true`` also
+    every metric per incidence-angle ring (and depth range), per class. ``results.json`` holds them all."""
+    table = format_results_table(cfg.task.name, results, cfg.task.primary_metric)
+    lines = [f"test results ({cfg.task.name}, best checkpoint)", table]
+    if cfg.get("print_breakdown"):
+        lines += ["", "per ring and range, per class", "-" * 36]
+        lines += [f"{key:<40}{value:.4f}" for key, value in results["breakdown"].items()]
+    else:
+        lines.append("(per ring and per class: results.json, or print_breakdown=true)")
+    return "\n".join(lines)

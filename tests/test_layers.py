@@ -44,7 +44,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("synth",),
     ("datamodules",),
     ("viz",),
-    ("runs", "checkpointing"),
+    ("runs", "checkpointing", "progress"),
     ("tasks",),
     ("evaluation",),
     ("training",),

@@ -21,7 +21,7 @@ register_resolvers()  # ${run_suffix:} in hydra.run.dir
 @report_user_errors  # a user error: one line on stderr, exit status 2 (README, "When something goes wrong")
 def train(cfg: DictConfig) -> float | None:
     """``airfisheye-train task=seg|depth|completion [group=option ...] [key=value ...]``; the primary metric."""
-    # `ckpt_path=last hydra.run.dir=<run>` alone resumes with the run's saved configuration, not the defaults.
+    # `ckpt_path=last hydra.run.dir=<run> [key=value ...]`: the run's saved configuration, the keys given on top.
     cfg = resume_config(cfg, HydraConfig.get().overrides.task)
     # A mistyped value is answered at once, before the seconds of importing Lightning.
     check_common_values(cfg)
