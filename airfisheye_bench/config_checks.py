@@ -19,6 +19,7 @@ take their choices from the evaluation modules, above this one: their rules sit 
 
 from __future__ import annotations
 
+import importlib.util
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -272,6 +273,35 @@ RULES: dict[str, ValueRule] = {
     "trainer.precision": ValueRule("custom", check=_precision_problem),
 }
 """The checked keys (dotted, from the config root) and what each accepts."""
+
+
+#: Loggers whose package is an optional extra: the class's name -> (modules, any of which serves; the extra).
+LOGGER_PACKAGES: dict[str, tuple[tuple[str, ...], str]] = {
+    "TensorBoardLogger": (("tensorboard", "tensorboardX"), "tensorboard"),
+}
+
+
+def check_logger_packages(cfg: DictConfig) -> None:
+    """Refuse a logger whose package is not installed, naming the extra that installs it.
+
+    Raises:
+        ConfigError: ``logger=<name> needs the <package> package ...``.
+
+    Example:
+        >>> check_logger_packages(OmegaConf.create({"logger": {"x": {"_target_": "a.NoSuchLogger"}}}))
+        >>> check_logger_packages(OmegaConf.create({"logger": None}))
+    """
+    for name, node in (cfg.get("logger") or {}).items():
+        target = str((node or {}).get("_target_", ""))
+        needed = LOGGER_PACKAGES.get(target.rpartition(".")[2])
+        if needed is None:
+            continue
+        modules, extra = needed
+        if not any(importlib.util.find_spec(module) is not None for module in modules):
+            raise ConfigError(
+                f"logger={name} needs the {modules[0]} package, which is not installed: "
+                f"pip install 'airfisheye-bench[{extra}]' (or pip install {modules[0]}), or use logger=csv"
+            )
 
 
 def check_common_values(cfg: DictConfig, rules: Mapping[str, ValueRule] | None = None) -> None:

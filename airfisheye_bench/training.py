@@ -11,8 +11,11 @@ covers and appended to, and the data loader restarts at the checkpoint's batch.
 from __future__ import annotations
 
 import contextlib
+import difflib
+import inspect
 import logging
 import os
+import re
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -28,7 +31,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.atomic import atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
-from airfisheye_bench.config_checks import check_common_values
+from airfisheye_bench.config_checks import check_common_values, check_logger_packages
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.evaluation.evaluator import format_results_table
@@ -98,6 +101,7 @@ def check_config(cfg: DictConfig) -> None:
         ConfigError: the key, the value given and what to write instead (a ``ValueError``).
     """
     check_common_values(cfg)  # types, ranges, choices (model.name among them), files
+    check_logger_packages(cfg)  # logger=tensorboard without tensorboard installed
     task = cfg.task.name
     try:
         spec = get_task(task)
@@ -309,6 +313,30 @@ def run_log(output_dir: Path) -> Iterator[None]:
         handler.close()
 
 
+def instantiate_node(node: DictConfig, key: str, **kwargs: Any) -> Any:
+    """``hydra.utils.instantiate(node, **kwargs)``; a key its class does not take is a :class:`ConfigError`.
+
+    ``+trainer.max_epoch=1`` adds a key Hydra cannot check: the class refuses it with a ``TypeError``, which
+    becomes one line naming ``trainer.max_epoch`` and the nearest argument the class takes.
+    """
+    try:
+        return hydra.utils.instantiate(node, **kwargs)
+    except InstantiationException as err:
+        cause = err.__cause__
+        match = (
+            re.search(r"unexpected keyword argument '(\w+)'", str(cause))
+            if isinstance(cause, TypeError)
+            else None
+        )
+        if match is None:
+            raise
+        name = match.group(1)
+        taken = list(inspect.signature(hydra.utils.get_class(node._target_)).parameters)
+        nearest = difflib.get_close_matches(name, taken, n=1)
+        hint = f"did you mean {key}.{nearest[0]}?" if nearest else f"it takes {', '.join(taken)}"
+        raise ConfigError(f"{key}.{name}: {node._target_} takes no argument {name!r}; {hint}") from None
+
+
 def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule) -> None:
     """Refuse to start when a process would get no training batch (it would train nothing, then test)."""
     world = trainer.num_devices * trainer.num_nodes
@@ -350,10 +378,13 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
 
     datamodule, module = build(cfg, resume_from=ckpt_path)
     # A group entry set to null (callbacks.rich_progress_bar=null) switches that callback or logger off.
-    callbacks = [hydra.utils.instantiate(c) for c in (cfg.get("callbacks") or {}).values() if c is not None]
-    loggers = [hydra.utils.instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None]
-    trainer: L.Trainer = hydra.utils.instantiate(
-        cfg.trainer, callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
+    groups = {"callbacks": cfg.get("callbacks") or {}, "logger": cfg.get("logger") or {}}
+    callbacks, loggers = (
+        [instantiate_node(c, f"{group}.{name}") for name, c in nodes.items() if c is not None]
+        for group, nodes in groups.items()
+    )
+    trainer: L.Trainer = instantiate_node(
+        cfg.trainer, "trainer", callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
     )
 
     if cfg.get("train", True) and not retest_only:
