@@ -152,12 +152,7 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     (``encoder_weights``: the checkpoint restores every weight, and a resume must work offline); the record of
     what the run started from is taken over from the checkpoint.
     """
-    try:
-        datamodule = hydra.utils.instantiate(cfg.data)
-    except InstantiationException as err:  # Hydra wraps the datamodule's own error: a user error stays one
-        if isinstance(err.__cause__, UserError):
-            raise err.__cause__ from None
-        raise
+    datamodule = _instantiate(cfg.data)
     datamodule.prepare_data()
     datamodule.setup("fit")
     model_cfg = OmegaConf.to_container(cfg.model, resolve=True)
@@ -170,15 +165,25 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
             "palette": datamodule.palette[: datamodule.num_classes].tolist(),
         }
     if resume_from is None:
-        module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
+        module = _instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
     else:
         hparams = read_checkpoint(resume_from, mmap=True).get("hyper_parameters")
         extra["weights"] = (hparams or {}).get("weights")
         with pretrained_weights_disabled():
-            module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
+            module = _instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
     if cfg.get("compile"):
         module.net = torch.compile(module.net)
     return datamodule, module
+
+
+def _instantiate(node: DictConfig, **kwargs: Any) -> Any:
+    """``hydra.utils.instantiate``; a user error raised by the object's constructor stays one (Hydra wraps it)."""
+    try:
+        return hydra.utils.instantiate(node, **kwargs)
+    except InstantiationException as err:
+        if isinstance(err.__cause__, UserError):
+            raise err.__cause__ from None
+        raise
 
 
 def check_fresh_run_dir(output_dir: Path) -> None:
