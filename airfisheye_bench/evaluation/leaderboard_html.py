@@ -118,7 +118,7 @@ def render_html(
     shown = _PathShortener(runs_root)
     body += [_task_section(table, panels, panel_width, shown) for table in board.tables]
     if board.invalid:
-        items = "".join(f"<li><code>{escape(problem)}</code></li>" for problem in board.invalid)
+        items = "".join(f"<li><code>{escape(shown.text(problem))}</code></li>" for problem in board.invalid)
         body.append(
             '<section id="invalid"><h2>Invalid results.json (not ranked)</h2>'
             f'<ul class="invalid">{items}</ul></section>'
@@ -170,6 +170,14 @@ class _PathShortener:
         if self.home not in ("", "/") and resolved.startswith(self.home.rstrip("/") + "/"):
             return "~" + resolved[len(self.home.rstrip("/")) :]
         return value
+
+    def text(self, text: str) -> str:
+        """``text`` (a message) with the runs folder and the home folder inside it shortened."""
+        if self.root:
+            text = text.replace(self.root.rstrip("/") + "/", "")
+        if self.home not in ("", "/"):
+            text = text.replace(self.home.rstrip("/") + "/", "~/")
+        return text
 
     def within(self, value: Any) -> Any:
         """``value`` with every path string inside it (dicts and lists, recursively) shortened."""
