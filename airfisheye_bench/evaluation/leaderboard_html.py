@@ -207,7 +207,7 @@ def _task_section(table: TaskTable, panels: int, panel_width: int, shown: _PathS
     details = []
     for g, group in enumerate(table.groups):
         out.append(f'<div class="group"><div class="scroll"><table class="board" id="table-{task}-{g}">')
-        out.append(f"<caption>{escape(group.title)}</caption>")
+        out.append(f"<caption><span>{escape(group.title)}</span></caption>")
         out.append(_header(table, columns))
         out.append("<tbody>")
         for rank, entry in group.rows:
