@@ -39,9 +39,9 @@ def evaluate() -> None:
 def _train(cfg: DictConfig) -> float | None:
     # `ckpt_path=last hydra.run.dir=<run> [key=value ...]`: the run's saved configuration, the keys given on top.
     cfg = resume_config(cfg, HydraConfig.get().overrides.task)
+    check_logger_packages(cfg)  # a look-up of the package, before the value checks import the model zoo
     # A mistyped value is answered at once, before the seconds of importing Lightning.
     check_common_values(cfg)
-    check_logger_packages(cfg)
     from airfisheye_bench.training import train as fit  # Lightning: seconds to import, not needed by --help
 
     results = fit(cfg)
