@@ -206,6 +206,8 @@ RULES: dict[str, ValueRule] = {
     "test": ValueRule("bool"),
     "compile": ValueRule("bool"),
     "resume_overrides_ok": ValueRule("bool"),
+    "retest": ValueRule("bool"),
+    "print_breakdown": ValueRule("bool"),
     "ckpt_path": ValueRule(
         "path",
         nullable=True,
@@ -232,6 +234,9 @@ RULES: dict[str, ValueRule] = {
     "trainer.num_sanity_val_steps": ValueRule("int", minimum=-1, nullable=True, hint="-1: the whole split"),
     "trainer.gradient_clip_val": ValueRule("number", minimum=0, nullable=True),
     "callbacks.last_checkpoint.every_n_train_steps": ValueRule("int", minimum=1, nullable=True),
+    "callbacks.progress.every_n_steps": ValueRule(
+        "int", minimum=0, nullable=True, hint="0 or null: epochs only"
+    ),
     "data.root": ValueRule(
         "folder",
         nullable=True,
@@ -274,33 +279,36 @@ RULES: dict[str, ValueRule] = {
 """The checked keys (dotted, from the config root) and what each accepts."""
 
 
-EXTRAS: dict[str, tuple[str, str]] = {
-    "logger.mlflow": ("mlflow", "mlflow"),
-    "mlflow_run": ("mlflow", "mlflow"),
+EXTRAS: dict[str, tuple[tuple[str, ...], str]] = {
+    "logger.mlflow": (("mlflow",), "mlflow"),
+    "mlflow_run": (("mlflow",), "mlflow"),
+    "logger.tensorboard": (("tensorboard", "tensorboardX"), "tensorboard"),
 }
-"""Keys that need an optional package when set (not null): key -> (the module imported, the extra of
-``pyproject.toml`` that installs it)."""
+"""Keys that need an optional package when set (not null): key -> (the modules, any of which serves; the extra
+of ``pyproject.toml`` that installs the first)."""
 
 
-def check_extras(cfg: DictConfig, extras: Mapping[str, tuple[str, str]] | None = None) -> None:
+def check_extras(cfg: DictConfig, extras: Mapping[str, tuple[tuple[str, ...], str]] | None = None) -> None:
     """Raise when a set key of ``extras`` needs a package that is not installed, naming the extra to install.
+
+    A look-up of the package only (nothing is imported), so it answers before the value checks import anything.
 
     Raises:
         ConfigError: ``<key> needs the Python package <module>: pip install -e ".[<extra>]"``.
 
     Example:
-        >>> check_extras(OmegaConf.create({"logger": {"x": {}}}), {"logger.x": ("no_such_module_0", "x")})
+        >>> check_extras(OmegaConf.create({"logger": {"x": {}}}), {"logger.x": (("no_such_module_0",), "x")})
         Traceback (most recent call last):
         ...
         airfisheye_bench.errors.ConfigError: logger.x needs the Python package no_such_module_0, which is not installed: pip install -e ".[x]" (or pip install "airfisheye-bench[x]")
-        >>> check_extras(OmegaConf.create({"logger": {"x": None}}), {"logger.x": ("no_such_module_0", "x")})
+        >>> check_extras(OmegaConf.create({"logger": {"x": None}}), {"logger.x": (("no_such_module_0",), "x")})
     """
-    for key, (module, extra) in (EXTRAS if extras is None else extras).items():
+    for key, (modules, extra) in (EXTRAS if extras is None else extras).items():
         if OmegaConf.select(cfg, key, default=None, throw_on_missing=False) is None:
             continue
-        if importlib.util.find_spec(module) is None:
+        if not any(importlib.util.find_spec(module) is not None for module in modules):
             raise ConfigError(
-                f"{key} needs the Python package {module}, which is not installed: "
+                f"{key} needs the Python package {modules[0]}, which is not installed: "
                 f'pip install -e ".[{extra}]" (or pip install "airfisheye-bench[{extra}]")'
             )
 

@@ -2,8 +2,10 @@
 
 A run directory (``logs/<task>/runs/<time>_<suffix>``) holds ``config.yaml`` (the resolved configuration),
 ``checkpoints/`` (``last.ckpt`` and the best ones), ``metrics.csv`` and, after testing, ``results.json`` naming the
-best checkpoint. Resuming it (``ckpt_path=last hydra.run.dir=<run>``) re-uses that configuration; a resume whose
-configuration differs is refused with the differing keys unless ``resume_overrides_ok=true``. Evaluation and export
+best checkpoint. Resuming it (``ckpt_path=last hydra.run.dir=<run> [key=value ...]``) starts from that
+configuration and applies only the keys given (:func:`resume_config`); a change of what the checkpoint means
+(:data:`RESUME_UNSAFE`) is refused, a harmless one (:data:`RESUME_HARMLESS`) recorded, any other needs
+``resume_overrides_ok=true`` (:func:`check_resume`). Evaluation and export
 accept the directory or a ``.ckpt`` file (:func:`resolve_checkpoint`); the run's data configuration travels with it
 (:func:`run_config`). Kept light (no torch import at module level): the entry points register
 :func:`register_resolvers` before Hydra composes.
@@ -24,15 +26,46 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.errors import InputFileError, MissingFileError
+from airfisheye_bench.errors import ConfigError, InputFileError, MissingFileError
 
 log = logging.getLogger(__name__)
 
 #: Keys a resume may set without counting as a configuration change.
-RESUME_KEYS = frozenset({"ckpt_path", "resume_overrides_ok"})
+RESUME_KEYS = frozenset({"ckpt_path", "resume_overrides_ok", "retest"})
+
+#: What a checkpoint means: a resume may not change these keys, nor any key under them, even with
+#: ``resume_overrides_ok=true`` (the one list of them; :func:`resume_change`). The dataset and how it is served
+#: (``data``: preset, root, source, lens and image size, occlusion, augmentation, batch size), the model, the task
+#: (its loss, metrics, optimiser) and the experiment recipe.
+RESUME_UNSAFE = ("data", "model", "task", "experiment")
+
+#: Changes a resume makes without asking: how long to train, what is logged and printed, how data is loaded.
+#: An entry under a :data:`RESUME_UNSAFE` one (``data.num_workers``) is the more specific and wins.
+RESUME_HARMLESS = (
+    "trainer.max_epochs",
+    "trainer.max_steps",
+    "trainer.max_time",
+    "trainer.log_every_n_steps",
+    "trainer.enable_progress_bar",
+    "trainer.enable_model_summary",
+    "logger",
+    "callbacks.progress",
+    "callbacks.rich_progress_bar",
+    "callbacks.lr_monitor",
+    "callbacks.last_checkpoint.every_n_train_steps",
+    "data.num_workers",
+    "data.pin_memory",
+    "data.persistent_workers",
+    "data.eval_batch_size",
+    "data.cache_dir",
+    "paths.data_dir",
+    "paths.log_dir",
+    "print_breakdown",
+    "test",
+)
 
 
 @functools.cache
@@ -170,32 +203,93 @@ def config_differences(saved: DictConfig | dict, current: DictConfig | dict) -> 
         >>> config_differences({"a": 1, "b": {"c": 2}, "ckpt_path": None}, {"a": 1, "b": {"c": 3}, "ckpt_path": "last"})
         ['b.c: run has 2, now 3']
     """
+    return [f"{key}: run has {old}, now {new}" for key, old, new in _changes(saved, current)]
+
+
+def _changes(saved: DictConfig | dict, current: DictConfig | dict) -> list[tuple[str, Any, Any]]:
+    """``(key, run's value, new value)`` for every leaf (resume keys aside) whose resolved value differs."""
     old, new = (flatten(_plain(c)) for c in (saved, current))
     missing = "<absent>"
     return [
-        f"{key}: run has {old.get(key, missing)}, now {new.get(key, missing)}"
+        (key, old.get(key, missing), new.get(key, missing))
         for key in sorted(old.keys() | new.keys())
         if key.split(".")[0] not in RESUME_KEYS and old.get(key, missing) != new.get(key, missing)
     ]
 
 
-def resume_config(cfg: DictConfig, task_overrides: Iterable[str]) -> DictConfig:
-    """The configuration to run: on a resume given nothing but resume keys, the run's own ``config.yaml``.
+def resume_change(key: str) -> str:
+    """How a resume may change ``key``: ``"unsafe"`` (refused), ``"harmless"`` (allowed) or ``"changed"``.
 
-    ``task_overrides`` are the command line's ``key=value`` overrides (``hydra.*`` ones are not among them), so
-    ``python train.py ckpt_path=last hydra.run.dir=<run>`` continues with exactly the run's settings instead of
-    the defaults. Any other override makes the composed configuration the one to compare (see
-    :func:`check_resume`).
+    The most specific entry of :data:`RESUME_UNSAFE` and :data:`RESUME_HARMLESS` that ``key`` is (or lies under)
+    decides; a key in neither is ``"changed"``: allowed with ``resume_overrides_ok=true``.
+
+    Example:
+        >>> resume_change("data.camera.model"), resume_change("data.num_workers"), resume_change("trainer.max_epochs")
+        ('unsafe', 'harmless', 'harmless')
+        >>> resume_change("trainer.limit_train_batches")
+        'changed'
+    """
+    parts = key.split(".")
+    best, kind = -1, "changed"
+    for entries, name in ((RESUME_UNSAFE, "unsafe"), (RESUME_HARMLESS, "harmless")):
+        for entry in entries:
+            depth = entry.count(".") + 1
+            if parts[:depth] == entry.split(".") and depth > best:
+                best, kind = depth, name
+    return kind
+
+
+def resume_config(cfg: DictConfig, task_overrides: Iterable[str]) -> DictConfig:
+    """The configuration of a resume: the run's own ``config.yaml`` with the command's overrides applied on top.
+
+    ``task_overrides`` are the command line's overrides (``hydra.*`` ones are not among them). For
+    ``python train.py ckpt_path=last hydra.run.dir=<run> trainer.max_epochs=3`` the result is the run's configuration
+    with ``trainer.max_epochs`` set to 3 and nothing else changed (the defaults, and the keys the run's own command
+    set, stay the run's). Each override takes its value from ``cfg`` (the command's composition): a ``key=value``
+    override sets that key, a group (``logger=tensorboard``) replaces the group's node, ``~key`` deletes it. Without
+    a resume (no ``ckpt_path``, or no ``config.yaml`` in the run directory) ``cfg`` is returned; whether the changes
+    are allowed is :func:`check_resume`'s decision.
     """
     saved = Path(cfg.paths.output_dir) / "config.yaml"
-    given = {override.split("=", 1)[0].lstrip("+~") for override in task_overrides}
-    if cfg.get("ckpt_path") is None or not saved.is_file() or not given <= RESUME_KEYS:
+    if cfg.get("ckpt_path") is None or not saved.is_file():
         return cfg
     run_cfg = saved_config(saved, cfg.paths.output_dir)
-    for key in RESUME_KEYS:
-        run_cfg[key] = cfg.get(key)
-    log.info("resuming with the run's configuration %s", saved)
+    typed = [_override_key(o) for o in task_overrides]
+    with open_dict(run_cfg):
+        for key in RESUME_KEYS:
+            run_cfg[key] = cfg.get(key)
+        for key, deleted in typed:
+            if key.split(".")[0] in RESUME_KEYS:
+                continue
+            if deleted:
+                parent, _, leaf = key.rpartition(".")
+                node = OmegaConf.select(run_cfg, parent) if parent else run_cfg
+                if isinstance(node, DictConfig) and leaf in node:
+                    node.pop(leaf)
+                continue
+            value = OmegaConf.select(cfg, key, throw_on_missing=False)
+            if isinstance(value, (DictConfig, ListConfig)):
+                value = OmegaConf.to_container(value, resolve=True)
+            OmegaConf.update(run_cfg, key, value, merge=False, force_add=True)
     return run_cfg
+
+
+def _override_key(override: str) -> tuple[str, bool]:
+    """The dotted key an override sets and whether it deletes it: ``+a.b=1`` -> ``("a.b", False)``.
+
+    A group override (``logger=tensorboard``, ``experiment=paper/seg``) sets the group's node (``logger``,
+    ``experiment``); a package override (``group@pkg=option``) its package.
+
+    Example:
+        >>> _override_key("++trainer.max_epochs=3"), _override_key("~logger.csv"), _override_key("model@x=y")
+        (('trainer.max_epochs', False), ('logger.csv', True), ('x', False))
+    """
+    key = override.split("=", 1)[0]
+    deleted = key.startswith("~")
+    key = key.lstrip("+~")
+    if "@" in key:
+        key = key.split("@", 1)[1]
+    return key.replace("/", "."), deleted
 
 
 def saved_config(path: Path, output_dir: str | Path) -> DictConfig:
@@ -232,31 +326,42 @@ def saved_config(path: Path, output_dir: str | Path) -> DictConfig:
 
 
 def check_resume(cfg: DictConfig, output_dir: Path, write: bool) -> None:
-    """Refuse to resume with a configuration other than the run's, or record the accepted one.
+    """Refuse a resume that changes what the checkpoint means, or record the accepted changes.
 
-    With ``resume_overrides_ok=true`` the differences are logged, the previous ``config.yaml`` is kept as
-    ``config.<n>.yaml`` and the new one becomes ``config.yaml`` (``write`` is false on all but the first process).
+    Each key that differs from the run's ``config.yaml`` is judged by :func:`resume_change`: a change of a
+    :data:`RESUME_UNSAFE` key (the dataset, model, task, lens, image size) is refused whatever the switches; a
+    :data:`RESUME_HARMLESS` one (more epochs, logging, loader workers) is accepted; any other needs
+    ``resume_overrides_ok=true``. Accepted changes are logged, the previous ``config.yaml`` is kept as
+    ``config.<n>.yaml`` and the new one becomes ``config.yaml`` (``write`` is false on all but the first process,
+    and in the checks made before anything is written).
 
     Raises:
-        ValueError: the configurations differ and ``resume_overrides_ok`` is not set; lists the keys.
+        ConfigError: one line naming the refused keys, their values and what to do instead.
     """
     saved = output_dir / "config.yaml"
     if not saved.is_file():
         if write:
             atomic_write_text(saved, OmegaConf.to_yaml(cfg, resolve=True))
         return
-    differences = config_differences(saved_config(saved, output_dir), cfg)
-    if not differences:
+    changes = _changes(saved_config(saved, output_dir), cfg)
+    if not changes:
         return
-    listing = "\n  ".join(differences)
-    if not cfg.get("resume_overrides_ok"):
-        raise ValueError(
-            f"resuming {output_dir} with a configuration that differs from the run's {saved}:\n  {listing}\n"
-            "resume with only ckpt_path=last hydra.run.dir=<run> to continue as configured, or add "
-            "resume_overrides_ok=true to continue with these changes"
+    described = {key: f"{key} (run has {old}, now {new})" for key, old, new in changes}
+    unsafe = [described[key] for key, _, _ in changes if resume_change(key) == "unsafe"]
+    if unsafe:
+        raise ConfigError(
+            f"resuming {output_dir} cannot change {'; '.join(unsafe)}: the checkpoint was trained with the run's "
+            "value; start a new run for it (leave out ckpt_path and hydra.run.dir)"
         )
-    log.warning("resuming with a changed configuration (resume_overrides_ok=true):\n  %s", listing)
+    unsure = [described[key] for key, _, _ in changes if resume_change(key) == "changed"]
+    if unsure and not cfg.get("resume_overrides_ok"):
+        raise ConfigError(
+            f"resuming {output_dir} changes {'; '.join(unsure)}; add resume_overrides_ok=true to continue with "
+            "this change, or leave it out to continue as configured"
+        )
     if write:
+        level = logging.WARNING if unsure else logging.INFO
+        log.log(level, "resuming with a changed configuration: %s", "; ".join(described.values()))
         atomic_write_text(
             numbered_sibling(saved), saved.read_text()
         )  # copy first: a kill leaves config.yaml in place

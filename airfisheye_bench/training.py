@@ -11,15 +11,21 @@ covers and appended to, and the data loader restarts at the checkpoint's batch.
 
 from __future__ import annotations
 
+import contextlib
+import difflib
+import inspect
 import logging
 import os
+import re
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import hydra
 import lightning as L
 import torch
+from hydra.core.hydra_config import HydraConfig
 from hydra.errors import InstantiationException
 from lightning.pytorch.utilities import rank_zero_only
 from omegaconf import DictConfig, OmegaConf
@@ -29,9 +35,17 @@ from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
+from airfisheye_bench.evaluation.evaluator import format_results_table
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
-from airfisheye_bench.runs import check_resume, keep_metric_rows, numbered_sibling, read_checkpoint, run_label
+from airfisheye_bench.runs import (
+    check_resume,
+    keep_metric_rows,
+    numbered_sibling,
+    read_checkpoint,
+    resolve_checkpoint,
+    run_label,
+)
 from airfisheye_bench.specs import UnknownTaskError, get_task
 from airfisheye_bench.tracking import log_run_outputs, start_tracking
 from models import list_models, model_task
@@ -39,10 +53,15 @@ from models.weights import pretrained_weights_disabled
 
 log = logging.getLogger(__name__)
 
+#: The format of log lines when no handler gives one (Hydra's job logging: ``[time][logger][level] - message``).
+LOG_FORMAT = "[%(asctime)s][%(name)s][%(levelname)s] - %(message)s"
+
 # The datamodule, not the DataLoader, restores the position in the epoch (AirFisheyeDataModule.load_state_dict).
 warnings.filterwarnings(
     "ignore", message="You're resuming from a checkpoint that ended before the epoch ended"
 )
+# A resumed run's checkpoint folder holds its checkpoints: that is what a resume is.
+warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and is not empty")
 # Lightning's own code builds a torch pytree LeafSpec, which this torch deprecates: nothing a user can change.
 warnings.filterwarnings(
     "ignore", message=r"`isinstance\(treespec, LeafSpec\)` is deprecated", category=FutureWarning
@@ -84,7 +103,7 @@ def check_config(cfg: DictConfig) -> None:
     Raises:
         ConfigError: the key, the value given and what to write instead (a ``ValueError``).
     """
-    check_common_values(cfg)  # types, ranges, choices (model.name among them), files
+    check_common_values(cfg)  # missing optional packages, types, ranges, choices (model.name among them), files
     task = cfg.task.name
     try:
         spec = get_task(task)
@@ -142,12 +161,7 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     (``encoder_weights``: the checkpoint restores every weight, and a resume must work offline); the record of
     what the run started from is taken over from the checkpoint.
     """
-    try:
-        datamodule = hydra.utils.instantiate(cfg.data)
-    except InstantiationException as err:  # Hydra wraps the datamodule's own error: a user error stays one
-        if isinstance(err.__cause__, UserError):
-            raise err.__cause__ from None
-        raise
+    datamodule = _instantiate(cfg.data)
     datamodule.prepare_data()
     datamodule.setup("fit")
     model_cfg = OmegaConf.to_container(cfg.model, resolve=True)
@@ -160,15 +174,25 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
             "palette": datamodule.palette[: datamodule.num_classes].tolist(),
         }
     if resume_from is None:
-        module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
+        module = _instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
     else:
         hparams = read_checkpoint(resume_from, mmap=True).get("hyper_parameters")
         extra["weights"] = (hparams or {}).get("weights")
         with pretrained_weights_disabled():
-            module = hydra.utils.instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
+            module = _instantiate(cfg.task.module, model=model_cfg, **extra, _convert_="partial")
     if cfg.get("compile"):
         module.net = torch.compile(module.net)
     return datamodule, module
+
+
+def _instantiate(node: DictConfig, **kwargs: Any) -> Any:
+    """``hydra.utils.instantiate``; a user error raised by the object's constructor stays one (Hydra wraps it)."""
+    try:
+        return hydra.utils.instantiate(node, **kwargs)
+    except InstantiationException as err:
+        if isinstance(err.__cause__, UserError):
+            raise err.__cause__ from None
+        raise
 
 
 def check_fresh_run_dir(output_dir: Path) -> None:
@@ -190,23 +214,17 @@ def check_fresh_run_dir(output_dir: Path) -> None:
         )
 
 
-def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
-    """Set up the run directory for a new run or a resume; return the checkpoint to resume from, if any.
+def check_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
+    """Check, writing nothing, that the run directory can be used; return the checkpoint to resume from, if any.
 
-    A new run writes ``config.yaml`` and starts ``metrics.csv`` afresh. A resume checks the configuration against
-    the run's and cuts ``metrics.csv`` back to the rows its checkpoint covers (rows a killed process logged after
-    it are logged again). A checkpoint that does not record its rows (a best ``epoch_*.ckpt``: the history after
-    it is rewritten) moves ``metrics.csv`` aside to ``metrics.<n>.csv`` and starts a new one. Files are written by
-    the first process only (DDP starts one per device).
+    Raises:
+        ConfigError: a new run in a directory that holds one, or a resume changing what the checkpoint means.
+        MissingFileError: ``ckpt_path`` names no checkpoint.
     """
-    first = rank_zero_only.rank == 0
-    output_dir.mkdir(parents=True, exist_ok=True)
     ckpt_path = cfg.get("ckpt_path")
     if ckpt_path is None:
-        if first:
+        if rank_zero_only.rank == 0:
             check_fresh_run_dir(output_dir)
-            atomic_write_text(output_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
-            (output_dir / "metrics.csv").unlink(missing_ok=True)
         return None
     if ckpt_path == "last":
         ckpt_path = str(output_dir / "checkpoints" / "last.ckpt")
@@ -216,6 +234,59 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
             "hydra.run.dir=<run> (it has checkpoints/last.ckpt once its first epoch ended, or every "
             "callbacks.last_checkpoint.every_n_train_steps steps); otherwise start the run without ckpt_path"
         )
+    check_resume(cfg, output_dir, write=False)
+    return ckpt_path
+
+
+def finished_run(cfg: DictConfig, output_dir: Path, ckpt_path: str) -> str | None:
+    """Why the run has nothing left to do, or ``None``: it has ``results.json`` and trained as configured.
+
+    ``ckpt_path`` holds the epochs and steps trained (Lightning's loop counters); the run is finished when they
+    reach ``trainer.max_epochs`` (or ``trainer.max_steps``) of ``cfg``, so a resume with more epochs continues.
+    """
+    if not (output_dir / "results.json").is_file():
+        return None
+    state = read_checkpoint(ckpt_path, mmap=True)
+    epochs = (
+        state.get("loops", {})
+        .get("fit_loop", {})
+        .get("epoch_progress", {})
+        .get("current", {})
+        .get("processed")
+    )
+    steps = state.get("global_step")
+    max_epochs, max_steps = cfg.trainer.get("max_epochs"), cfg.trainer.get("max_steps")
+    if epochs is not None and max_epochs is not None and max_epochs >= 0 and epochs >= max_epochs:
+        done = f"{epochs} of trainer.max_epochs={max_epochs} epochs"
+    elif steps is not None and max_steps is not None and max_steps > 0 and steps >= max_steps:
+        done = f"{steps} of trainer.max_steps={max_steps} steps"
+    else:
+        return None
+    return (
+        f"{output_dir} is finished ({done} trained, tested in results.json): nothing to do; "
+        f"retest=true tests it again, trainer.max_epochs=<more> trains on"
+    )
+
+
+def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
+    """Set up the run directory for a new run or a resume; return the checkpoint to resume from, if any.
+
+    A new run writes ``config.yaml`` and starts ``metrics.csv`` afresh. A resume checks the configuration against
+    the run's (:func:`check_run_dir`), records an accepted change, and cuts ``metrics.csv`` back to the rows its
+    checkpoint covers (rows a killed process logged after it are logged again). A checkpoint that does not record
+    its rows (a best ``epoch_*.ckpt``: the history after it is rewritten) moves ``metrics.csv`` aside to
+    ``metrics.<n>.csv`` and starts a new one. Files are written by the first process only (DDP starts one per
+    device).
+    """
+    first = rank_zero_only.rank == 0
+    ckpt_path = check_run_dir(cfg, output_dir)
+    output_dir.mkdir(parents=True, exist_ok=True)
+    if ckpt_path is None:
+        if first:
+            atomic_write_text(output_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+            (output_dir / "metrics.csv").unlink(missing_ok=True)
+        return None
+    log.info("resuming %s from %s with the run's config.yaml", output_dir, ckpt_path)
     check_resume(cfg, output_dir, write=first)
     rows = read_checkpoint(ckpt_path, mmap=True).get(METRIC_ROWS_KEY)
     if first:
@@ -230,6 +301,54 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
                 "%s does not record its metrics.csv rows: the earlier rows are kept in %s", ckpt_path, aside
             )
     return ckpt_path
+
+
+@contextlib.contextmanager
+def run_log(output_dir: Path) -> Iterator[None]:
+    """Write the command's log to ``<run>/<job name>.log`` (``train.log``) while active.
+
+    Attached only once the checks passed, so a refused command writes nothing into the run directory (Hydra's
+    own file handler is switched off in ``configs/hydra/default.yaml``). Outside a Hydra application (a library
+    caller) nothing is attached.
+    """
+    if not HydraConfig.initialized():
+        yield
+        return
+    root = logging.getLogger()
+    console = next((h for h in root.handlers if h.formatter is not None), None)
+    output_dir.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(output_dir / f"{HydraConfig.get().job.name}.log")
+    handler.setFormatter(console.formatter if console else logging.Formatter(LOG_FORMAT))
+    root.addHandler(handler)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+        handler.close()
+
+
+def instantiate_node(node: DictConfig, key: str, **kwargs: Any) -> Any:
+    """``hydra.utils.instantiate(node, **kwargs)``; a key its class does not take is a :class:`ConfigError`.
+
+    ``+trainer.max_epoch=1`` adds a key Hydra cannot check: the class refuses it with a ``TypeError``, which
+    becomes one line naming ``trainer.max_epoch`` and the nearest argument the class takes.
+    """
+    try:
+        return hydra.utils.instantiate(node, **kwargs)
+    except InstantiationException as err:
+        cause = err.__cause__
+        match = (
+            re.search(r"unexpected keyword argument '(\w+)'", str(cause))
+            if isinstance(cause, TypeError)
+            else None
+        )
+        if match is None:
+            raise
+        name = match.group(1)
+        taken = list(inspect.signature(hydra.utils.get_class(node._target_)).parameters)
+        nearest = difflib.get_close_matches(name, taken, n=1)
+        hint = f"did you mean {key}.{nearest[0]}?" if nearest else f"it takes {', '.join(taken)}"
+        raise ConfigError(f"{key}.{name}: {node._target_} takes no argument {name!r}; {hint}") from None
 
 
 def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule) -> None:
@@ -251,38 +370,60 @@ def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule
 def train(cfg: DictConfig) -> dict[str, Any]:
     """Train, validate and test as configured.
 
+    Everything that can refuse the command is checked before anything is written into the run directory. A resume
+    of a finished run (:func:`finished_run`) says so and stops, unless ``retest=true``: then it tests the run's
+    best checkpoint again and rewrites ``results.json``.
+
     Returns:
-        The test results (``metrics``, ``breakdown``; none when ``test=false``) and ``best_val``: the best value of
-        the monitored validation metric, ``{"val/<metric>": value}``, what a sweep optimises.
+        The test results (``metrics``, ``breakdown``; none when ``test=false`` or a finished run is not re-tested)
+        and ``best_val``: the best value of the monitored validation metric, ``{"val/<metric>": value}``, what a
+        sweep optimises.
     """
     check_config(cfg)
+    output_dir = Path(cfg.paths.output_dir)
+    resume_from = check_run_dir(cfg, output_dir)
+    finished = finished_run(cfg, output_dir, resume_from) if resume_from is not None else None
+    if finished is not None and not cfg.get("retest"):
+        log.info(finished)
+        return {}
+    with run_log(output_dir):
+        return _train(cfg, output_dir, retest_only=finished is not None)
+
+
+def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, Any]:
     log_lightning_once()
     L.seed_everything(cfg.seed, workers=True)
-    output_dir = Path(cfg.paths.output_dir)
     ckpt_path = prepare_run_dir(cfg, output_dir)
 
     datamodule, module = build(cfg, resume_from=ckpt_path)
     # A group entry set to null (callbacks.rich_progress_bar=null) switches that callback or logger off.
-    callbacks = [hydra.utils.instantiate(c) for c in (cfg.get("callbacks") or {}).values() if c is not None]
-    loggers = [hydra.utils.instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None]
-    trainer: L.Trainer = hydra.utils.instantiate(
-        cfg.trainer, callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
+    groups = {"callbacks": cfg.get("callbacks") or {}, "logger": cfg.get("logger") or {}}
+    callbacks, loggers = (
+        [instantiate_node(c, f"{group}.{name}") for name, c in nodes.items() if c is not None]
+        for group, nodes in groups.items()
+    )
+    trainer: L.Trainer = instantiate_node(
+        cfg.trainer, "trainer", callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
     )
     if trainer.is_global_zero:
         start_tracking(loggers, OmegaConf.to_container(cfg, resolve=True))
 
-    if cfg.get("train", True):
+    if cfg.get("train", True) and not retest_only:
         check_training_batches(trainer, datamodule)
         trainer.fit(module, datamodule=datamodule, ckpt_path=ckpt_path)
 
     results: dict[str, Any] = {}
     best = trainer.checkpoint_callback.best_model_path if trainer.checkpoint_callback else ""
     if cfg.get("test", True):
+        if retest_only:
+            best = str(resolve_checkpoint(output_dir))
+            log.info("retest=true: testing %s again", best)
         if not best:
             log.warning("no best checkpoint: testing the current weights")
-        trainer.test(module, datamodule=datamodule, ckpt_path=best or None)
+        trainer.test(module, datamodule=datamodule, ckpt_path=best or None, verbose=False)
         results = module.test_results
         if trainer.is_global_zero:
+            log.info("%s", summarise_test(cfg, results))
             path = write_results(
                 output_dir / "results.json",
                 task=cfg.task.name,
@@ -313,3 +454,16 @@ def train(cfg: DictConfig) -> dict[str, Any]:
     if callback is not None and getattr(callback, "best_model_score", None) is not None:
         results["best_val"] = {str(callback.monitor): float(callback.best_model_score)}
     return results
+
+
+def summarise_test(cfg: DictConfig, results: dict[str, Any]) -> str:
+    """The test metrics as a compact table (as ``evaluate.py`` prints them); with ``print_breakdown=true`` also
+    every metric per incidence-angle ring (and depth range), per class. ``results.json`` holds them all."""
+    table = format_results_table(cfg.task.name, results, cfg.task.primary_metric)
+    lines = [f"test results ({cfg.task.name}, best checkpoint)", table]
+    if cfg.get("print_breakdown"):
+        lines += ["", "per ring and range, per class", "-" * 36]
+        lines += [f"{key:<40}{value:.4f}" for key, value in results["breakdown"].items()]
+    else:
+        lines.append("(per ring and per class: results.json, or print_breakdown=true)")
+    return "\n".join(lines)

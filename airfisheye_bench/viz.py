@@ -137,12 +137,19 @@ def make_panel(
     return np.concatenate(parts, axis=0)
 
 
-def task_panel(task: str, rows: list[list[np.ndarray]], max_depth: float = 120.0, gap: int = 2) -> np.ndarray:
+def task_panel(
+    task: str,
+    rows: list[list[np.ndarray]],
+    max_depth: float = 120.0,
+    gap: int = 2,
+    classes: Sequence[tuple[str, Sequence[int]]] = (),
+) -> np.ndarray:
     """A task's panel: :func:`panel_row` rows under their column titles, with the colour bars of its tiles.
 
     Depth and completion panels end with the range colour bar (log scale, 1 m to ``max_depth``) and the absolute
-    error bar (0 to :data:`ERROR_SCALE_M` m), both labelled in metres; a segmentation panel with a line saying what
-    the error tile's colours mean.
+    error bar (0 to :data:`ERROR_SCALE_M` m), both labelled in metres; a segmentation panel with the class colours
+    (``classes``: ``(name, rgb)`` in id order, :func:`class_legend`) and a line saying what the error tile's
+    colours mean.
 
     Example:
         >>> tile = np.zeros((64, 64, 3), np.uint8)
@@ -152,10 +159,45 @@ def task_panel(task: str, rows: list[list[np.ndarray]], max_depth: float = 120.0
     """
     width = len(rows[0]) * (rows[0][0].shape[1] + gap) - gap
     if isinstance(get_task(task).prediction, LabelMaps):
-        legends = [_text_strip("error: red = wrong class, black = right, dark grey = unlabelled", width)]
+        legends = [class_legend(width, classes)] if classes else []
+        legends.append(_text_strip("error: red = wrong class, black = right, dark grey = unlabelled", width))
     else:
         legends = [depth_colorbar(width, max_depth), error_colorbar(width, ERROR_SCALE_M)]
     return make_panel(rows, gap=gap, titles=panel_titles(task), legends=legends)
+
+
+def class_legend(width: int, classes: Sequence[tuple[str, Sequence[int]]]) -> np.ndarray:
+    """A key of the label colours: a swatch and the name of every class, left to right, wrapped at ``width``.
+
+    Example:
+        >>> key = class_legend(200, [("sky", (70, 130, 180)), ("road", (128, 64, 128)), ("vegetation", (0, 90, 0))])
+        >>> key.shape[1], key.dtype.name, bool((key == (70, 130, 180)).all(-1).any())
+        (200, 'uint8', True)
+    """
+    font = _font()
+    line = _line_height()
+    swatch = line - 4
+    entries = [
+        (name, tuple(int(c) for c in rgb), swatch + 4 + math.ceil(font.getlength(name)))
+        for name, rgb in classes
+    ]
+    lines: list[list[tuple[str, tuple[int, ...], int]]] = [[]]
+    used = 2
+    for entry in entries:
+        if lines[-1] and used + entry[2] > width:
+            lines.append([])
+            used = 2
+        lines[-1].append(entry)
+        used += entry[2] + 12
+    image = Image.new("RGB", (width, len(lines) * line), _PAPER)
+    draw = ImageDraw.Draw(image)
+    for row, items in enumerate(lines):
+        x, y = 2, row * line
+        for name, rgb, size in items:
+            draw.rectangle([x, y + 2, x + swatch - 1, y + 1 + swatch], fill=rgb, outline=_INK)
+            draw.text((x + swatch + 4, y + 1), name, fill=_INK, font=font)
+            x += size + 12
+    return np.asarray(image).copy()
 
 
 def panel_titles(task: str) -> tuple[str, ...]:

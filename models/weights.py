@@ -22,8 +22,12 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import functools
 import os
+import socket
+import threading
 import urllib.error
+import urllib.parse
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
@@ -243,7 +247,11 @@ def smp_pretrained(build: Callable[[str | bool], T], encoder_name: str, tag: str
             )
         repo, filename, revision = settings[tag]["repo_id"], "model.safetensors", settings[tag]["revision"]
         source = f"hf:{repo}@{revision}"
+    cached = try_to_load_from_cache(repo, filename, revision=revision) if repo else None
+    offline = None if isinstance(cached, str) else network_unavailable(constants.ENDPOINT)
     try:
+        if offline is not None:  # not cached and no network: fail at once, not after the hub's retries
+            raise ConnectionError(offline)
         built = build(True if timm_name is not None else tag)
     except Exception as err:
         if not _is_download_failure(err):
@@ -251,10 +259,11 @@ def smp_pretrained(build: Callable[[str | bool], T], encoder_name: str, tag: str
         where = Path(constants.HF_HUB_CACHE)
         wanted = f"{repo}/{filename}" if repo else f"timm's {timm_name} weights"
         folder = where / ("models--" + repo.replace("/", "--")) if repo else where
+        reason = offline or type(err).__name__
         raise WeightsUnavailableError(
             f"encoder_weights={tag!r} for encoder {encoder_name!r} needs {wanted} from the Hugging Face Hub, "
             f"which is not in its cache ({where}; set by HF_HOME or HF_HUB_CACHE) and could not be downloaded "
-            f'({type(err).__name__}). On a machine with network, run python -c "import '
+            f'({reason}). On a machine with network, run python -c "import '
             f"segmentation_models_pytorch as smp; smp.encoders.get_encoder('{encoder_name}', weights="
             f'{True if timm_name else repr(tag)})" and copy the folder {folder.name} of its cache to {folder}; '
             "or set encoder_weights to a local ResNet state_dict file (torchvision or timm), or to null to train "
@@ -299,7 +308,10 @@ def torchvision_imagenet_state(name: str) -> tuple[dict[str, Tensor], dict[str, 
 
     weights = torchvision.models.get_model_weights(name).DEFAULT
     path = Path(torch.hub.get_dir()) / "checkpoints" / os.path.basename(weights.url)
+    offline = None if path.is_file() else network_unavailable(weights.url)
     try:
+        if offline is not None:
+            raise ConnectionError(offline)
         state = weights.get_state_dict(progress=False, check_hash=True)
     except Exception as err:
         if not _is_download_failure(err):
@@ -307,10 +319,54 @@ def torchvision_imagenet_state(name: str) -> tuple[dict[str, Tensor], dict[str, 
         raise WeightsUnavailableError(
             f"encoder_weights='imagenet' for {name} needs torchvision's {weights} ({weights.url}), which is not "
             f"in the torch hub cache ({path.parent}; set by TORCH_HOME) and could not be downloaded "
-            f"({type(err).__name__}). Download that URL on a machine with network and place the file at {path}; "
+            f"({offline or type(err).__name__}). Download that URL on a machine with network and place the file at {path}; "
             "or set encoder_weights to a local ResNet state_dict file, or to null to train from scratch."
         ) from None
     return state, file_identity(path, encoder_weights=IMAGENET, source=f"torchvision:{weights}")
+
+
+#: Seconds the network probe waits for a name lookup and a connection before calling the network unavailable.
+PROBE_TIMEOUT_S = 3.0
+
+
+@functools.cache
+def network_unavailable(url: str, timeout: float = PROBE_TIMEOUT_S) -> str | None:
+    """Why ``url``'s server cannot be reached (offline mode, no name lookup, no connection), or ``None``.
+
+    Asked once per server and process, before a download that would otherwise retry for half a minute (the
+    Hugging Face client backs off five times). ``HF_HUB_OFFLINE=1`` answers at once; otherwise a name lookup and a
+    TCP connection to the server's port, given ``timeout`` seconds in all (in a thread: a lookup ignores socket
+    timeouts).
+
+    Example:
+        >>> network_unavailable("https://127.0.0.1:9/")  # doctest: +ELLIPSIS
+        'no connection to 127.0.0.1:9 (...)'
+    """
+    from huggingface_hub import constants  # the hub's own switch; loaded when a download is about to happen
+
+    if constants.HF_HUB_OFFLINE:
+        return "HF_HUB_OFFLINE is set"
+    parsed = urllib.parse.urlparse(url)
+    host, port = parsed.hostname or "", parsed.port or (443 if parsed.scheme == "https" else 80)
+    outcome: list[str | None] = []
+
+    def probe() -> None:
+        try:
+            socket.getaddrinfo(host, port)
+        except OSError as err:
+            outcome.append(f"cannot look up {host}: {err.strerror or err}")
+            return
+        try:
+            socket.create_connection((host, port), timeout=timeout).close()
+        except OSError as err:
+            outcome.append(f"no connection to {host}:{port} ({err.strerror or type(err).__name__})")
+            return
+        outcome.append(None)
+
+    thread = threading.Thread(target=probe, daemon=True)
+    thread.start()
+    thread.join(timeout)
+    return outcome[0] if outcome else f"no answer from {host} within {timeout:g} s"
 
 
 def _timm_hub_file(timm_name: str) -> tuple[str | None, str, str | None]:

@@ -25,6 +25,13 @@ def test_fresh_train_and_evaluate_print_each_message_once(tiny_dataset: Path, tm
     assert any("Seed set to" in m for m in logged)  # Lightning's messages reach the log file too
     for message in logged:
         assert output.count(message) == 1, message
+    # Not a terminal (captured): a progress line per epoch, on the console and in train.log; the test metrics
+    # as a compact table in train.log, the per-ring, per-class values only in results.json.
+    epoch_lines = [m for m in logged if m.startswith("epoch 1/1: train/loss")]
+    assert len(epoch_lines) == 1 and "val/mIoU" in epoch_lines[0], logged
+    log_text = (run / "train.log").read_text()
+    assert "test results (seg, best checkpoint)" in log_text and "mIoU by incidence-angle ring" in log_text
+    assert "ring_0-30/IoU/" not in output + log_text and "test/ring_0-30" not in output
 
     evaluated = run_command(EVALUATE, [f"ckpt_path={run}", f"hydra.run.dir={tmp_path / 'eval'}"])
     assert evaluated.returncode == 0, evaluated.stderr[-3000:]

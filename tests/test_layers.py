@@ -44,7 +44,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("synth",),
     ("datamodules",),
     ("viz",),
-    ("runs", "checkpointing", "sweeps"),
+    ("runs", "checkpointing", "sweeps", "progress"),
     ("tracking",),
     ("tasks",),
     ("evaluation",),

@@ -10,6 +10,7 @@ and are ``slow``.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import pickle
 import shutil
@@ -45,10 +46,13 @@ class Outcome:
     stderr: str
 
 
-def run_command(script: str, args: list[str], debug: bool = False) -> Outcome:
+def run_command(
+    script: str, args: list[str], debug: bool = False, extra_env: dict[str, str] | None = None
+) -> Outcome:
     """Run ``python <script> <args>`` from the project root as a user would (``HYDRA_FULL_ERROR`` unset)."""
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    env.update(extra_env or {})
     if debug:
         env["HYDRA_FULL_ERROR"] = "1"
     done = subprocess.run(
@@ -77,8 +81,12 @@ def test_debug_switch_shows_the_traceback(tiny_dataset: Path, tmp_path: Path) ->
     assert "Traceback" in outcome.stderr and "ConfigError: trainer.max_epochs='abc'" in outcome.stderr
 
 
+#: Environment of the rows that need one: no download is tried in a test (HF_HUB_OFFLINE), the cache is empty.
+ROW_ENV = {"offline_weights": lambda tmp: {"HF_HUB_OFFLINE": "1", "HF_HOME": str(tmp / "hf")}}
+
+
 def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tuple[str, ...]]]:
-    """Row name -> (script, arguments, strings the message must contain)."""
+    """Row name -> (script, arguments, strings the message must contain); :data:`ROW_ENV` adds environments."""
     garbage = tmp / "garbage.bin"
     garbage.write_bytes(b"\x80\x04 this is not a checkpoint")
     onnx = tmp / "garbage.onnx"
@@ -208,6 +216,27 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             (f"{a_file}/x.onnx", f"{a_file} is a file"),
         ),
         "export_ckpt_garbage": (EXPORT, [f"ckpt_path={garbage}", f"out={tmp}/x.onnx"], (str(garbage),)),
+        # Hydra's own answer was a "+trainer.max_epoch=1" hint; the nearest key instead.
+        "unknown_key": (
+            TRAIN,
+            [*fresh, "trainer.max_epoch=1", f"hydra.run.dir={tmp}/r16"],
+            ("trainer.max_epoch=1", "did you mean trainer.max_epochs=1"),
+        ),
+        "unknown_option": (
+            TRAIN,
+            [*fresh, "logger=tensorbord", f"hydra.run.dir={tmp}/r17"],
+            ("logger=tensorbord", "logger=tensorboard"),
+        ),
+        "logger_missing": (  # where tensorboard is not installed (test_logger_missing_row_applies says)
+            TRAIN,
+            [*fresh, "logger=tensorboard", f"hydra.run.dir={tmp}/r18"],
+            ("logger.tensorboard", "airfisheye-bench[tensorboard]"),
+        ),
+        "offline_weights": (
+            TRAIN,
+            [*train, "experiment=paper/seg", "data.camera.size=64", f"hydra.run.dir={tmp}/r19"],
+            ("encoder_weights='imagenet'", "HF_HUB_OFFLINE is set", str(tmp / "hf")),
+        ),
     }
 
 
@@ -221,8 +250,15 @@ class RowOutcomes:
 def _run_rows(tmp: Path, dataset: Path, selected: tuple[str, ...]) -> RowOutcomes:
     """The selected rows run once each, three at a time (the commands spend most of their time importing)."""
     rows = {name: row for name, row in _fast_rows(tmp, dataset).items() if name in selected}
+    if _has_tensorboard():
+        rows.pop("logger_missing", None)
     with ThreadPoolExecutor(max_workers=3) as pool:
-        futures = {name: pool.submit(run_command, script, args) for name, (script, args, _) in rows.items()}
+        futures = {
+            name: pool.submit(
+                run_command, script, args, extra_env=ROW_ENV[name](tmp) if name in ROW_ENV else None
+            )
+            for name, (script, args, _) in rows.items()
+        }
     return RowOutcomes(
         tmp,
         {name: future.result() for name, future in futures.items()},
@@ -230,7 +266,14 @@ def _run_rows(tmp: Path, dataset: Path, selected: tuple[str, ...]) -> RowOutcome
     )
 
 
+def _has_tensorboard() -> bool:
+    return any(importlib.util.find_spec(m) is not None for m in ("tensorboard", "tensorboardX"))
+
+
 FAIL_FAST = (
+    "unknown_key",
+    "unknown_option",
+    "logger_missing",
     "lens_model",
     "max_epochs_negative",
     "occlusion",
@@ -259,6 +302,10 @@ DEFAULT_ROWS = (
     "export_sys",
     "export_parent_file",
     "export_ckpt_garbage",
+    "unknown_key",
+    "unknown_option",
+    "logger_missing",
+    "offline_weights",
 )
 """Rows of the default suite; the other schema rows are ``slow`` (test_schema_table covers them in-process)."""
 SLOW_ROWS = (
@@ -289,6 +336,8 @@ def slow_rows(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> R
 
 
 def _check_row(row: str, rows: RowOutcomes) -> None:
+    if row == "logger_missing" and _has_tensorboard():
+        pytest.skip("tensorboard is installed here: the row needs it missing")
     message = assert_one_line_error(rows.outcomes[row], *rows.names[row])
     if row in ("ckpt_garbage", "export_ckpt_garbage"):
         assert "weights_only" not in message  # PyTorch's advice to unpickle anything is not repeated
@@ -301,6 +350,10 @@ def _check_row(row: str, rows: RowOutcomes) -> None:
             assert f"{path.relative_to(folder)}: {nan} of " in rows.outcomes[row].stderr
     if row.startswith("export_"):
         assert not list(rows.tmp.glob("*x.onnx*"))
+    if row == "offline_weights":  # no download tried, so none retried
+        assert "Retry" not in rows.outcomes[row].stdout + rows.outcomes[row].stderr
+    if row in ("unknown_key", "unknown_option"):
+        assert "+trainer" not in message and "Could not" not in rows.outcomes[row].stderr
 
 
 @pytest.mark.parametrize("row", DEFAULT_ROWS)
@@ -517,3 +570,22 @@ def test_pickle_free_checkpoint_message_is_ours(tmp_path: Path) -> None:
     with pytest.raises(InputFileError, match=r"evil\.ckpt: not a readable checkpoint") as caught:
         read_checkpoint(path)
     assert "weights_only" not in str(caught.value)
+
+
+def test_a_logger_without_its_package_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
+    """In-process, with tensorboard hidden: the row above runs only where it is not installed."""
+    from airfisheye_bench import config_checks
+
+    real = importlib.util.find_spec
+    hidden = {"tensorboard", "tensorboardX"}
+    monkeypatch.setattr(
+        config_checks.importlib.util, "find_spec", lambda name, *a: None if name in hidden else real(name, *a)
+    )
+    cfg = _compose("train", ["logger=tensorboard"])
+    with pytest.raises(
+        ConfigError, match=r"logger.tensorboard needs the Python package tensorboard.*\[tensorboard\]"
+    ):
+        config_checks.check_extras(cfg)
+    config_checks.check_extras(_compose("train", ["logger=csv"]))
+    extras = (ROOT / "pyproject.toml").read_text()
+    assert 'tensorboard = ["tensorboard' in extras  # the extra the message names exists

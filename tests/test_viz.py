@@ -163,3 +163,14 @@ def test_training_panels_are_spread_over_the_validated_frames() -> None:
     task._panel_ids = None
     task._trainer = SimpleNamespace(datamodule=datamodule, num_val_batches=[2])
     assert task._panel_frames() <= set(ids[:4]) and len(task._panel_frames()) == 3
+
+
+def test_a_segmentation_panel_has_a_key_of_its_class_colours() -> None:
+    rows = _rows("seg")
+    palette = np.arange(13 * 3, dtype=np.uint8).reshape(13, 3) * 6
+    classes = [(f"class{i}", palette[i].tolist()) for i in range(13)]
+    plain, keyed = task_panel("seg", rows), task_panel("seg", rows, classes=classes)
+    assert keyed.shape[1] == plain.shape[1] and keyed.shape[0] > plain.shape[0]
+    key = keyed[plain.shape[0] - _legend_height("seg", plain.shape[1]) :]
+    for _, rgb in classes:  # every class has its swatch under the tiles
+        assert (key == np.asarray(rgb, np.uint8)).all(-1).sum() >= 9, rgb

@@ -5,10 +5,13 @@ from a wheel too). ``python train.py`` and ``python scripts/evaluate.py`` are th
 
 from __future__ import annotations
 
+import sys
+
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from airfisheye_bench.cli.overrides import check_overrides
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import report_user_errors
@@ -17,14 +20,28 @@ from airfisheye_bench.runs import register_resolvers, resume_config
 register_resolvers()  # ${run_name:} in hydra.run.dir, ${sweep_name:} in hydra.sweep.dir
 
 
+@report_user_errors  # an unknown key: one line on stderr, exit status 2 (README, "When something goes wrong")
+def train() -> float | None:
+    """``airfisheye-train task=seg|depth|completion [group=option ...] [key=value ...]``; the primary metric."""
+    check_overrides("train", sys.argv[1:])  # before Hydra, whose answer to an unknown key is a "+key" hint
+    return _train()
+
+
+@report_user_errors
+def evaluate() -> None:
+    """``airfisheye-evaluate ckpt_path=... | onnx_path=... | task=... predictions=DIR [split=test]``."""
+    check_overrides("evaluate", sys.argv[1:])
+    _evaluate()
+
+
 @hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="train")
 @report_user_errors  # a user error: one line on stderr, exit status 2 (README, "When something goes wrong")
-def train(cfg: DictConfig) -> float | None:
-    """``airfisheye-train task=seg|depth|completion [group=option ...] [key=value ...]``; the objective of a sweep:
-    the test primary metric, or with ``optimized_metric=val/<metric>`` the best validation score."""
-    # `ckpt_path=last hydra.run.dir=<run>` alone resumes with the run's saved configuration, not the defaults.
+def _train(cfg: DictConfig) -> float | None:
+    """The objective of a sweep: the test primary metric, or with ``optimized_metric=val/<metric>`` the best
+    validation score."""
+    # `ckpt_path=last hydra.run.dir=<run> [key=value ...]`: the run's saved configuration, the keys given on top.
     cfg = resume_config(cfg, HydraConfig.get().overrides.task)
-    # A mistyped value is answered at once, before the seconds of importing Lightning.
+    # A missing optional package or a mistyped value is answered at once, before the seconds of importing Lightning.
     check_common_values(cfg)
     from airfisheye_bench.training import train as fit  # Lightning: seconds to import, not needed by --help
 
@@ -38,8 +55,7 @@ def train(cfg: DictConfig) -> float | None:
 
 @hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="evaluate")
 @report_user_errors  # a user error: one line on stderr, exit status 2
-def evaluate(cfg: DictConfig) -> None:
-    """``airfisheye-evaluate ckpt_path=... | onnx_path=... | task=... predictions=DIR [split=test]``."""
+def _evaluate(cfg: DictConfig) -> None:
     check_common_values(cfg)  # a mistyped value is answered before the imports below
     from airfisheye_bench.evaluation.command import evaluate as score  # Lightning and ONNX Runtime: seconds
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 import sys
 from collections.abc import Sequence
 from concurrent.futures import BrokenExecutor
@@ -192,7 +193,9 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
     if opts.html is not None:
         from airfisheye_bench.evaluation.leaderboard_html import write_html  # matplotlib, only for html=
 
-        written.append(write_html(board, opts.html))
+        folders = [Path(r.strip()).expanduser().resolve() for r in runs]
+        folders = [f if f.is_dir() else f.parent for f in folders]
+        written.append(write_html(board, opts.html, runs_root=os.path.commonpath(folders)))
     print(board.to_markdown(), end="")
     print(f"wrote {', '.join(map(str, written))}", file=sys.stderr)
     return 0

@@ -25,6 +25,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from omegaconf import DictConfig, OmegaConf, open_dict
 
@@ -260,10 +261,13 @@ def _write(
 ) -> dict[str, Any]:
     panels = output_dir / "panels"
     max_depth = float(data_config.get("max_depth", 120.0))  # the depth colour bar's far end, as the tiles
+    classes = []  # segmentation: the key of the label colours
+    if get_task(task).uses_classes:
+        names = list(datamodule.class_names)
+        classes = list(zip(names, np.asarray(datamodule.palette)[: len(names)].tolist(), strict=True))
     for sample_id, tiles in result.panels:
-        save_png(
-            panels / f"{sample_id.replace('/', '_')}.png", task_panel(task, [tiles], max_depth=max_depth)
-        )
+        panel = task_panel(task, [tiles], max_depth=max_depth, classes=classes)
+        save_png(panels / f"{sample_id.replace('/', '_')}.png", panel)
     identity = predictor.identity()
     # The leaderboard's run label ("name" stays the architecture): the name given, else the training run.
     identity["run_name"] = cfg.get("name") or _run_name(identity)

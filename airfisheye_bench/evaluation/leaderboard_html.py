@@ -24,6 +24,7 @@ import base64
 import hashlib
 import io
 import json
+import os
 from collections.abc import Mapping, Sequence
 from html import escape
 from importlib import resources
@@ -57,7 +58,13 @@ _RING_AXIS = "incidence angle ring (°)"
 _RANGE_AXIS = "ground-truth depth range (m)"
 
 
-def write_html(board: Leaderboard, path: str | Path, panels: int = 3, panel_width: int = 720) -> Path:
+def write_html(
+    board: Leaderboard,
+    path: str | Path,
+    panels: int = 3,
+    panel_width: int = 720,
+    runs_root: str | Path | None = None,
+) -> Path:
     """Write :func:`render_html` of ``board`` to ``path`` atomically.
 
     Example:
@@ -68,17 +75,21 @@ def write_html(board: Leaderboard, path: str | Path, panels: int = 3, panel_widt
         3
     """
     path = Path(path)
-    atomic_write_text(path, render_html(board, panels=panels, panel_width=panel_width))
+    atomic_write_text(path, render_html(board, panels=panels, panel_width=panel_width, runs_root=runs_root))
     return path
 
 
-def render_html(board: Leaderboard, panels: int = 3, panel_width: int = 720) -> str:
+def render_html(
+    board: Leaderboard, panels: int = 3, panel_width: int = 720, runs_root: str | Path | None = None
+) -> str:
     """The page as a string.
 
     Args:
         board: The ranked leaderboard (:func:`~airfisheye_bench.evaluation.leaderboard.build_leaderboard`).
         panels: Qualitative panels shown per entry (the first ones of its ``panels/`` folder).
         panel_width: Panels wider than this (pixels) are downscaled, to keep the page small.
+        runs_root: The folder the results were collected from: paths under it are shown relative to it (and
+            the home folder as ``~``), so a shared page shows no one's local layout.
 
     Returns:
         A complete HTML document.
@@ -104,9 +115,10 @@ def render_html(board: Leaderboard, panels: int = 3, panel_width: int = 720) -> 
         "</header>",
         "<main>",
     ]
-    body += [_task_section(table, panels, panel_width) for table in board.tables]
+    shown = _PathShortener(runs_root)
+    body += [_task_section(table, panels, panel_width, shown) for table in board.tables]
     if board.invalid:
-        items = "".join(f"<li><code>{escape(problem)}</code></li>" for problem in board.invalid)
+        items = "".join(f"<li><code>{escape(shown.text(problem))}</code></li>" for problem in board.invalid)
         body.append(
             '<section id="invalid"><h2>Invalid results.json (not ranked)</h2>'
             f'<ul class="invalid">{items}</ul></section>'
@@ -134,10 +146,52 @@ def render_html(board: Leaderboard, panels: int = 3, panel_width: int = 720) -> 
     )
 
 
+class _PathShortener:
+    """Absolute paths as the page shows them: relative to the runs folder when under it, the home folder as ``~``.
+
+    Example:
+        >>> shown = _PathShortener("/data/logs")
+        >>> shown("/data/logs/seg/runs/a/results.json"), shown("/srv/x.ckpt"), shown("sha256:ab"), shown(None)
+        ('seg/runs/a/results.json', '/srv/x.ckpt', 'sha256:ab', None)
+        >>> shown.within({"paths": ["/data/logs/a", 3]})
+        {'paths': ['a', 3]}
+    """
+
+    def __init__(self, runs_root: str | Path | None) -> None:
+        self.root = str(Path(runs_root).expanduser().resolve()) if runs_root is not None else None
+        self.home = str(Path.home())
+
+    def __call__(self, value: Any) -> Any:
+        if not isinstance(value, str) or not value.startswith("/"):
+            return value
+        resolved = os.path.normpath(value)
+        if self.root and (resolved == self.root or resolved.startswith(self.root.rstrip("/") + "/")):
+            return os.path.relpath(resolved, self.root)
+        if self.home not in ("", "/") and resolved.startswith(self.home.rstrip("/") + "/"):
+            return "~" + resolved[len(self.home.rstrip("/")) :]
+        return value
+
+    def text(self, text: str) -> str:
+        """``text`` (a message) with the runs folder and the home folder inside it shortened."""
+        if self.root:
+            text = text.replace(self.root.rstrip("/") + "/", "")
+        if self.home not in ("", "/"):
+            text = text.replace(self.home.rstrip("/") + "/", "~/")
+        return text
+
+    def within(self, value: Any) -> Any:
+        """``value`` with every path string inside it (dicts and lists, recursively) shortened."""
+        if isinstance(value, Mapping):
+            return {k: self.within(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return [self.within(v) for v in value]
+        return self(value)
+
+
 # ------------------------------------------------------------------------------------------------- tables
 
 
-def _task_section(table: TaskTable, panels: int, panel_width: int) -> str:
+def _task_section(table: TaskTable, panels: int, panel_width: int, shown: _PathShortener) -> str:
     task = table.task
     order = "higher is better" if table.higher_is_better else "lower is better"
     entries = [e for group in table.groups for _, e in group.rows]
@@ -153,14 +207,14 @@ def _task_section(table: TaskTable, panels: int, panel_width: int) -> str:
     details = []
     for g, group in enumerate(table.groups):
         out.append(f'<div class="group"><div class="scroll"><table class="board" id="table-{task}-{g}">')
-        out.append(f"<caption>{escape(group.title)}</caption>")
+        out.append(f"<caption><span>{escape(group.title)}</span></caption>")
         out.append(_header(table, columns))
         out.append("<tbody>")
         for rank, entry in group.rows:
             anchor = None if entry.paper else f"entry-{task}-{len(details)}"
             out.append(_row(table, columns, rank, entry, anchor))
             if anchor:
-                details.append(_detail(table, entry, anchor, panels, panel_width))
+                details.append(_detail(table, entry, anchor, panels, panel_width, shown))
         out.append("</tbody></table></div>")
         out.append(_group_chart(table, group.rows, f"{task}-{g}"))
         out.append("</div>")
@@ -189,6 +243,7 @@ def _header(table: TaskTable, columns: Sequence[str]) -> str:
 
     cells = [
         th("rank", "number", sorted_=True),
+        th("run", "text"),  # second and, with rank, kept in view when a wide table scrolls (CSS: sticky)
         th("model", "text"),
         th("evaluated", "text"),
         th("split", "text"),
@@ -196,7 +251,6 @@ def _header(table: TaskTable, columns: Sequence[str]) -> str:
     cells += [th(metric_label(c), "number", first(c)) for c in columns]
     if table.rim_key:
         cells.append(th(rim_label(table.rim_key), "number", first(table.primary)))
-    cells.append(th("run", "text"))
     return f"<thead><tr>{''.join(cells)}</tr></thead>"
 
 
@@ -214,6 +268,7 @@ def _row(
     evaluated = "paper" if e.paper else e.evaluated or MISSING
     cells = [
         f'<td class="num" data-value="{"" if rank is None else rank}">{rank or MISSING}</td>',
+        f"<td>{escape(e.run)}</td>",
         f"<td>{model}</td>",
         f"<td>{escape(evaluated)}</td>",
         f"<td>{escape(e.split)}</td>",
@@ -221,7 +276,6 @@ def _row(
     ]
     if table.rim_key:
         cells.append(number(table.primary, e.breakdown.get(table.rim_key)))
-    cells.append(f"<td>{escape(e.run)}</td>")
     return f"<tr{' class=paper' if e.paper else ''}>{''.join(cells)}</tr>"
 
 
@@ -231,7 +285,7 @@ def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardE
     for _, e in rows:
         bins = breakdown_bins(e.breakdown, "ring", table.primary)
         if bins:
-            name = f"{e.model} ({e.run})"
+            name = f"{e.run}: {e.model}, {e.evaluated or 'unknown source'}"  # the row, as the table shows it
             while name in series:  # same model and run name (e.g. one folder given twice under two paths)
                 name += "'"
             series[name] = bins
@@ -244,7 +298,9 @@ def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardE
 # --------------------------------------------------------------------------------------------- detail view
 
 
-def _detail(table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, panel_width: int) -> str:
+def _detail(
+    table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, panel_width: int, shown: _PathShortener
+) -> str:
     record = load_results(e.path) if e.path else {}
     model = record.get("model") or {}
     source = e.evaluated or "unknown source"
@@ -253,7 +309,7 @@ def _detail(table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, pan
         f"<summary>{escape(e.model)} — {escape(e.run)} <span class=muted>({escape(source)}, "
         f"{escape(e.group_title)})</span></summary>",
         '<div class="entry-body">',
-        _identity(e, record, model),
+        _identity(e, record, model, shown),
         _metrics_table(e),
     ]
     charts = []
@@ -277,24 +333,26 @@ def _detail(table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, pan
     settings = {"model": model, "config": record.get("config", {})}
     out.append(
         "<details><summary>Configuration (model and evaluation settings)</summary>"
-        f"<pre>{escape(json.dumps(settings, indent=2, sort_keys=True))}</pre></details>"
+        f"<pre>{escape(json.dumps(shown.within(settings), indent=2, sort_keys=True))}</pre></details>"
     )
     out.append("</div></details>")
     return "\n".join(out)
 
 
-def _identity(e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str, Any]) -> str:
+def _identity(
+    e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str, Any], shown: _PathShortener
+) -> str:
     dataset = record.get("dataset") or {}
     rows = [
         ("model", e.model),
         ("run", e.run),
         ("evaluated", e.evaluated or "unknown"),
-        *((key.replace("_", " "), model[key]) for key in _IDENTITY_KEYS if model.get(key)),
+        *((key.replace("_", " "), shown(model[key])) for key in _IDENTITY_KEYS if model.get(key)),
         ("dataset", e.dataset_name),
-        ("dataset root", dataset.get("root")),
+        ("dataset root", shown(dataset.get("root"))),
         ("manifest sha256", e.manifest_sha256),
         ("split", e.split),
-        ("results.json", e.path),
+        ("results.json", shown(e.path)),
         ("created", record.get("created")),
     ]
     items = "".join(

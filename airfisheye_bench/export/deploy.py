@@ -166,12 +166,11 @@ class DeploymentReport:
         spatial = (
             "dynamic H, W" if self.dynamic_spatial else f"fixed {p.output_shape[-2]}x{p.output_shape[-1]}"
         )
-        lines = [
-            f"exported {self.path} ({_mb(self.path)}): task={self.task} model={self.model}, "
-            f"inputs {list(get_task(self.task).inputs)} -> {get_task(self.task).output}, dynamic batch, {spatial}",
+        lines = [  # the verdict and the rule that decided it, then what was written
             f"parity on {self.parity_frames} validation frame(s), onnxruntime CPU vs PyTorch: "
-            f"max abs diff {p.max_abs_diff:.3g}, max rel diff {p.max_rel_diff:.3g} "
-            f"(allowed |diff| <= {self.atol:g} + {self.rtol:g}*|torch|): OK",
+            f"{p.verdict(self.atol, self.rtol)}",
+            f"wrote {self.path} ({_mb(self.path)}): task={self.task} model={self.model}, "
+            f"inputs {list(get_task(self.task).inputs)} -> {get_task(self.task).output}, dynamic batch, {spatial}",
             f"latency (batch {self.parity_frames}, {torch.get_num_threads()} threads): onnxruntime "
             f"{p.ort_ms:.1f} ms, PyTorch {p.torch_ms:.1f} ms, ratio ort/torch {p.latency_ratio:.2f}",
         ]
@@ -253,8 +252,7 @@ def export_deployment(
         _export(task, example, candidate, opset, dynamic_spatial, metadata)
         log.info("verifying against PyTorch on %d validation frame(s)", min(parity_samples, available))
         parity = verify_onnx(candidate, task.net, parity_inputs, atol=atol, rtol=rtol, repeats=repeats)
-        os.replace(candidate, out)
-        log.info("wrote %s", out)
+        os.replace(candidate, out)  # the report says "wrote", after the parity verdict
         quantization = None
         if quantize != "none":
             quantization = _quantize(

@@ -52,6 +52,8 @@ class ParityReport:
         ort_ms: median ONNX Runtime (CPU) latency per call in milliseconds (``nan`` if not measured).
         torch_ms: median eager PyTorch latency per call in milliseconds (``nan`` if not measured).
         output_shape: shape of the compared output.
+        max_allowance_used: ``max |ort - torch| / (atol + rtol * |torch|)``: the share of its tolerance the worst
+            element uses (``<= 1`` passes; ``nan`` if not computed).
     """
 
     max_abs_diff: float
@@ -59,6 +61,31 @@ class ParityReport:
     ort_ms: float
     torch_ms: float
     output_shape: tuple[int, ...]
+    max_allowance_used: float = float("nan")
+
+    def verdict(self, atol: float, rtol: float) -> str:
+        """The parity result with the rule that decided it, ``|ort - torch| <= atol + rtol * |torch|``.
+
+        Example:
+            >>> report = ParityReport(1.6e-5, 0.12, 1.0, 1.0, (1, 13, 8, 8), 0.16)
+            >>> report.verdict(1e-4, 0.0)
+            'max |diff| 1.6e-05 ≤ atol 0.0001: OK'
+            >>> ParityReport(2e-3, 4e-4, 1.0, 1.0, (1, 1, 8, 8), 0.4).verdict(0.0, 1e-3)
+            'max |diff|/|torch| 0.0004 ≤ rtol 0.001: OK'
+            >>> ParityReport(2e-3, 4e-4, 1.0, 1.0, (1, 1, 8, 8), 0.4).verdict(1e-4, 1e-3)
+            '|diff| ≤ atol 0.0001 + rtol 0.001 × |torch| everywhere (max |diff| 0.002, worst element at 40% of its bound): OK'
+        """
+        ok = "OK" if not self.max_allowance_used > 1 else "FAILED"
+        if rtol == 0:
+            sign = "≤" if ok == "OK" else ">"
+            return f"max |diff| {self.max_abs_diff:.2g} {sign} atol {atol:g}: {ok}"
+        if atol == 0:
+            sign = "≤" if ok == "OK" else ">"
+            return f"max |diff|/|torch| {self.max_rel_diff:.2g} {sign} rtol {rtol:g}: {ok}"
+        return (
+            f"|diff| ≤ atol {atol:g} + rtol {rtol:g} × |torch| everywhere (max |diff| {self.max_abs_diff:.2g}, "
+            f"worst element at {self.max_allowance_used:.0%} of its bound): {ok}"
+        )
 
     @property
     def latency_ratio(self) -> float:
@@ -249,6 +276,9 @@ def verify_onnx(
         ort_ms=ort_ms,
         torch_ms=torch_ms,
         output_shape=tuple(expected_np.shape),
+        max_allowance_used=float(
+            (abs_diff / np.maximum(atol + rtol * scale, 1e-300)).max(initial=0.0) if abs_diff.size else 0.0
+        ),
     )
     if not np.isfinite(actual).all() or (abs_diff > atol + rtol * scale).any():
         raise OnnxParityError(

@@ -144,7 +144,11 @@ class BenchmarkTask(L.LightningModule):
 
     def render_panel(self, rows: list[list[np.ndarray]]) -> np.ndarray:
         """The panel image of :meth:`panel_row` rows: column titles and the task's colour bars."""
-        return task_panel(self.task, rows, max_depth=float(getattr(self, "max_depth", 120.0)))
+        names = getattr(self, "class_names", None) or []  # segmentation: the key of the label colours
+        classes = list(zip(names, self.palette[: len(names)].tolist(), strict=True)) if names else []
+        return task_panel(
+            self.task, rows, max_depth=float(getattr(self, "max_depth", 120.0)), classes=classes
+        )
 
     # ------------------------------------------------------------------------------------------ reproducibility
     def on_train_epoch_start(self) -> None:

@@ -154,7 +154,7 @@ def test_tables_follow_the_leaderboard_groups_and_ranks(board: lb.Leaderboard, p
         for table in board.tables
         for group in table.groups
     ]
-    found = [(t["caption"], [(row[0], row[-1]) for row in t["rows"]]) for t in _tables(page)]
+    found = [(t["caption"], [(row[0], row[1]) for row in t["rows"]]) for t in _tables(page)]
     assert found == expected
     depth_titles = [g.title for g in board.tables[1].groups]
     # Each dataset and split is its own table: the val run and the other dataset's run both rank first.
@@ -173,27 +173,27 @@ def test_rows_show_what_was_evaluated_split_and_every_metric(page: str) -> None:
     labels = re.findall(r"<button type=\"button\">([^<]*)</button>", header)
     assert labels == [
         "rank",
+        "run",  # next to the rank, both kept in view when the table scrolls (sticky)
         "model",
         "evaluated",
         "split",
         "mIoU (%)",
         "pixel acc (%)",
         "rim 80-95° mIoU (%)",
-        "run",
     ]
     assert seg["rows"][0] == [
         "1",
+        "seg_ckpt",
         "deeplabv3plus / resnet18",
         "checkpoint last",
         "test",
         "42.0",
         "71.0",
         "26.2",
-        "seg_ckpt",
     ]
-    assert seg["rows"][1][2] == "ONNX"
+    assert seg["rows"][1][3] == "ONNX"
     depth = _tables(page)[3]
-    assert [row[2:4] for row in depth["rows"]] == [["checkpoint last", "test"]] * 3
+    assert [row[3:5] for row in depth["rows"]] == [["checkpoint last", "test"]] * 3
 
 
 def test_paper_rows_are_marked_and_have_no_detail_view(page: str) -> None:
@@ -316,10 +316,10 @@ def test_page_in_headless_chromium(board: lb.Leaderboard, tmp_path: Path) -> Non
         browser.open(html.as_uri())
         assert browser.evaluate("document.title") == "AirFisheye-bench leaderboard"
 
-        # Sorting with the keyboard: mIoU (5th column) best first, then reversed; missing values stay last.
-        seg, run_column = "table-seg-1", 7
+        # Sorting with the keyboard: mIoU (6th column) best first, then reversed; missing values stay last.
+        seg, run_column = "table-seg-1", 1
         assert _column(browser, seg, run_column) == ["seg_ckpt", "seg_onnx", EVIL]
-        header = f"#{seg} thead th:nth-child(5)"
+        header = f"#{seg} thead th:nth-child(6)"
         browser.press_enter_on(f"{header} button")
         assert (
             browser.evaluate(f"document.querySelector('{header}').getAttribute('aria-sort')") == "descending"
@@ -336,7 +336,7 @@ def test_page_in_headless_chromium(board: lb.Leaderboard, tmp_path: Path) -> Non
         assert _column(browser, seg, run_column) == sorted(_column(browser, seg, run_column))
 
         # Lower is better for RMSE (3rd metric column): best first, then reversed; the missing value stays last.
-        depth, rmse = "table-depth-1", 6
+        depth, rmse = "table-depth-1", 7
         assert _column(browser, depth, rmse) == ["4.000", "6.000", "–"]
         browser.press_enter_on(f"#{depth} thead th:nth-child({rmse + 1}) button")
         assert _column(browser, depth, rmse) == ["4.000", "6.000", "–"]
@@ -345,6 +345,16 @@ def test_page_in_headless_chromium(board: lb.Leaderboard, tmp_path: Path) -> Non
         assert browser.evaluate(
             f"document.querySelector('#{depth} thead th:nth-child({rmse + 1})').ariaSort"
         ) == ("descending")
+
+        # A table too wide for its box scrolls sideways with rank and run kept in view.
+        offsets = browser.evaluate(
+            f"(() => {{ const box = document.querySelector('#{seg}').parentElement; box.style.width = '320px';"
+            " box.scrollLeft = 1e6; const row = box.querySelector('tbody tr');"
+            " return [box.scrollLeft, row.cells[0].getBoundingClientRect().left - box.getBoundingClientRect().left,"
+            " row.cells[1].getBoundingClientRect().left - row.cells[0].getBoundingClientRect().right]; })()"
+        )
+        assert offsets[0] > 0 and abs(offsets[1]) < 1 and abs(offsets[2]) < 1, offsets
+        browser.evaluate(f"document.querySelector('#{seg}').parentElement.style.width = ''")
 
         # Clicking a model opens its detail view, charts and panels rendered.
         browser.click(f"#{seg} tbody tr:first-child a")
@@ -383,3 +393,29 @@ def test_the_browser_checks_catch_a_request_leaving_the_file(board: lb.Leaderboa
         browser.events.clear()
         browser.open(without_policy.as_uri())
         assert "http://127.0.0.1:9/x.png" in browser.requested_urls()
+
+
+def test_group_chart_legends_name_each_row_in_full(board: lb.Leaderboard, page: str) -> None:
+    """Entries that differ only in what was evaluated get distinct legend entries, none cut short."""
+    seg = next(t for t in board.tables if t.task == "seg")
+    rows = [e for _, e in seg.groups[1].rows]
+    chart = re.search(
+        r'<figure class="chart"><svg.*?</figure>', page.split('id="table-seg-1"')[1], re.DOTALL
+    )[0]
+    texts = unescape(" ".join(re.findall(r"<text[^>]*>(.*?)</text>", chart, re.DOTALL)))
+    words = " ".join(texts.split())
+    for e in rows:
+        assert f"{e.run}: {e.model}, {e.evaluated}" in words or (e.run in words and e.evaluated in words)
+    labels = charts.legend_labels([f"{e.run}: {e.model}, {e.evaluated}" for e in rows], width=30)
+    assert len(set(labels)) == len(rows)
+    assert all(max(len(line) for line in label.splitlines()) <= 30 for label in labels)
+    assert ["".join(label.split()) for label in labels] == [
+        "".join(f"{e.run}: {e.model}, {e.evaluated}".split()) for e in rows
+    ]  # wrapped, never cut
+
+
+def test_paths_are_shown_relative_to_the_runs_folder(runs: Path, board: lb.Leaderboard) -> None:
+    page = render_html(board, panels=0, runs_root=runs)
+    entry = re.search(r'<details id="entry-seg-0" class="entry">.*?</div></details>', page, re.DOTALL)[0]
+    assert str(runs) not in page
+    assert "<dd>seg_ckpt/results.json</dd>" in entry

@@ -128,8 +128,9 @@ def test_seg_export_writes_one_verified_file(seg_export) -> None:
     assert report.parity_frames == 2  # the tiny val split has 2 frames (parity_samples=4 asked for more)
     assert report.parity.max_abs_diff <= 1e-4 and report.atol == 1e-4 and report.rtol == 0.0
     assert report.parity.latency_ratio > 0
-    for text in ("max abs diff", "max rel diff", "ratio ort/torch", "int8 (dynamic)", "mIoU", "speed-up"):
+    for text in ("max |diff|", "≤ atol 0.0001: OK", "ratio ort/torch", "int8 (dynamic)", "mIoU", "speed-up"):
         assert text in stdout
+    assert stdout.index(": OK") < stdout.index(f"wrote {out}")  # the verdict, then what was written
 
 
 def test_seg_export_has_a_dynamic_batch(seg_export, seg_run: Path, tiny_dataset: Path) -> None:
@@ -219,7 +220,8 @@ def test_depth_tasks_export_through_the_cli(task: str, tiny_dataset: Path, tmp_p
         [f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1"], capsys
     )
     assert code == 0, err
-    assert "max rel diff" in stdout and "ratio ort/torch" in stdout
+    assert "|diff| ≤ atol 0.0001 + rtol 0.001 × |torch| everywhere" in stdout and "ratio ort/torch" in stdout
+    assert stdout.index(": OK") < stdout.index("wrote ")
     names = ["image", "sparse_depth"] if task == "completion" else ["image"]
     session = ort.InferenceSession(str(out), providers=["CPUExecutionProvider"])
     assert [i.name for i in session.get_inputs()] == names

@@ -200,15 +200,18 @@ class BaseModelTester:
     # ------------------------------------------------------------------ ONNX
 
     @pytest.fixture(scope="class")
-    def exported(self, tmp_path_factory) -> tuple[nn.Module, str]:
-        model = self.make_model().eval()
-        path = tmp_path_factory.mktemp("onnx") / f"{self.model_name}.onnx"
+    @classmethod
+    def exported(cls, tmp_path_factory) -> tuple[nn.Module, str]:
+        # A classmethod: the fixture runs once per class, and each test method gets a new instance.
+        case = cls()
+        model = case.make_model().eval()
+        path = tmp_path_factory.mktemp("onnx") / f"{case.model_name}.onnx"
         export_onnx(
             model,
-            self.make_inputs(2, self.input_sizes[0]),
+            case.make_inputs(2, case.input_sizes[0]),
             path,
-            output_name=self.primary_key,
-            metadata={"task": self.task, "model": self.model_name},
+            output_name=case.primary_key,
+            metadata={"task": case.task, "model": case.model_name},
         )
         return model, str(path)
 

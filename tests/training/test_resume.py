@@ -18,7 +18,14 @@ from omegaconf import OmegaConf, open_dict
 
 from airfisheye_bench.checkpointing import AtomicCheckpointIO, RunCSVLogger
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.runs import check_resume, register_resolvers, resume_config, run_name_for
+from airfisheye_bench.runs import (
+    check_resume,
+    config_differences,
+    register_resolvers,
+    resume_change,
+    resume_config,
+    run_name_for,
+)
 from airfisheye_bench.training import build, check_config, prepare_run_dir, train
 from tests.training.test_configs import CONFIG_DIR, compose_train
 from tests.training.test_train import tiny_run_overrides
@@ -60,47 +67,103 @@ def test_an_interrupted_checkpoint_write_leaves_the_previous_file(tmp_path: Path
     assert [p.name for p in tmp_path.iterdir()] == ["last.ckpt"]
 
 
-def test_resume_with_another_configuration_is_refused_with_the_keys(tmp_path: Path) -> None:
+def test_resume_changes_are_judged_key_by_key(tmp_path: Path) -> None:
     run = compose_train(["trainer.max_epochs=5"])
     with open_dict(run):
         run.paths.output_dir = str(tmp_path)
     check_resume(run, tmp_path, write=True)  # a new run records its configuration
     saved = (tmp_path / "config.yaml").read_text()
 
-    same = run.copy()
+    # A resume starts from the saved, resolved configuration (the scheduler's total_iters stays the run's).
+    same = OmegaConf.create(OmegaConf.to_container(run, resolve=True))
     with open_dict(same):
         same.ckpt_path = "last"
     check_resume(same, tmp_path, write=True)  # resume keys aside, identical: accepted
 
-    changed = same.copy()
-    with open_dict(changed):
-        changed.trainer.max_epochs = 8
-        changed.data.batch_size = 3
-    with pytest.raises(ValueError, match="resume_overrides_ok") as error:
-        check_resume(changed, tmp_path, write=True)
-    assert "trainer.max_epochs: run has 5, now 8" in str(error.value)
-    assert "data.batch_size" in str(error.value) and "seed" not in str(error.value)
+    unsafe = same.copy()
+    with open_dict(unsafe):
+        unsafe.trainer.max_epochs = 8
+        unsafe.data.batch_size = 3
+        unsafe.resume_overrides_ok = True  # no switch makes a change of the data acceptable
+    with pytest.raises(ConfigError) as error:
+        check_resume(unsafe, tmp_path, write=True)
+    message = str(error.value)
+    assert "\n" not in message and "data.batch_size (run has 8, now 3)" in message
+    assert "max_epochs" not in message  # harmless: not what was refused
+    assert (tmp_path / "config.yaml").read_text() == saved and not (tmp_path / "config.1.yaml").exists()
+
+    unsure = same.copy()
+    with open_dict(unsure):
+        unsure.trainer.max_epochs = 8
+        unsure.trainer.limit_train_batches = 0.5
+    with pytest.raises(
+        ConfigError, match=r"trainer\.limit_train_batches \(run has <absent>, now 0.5\).*resume_overrides_ok"
+    ):
+        check_resume(unsure, tmp_path, write=True)
     assert (tmp_path / "config.yaml").read_text() == saved
 
-    with open_dict(changed):
-        changed.resume_overrides_ok = True
-    check_resume(changed, tmp_path, write=True)
+    with open_dict(unsure):
+        unsure.resume_overrides_ok = True
+    check_resume(unsure, tmp_path, write=True)
     assert (tmp_path / "config.1.yaml").read_text() == saved  # the previous configuration is kept
     assert OmegaConf.load(tmp_path / "config.yaml").trainer.max_epochs == 8
 
+    harmless = unsure.copy()
+    with open_dict(harmless):
+        harmless.resume_overrides_ok = False
+        harmless.trainer.max_epochs = 9
+        harmless.data.num_workers = 0
+    check_resume(harmless, tmp_path, write=True)  # more epochs, fewer workers: no switch needed
+    assert OmegaConf.load(tmp_path / "config.yaml").trainer.max_epochs == 9
+    assert (tmp_path / "config.2.yaml").is_file()
 
-def test_a_bare_resume_reuses_the_run_configuration(tmp_path: Path) -> None:
-    run = compose_train(["trainer.max_epochs=5", "task=depth"])
+
+@pytest.mark.parametrize(
+    ("key", "kind"),
+    [
+        ("data.preset", "unsafe"),
+        ("data.root", "unsafe"),
+        ("data.source", "unsafe"),
+        ("data.camera.model", "unsafe"),
+        ("data.camera.size", "unsafe"),
+        ("model.encoder_name", "unsafe"),
+        ("task.name", "unsafe"),
+        ("task.module.optimizer.lr", "unsafe"),
+        ("data.num_workers", "harmless"),
+        ("trainer.max_epochs", "harmless"),
+        ("logger.tensorboard._target_", "harmless"),
+        ("callbacks.progress.every_n_steps", "harmless"),
+        ("trainer.limit_train_batches", "changed"),
+        ("seed", "changed"),
+    ],
+)
+def test_resume_change_kinds(key: str, kind: str) -> None:
+    assert resume_change(key) == kind
+
+
+def test_a_resume_applies_only_the_keys_given_to_the_run_configuration(tmp_path: Path) -> None:
+    run = compose_train(["trainer.max_epochs=5", "task=depth", "data.camera.model=kannala_brandt"])
     with open_dict(run):
         run.paths.output_dir = str(tmp_path)
     check_resume(run, tmp_path, write=True)
-    defaults = compose_train(["ckpt_path=last"])
+    overrides = ["ckpt_path=last"]
+    defaults = compose_train(overrides)
     with open_dict(defaults):
         defaults.paths.output_dir = str(tmp_path)
-    resumed = resume_config(defaults, ["ckpt_path=last"])
+    resumed = resume_config(defaults, overrides)
     assert resumed.trainer.max_epochs == 5 and resumed.task.name == "depth" and resumed.ckpt_path == "last"
-    # With other overrides the composed configuration stands (and check_resume compares it).
-    assert resume_config(defaults, ["ckpt_path=last", "seed=1"]) is defaults
+    assert config_differences(run, resumed) == []
+
+    overrides = ["ckpt_path=last", "trainer.max_epochs=7", "logger=none", "~callbacks.lr_monitor"]
+    composed = compose_train(overrides)
+    with open_dict(composed):
+        composed.paths.output_dir = str(tmp_path)
+    resumed = resume_config(composed, overrides)
+    differences = config_differences(run, resumed)
+    assert "trainer.max_epochs: run has 5, now 7" in differences
+    typed = ("trainer.max_epochs", "logger", "callbacks.lr_monitor.")
+    assert {next(t for t in typed if d.startswith(t)) for d in differences} == set(typed), differences
+    check_resume(resumed, tmp_path, write=False)  # all harmless
 
 
 def test_metrics_csv_is_continued_not_replaced(tmp_path: Path) -> None:
@@ -254,3 +317,53 @@ def test_a_resume_reads_no_initial_weights(tiny_dataset: Path, tmp_path: Path) -
     started_from = torch.load(ckpt, map_location="cpu", weights_only=True)["hyper_parameters"]["weights"]
     assert started_from["encoder_weights"]["file"] == str(weights.resolve())
     assert module.hparams["weights"] == started_from
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_resuming_a_tiny_run_with_more_epochs_changes_nothing_else(
+    tiny_dataset: Path, tmp_path: Path
+) -> None:
+    """The scenario of a new user: a tiny run on another lens, resumed with ``trainer.max_epochs=3``."""
+    from tests.test_user_errors import TRAIN, assert_one_line_error, run_command
+
+    run = tmp_path / "run"
+    started = run_command(
+        TRAIN,
+        [
+            *tiny_run_overrides("seg", tiny_dataset),
+            "data.camera.model=kannala_brandt",
+            f"hydra.run.dir={run}",
+        ],
+    )
+    assert started.returncode == 0, started.stderr[-3000:]
+    original = OmegaConf.load(run / "config.yaml")
+    before = _files(run)
+
+    resume = ["ckpt_path=last", f"hydra.run.dir={run}"]
+    # A change of what the checkpoint means is refused, whatever the switch, and nothing is written into the run.
+    refused = run_command(
+        TRAIN, [*resume, "trainer.max_epochs=3", "data.camera.model=equidistant", "resume_overrides_ok=true"]
+    )
+    message = assert_one_line_error(refused, "data.camera.model", "kannala_brandt", "equidistant")
+    assert "max_epochs" not in message
+    assert _files(run) == before
+
+    # The run is finished: said in one line, nothing done.
+    finished = run_command(TRAIN, resume)
+    assert finished.returncode == 0, finished.stderr[-3000:]
+    assert "is finished" in finished.stdout and "retest=true" in finished.stdout
+    assert _files(run) == before
+
+    continued = run_command(TRAIN, [*resume, "trainer.max_epochs=3"])
+    assert continued.returncode == 0, continued.stderr[-3000:]
+    resumed = OmegaConf.load(run / "config.yaml")
+    assert config_differences(original, resumed) == ["trainer.max_epochs: run has 1, now 3"]
+    assert (run / "config.1.yaml").read_bytes() == before["config.yaml"]
+    state = torch.load(run / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)
+    assert state["loops"]["fit_loop"]["epoch_progress"]["current"]["processed"] == 3
+    for epoch in (2, 3):  # the console is not a terminal here: a line per epoch, also in train.log
+        assert f"epoch {epoch}/3: train/loss" in continued.stdout
+        assert f"epoch {epoch}/3: train/loss" in (run / "train.log").read_text()

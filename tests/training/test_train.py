@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 
 import pytest
@@ -62,3 +63,36 @@ def test_a_lens_wider_than_190_degrees_is_scored_out_to_its_rim(tiny_dataset: Pa
     assert {"ring_80-95/rmse", "ring_95-110/rmse"} <= set(
         breakdown
     )  # the 190 deg default: ring_edges_for's example
+
+
+def test_the_test_summary_is_compact_unless_the_breakdown_is_asked_for() -> None:
+    from airfisheye_bench.training import summarise_test
+
+    results = {
+        "metrics": {"mIoU": 0.25, "pixel_acc": 0.6, "IoU/road": 0.5},
+        "breakdown": {"ring_0-30/mIoU": 0.3, "ring_0-30/IoU/road": 0.55, "ring_30-60/mIoU": 0.2},
+    }
+    cfg = compose_train(["task=seg"])
+    compact = summarise_test(cfg, results)
+    assert "mIoU" in compact and "road" in compact and "ring_0-30" in compact
+    assert "ring_0-30/IoU/road" not in compact and "print_breakdown=true" in compact
+    with open_dict(cfg):
+        cfg.print_breakdown = True
+    assert "ring_0-30/IoU/road" in summarise_test(cfg, results)
+
+
+def test_progress_lines_every_epoch_and_every_n_steps(
+    tiny_dataset: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    overrides = ["trainer.max_epochs=2", "callbacks.progress.every_n_steps=1", "test=false", "logger=csv"]
+    cfg = compose_train([*tiny_run_overrides("seg", tiny_dataset), *overrides])
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(tmp_path)
+    with caplog.at_level(logging.INFO, logger="airfisheye_bench.progress"):
+        train(cfg)
+    lines = [r.getMessage() for r in caplog.records if r.name == "airfisheye_bench.progress"]
+    steps = [line for line in lines if " (step " in line]
+    epochs = [line for line in lines if line.startswith(("epoch 1/2: ", "epoch 2/2: "))]
+    assert len(epochs) == 2 and all("train/loss" in e and "val/loss" in e and "val/mIoU" in e for e in epochs)
+    assert steps and all("train/loss" in s for s in steps), lines
+    assert steps[0].startswith("epoch 1/2 batch 1/")
