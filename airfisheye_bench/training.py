@@ -103,7 +103,7 @@ def check_config(cfg: DictConfig) -> None:
     Raises:
         ConfigError: the key, the value given and what to write instead (a ``ValueError``).
     """
-    check_common_values(cfg)  # missing optional packages, types, ranges, choices (model.name among them), files
+    check_common_values(cfg)  # optional packages, types, ranges, choices (model.name among them), files
     task = cfg.task.name
     try:
         spec = get_task(task)
