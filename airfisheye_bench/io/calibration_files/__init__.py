@@ -1,0 +1,141 @@
+"""Calibration files as the tools write them, read into cameras of the camera contract.
+
+:func:`read_calibration` recognises a file's format from its contents (never its name), picks one camera
+(``camera=`` a name or a 0-based index when the file holds several) and returns its flat camera dict in the
+project's pixel convention, with the extrinsics the file gives; :func:`load_camera` turns that into a camera
+(``geometry.cameras.camera_from_dict``); :func:`save_camera` writes the project's own camera file, which
+:func:`load_camera` reads back to an equal camera.
+
+:data:`FORMATS` is the one table of formats, tried in order; each reader is a small module of this package with
+its source named (``docs/design.md``, "Calibration files").
+
+Example:
+    >>> import json, pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "calib.json"
+    >>> path.write_text(json.dumps({"value0": {"intrinsics": [{"camera_type": "eucm", "intrinsics": {
+    ...     "fx": 191.1, "fy": 191.1, "cx": 254.9, "cy": 256.9, "alpha": 0.63, "beta": 1.04}}],
+    ...     "resolution": [[512, 512]]}}))
+    178
+    >>> record = read_calibration(path)
+    >>> record.format, record.camera["model"], record.camera["alpha"]
+    ('basalt', 'eucm', 0.63)
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.errors import MissingFileError
+from airfisheye_bench.io.calibration_files import (
+    basalt,
+    colmap,
+    kalibr,
+    kitti360,
+    ocamcalib,
+    opencv,
+    project,
+    ros,
+    woodscape,
+)
+from airfisheye_bench.io.calibration_files._fields import (
+    CalibrationFormat,
+    CalibrationRecord,
+    Fields,
+    parse_structured,
+    select_camera,
+)
+from airfisheye_bench.io.errors import CalibrationFileError
+from airfisheye_bench.io.yamlio import dump_yaml
+
+__all__ = [
+    "FORMATS",
+    "CalibrationFileError",
+    "CalibrationFormat",
+    "CalibrationRecord",
+    "detect_format",
+    "read_calibration",
+    "save_camera",
+]
+
+#: The formats, in the order they are tried: text formats first, then the structured ones from the most specific
+#: signature to the least (a ROS file also has OpenCV's camera_matrix; the project's dict is checked first).
+FORMATS: tuple[CalibrationFormat, ...] = (
+    ocamcalib.FORMAT,
+    colmap.FORMAT,
+    project.FORMAT,
+    basalt.FORMAT,
+    kalibr.FORMAT,
+    kitti360.FORMAT,
+    woodscape.FORMAT,
+    ros.FORMAT,
+    opencv.FORMAT,
+)
+
+
+def detect_format(path: str | Path) -> tuple[CalibrationFormat, Any]:
+    """The format of a file and its document (a mapping), recognised from the contents.
+
+    Raises:
+        MissingFileError: no such file.
+        CalibrationFileError: not a format of :data:`FORMATS` (the message lists them).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise MissingFileError(f"{path}: no such calibration file") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise CalibrationFileError(path, f"cannot be read as text ({type(err).__name__}: {err})") from None
+    doc = parse_structured(path, text)
+    for fmt in FORMATS:
+        if fmt.detect(text, doc):
+            return fmt, (fmt.document(text, doc) if fmt.document is not None else doc)
+    known = "; ".join(f"{fmt.name}: {fmt.summary}" for fmt in FORMATS)
+    raise CalibrationFileError(path, f"not a calibration file of a known format. Supported: {known}")
+
+
+def read_calibration(path: str | Path, camera: str | int | None = None) -> CalibrationRecord:
+    """Read one camera of a calibration file as the camera contract's flat dict.
+
+    Args:
+        path: The file, in any format of :data:`FORMATS`.
+        camera: Which camera of a file that holds several: its name in the file (``cam1``, a COLMAP camera id) or
+            its 0-based index. May be left out when the file holds one camera.
+
+    Returns:
+        The :class:`CalibrationRecord` (format, camera name, flat camera dict, extrinsics).
+
+    Raises:
+        MissingFileError: no such file.
+        CalibrationFileError: (a ``ValueError``) unknown format, unsupported model, missing key, wrong value, or
+            several cameras and no ``camera``; the message names the file, the key and what is supported.
+    """
+    path = Path(path)
+    fmt, doc = detect_format(path)
+    fields = Fields(path, doc)
+    cameras = fmt.cameras(fields)
+    name = select_camera(path, cameras, camera)
+    camera_dict, extrinsics = cameras[name](fields)
+    return CalibrationRecord(path=path, format=fmt.name, name=name, camera=camera_dict, extrinsics=extrinsics)
+
+
+def save_camera(camera: Any, path: str | Path) -> Path:
+    """Write ``camera`` (anything with ``to_dict()``, or its flat dict) as the project's camera file.
+
+    YAML (``.json``: JSON) with the flat dict at the top level, floats written so that they read back exactly;
+    written to a temporary name, then renamed. :func:`load_camera` reads it back to an equal camera.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    data = camera.to_dict() if hasattr(camera, "to_dict") else dict(camera)
+    if path.suffix.lower() == ".json":
+        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    else:
+        text = dump_yaml(data, header="Camera (airfisheye-bench camera dict; docs/design.md, Camera models).")
+    atomic_write_text(path, text)
+    return path
