@@ -256,7 +256,9 @@ RULES: dict[str, ValueRule] = {
         hint="a calibration file: OpenCV, ROS camera_info, Kalibr camchain, basalt, COLMAP cameras.txt, KITTI-360, "
         "WoodScape, OCamCalib or calib.yaml",
     ),
-    "data.camera.fit": ValueRule("choice", choices=CAMERA_FITS, hint="a non-square calibration at size x size"),
+    "data.camera.fit": ValueRule(
+        "choice", choices=CAMERA_FITS, hint="a non-square calibration at size x size"
+    ),
     "data.occlusion": ValueRule("choice", choices=_occlusion_methods, hint="the LiDAR occlusion correction"),
     "data.motion_compensation": ValueRule("bool"),
     "data.max_depth": ValueRule("number", minimum=0, hint="metres"),

@@ -120,7 +120,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.dataset_seed = dataset_seed
         self.camera_config = CameraConfig(
             **_options(
-                "camera", camera or {}, {"size", "model", "fov_deg", "k", "calibration", "camera", "fit"}, ("k",)
+                "camera",
+                camera or {},
+                {"size", "model", "fov_deg", "k", "calibration", "camera", "fit"},
+                ("k",),
             )
         )
         self.camera_config.calibrated_lens()  # a bad calibration file is refused before any data is generated

@@ -39,8 +39,8 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
-from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
+from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.spec import IMAGE_SOURCES
@@ -111,8 +111,11 @@ class CameraConfig:
                     "release's lens)"
                 )
             served = serve_camera(lens, self.size, self.fit)
-            log.info("camera from %s: %s", self.calibration if isinstance(self.calibration, str) else "the "
-                     "model's metadata", served.describe())
+            log.info(
+                "camera from %s: %s",
+                self.calibration if isinstance(self.calibration, str) else "the model's metadata",
+                served.describe(),
+            )
             return served
         size = self.size or calibrated.width
         if not lens_changed:
@@ -131,8 +134,14 @@ class CameraConfig:
             )
         model = self.model or calibrated.model
         fov_deg = self.fov_deg if self.fov_deg is not None else calibrated.fov_deg
-        k = self.k if self.k is not None else (getattr(calibrated, "k", None) if model == "kannala_brandt" else None)
-        camera = FisheyeCamera(size, size, fov_deg=fov_deg if fov_deg is not None else 190.0, model=model, k=k)
+        k = (
+            self.k
+            if self.k is not None
+            else (getattr(calibrated, "k", None) if model == "kannala_brandt" else None)
+        )
+        camera = FisheyeCamera(
+            size, size, fov_deg=fov_deg if fov_deg is not None else 190.0, model=model, k=k
+        )
         return ServedCamera(camera, camera, 1.0, (0.0, 0.0), None)
 
 

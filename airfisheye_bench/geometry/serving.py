@@ -18,8 +18,8 @@ Example:
     >>> woodscape = camera_from_dict({"model": "radial_poly", "width": 1280, "height": 966, "k1": 339.749,
     ...     "k2": -31.988, "k3": 48.275, "k4": -7.201, "cx": 643.442, "cy": 479.407, "aspect_ratio": 1.0})
     >>> served = serve_camera(woodscape, 512)
-    >>> served.camera.width, served.camera.height, served.scale, served.offset
-    (512, 512, 0.4, (0.0, 62.8))
+    >>> served.camera.width, served.camera.height, served.scale, [round(o, 9) for o in served.offset]
+    (512, 512, 0.4, [0.0, 62.8])
     >>> served.describe()
     'radial_poly 1280x966 served at 512x512: intrinsics scaled by 0.4 about the pixel corner, padded by 62.8 px above and below (data.camera.fit=pad; the padding is outside the sensor)'
 """

@@ -3,7 +3,7 @@
 :func:`read_calibration` recognises a file's format from its contents (never its name), picks one camera
 (``camera=`` a name or a 0-based index when the file holds several) and returns its flat camera dict in the
 project's pixel convention, with the extrinsics the file gives; :func:`load_camera` turns that into a camera
-(``geometry.cameras.camera_from_dict``); :func:`save_camera` writes the project's own camera file, which
+(:func:`~airfisheye_bench.geometry.cameras.camera_from_dict`); :func:`save_camera` writes the project's own camera file, which
 :func:`load_camera` reads back to an equal camera.
 
 :data:`FORMATS` is the one table of formats, tried in order; each reader is a small module of this package with
@@ -29,6 +29,7 @@ from typing import Any
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.errors import MissingFileError
+from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
 from airfisheye_bench.io.calibration_files import (
     basalt,
     colmap,
@@ -58,6 +59,7 @@ __all__ = [
     "camera_label",
     "camera_mismatch",
     "detect_format",
+    "load_camera",
     "read_calibration",
     "save_camera",
 ]
@@ -122,6 +124,42 @@ def read_calibration(path: str | Path, camera: str | int | None = None) -> Calib
     name = select_camera(path, cameras, camera)
     camera_dict, extrinsics = cameras[name](fields)
     return CalibrationRecord(path=path, format=fmt.name, name=name, camera=camera_dict, extrinsics=extrinsics)
+
+
+def load_camera(path: str | Path, camera: str | int | None = None) -> CameraModel:
+    """The camera of a calibration file (any format of :data:`FORMATS`), in the project's pixel convention.
+
+    Args:
+        path: The file.
+        camera: Which camera of a file that holds several: its name (``cam1``, a COLMAP camera id) or its 0-based
+            index.
+
+    Raises:
+        MissingFileError: no such file.
+        CalibrationFileError: (a ``ValueError``) unknown format, unsupported model, missing key, a wrong value
+            (also one the camera model itself refuses, e.g. a non-monotonic polynomial), or several cameras and
+            no ``camera``; the message names the file, the key and what is supported.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "image_02.yaml"
+        >>> _ = path.write_text("%YAML:1.0\\n---\\nmodel_type: MEI\\ncamera_name: image_02\\nimage_width: 1400\\n"
+        ...     "image_height: 1400\\nmirror_parameters:\\n   xi: 2.2134047507854890e+00\\ndistortion_parameters:\\n"
+        ...     "   k1: 1.6798235660113681e-02\\n   k2: 1.6548773243373522e+00\\n   p1: 4.2223943394772046e-04\\n"
+        ...     "   p2: 4.2462134260997584e-04\\nprojection_parameters:\\n   gamma1: 1.3363220825849971e+03\\n"
+        ...     "   gamma2: 1.3357883350012958e+03\\n   u0: 7.1694323510126321e+02\\n   v0: 7.0576498308221585e+02\\n")
+        >>> camera = load_camera(path)
+        >>> camera.model, camera.width, round(camera.xi, 4)
+        ('unified', 1400, 2.2134)
+    """
+    record = read_calibration(path, camera)
+    key = "camera" if record.format == "airfisheye" else record.name
+    try:
+        return camera_from_dict(record.camera)
+    except (TypeError, ValueError) as err:
+        raise CalibrationFileError(
+            record.path, f"not a valid {record.camera.get('model')} camera ({err})", key=key
+        ) from None
 
 
 def save_camera(camera: Any, path: str | Path) -> Path:
