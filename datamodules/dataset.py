@@ -90,7 +90,7 @@ class CameraConfig:
         try:
             if isinstance(self.calibration, Mapping):
                 return camera_from_dict(dict(self.calibration))
-            return load_camera(self.calibration, self.camera)
+            return load_camera(self.calibration, self.camera, option="data.camera.camera")
         except (ValueError, OSError) as err:
             raise ConfigError(f"data.camera.calibration: {err}") from None
 

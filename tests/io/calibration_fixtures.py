@@ -200,11 +200,11 @@ def write_basalt(path: Path, intrinsics: list[dict], camera_type: str) -> Path:
     return path
 
 
-def write_kalibr_camchain(path: Path, model: str = "ds") -> Path:
-    """A Kalibr camchain.yaml of TUM-VI's two 512 cameras: ``ds`` (Double Sphere, basalt's values in Kalibr's
-    intrinsics order xi, alpha, fu, fv, pu, pv) or ``pinhole-equi``."""
+def write_kalibr_camchain(path: Path, model: str = "ds", cameras: int = 2) -> Path:
+    """A Kalibr camchain.yaml of TUM-VI's 512 cameras (``cameras``: 2, or 1 for cam0 alone): ``ds`` (Double
+    Sphere, basalt's values in Kalibr's intrinsics order xi, alpha, fu, fv, pu, pv) or ``pinhole-equi``."""
     blocks = []
-    for i in range(2):
+    for i in range(cameras):
         if model == "ds":
             p = TUMVI_DS[i]
             intrinsics = [p["xi"], p["alpha"], p["fx"], p["fy"], p["cx"], p["cy"]]

@@ -101,13 +101,16 @@ def detect_format(path: str | Path) -> tuple[CalibrationFormat, Any]:
     raise CalibrationFileError(path, f"not a calibration file of a known format. Supported: {known}")
 
 
-def read_calibration(path: str | Path, camera: str | int | None = None) -> CalibrationRecord:
+def read_calibration(
+    path: str | Path, camera: str | int | None = None, option: str = "camera"
+) -> CalibrationRecord:
     """Read one camera of a calibration file as the camera contract's flat dict.
 
     Args:
         path: The file, in any format of :data:`FORMATS`.
         camera: Which camera of a file that holds several: its name in the file (``cam1``, a COLMAP camera id) or
             its 0-based index. May be left out when the file holds one camera.
+        option: The name of ``camera`` in messages (``data.camera.camera`` for a training config).
 
     Returns:
         The :class:`CalibrationRecord` (format, camera name, flat camera dict, extrinsics).
@@ -121,18 +124,19 @@ def read_calibration(path: str | Path, camera: str | int | None = None) -> Calib
     fmt, doc = detect_format(path)
     fields = Fields(path, doc)
     cameras = fmt.cameras(fields)
-    name = select_camera(path, cameras, camera)
+    name = select_camera(path, cameras, camera, option)
     camera_dict, extrinsics = cameras[name](fields)
     return CalibrationRecord(path=path, format=fmt.name, name=name, camera=camera_dict, extrinsics=extrinsics)
 
 
-def load_camera(path: str | Path, camera: str | int | None = None) -> CameraModel:
+def load_camera(path: str | Path, camera: str | int | None = None, option: str = "camera") -> CameraModel:
     """The camera of a calibration file (any format of :data:`FORMATS`), in the project's pixel convention.
 
     Args:
         path: The file.
         camera: Which camera of a file that holds several: its name (``cam1``, a COLMAP camera id) or its 0-based
             index.
+        option: The name of ``camera`` in messages.
 
     Raises:
         MissingFileError: no such file.
@@ -152,7 +156,7 @@ def load_camera(path: str | Path, camera: str | int | None = None) -> CameraMode
         >>> camera.model, camera.width, round(camera.xi, 4)
         ('unified', 1400, 2.2134)
     """
-    record = read_calibration(path, camera)
+    record = read_calibration(path, camera, option)
     key = "camera" if record.format == "airfisheye" else record.name
     try:
         return camera_from_dict(record.camera)

@@ -202,8 +202,12 @@ def _opencv_yaml_text(text: str) -> str:
     return "\n".join(re.sub(r"^(\s*[A-Za-z_][\w\-]*):(?=[^\s:/])", r"\1: ", line) for line in lines) + "\n"
 
 
-def select_camera(path: Path, cameras: Mapping[str, CameraEntry], camera: str | int | None) -> str:
+def select_camera(
+    path: Path, cameras: Mapping[str, CameraEntry], camera: str | int | None, option: str = "camera"
+) -> str:
     """The name of the camera to read: the only one, or the one ``camera`` names (by name, else by 0-based index).
+
+    ``option`` is how the caller's user spells the choice (``data.camera.camera`` in a training config).
 
     Raises:
         CalibrationFileError: several cameras and no ``camera``, or a ``camera`` the file does not hold; the
@@ -218,7 +222,7 @@ def select_camera(path: Path, cameras: Mapping[str, CameraEntry], camera: str | 
             return names[0]
         raise CalibrationFileError(
             path,
-            f"holds {len(names)} cameras ({listed}); choose one with camera=<name or 0-based index>",
+            f"holds {len(names)} cameras ({listed}); choose one with {option}=<name or 0-based index>",
             key="camera",
         )
     text = str(camera).strip()
