@@ -63,7 +63,7 @@ def test_generated_fisheye_looks_along_the_calibrated_rays(kitti_dataset) -> Non
     assert err < 0.02 and agree > 0.85
     # ...and not what another lens (the preset's own 190-degree equidistant fisheye) would show.
     other_err, other_agree = _remap_vs_raycast(reader, FisheyeCamera(64, 64, fov_deg=190.0), sample_ids)
-    assert other_err > 3 * err and other_agree < agree
+    assert other_err > 2 * err and other_agree < agree - 0.05
 
 
 def test_generator_camera_options_are_checked(tmp_path: Path) -> None:
