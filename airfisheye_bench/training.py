@@ -286,7 +286,8 @@ def train(cfg: DictConfig) -> dict[str, Any]:
                     "config": OmegaConf.to_container(cfg.model, resolve=True),
                     "weights": module.hparams.get("weights"),  # what training started from
                 },
-                config=OmegaConf.to_container(cfg, resolve=True),
+                # The served camera, as evaluation records it (the leaderboard shows it).
+                config={**OmegaConf.to_container(cfg, resolve=True), "camera": datamodule.camera.to_dict()},
             )
             log.info("test results written to %s", path)
     return results

@@ -294,6 +294,7 @@ def _identity(e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str
         ("dataset root", dataset.get("root")),
         ("manifest sha256", e.manifest_sha256),
         ("split", e.split),
+        ("camera", e.camera or None),
         ("results.json", e.path),
         ("created", record.get("created")),
     ]

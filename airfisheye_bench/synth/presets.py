@@ -48,8 +48,8 @@ from typing import Any
 
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.cameras import camera_from_dict
-from airfisheye_bench.io.calibration_files import camera_label
 from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.io.calibration_files import camera_label
 from airfisheye_bench.synth.sensors import ScanModel
 from airfisheye_bench.synth.trajectory import FlightConfig, SensorRig
 
