@@ -66,8 +66,8 @@ TUMVI_EUCM = [
         "beta": 1.041250259119081,
     },
 ]
-# TUM-VI 512 pinhole-equi (Kalibr) cam0 / cam1: the TUM-VI dataset's calibration (cvg.cit.tum.de, "calibration
-# 512x512"), as quoted in github:ethz-asl/kalibr's wiki discussion (Undistort.m, "pinhole-equi-512").
+# TUM-VI 512 pinhole-equi (Kalibr) cam0 / cam1: the TUM-VI dataset's published calibration (cvg.cit.tum.de), as
+# quoted in public code that uses the dataset (e.g. an Undistort.m attached to a Kalibr issue, "pinhole-equi-512").
 TUMVI_EQUI = [
     {
         "intrinsics": [190.97847715128717, 190.9733070521226, 254.93170605935475, 256.8974428996504],

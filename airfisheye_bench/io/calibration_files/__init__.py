@@ -27,6 +27,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.errors import MissingFileError
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
@@ -49,7 +51,7 @@ from airfisheye_bench.io.calibration_files._fields import (
     select_camera,
 )
 from airfisheye_bench.io.errors import CalibrationFileError
-from airfisheye_bench.io.yamlio import dump_yaml
+from airfisheye_bench.io.yamlio import to_plain
 
 __all__ = [
     "FORMATS",
@@ -180,7 +182,9 @@ def save_camera(camera: Any, path: str | Path) -> Path:
     if path.suffix.lower() == ".json":
         text = json.dumps(data, indent=2, allow_nan=False) + "\n"
     else:
-        text = dump_yaml(data, header="Camera (airfisheye-bench camera dict; docs/design.md, Camera models).")
+        header = "# Camera (airfisheye-bench camera dict; docs/design.md, Camera models).\n"
+        # Block style, one parameter a line; PyYAML writes floats as repr, which reads back to the same float.
+        text = header + yaml.safe_dump(to_plain(data), sort_keys=False, default_flow_style=False, width=120)
     atomic_write_text(path, text)
     return path
 
