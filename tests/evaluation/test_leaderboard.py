@@ -135,7 +135,8 @@ def test_paper_rows_are_included_by_default_in_their_own_group(tmp_path: Path) -
         in md
     )
     assert (
-        "| NLSPN / ResNet34 | paper | paper (real AirFisheye) | test | – | 0.0834 | 6.971 | 2.377 | 0.934 |" in md
+        "| NLSPN / ResNet34 | paper | paper (real AirFisheye) | test | – | 0.0834 | 6.971 | 2.377 | 0.934 |"
+        in md
     )
     assert "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | – | 90.0 |" in md
 
@@ -507,4 +508,7 @@ def test_the_served_camera_is_shown(tmp_path: Path) -> None:
     rows = {r["run"]: r for r in _csv_rows(board.to_csv())}
     assert (rows["ds"]["camera"], rows["old"]["camera"]) == ("double_sphere 512x512", "")
     md = board.to_markdown()
-    assert "| test | double_sphere 512x512 | 30.0 | 70.0 | ds |" in md and "| test | – | 20.0 | 60.0 | old |" in md
+    assert (
+        "| test | double_sphere 512x512 | 30.0 | 70.0 | ds |" in md
+        and "| test | – | 20.0 | 60.0 | old |" in md
+    )
