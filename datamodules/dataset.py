@@ -120,7 +120,14 @@ class CameraConfig:
         size = self.size or calibrated.width
         if not lens_changed:
             square = calibrated.width == calibrated.height
-            if source == "fisheye" or square or (size * calibrated.height) % calibrated.width == 0:
+            exact = (size * calibrated.height) % calibrated.width == 0
+            if source == "fisheye" and not exact:
+                raise ConfigError(
+                    f"data.camera.size={size}: the pre-rendered {calibrated.width}x{calibrated.height} fisheye files "
+                    "keep their aspect ratio only at a width whose height is a whole number; pick such a size or "
+                    "use data.source=cubemap (a square image, padded or cropped by data.camera.fit)"
+                )
+            if source == "fisheye" or square or exact:
                 # The aspect ratio is kept exactly (the pre-rendered files are resampled to it).
                 resized = calibrated.resized(size, size * calibrated.height // calibrated.width)
                 return ServedCamera(resized, calibrated, size / calibrated.width, (0.0, 0.0), None)
