@@ -16,8 +16,10 @@ eucm            alpha, beta, fu, fv, pu, pv                none                e
 ==============  =========================================  ==================  =================================
 
 Kalibr itself refuses every other pair (``omni`` + ``equidistant`` raises "not yet supported"); ``fov``
-distortion is not a model here. Pixel convention: OpenCV's (Kalibr's corners come from OpenCV-style detectors
-on pixel indices), the project's: nothing to convert.
+distortion is not a model here. Pixel convention: OpenCV's, the project's: nothing to convert (Kalibr's
+checkerboard corners come from OpenCV's ``findChessboardCorners`` / ``cornerSubPix`` on pixel indices,
+``aslam_cv/aslam_cameras/src/GridCalibrationTargetCheckerboard.cpp``, and its projections are valid on
+``[0, W) x [0, H)``, ``PinholeProjection::isValid``).
 
 Example:
     >>> doc = {"cam0": {"camera_model": "ds", "intrinsics": [-0.17, 0.59, 158.3, 158.3, 254.9, 256.9],
