@@ -516,3 +516,12 @@ def test_load_camera_refuses_what_the_model_refuses(tmp_path: Path) -> None:
         CalibrationFileError, match=r"camchain.yaml: key 'cam0': not a valid eucm camera \(.*beta"
     ):
         load_camera(path)
+
+
+def test_basalt_and_kalibr_share_a_pixel_convention(tmp_path: Path) -> None:
+    """TUM-VI's cam0 calibrated by basalt (ds, eucm) and by Kalibr (pinhole-equi): the principal points agree to a
+    few hundredths of a pixel, so neither reader shifts by half a pixel against the other."""
+    kalibr = read_calibration(fx.write_kalibr_camchain(tmp_path / "camchain.yaml", "equi"), "cam0").camera
+    for values, kind in ((fx.TUMVI_DS, "ds"), (fx.TUMVI_EUCM, "eucm")):
+        basalt = read_calibration(fx.write_basalt(tmp_path / f"{kind}.json", values, kind), 0).camera
+        assert abs(basalt["cx"] - kalibr["cx"]) < 0.05 and abs(basalt["cy"] - kalibr["cy"]) < 0.05
