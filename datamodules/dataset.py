@@ -127,7 +127,7 @@ class CameraConfig:
                     "keep their aspect ratio only at a width whose height is a whole number; pick such a size or "
                     "use data.source=cubemap (a square image, padded or cropped by data.camera.fit)"
                 )
-            if source == "fisheye" or square or exact:
+            if square or exact:
                 # The aspect ratio is kept exactly (the pre-rendered files are resampled to it).
                 resized = calibrated.resized(size, size * calibrated.height // calibrated.width)
                 return ServedCamera(resized, calibrated, size / calibrated.width, (0.0, 0.0), None)
