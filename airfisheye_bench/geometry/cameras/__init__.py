@@ -1,6 +1,6 @@
 """Camera models: one interface (:class:`CameraModel`), one module per family, one table (``CAMERA_MODELS``).
 
-See docs/design.md, "Camera models", for every model's parameters and the code it follows.
+See docs/design.md, "Fisheye camera", for every model's parameters and the code it follows.
 """
 
 from airfisheye_bench.geometry.cameras.base import CameraModel

@@ -1,4 +1,4 @@
-"""The interface every camera model implements (docs/design.md, "Camera models").
+"""The interface every camera model implements (docs/design.md, "Fisheye camera").
 
 A model is a small class of one shape, as in COLMAP's ``sensor/models.h`` and basalt's ``camera/`` folder: its
 parameters, a float64 projection ``_project(x, y, z) -> (u, v, in_region)`` and a float64 back-projection
@@ -76,7 +76,8 @@ class CameraModel:
         """Project camera-frame points ``[..., 3]`` to pixels.
 
         Returns:
-            ``(uv [..., 2], valid [...])``. ``valid``: the point is finite, not the camera centre, inside the model's
+            ``(uv [..., 2], valid [...])``. ``valid``: the point is finite, neither the camera centre nor on the
+            optical axis behind it, inside the model's
             valid region and within ``fov_deg / 2`` of the optical axis. Whether ``uv`` lies in the image is left to
             the caller (:meth:`in_image`). ``uv`` comes back in the input's kind and dtype.
         """
@@ -88,7 +89,10 @@ class CameraModel:
         x, y, z = p.to(torch.float64).reshape(-1, 3).T.contiguous()
         u, v, in_region = self._project(x, y, z)
         finite = torch.isfinite(x) & torch.isfinite(y) & torch.isfinite(z)
-        valid = finite & ((x != 0) | (y != 0) | (z != 0)) & in_region & torch.isfinite(u) & torch.isfinite(v)
+        # A point on the optical axis behind the camera has no azimuth (it would map to a whole circle), and the
+        # camera centre has no direction: neither projects.
+        off_back_axis = (x != 0) | (y != 0) | (z > 0)
+        valid = finite & off_back_axis & in_region & torch.isfinite(u) & torch.isfinite(v)
         if self.fov_deg is not None:
             valid &= torch.atan2(torch.hypot(x, y), z) <= self.max_theta + 1e-12
         uv = torch.stack([u, v], -1).view(*batch_shape, 2)

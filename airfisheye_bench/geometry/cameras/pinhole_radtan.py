@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from airfisheye_bench.geometry.cameras._solve import radial_limit, radtan, undistort_radtan
+from airfisheye_bench.geometry.cameras._solve import RadtanInverse, radial_limit, radtan
 from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
 
 
@@ -57,6 +57,7 @@ class PinholeRadtan(CameraModel):
         self.p1, self.p2 = finite_float("p1", p1), finite_float("p2", p2)
         self._m_max = radial_limit(self.k1, self.k2, self.k3)
         self._distorted = any(c != 0.0 for c in (self.k1, self.k2, self.p1, self.p2, self.k3))
+        self._undistort = RadtanInverse(self.k1, self.k2, self.p1, self.p2, self.k3, r_max=self._m_max)
 
     def _project(self, x, y, z):
         mx, my = x / z, y / z
@@ -69,7 +70,7 @@ class PinholeRadtan(CameraModel):
     def _unproject(self, u, v):
         mx, my = (u - self.cx) / self.fx, (v - self.cy) / self.fy
         if self._distorted:
-            mx, my = undistort_radtan(mx, my, self.k1, self.k2, self.p1, self.p2, self.k3, r_max=self._m_max)
+            mx, my = self._undistort(mx, my)
         return mx, my, mx * 0.0 + 1.0
 
     def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:

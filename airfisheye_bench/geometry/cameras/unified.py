@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 
 import torch
 
-from airfisheye_bench.geometry.cameras._solve import radial_limit, radtan, undistort_radtan
+from airfisheye_bench.geometry.cameras._solve import RadtanInverse, radial_limit, radtan
 from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
 
 
@@ -64,6 +64,7 @@ class Unified(CameraModel):
         self._w = self.xi if self.xi <= 1.0 else 1.0 / self.xi
         self._m_max = radial_limit(self.k1, self.k2)  # where the radial distortion stops increasing
         self._distorted = any(c != 0.0 for c in (self.k1, self.k2, self.p1, self.p2))
+        self._undistort = RadtanInverse(self.k1, self.k2, self.p1, self.p2, r_max=self._m_max)
 
     def _project(self, x, y, z):
         d = torch.sqrt(x * x + y * y + z * z)
@@ -78,7 +79,7 @@ class Unified(CameraModel):
     def _unproject(self, u, v):
         mx, my = (u - self.cx) / self.fx, (v - self.cy) / self.fy
         if self._distorted:
-            mx, my = undistort_radtan(mx, my, self.k1, self.k2, self.p1, self.p2, r_max=self._m_max)
+            mx, my = self._undistort(mx, my)
         r2 = mx * mx + my * my
         disc = 1.0 + (1.0 - self.xi * self.xi) * r2
         f = (self.xi + torch.sqrt(disc)) / (1.0 + r2)  # NaN where disc < 0: no ray reaches the pixel
