@@ -15,7 +15,7 @@ Every task:
 - ``airfisheye.normalization``: JSON ``{"mean": [r, g, b], "std": [r, g, b]}``, meaning
   ``image = (rgb / 255 - mean) / std``, RGB order, NCHW float32.
 - ``airfisheye.camera``: JSON of the served camera's flat dict (``CameraModel.to_dict()``: ``model``, ``width``,
-  ``height`` and that model's parameters, docs/design.md "Camera models"); ``camera_from_dict`` rebuilds it.
+  ``height`` and that model's parameters, docs/design.md "Fisheye camera"); ``camera_from_dict`` rebuilds it.
   ``airfisheye-evaluate`` refuses to score the model on data served with another camera unless
   ``allow_camera_mismatch=true``.
 - ``airfisheye.image_size``: JSON ``[H, W]`` the model was trained and verified at.

@@ -182,7 +182,7 @@ def save_camera(camera: Any, path: str | Path) -> Path:
     if path.suffix.lower() == ".json":
         text = json.dumps(data, indent=2, allow_nan=False) + "\n"
     else:
-        header = "# Camera (airfisheye-bench camera dict; docs/design.md, Camera models).\n"
+        header = "# Camera (airfisheye-bench camera dict; docs/design.md, Fisheye camera).\n"
         # Block style, one parameter a line; PyYAML writes floats as repr, which reads back to the same float.
         text = header + yaml.safe_dump(to_plain(data), sort_keys=False, default_flow_style=False, width=120)
     atomic_write_text(path, text)

@@ -1,5 +1,5 @@
 """The flat camera dicts of the camera contract (``CameraModel.to_dict()``), one builder per model, so that every
-reader writes the same keys in the same order (``docs/design.md``, "Camera models").
+reader writes the same keys in the same order (``docs/design.md``, "Fisheye camera").
 
 All pixel quantities are in the project's convention: the centre of pixel (row i, col j) is at (u=j, v=i).
 

@@ -2,7 +2,7 @@
 :func:`~airfisheye_bench.io.calibration_files.save_camera` writes (the camera's flat dict at the top level, YAML or
 JSON).
 
-The dict is the camera contract's ``to_dict()`` (``docs/design.md``, "Camera models"): ``model``, ``width``,
+The dict is the camera contract's ``to_dict()`` (``docs/design.md``, "Fisheye camera"): ``model``, ``width``,
 ``height`` and the model's parameters, pixel centres at integers. It is passed on unchanged: the camera registry
 (``camera_from_dict``) checks it, including the older ``FisheyeCamera`` dicts (``focal``, ``k``).
 
@@ -46,7 +46,7 @@ def _read(f: Fields) -> tuple[dict[str, Any], dict]:
 FORMAT = CalibrationFormat(
     name="airfisheye",
     summary="the project's camera dict (save_camera's file) or a dataset's calib.yaml (its camera section)",
-    source="docs/design.md (Camera models, Calibration files); airfisheye_bench/io/calib.py",
+    source="docs/design.md (Fisheye camera, Calibration files); airfisheye_bench/io/calib.py",
     detect=_detect,
     cameras=_cameras,
 )
