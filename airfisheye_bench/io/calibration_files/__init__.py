@@ -95,7 +95,7 @@ def detect_format(path: str | Path) -> tuple[CalibrationFormat, Any]:
         raise MissingFileError(f"{path}: no such calibration file") from None
     except (OSError, UnicodeDecodeError) as err:
         raise CalibrationFileError(path, f"cannot be read as text ({type(err).__name__}: {err})") from None
-    doc = parse_structured(path, text)
+    doc = parse_structured(text)
     for fmt in FORMATS:
         if fmt.detect(text, doc):
             return fmt, (fmt.document(text, doc) if fmt.document is not None else doc)

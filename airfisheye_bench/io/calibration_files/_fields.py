@@ -163,7 +163,7 @@ class Fields(FieldReader):
         return matrix
 
 
-def parse_structured(path: Path, text: str) -> Any:
+def parse_structured(text: str) -> Any:
     """The document of a JSON or YAML file (OpenCV FileStorage YAML included), or ``None`` if it is neither."""
     if text.lstrip().startswith("{"):
         try:

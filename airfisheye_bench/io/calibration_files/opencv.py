@@ -14,7 +14,7 @@ Pixel convention: OpenCV's (pixel centre at integer coordinates), the project's:
 
 Example:
     >>> from airfisheye_bench.io.calibration_files._fields import parse_structured
-    >>> doc = parse_structured("c.yaml", '''%YAML:1.0
+    >>> doc = parse_structured('''%YAML:1.0
     ... ---
     ... image_width: 640
     ... image_height: 480
