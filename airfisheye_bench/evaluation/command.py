@@ -124,7 +124,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     rings = module.hparams.ring_edges_deg if module is not None else DEFAULT_RING_EDGES_DEG
     scorer = TaskScorer(
         factory,
-        ring_edges_deg=ring_edges_for(camera.fov_deg, rings),
+        ring_edges_deg=ring_edges_for(camera.coverage_deg, rings),
         depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None,
     )
     theta = torch.rad2deg(camera.theta_grid()).float()
