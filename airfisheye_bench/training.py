@@ -29,7 +29,6 @@ from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
-from airfisheye_bench.geometry.serving import image_fov_deg
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.runs import check_resume, keep_metric_rows, numbered_sibling, read_checkpoint
 from airfisheye_bench.specs import UnknownTaskError, get_task
@@ -145,7 +144,7 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     model_cfg = OmegaConf.to_container(cfg.model, resolve=True)
     # The incidence-angle rings reach the served lens's rim (one more ring beyond 95 deg for a wider lens).
     rings = cfg.task.module.get("ring_edges_deg") or DEFAULT_RING_EDGES_DEG
-    extra: dict[str, Any] = {"ring_edges_deg": ring_edges_for(image_fov_deg(datamodule.camera), rings)}
+    extra: dict[str, Any] = {"ring_edges_deg": ring_edges_for(datamodule.camera.coverage_deg, rings)}
     if get_task(cfg.task.name).uses_classes:
         extra |= {
             "class_names": datamodule.class_names,

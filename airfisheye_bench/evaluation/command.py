@@ -40,7 +40,6 @@ from airfisheye_bench.evaluation.predictors import (
 )
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
-from airfisheye_bench.geometry.serving import image_fov_deg
 from airfisheye_bench.io.calibration_files import camera_mismatch
 from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, ring_edges_for
@@ -129,7 +128,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     rings = module.hparams.ring_edges_deg if module is not None else DEFAULT_RING_EDGES_DEG
     scorer = TaskScorer(
         factory,
-        ring_edges_deg=ring_edges_for(image_fov_deg(camera), rings),
+        ring_edges_deg=ring_edges_for(camera.coverage_deg, rings),
         depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None,
     )
     theta = torch.rad2deg(camera.theta_grid()).float()

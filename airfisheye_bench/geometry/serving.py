@@ -32,7 +32,7 @@ import torch
 
 from airfisheye_bench.geometry.cameras import CameraModel
 
-__all__ = ["FITS", "ServedCamera", "image_fov_deg", "serve_camera"]
+__all__ = ["FITS", "ServedCamera", "serve_camera"]
 
 #: How a non-square calibration becomes a square served image.
 FITS = ("pad", "crop")
@@ -106,19 +106,3 @@ def serve_camera(camera: CameraModel, size: int | None, fit: str = "pad") -> Ser
     params["cx"] += offset[0]
     params["cy"] += offset[1]
     return ServedCamera(type(camera)(size, size, **params), camera, scale, offset, fit)
-
-
-def image_fov_deg(camera: CameraModel) -> float:
-    """The full field of view the image covers, in degrees: ``fov_deg`` when the camera has one, else twice the
-    largest incidence angle of its valid pixels (a calibrated lens has no FOV parameter; its image frame and valid
-    region bound it).
-
-    Example:
-        >>> from airfisheye_bench.geometry import FisheyeCamera
-        >>> image_fov_deg(FisheyeCamera(64, 64, fov_deg=190.0))
-        190.0
-    """
-    if camera.fov_deg is not None:
-        return float(camera.fov_deg)
-    theta = camera.theta_grid()[camera.valid_mask()]
-    return 2.0 * float(torch.rad2deg(theta.max())) if theta.numel() else 0.0

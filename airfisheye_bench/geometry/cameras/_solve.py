@@ -76,7 +76,9 @@ class MonotoneInverse:
         # serve as brackets; the brackets are widened by one dense step to stay safe).
         idx = torch.searchsorted(dense_y, self.table_y).clamp(1, len(dense_y) - 1)
         y0, y1 = dense_y[idx - 1], dense_y[idx]
-        t = dense_t[idx - 1] + (dense_t[idx] - dense_t[idx - 1]) * (self.table_y - y0) / (y1 - y0).clamp_min(1e-300)
+        t = dense_t[idx - 1] + (dense_t[idx] - dense_t[idx - 1]) * (self.table_y - y0) / (y1 - y0).clamp_min(
+            1e-300
+        )
         self.table_t = t
         self._margin = float(dense_t[1] - dense_t[0])
         self._step = (self.y_hi - self.y_lo) / (_TABLE_SIZE - 1)
@@ -131,7 +133,13 @@ class RadtanInverse:
     """
 
     def __init__(
-        self, k1: float, k2: float, p1: float, p2: float, k3: float = 0.0, r_max: float = math.inf,
+        self,
+        k1: float,
+        k2: float,
+        p1: float,
+        p2: float,
+        k3: float = 0.0,
+        r_max: float = math.inf,
         r_cap: float = 10.0,
     ) -> None:
         self.k = (k1, k2, p1, p2, k3)
@@ -142,7 +150,9 @@ class RadtanInverse:
             lambda r: polyval(coeffs, r), lambda r: polyval(dcoeffs, r), min(r_max, 1e3), y_cap=r_cap
         )
 
-    def __call__(self, xd: torch.Tensor, yd: torch.Tensor, steps: int = 4) -> tuple[torch.Tensor, torch.Tensor]:
+    def __call__(
+        self, xd: torch.Tensor, yd: torch.Tensor, steps: int = 4
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         k1, k2, p1, p2, k3 = self.k
         rd = torch.hypot(xd, yd)
         scale = self._radial(rd) / rd.clamp_min(1e-300)

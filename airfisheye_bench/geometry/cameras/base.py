@@ -72,6 +72,15 @@ class CameraModel:
         """Half the field of view in radians (``pi`` without ``fov_deg``: the model's region decides alone)."""
         return math.pi if self.fov_deg is None else math.radians(self.fov_deg) / 2.0
 
+    @property
+    def coverage_deg(self) -> float:
+        """Full field of view the image covers (degrees): ``fov_deg`` when set, else twice the largest incidence
+        angle of a valid pixel (what the incidence-angle rings must reach)."""
+        if self.fov_deg is not None:
+            return self.fov_deg
+        theta = self._theta64[self._valid]
+        return 2.0 * math.degrees(float(theta.max())) if len(theta) else 0.0
+
     def project(self, points: ArrayLike) -> tuple[ArrayLike, ArrayLike]:
         """Project camera-frame points ``[..., 3]`` to pixels.
 
