@@ -33,7 +33,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import InterpolationResolutionError
 
-from airfisheye_bench.constants import LENS_MODELS
+from airfisheye_bench.constants import CAMERA_FITS, LENS_MODELS
 from airfisheye_bench.errors import ConfigError, MissingFileError
 
 _ABSENT = object()
@@ -195,6 +195,17 @@ def _devices_problem(value: Any) -> str | None:
     return "expected a device count >= 1 (-1: all), auto, or a list of device indices"
 
 
+def _calibration_problem(value: Any) -> str | None:
+    """``data.camera.calibration``: an existing file (its contents are read, once, by the datamodule), or the camera
+    dict an ONNX model's data config carries in its place."""
+    if isinstance(value, Mapping):
+        return None
+    path = Path(str(value)).expanduser()
+    if path.is_file():
+        return None
+    return "is a folder, expected a calibration file" if path.is_dir() else "no such file"
+
+
 def _not_resuming(cfg: DictConfig) -> bool:
     # A resume restores every weight from the checkpoint and never reads the initial weights (which may be gone).
     return cfg.get("ckpt_path") is None
@@ -247,6 +258,16 @@ RULES: dict[str, ValueRule] = {
     "data.camera.fov_deg": ValueRule("number", minimum=1, nullable=True, hint="degrees; null: the release's"),
     "data.camera.model": ValueRule(
         "choice", choices=LENS_MODELS, nullable=True, hint="null: the release's lens"
+    ),
+    "data.camera.calibration": ValueRule(
+        "custom",
+        check=_calibration_problem,
+        nullable=True,
+        hint="a calibration file: OpenCV, ROS camera_info, Kalibr camchain, basalt, COLMAP cameras.txt, KITTI-360, "
+        "WoodScape, OCamCalib or calib.yaml",
+    ),
+    "data.camera.fit": ValueRule(
+        "choice", choices=CAMERA_FITS, hint="a non-square calibration at size x size"
     ),
     "data.occlusion": ValueRule("choice", choices=_occlusion_methods, hint="the LiDAR occlusion correction"),
     "data.motion_compensation": ValueRule("bool"),

@@ -167,7 +167,7 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     model_cfg = OmegaConf.to_container(cfg.model, resolve=True)
     # The incidence-angle rings reach the served lens's rim (one more ring beyond 95 deg for a wider lens).
     rings = cfg.task.module.get("ring_edges_deg") or DEFAULT_RING_EDGES_DEG
-    extra: dict[str, Any] = {"ring_edges_deg": ring_edges_for(datamodule.camera.fov_deg, rings)}
+    extra: dict[str, Any] = {"ring_edges_deg": ring_edges_for(datamodule.camera.coverage_deg, rings)}
     if get_task(cfg.task.name).uses_classes:
         extra |= {
             "class_names": datamodule.class_names,
@@ -442,7 +442,8 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
                     "config": OmegaConf.to_container(cfg.model, resolve=True),
                     "weights": module.hparams.get("weights"),  # what training started from
                 },
-                config=OmegaConf.to_container(cfg, resolve=True),
+                # The served camera, as evaluation records it (the leaderboard shows it).
+                config={**OmegaConf.to_container(cfg, resolve=True), "camera": datamodule.camera.to_dict()},
             )
             log.info("test results written to %s", path)
     if trainer.is_global_zero:

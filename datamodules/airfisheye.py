@@ -44,7 +44,9 @@ class AirFisheyeDataModule(L.LightningDataModule):
         preset: Synthetic preset when ``root`` is ``None`` (``tiny``, ``quickstart``, ...).
         cache_dir: Where synthetic datasets are cached (default: ``$AIRFISHEYE_DATA`` or ``~/.cache/airfisheye-bench``).
         source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
-        camera: Served camera: ``{"size": 512, "model": ..., "fov_deg": ..., "k": ...}``; unset keys follow the release.
+        camera: Served camera: ``{"size": 512, "model": ..., "fov_deg": ..., "k": ...}``, or a calibrated lens
+            ``{"size": 512, "calibration": <file>, "camera": <name or index>, "fit": "pad" | "crop"}``; unset keys
+            follow the release (``datamodules.dataset.CameraConfig``).
         occlusion: LiDAR occlusion correction for completion: ``ordering`` | ``zbuffer`` | ``hpr`` | ``none``.
         occlusion_options: Options of that method, e.g. ``{"elevation_tolerance": -0.25}`` for ``ordering``,
             ``{"kernel": 5, "threshold": 1.0, "relative": False}`` for ``zbuffer``, ``{"radius": 100}`` for
@@ -117,8 +119,14 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.seed = seed
         self.dataset_seed = dataset_seed
         self.camera_config = CameraConfig(
-            **_options("camera", camera or {}, {"size", "model", "fov_deg", "k"}, ("k",))
+            **_options(
+                "camera",
+                camera or {},
+                {"size", "model", "fov_deg", "k", "calibration", "camera", "fit"},
+                ("k",),
+            )
         )
+        self.camera_config.calibrated_lens()  # a bad calibration file is refused before any data is generated
         augment_kwargs = _options(
             "augment", augment or {}, {"hflip", "rotate_deg", "color_jitter"}, ("color_jitter",)
         )

@@ -6,8 +6,14 @@ Measures, on one thread:
     ``cv2.remap`` on the same data (OpenCV's fastest layout: the faces as one padded atlas with fixed-point
     ``CV_16SC2`` maps, so cv2 does a single remap per modality, as py360convert does).
 
+And, with ``--models``, one row per camera-model family (each a published calibration scaled to an
+``out x out`` sensor, ``tests/geometry/golden/calibrations.json``): the time to build the camera's ray grid and
+valid mask (back-projection of every pixel: closed forms or vectorised Newton), the bilinear lookup table from
+scratch, and one RGB remap with it.
+
 Usage:
     python scripts/bench_remap.py [--face 1024] [--out 1536] [--repeat 7]
+    python scripts/bench_remap.py --models [--face 1024] [--out 1536] [--repeat 3]
 
 OpenCV comes from the optional ``bench`` extra (``pip install -e ".[bench]"``).
 """
@@ -15,13 +21,17 @@ OpenCV comes from the optional ``bench`` extra (``pip install -e ".[bench]"``).
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
+from airfisheye_bench.geometry import CameraModel, CubemapToFisheye, FisheyeCamera, camera_from_dict
 from airfisheye_bench.geometry.cubemap import _TABLES, direction_to_face
+
+CALIBRATIONS = Path(__file__).resolve().parents[1] / "tests" / "geometry" / "golden" / "calibrations.json"
 
 
 def timeit(fn, repeat: int) -> float:
@@ -92,12 +102,79 @@ def bench(face: int, out: int, repeat: int) -> dict[str, float]:
     return {"lut_ms": lut_ms, "ours": ours, "cv2": cv, "cv2_atlas_ms": cv_with_atlas}
 
 
+def model_cameras(out: int) -> dict[str, CameraModel]:
+    """One camera per model family on an ``out x out`` sensor: the published calibrations, scaled."""
+    cal = {k: v["camera"] for k, v in json.loads(CALIBRATIONS.read_text())["cameras"].items()}
+    cams = {
+        "equidistant": FisheyeCamera(out, out),
+        "kannala_brandt (old form)": FisheyeCamera(
+            out, out, model="kannala_brandt", k=(0.05, -0.01, 0.002, -0.0003)
+        ),
+    }
+    for family, name in (
+        ("kannala_brandt (TUM-VI)", "tumvi512_cam0_kb"),
+        ("double_sphere (TUM-VI)", "tumvi512_cam0_ds"),
+        ("eucm (TUM-VI)", "tumvi512_cam0_eucm"),
+        ("unified (KITTI-360 image_02)", "kitti360_image_02"),
+        ("ocam (Kodak SP360)", "ocam_kodak_sp360"),
+        ("pinhole_radtan (ROS plumb_bob)", "ros_kodak_plumb_bob"),
+    ):
+        cams[family] = camera_from_dict(cal[name]).resized(out, out)
+    ws = cal[
+        "woodscape_front"
+    ]  # 1280 x 966: scale the lens by out / 1280 onto a square sensor, same centre offsets
+    s = out / ws["width"]
+    off_x, off_y = ws["cx"] - (ws["width"] - 1) / 2, ws["cy"] - (ws["height"] - 1) / 2
+    cams["radial_poly (WoodScape front)"] = camera_from_dict(
+        {
+            "model": "radial_poly",
+            "width": out,
+            "height": out,
+            **{k: ws[k] * s for k in ("k1", "k2", "k3", "k4")},
+            "cx": (out - 1) / 2 + off_x * s,
+            "cy": (out - 1) / 2 + off_y * s,
+        }
+    )
+    return cams
+
+
+def bench_models(face: int, out: int, repeat: int) -> None:
+    """One row per camera-model family: ray grid + valid mask, bilinear table, one RGB remap."""
+    torch.set_num_threads(1)
+    rgb = torch.from_numpy(np.random.default_rng(0).integers(0, 256, (5, face, face, 3), dtype=np.uint8))
+    rgb = rgb.permute(0, 3, 1, 2)
+    print(
+        f"| model (calibration) | {out}^2: ray grid + valid mask (ms) | bilinear table from scratch (ms) "
+        f"| RGB remap (ms) | valid pixels |"
+    )
+    print("|---|---|---|---|---|")
+    for family, cam in model_cameras(out).items():
+        grid, table = [], []
+        for _ in range(repeat):
+            fresh = camera_from_dict(cam.to_dict())  # new instance: nothing cached
+            _TABLES.clear()
+            t0 = time.perf_counter()
+            fresh.valid_mask()
+            t1 = time.perf_counter()
+            remap = CubemapToFisheye(fresh, face)
+            remap.table("bilinear")
+            grid.append((t1 - t0) * 1e3)
+            table.append((time.perf_counter() - t0) * 1e3)
+        rgb_ms = timeit(lambda remap=remap: remap(rgb, "bilinear"), repeat)
+        valid = float(fresh.valid_mask().float().mean())
+        print(f"| {family} | {min(grid):.0f} | {min(table):.0f} | {rgb_ms:.1f} | {valid:.1%} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--face", type=int, nargs="+", default=[1024, 512])
     parser.add_argument("--out", type=int, nargs="+", default=[1536, 512])
     parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--models", action="store_true", help="one row per camera-model family instead")
     args = parser.parse_args()
+    if args.models:
+        bench_models(args.face[0], args.out[0], args.repeat)
+        return
     print(
         "| faces | output | LUT build (ms) | ours RGB / label / depth (ms) | cv2 RGB / label / depth (ms) "
         "| ours total | cv2 total | ratio | cv2 incl. atlas copy |"

@@ -93,6 +93,11 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
     onnx.write_bytes(b"not a protobuf at all \xff\xff\xff")
     a_file = tmp / "a_file"
     a_file.write_text("x")
+    ds_radtan = tmp / "camchain-ds-radtan.yaml"  # Kalibr's ds model takes no distortion; radtan is refused
+    ds_radtan.write_text(
+        "cam0:\n  camera_model: ds\n  distortion_model: radtan\n  distortion_coeffs: [0.01, 0.0, 0.0, 0.0]\n"
+        "  intrinsics: [-0.17, 0.59, 158.3, 158.3, 254.9, 256.9]\n  resolution: [512, 512]\n"
+    )
     train = [*tiny_run_overrides("seg", dataset)]
     # On the synthetic preset with an empty cache: a row refused before any work leaves the cache without a dataset.
     fresh = [*train, "data.root=null", "data.preset=tiny", f"paths.data_dir={tmp}/cache"]
@@ -154,6 +159,23 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             TRAIN,
             [*fresh, f"model.encoder_weights={tmp}/nope/resnet18.pth", f"hydra.run.dir={tmp}/r11"],
             ("model.encoder_weights", f"{tmp}/nope/resnet18.pth"),
+        ),
+        # A calibrated lens (data.camera.calibration): a missing file, and a model no reader supports.
+        "calibration_missing": (
+            TRAIN,
+            [*fresh, f"data.camera.calibration={tmp}/nope/camchain.yaml", f"hydra.run.dir={tmp}/r16"],
+            (f"data.camera.calibration='{tmp}/nope/camchain.yaml'", "no such file"),
+        ),
+        "calibration_model": (
+            TRAIN,
+            [*fresh, f"data.camera.calibration={ds_radtan}", f"hydra.run.dir={tmp}/r17"],
+            (
+                "data.camera.calibration",
+                str(ds_radtan),
+                "cam0.distortion_model",
+                "ds-radtan is not supported",
+                "ds-none",
+            ),
         ),
         "root_missing": (
             TRAIN,
@@ -285,6 +307,8 @@ FAIL_FAST = (
     "encoder_weights",
     "preset",
     "root_unset",
+    "calibration_missing",
+    "calibration_model",
 )
 """Rows on the synthetic preset with an empty cache, refused before the dataset is generated."""
 
@@ -293,6 +317,8 @@ DEFAULT_ROWS = (
     "camera_size",
     "lens_model",
     "occlusion",
+    "calibration_missing",
+    "calibration_model",
     "root_missing",
     "encoding",
     "predictions_nan",
@@ -386,6 +412,18 @@ SCHEMA_TABLE = [
         ["data.camera.model=fisheye9000"],
         "data.camera.model='fisheye9000': expected one of equidistant",
     ),
+    (
+        "train",
+        ["data.camera.calibration=/nonexistent/camchain.yaml"],
+        "data.camera.calibration='/nonexistent/camchain.yaml': no such file",
+    ),
+    (
+        "train",
+        ["data.camera.calibration=/"],
+        "data.camera.calibration='/': is a folder, expected a calibration file",
+    ),
+    ("train", ["data.camera.fit=stretch"], "data.camera.fit='stretch': expected one of pad, crop"),
+    ("evaluate", ["allow_camera_mismatch=sure"], "allow_camera_mismatch='sure': expected true or false"),
     ("train", ["data.occlusion=zbufer"], "data.occlusion='zbufer': expected one of ordering"),
     ("train", ["data.source=pinhole"], "data.source='pinhole': expected one of cubemap, fisheye"),
     ("train", ["data.augment.hflip=2"], "data.augment.hflip=2: expected a number in [0, 1]"),

@@ -322,7 +322,7 @@ class BenchOptions:
 def _synth_key(key: str) -> bool:
     from airfisheye_bench.synth.presets import SynthConfig  # at run time: see the module docstring
 
-    return key.startswith("flight.") or key in {f.name for f in dataclasses.fields(SynthConfig)}
+    return key.startswith(("flight.", "camera.")) or key in {f.name for f in dataclasses.fields(SynthConfig)}
 
 
 GENERATE = Command(
@@ -331,7 +331,8 @@ GENERATE = Command(
     "Generate a synthetic AirFisheye dataset (subcommands: verify, contact_sheet, presets, bench; each has --help).",
     "airfisheye-generate [preset=tiny] [out=DIR]",
     extra=_synth_key,
-    extra_help="<field>=<value>, flight.<field>=<value>: a field of the preset's SynthConfig / FlightConfig",
+    extra_help="<field>=<value>, flight.<field>=<value>: a field of the preset's SynthConfig / FlightConfig; "
+    "camera.calibration=<file> [camera.camera=<name>] [camera.size=N] [camera.fit=pad|crop]: a calibrated lens",
 )
 GENERATE_SUBCOMMANDS = {
     "verify": Command(

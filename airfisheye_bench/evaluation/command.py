@@ -41,6 +41,7 @@ from airfisheye_bench.evaluation.predictors import (
 )
 from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
+from airfisheye_bench.io.calibration_files import camera_mismatch
 from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.metrics.scorer import TaskScorer
@@ -66,6 +67,7 @@ EVALUATE_RULES: dict[str, ValueRule] = {
     "prediction_format": ValueRule("choice", choices=DEPTH_FORMATS, hint="of saved depth predictions"),
     "num_panels": ValueRule("int", minimum=0),
     "threads": ValueRule("int", minimum=1, nullable=True, hint="null: ONNX Runtime's default"),
+    "allow_camera_mismatch": ValueRule("bool", hint="score an ONNX model on data served with another camera"),
 }
 """``evaluate.yaml``'s own options (the common keys are :data:`airfisheye_bench.config_checks.RULES`)."""
 
@@ -116,6 +118,8 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     dataset = datamodule.split_dataset(cfg.split)
     camera = datamodule.camera
     predictor = _predictor(cfg, source, task, module, checkpoint, dataset, camera)
+    if source == "onnx_path":  # after the image-size check, which no flag can waive
+        _check_camera(cfg, metadata["camera"], camera)
 
     max_depth = float(data_config.get("max_depth", 120.0))
     if module is not None:
@@ -126,7 +130,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     rings = module.hparams.ring_edges_deg if module is not None else DEFAULT_RING_EDGES_DEG
     scorer = TaskScorer(
         factory,
-        ring_edges_deg=ring_edges_for(camera.fov_deg, rings),
+        ring_edges_deg=ring_edges_for(camera.coverage_deg, rings),
         depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None,
     )
     theta = torch.rad2deg(camera.theta_grid()).float()
@@ -207,6 +211,20 @@ def _datamodule(
     data.num_workers = 0  # the evaluation loop makes its own loader (cfg.num_workers)
     data.persistent_workers = False
     return instantiate_datamodule(data), OmegaConf.to_container(data)
+
+
+def _check_camera(cfg: DictConfig, model_camera: dict[str, Any], served) -> None:
+    """Refuse to score an ONNX model on data served with another camera than the one it was exported for."""
+    mismatch = camera_mismatch(model_camera, served)
+    if mismatch is None:
+        return
+    message = f"ONNX model {cfg.onnx_path} was exported for another camera than the data serves: {mismatch}"
+    if cfg.get("allow_camera_mismatch"):
+        log.warning("%s (allow_camera_mismatch=true: scoring anyway)", message)
+        return
+    raise ConfigError(
+        f"{message}; drop the data.camera overrides, or pass allow_camera_mismatch=true to score it anyway"
+    )
 
 
 def _predictor(

@@ -44,6 +44,7 @@ from typing import Any
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.errors import MissingFileError, UserError
 from airfisheye_bench.evaluation.results import RESULTS_VERSION, evaluated_label, load_results
+from airfisheye_bench.io.calibration_files import camera_label
 from airfisheye_bench.runs import checkpoint_run_name
 from airfisheye_bench.specs import MetricColumn, UnknownTaskError, all_tasks, get_task
 
@@ -77,6 +78,7 @@ _IDENTITY_COLUMNS = (
     "evaluated",
     "source",
     "split",
+    "camera",
     "dataset",
     "manifest_sha256",
     "run",
@@ -84,7 +86,7 @@ _IDENTITY_COLUMNS = (
 )
 _BIN = re.compile(r"^(?P<kind>ring|range)_(?P<lo>\d+(?:\.\d+)?)-(?P<hi>\d+(?:\.\d+)?)/(?P<metric>.+)$")
 _TEXT_COLUMNS = frozenset(
-    {"model", "evaluated", "source", "split", "run"}
+    {"model", "evaluated", "source", "split", "camera", "run"}
 )  # left-aligned; numbers are right-aligned
 MISSING = "–"
 PAPER_SOURCE = "paper (real AirFisheye)"
@@ -121,6 +123,8 @@ class LeaderboardEntry:
             of the results; empty when unknown or for the paper's rows).
         evaluated: The row's label of what was evaluated, e.g. ``checkpoint epoch_003``, ``ONNX int8, flip TTA``
             or ``predictions`` (:func:`~airfisheye_bench.evaluation.results.evaluated_label`; empty when unknown).
+        camera: The served camera, ``<model> <W>x<H>`` (``config.camera`` of the results; empty when unknown or
+            for the paper's rows).
     """
 
     task: str
@@ -135,6 +139,7 @@ class LeaderboardEntry:
     path: str | None = None
     predictor: str = ""
     evaluated: str = ""
+    camera: str = ""
 
     @property
     def source(self) -> str:
@@ -336,7 +341,15 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         path=str(path),
         predictor=str(model.get("source") or ("checkpoint" if model.get("checkpoint") else "")),
         evaluated=evaluated_label(model),
+        camera=_camera(record),
     )
+
+
+def _camera(record: Mapping[str, Any]) -> str:
+    """The served camera's label from ``config.camera`` (written by training and evaluation), else empty."""
+    config = record.get("config")
+    camera = config.get("camera") if isinstance(config, Mapping) else None
+    return camera_label(camera) if isinstance(camera, Mapping) else ""
 
 
 def _run_name(model: Mapping[str, Any], path: Path) -> str:
@@ -608,7 +621,7 @@ class Leaderboard:
             >>> print(build_leaderboard([], paper=True).to_markdown())  # doctest: +ELLIPSIS
             # AirFisheye-bench leaderboard
             ...
-            | 1 | DeepLabV3+ / ResNet50 | paper | paper (real AirFisheye) | test | 51.2 | – | paper IV-A |
+            | 1 | DeepLabV3+ / ResNet50 | paper | paper (real AirFisheye) | test | – | 51.2 | – | paper IV-A |
             ...
         """
         paper = " plus the paper's baselines" if self.paper else ""
@@ -629,7 +642,8 @@ class Leaderboard:
     @staticmethod
     def _table_markdown(table: TaskTable) -> list[str]:
         order = "higher is better" if table.higher_is_better else "lower is better"
-        headers = ["rank", "model", "evaluated", "source", "split", *(metric_label(c) for c in table.columns)]
+        headers = ["rank", "model", "evaluated", "source", "split", "camera"]
+        headers += [metric_label(c) for c in table.columns]
         headers += [rim_label(table.rim_key)] if table.rim_key else []
         headers += ["run"]
         lines = [
@@ -637,7 +651,7 @@ class Leaderboard:
             "",
             f"Sorted by {metric_label(table.primary)}, {order}; rows that print the same share a rank. Rows: "
             "each evaluated model on one split (evaluated: checkpoint, ONNX fp32/int8, prediction folder, TTA; "
-            "run: the training run or the evaluation's name); the rim column is the outermost incidence-angle "
+            "camera: the served lens model and image size; run: the training run or the evaluation's name); the rim column is the outermost incidence-angle "
             "ring, where fisheye distortion is strongest.",
         ]
         for group in table.groups:
@@ -652,6 +666,7 @@ class Leaderboard:
                     evaluated,
                     entry.source,
                     entry.split,
+                    entry.camera or MISSING,
                 ]
                 cells += [format_value(c, entry.metrics.get(c)) for c in table.columns]
                 if table.rim_key:
@@ -665,7 +680,7 @@ class Leaderboard:
 
         Example:
             >>> print(build_leaderboard([], paper=True).to_csv().splitlines()[1])  # doctest: +ELLIPSIS
-            seg,1,DeepLabV3+ / ResNet50,paper,paper (real AirFisheye),test,AirFisheye (real),,paper IV-A,mIoU,0.512,...
+            seg,1,DeepLabV3+ / ResNet50,paper,paper (real AirFisheye),test,,AirFisheye (real),,paper IV-A,mIoU,0.512,...
         """
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
@@ -695,7 +710,16 @@ class Leaderboard:
 def _csv_row(table: TaskTable, rank: int | None, e: LeaderboardEntry) -> list[object]:
     rim = e.breakdown.get(table.rim_key) if table.rim_key else None
     evaluated = "paper" if e.paper else e.evaluated
-    head = [e.task, "" if rank is None else rank, e.model, evaluated, e.source, e.split, e.dataset_name]
+    head = [
+        e.task,
+        "" if rank is None else rank,
+        e.model,
+        evaluated,
+        e.source,
+        e.split,
+        e.camera,
+        e.dataset_name,
+    ]
     head += [e.manifest_sha256 or "", e.run, table.primary]
     return [
         *head,

@@ -352,6 +352,7 @@ def _identity(
         ("dataset root", shown(dataset.get("root"))),
         ("manifest sha256", e.manifest_sha256),
         ("split", e.split),
+        ("camera", e.camera or None),
         ("results.json", shown(e.path)),
         ("created", record.get("created")),
     ]

@@ -366,12 +366,26 @@ def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[
         model_config=model_config,
         normalization=datamodule.normalization,
         camera=datamodule.camera.to_dict(),
-        data_config=OmegaConf.to_container(data_cfg, resolve=True),
+        data_config=_portable_data_config(data_cfg, datamodule),
         checkpoint_sha256=sha256_file(checkpoint),
         source_checkpoint=str(checkpoint.resolve()),
         weights=task.hparams.get("weights"),
         **{k: available[k] for k in spec.export.metadata},
     )
+
+
+def _portable_data_config(data_cfg: DictConfig, datamodule) -> dict:
+    """The run's data config as plain data, with a calibration file replaced by the camera it holds.
+
+    The metadata must rebuild the served camera wherever the model goes, without the training machine's file:
+    ``camera.calibration`` becomes the calibrated lens's flat dict (``camera.camera`` is then no longer needed).
+    """
+    config = OmegaConf.to_container(data_cfg, resolve=True)
+    camera = config.get("camera") or {}
+    if isinstance(camera.get("calibration"), str):
+        lens = datamodule.camera_config.calibrated_lens()
+        config["camera"] = {**camera, "calibration": lens.to_dict(), "camera": None}
+    return config
 
 
 # ------------------------------------------------------------------------------------------------ export

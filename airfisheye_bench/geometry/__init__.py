@@ -1,6 +1,7 @@
-"""Geometry: fisheye camera models, cubemap-to-fisheye remapping, rigid transforms, LiDAR projection and occlusion."""
+"""Geometry: camera models, cubemap-to-fisheye remapping, rigid transforms, LiDAR projection and occlusion."""
 
 from airfisheye_bench.geometry.camera import MODELS, FisheyeCamera, incidence_angle
+from airfisheye_bench.geometry.cameras import CAMERA_MODELS, CameraModel, camera_from_dict
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, CubemapToFisheye, face_rays, face_rotation
 from airfisheye_bench.geometry.lidar import LidarSpec, organize_scan, spherical_coordinates
 from airfisheye_bench.geometry.occlusion import (
@@ -24,14 +25,17 @@ from airfisheye_bench.geometry.transforms import (
 )
 
 __all__ = [
+    "CAMERA_MODELS",
     "CAM_FROM_FLU",
     "FACE_NAMES",
     "MODELS",
     "OCCLUSION_METHODS",
+    "CameraModel",
     "CubemapToFisheye",
     "FisheyeCamera",
     "LidarProjection",
     "LidarSpec",
+    "camera_from_dict",
     "check_rigid",
     "euler_to_matrix",
     "face_rays",

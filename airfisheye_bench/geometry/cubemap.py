@@ -38,7 +38,7 @@ import torch
 from airfisheye_bench.atomic import atomic_write
 from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
-from airfisheye_bench.geometry.camera import FisheyeCamera
+from airfisheye_bench.geometry.cameras import CameraModel
 
 FACE_NAMES: tuple[str, ...] = ("front", "left", "right", "up", "down")
 
@@ -141,6 +141,7 @@ class CubemapToFisheye:
         cache_dir: Optional directory for an on-disk cache of the tables, keyed by all parameters.
 
     Example:
+        >>> from airfisheye_bench.geometry import FisheyeCamera
         >>> remap = CubemapToFisheye(FisheyeCamera(64, 64), face_size=32)
         >>> faces = torch.rand(5, 3, 32, 32)
         >>> remap(faces).shape, remap(faces, mode="nearest").shape
@@ -151,13 +152,15 @@ class CubemapToFisheye:
 
     def __init__(
         self,
-        camera: FisheyeCamera,
+        camera: CameraModel,
         face_size: int,
         supersample: int = 1,
         cache_dir: str | os.PathLike | None = None,
     ) -> None:
-        if not isinstance(camera, FisheyeCamera):
-            raise ValueError(f"camera must be a FisheyeCamera, got {type(camera).__name__}")
+        if not isinstance(camera, CameraModel):
+            raise ValueError(
+                f"camera must be a CameraModel (FisheyeCamera(...), camera_from_dict(...)), got {type(camera).__name__}"
+            )
         _check_face_size(face_size)
         if int(supersample) != supersample or supersample < 1:
             raise ValueError(f"supersample must be a positive integer, got {supersample}")
@@ -241,8 +244,9 @@ class CubemapToFisheye:
         for dy in offsets.tolist():
             for dx in offsets.tolist():
                 sub_rays = cam.unproject(uv + torch.tensor([dx, dy], dtype=torch.float64))
-                # Sub-samples outside the image circle get no weight (the pixel is only partly inside).
-                sub_inside = torch.acos(sub_rays[:, 2].clamp(-1.0, 1.0)) <= cam.max_theta + 1e-12
+                # Sub-samples outside the valid region get no weight (the pixel is only partly inside).
+                sub_inside = cam.project(sub_rays)[1] & torch.isfinite(sub_rays).all(-1)
+                sub_rays = sub_rays.nan_to_num(0.0, 0.0, 0.0)
                 idx, w = _bilinear_taps(*direction_to_face(sub_rays, s), s)
                 indices.append(idx)
                 weights.append(w * sub_inside)

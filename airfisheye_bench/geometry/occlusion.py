@@ -114,7 +114,7 @@ import torch
 
 from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
-from airfisheye_bench.geometry.camera import FisheyeCamera
+from airfisheye_bench.geometry.cameras import CameraModel as FisheyeCamera  # any model (old name)
 from airfisheye_bench.geometry.lidar import (
     LidarSpec,
     ScanLayout,
@@ -432,6 +432,7 @@ def _project(points: np.ndarray, T: np.ndarray, camera: FisheyeCamera) -> _Proje
     # maths below (and in camera.project, which gets the transposed view) on contiguous vectors.
     x, y, z = (points @ T[k, :3] + T[k, 3] for k in range(3))
     uv, valid = camera.project(np.stack([x, y, z]).T)
+    valid &= camera.in_image(uv)  # project() answers for the lens; the image bounds are the caller's
     rng = x * x
     rng += y * y
     rng += z * z
@@ -448,13 +449,10 @@ def _pixel_index(uv: np.ndarray, camera: FisheyeCamera) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------- z-buffer
 @functools.lru_cache(maxsize=4)  # a few cameras at a time (the served one, a benchmark's sizes)
 def _pixels_per_radian(camera: FisheyeCamera) -> np.ndarray:
-    """Image scale ``[H * W]`` (float32, pixels per radian) at every pixel: the larger of the lens's radial
-    scale ``f r'(theta)`` and tangential scale ``f r(theta) / sin(theta)`` (both ``f r'(0)`` on the axis)."""
-    theta = camera._theta64.reshape(-1).nan_to_num(0.0).clamp(1e-6, math.pi - 1e-6)
-    step = 1e-6
-    radial = (camera._radius_unit(theta + step) - camera._radius_unit(theta - step)) / (2.0 * step)
-    tangential = camera._radius_unit(theta) / torch.sin(theta)
-    return (camera.focal * torch.maximum(radial, tangential)).to(torch.float32).numpy()
+    """Image scale ``[H * W]`` (float32, pixels per radian) at every pixel: the camera model's largest local
+    scale (``CameraModel.pixels_per_radian``; for a radial lens the larger of ``f r'(theta)`` and
+    ``f r(theta) / sin(theta)``)."""
+    return camera.pixels_per_radian().reshape(-1).to(torch.float32).numpy()
 
 
 def _zbuffer_mask(

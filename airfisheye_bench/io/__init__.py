@@ -1,10 +1,12 @@
-"""Reading and writing the on-disk AirFisheye layout (``docs/design.md``), for synthetic and real releases alike.
+"""Reading and writing the on-disk AirFisheye layout (``docs/design.md``), for synthetic and real releases alike,
+and the calibration files of other tools (:func:`load_camera`, ``docs/design.md`` "Calibration files").
 
 This package is the one place that knows file names and encodings; the generator writes through it and the
 datamodules read through it (:class:`DatasetReader`).
 """
 
 from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calibration_files import load_camera, read_calibration, save_camera
 from airfisheye_bench.io.codecs import (
     read_depth,
     read_label,
@@ -19,7 +21,7 @@ from airfisheye_bench.io.codecs import (
     write_rgb,
     write_visibility,
 )
-from airfisheye_bench.io.errors import DatasetFormatError
+from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
 from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
 from airfisheye_bench.io.reader import DatasetReader
@@ -37,6 +39,7 @@ __all__ = [
     "DATASET_YAML",
     "MODALITIES",
     "Calibration",
+    "CalibrationFileError",
     "ClassDef",
     "DatasetFormatError",
     "DatasetLayout",
@@ -48,7 +51,9 @@ __all__ = [
     "SplitsSpec",
     "camera_from_lidar",
     "classes_from",
+    "load_camera",
     "parse_sample_id",
+    "read_calibration",
     "read_depth",
     "read_label",
     "read_lidar",
@@ -56,6 +61,7 @@ __all__ = [
     "read_rgb",
     "read_split",
     "read_visibility",
+    "save_camera",
     "trajectory_of",
     "write_depth",
     "write_label",

@@ -1,6 +1,8 @@
 """``calib.yaml``: per-trajectory sensor calibration.
 
-Contents: the fisheye camera model (``FisheyeCamera.to_dict``), the cube-face size, the body -> sensor extrinsics
+Contents: the fisheye camera (its flat dict, ``CameraModel.to_dict()``: any model of ``geometry/cameras/``; a
+calibration file of another tool becomes one with :func:`~airfisheye_bench.io.calibration_files.load_camera`), the
+cube-face size, the body -> sensor extrinsics
 ``T_body_cam`` and ``T_body_lidar`` (4x4, mapping sensor-frame points to the body frame) and the LiDAR
 specification (``LidarSpec.to_dict``). Anything else is kept under ``extras`` (e.g. the gimbal pitch).
 
@@ -35,7 +37,7 @@ class Calibration:
     """Sensor calibration of one trajectory.
 
     Attributes:
-        camera: ``FisheyeCamera.to_dict()`` of the (pre-rendered) fisheye camera.
+        camera: ``to_dict()`` of the (pre-rendered) fisheye camera, any camera model.
         face_size: Cube-face size in pixels (``None`` if the trajectory has no cube faces).
         T_body_cam: ``[4, 4]`` camera (OpenCV axes) -> body (FLU).
         T_body_lidar: ``[4, 4]`` LiDAR (FLU axes) -> body.
@@ -51,7 +53,7 @@ class Calibration:
     extras: dict = field(default_factory=dict)
 
     def fisheye_camera(self):
-        """The :class:`~airfisheye_bench.geometry.FisheyeCamera` described by ``camera``."""
+        """The camera described by ``camera`` (``camera_from_dict``: any model)."""
         return FisheyeCamera.from_dict(self.camera)
 
     def lidar_spec(self):

@@ -14,11 +14,14 @@ Every task:
 - ``airfisheye.output``: graph output name, ``logits`` (seg) or ``depth``.
 - ``airfisheye.normalization``: JSON ``{"mean": [r, g, b], "std": [r, g, b]}``, meaning
   ``image = (rgb / 255 - mean) / std``, RGB order, NCHW float32.
-- ``airfisheye.camera``: JSON ``FisheyeCamera.to_dict()`` of the served camera (lens model, FOV, width, height,
-  principal point, focal).
+- ``airfisheye.camera``: JSON of the served camera's flat dict (``CameraModel.to_dict()``: ``model``, ``width``,
+  ``height`` and that model's parameters, docs/design.md "Fisheye camera"); ``camera_from_dict`` rebuilds it.
+  ``airfisheye-evaluate`` refuses to score the model on data served with another camera unless
+  ``allow_camera_mismatch=true``.
 - ``airfisheye.image_size``: JSON ``[H, W]`` the model was trained and verified at.
 - ``airfisheye.data_config``: JSON of the run's resolved ``data`` config (with the export-time overrides), enough
-  to rebuild the same datamodule (``hydra.utils.instantiate``).
+  to rebuild the same datamodule (``hydra.utils.instantiate``); a ``camera.calibration`` file is replaced by the
+  flat dict of the lens it holds, so no file of the training machine is needed.
 - ``airfisheye.checkpoint_sha256``: SHA-256 of the source ``.ckpt`` file.
 - ``airfisheye.source_checkpoint``: path of the source ``.ckpt`` file.
 
@@ -175,7 +178,7 @@ def deployment_metadata(
         model: registry name of the zoo model.
         model_config: the checkpoint's model hyperparameters (``{"name": ..., **kwargs}``).
         normalization: ``{"mean": [3 floats], "std": [3 floats]}`` applied to ``rgb / 255``.
-        camera: :meth:`FisheyeCamera.to_dict` of the served camera (needs ``width`` and ``height``).
+        camera: the served camera's ``to_dict()`` (needs ``width`` and ``height``).
         data_config: the run's resolved ``data`` config as plain containers.
         checkpoint_sha256: hex digest of the checkpoint file.
         source_checkpoint: path of the checkpoint file.
@@ -213,7 +216,7 @@ def deployment_metadata(
         )
     if "width" not in camera or "height" not in camera:
         raise ValueError(
-            f"camera must describe 'width' and 'height' (FisheyeCamera.to_dict()), got {dict(camera)}"
+            f"camera must describe 'width' and 'height' (CameraModel.to_dict()), got {dict(camera)}"
         )
     values: dict[str, Any] = {
         KEY_FORMAT_VERSION: FORMAT_VERSION,

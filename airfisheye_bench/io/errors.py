@@ -35,3 +35,17 @@ class DatasetFormatError(UserError, ValueError):
         # Pickle by the constructor's arguments (the default re-calls __init__ with the formatted message only),
         # so the error crosses process boundaries intact (worker pools, DataLoader workers).
         return type(self), (self.path, self.message, self.key)
+
+
+class CalibrationFileError(DatasetFormatError):
+    """A calibration file (OpenCV, ROS, Kalibr, basalt, COLMAP, KITTI-360, WoodScape, OCamCalib or the project's own)
+    cannot be read as a camera: an unknown layout, an unsupported lens model, a missing key or a wrong value.
+
+    The message names the file, the key (dotted, ``cam1.distortion_model``) and what is supported.
+
+    Example:
+        >>> err = CalibrationFileError("camchain.yaml", "ds + radtan is not supported; supported: ds + none",
+        ...                            key="cam0.distortion_model")
+        >>> isinstance(err, ValueError), str(err)
+        (True, "camchain.yaml: key 'cam0.distortion_model': ds + radtan is not supported; supported: ds + none")
+    """

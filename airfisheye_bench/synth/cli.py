@@ -6,6 +6,7 @@ Their command line is ``airfisheye-generate`` (:func:`airfisheye_bench.cli.comma
     airfisheye-generate preset=tiny out=DIR [seed=0] [workers=2] [device=cpu] [verify=true] [contact_sheet=true]
     airfisheye-generate preset=quickstart                 # no out=: generate into the cache (ensure_dataset)
     airfisheye-generate preset=tiny out=DIR face_size=96 total_frames=30 flight.altitude_m=[5,30]   # overrides
+    airfisheye-generate preset=tiny out=DIR camera.calibration=image_02.yaml [camera.size=256]  # a calibrated lens
     airfisheye-generate verify root=DIR                   # check a dataset against its manifest.json
     airfisheye-generate contact_sheet root=DIR [sample=env/traj/frame] [png=PATH]   # default DIR/contact_sheet.png
     airfisheye-generate presets                           # list the presets
@@ -19,6 +20,7 @@ override grammar, as every option is.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import tempfile
 import time
 from pathlib import Path
@@ -26,24 +28,37 @@ from pathlib import Path
 import torch
 
 from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.geometry.serving import FITS, serve_camera
+from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.manifest import verify as verify_manifest
 from airfisheye_bench.synth.contact_sheet import write_contact_sheet
 from airfisheye_bench.synth.presets import PRESETS, SynthConfig, get_preset, plan_trajectories
 from airfisheye_bench.synth.scene import ENVIRONMENTS
 from airfisheye_bench.synth.writer import _Job, _Worker, ensure_dataset, generate_dataset
 
+log = logging.getLogger(__name__)
+
+
+#: ``camera.<key>`` options of the generator: a calibrated lens for the fisheye (see :func:`calibrated_fisheye`).
+CAMERA_KEYS = ("calibration", "camera", "size", "fit")
+
 
 def build_config(preset: str, overrides: dict[str, object]) -> SynthConfig:
-    """The preset with ``overrides`` applied (``flight.x`` keys go to the flight config).
+    """The preset with ``overrides`` applied (``flight.x`` keys go to the flight config, ``camera.x`` keys choose a
+    calibrated lens: :func:`calibrated_fisheye`).
 
     Raises:
-        ConfigError: A key that is no field of :class:`SynthConfig` or of its flight config.
+        ConfigError: A key that is no field of :class:`SynthConfig`, of its flight config or of ``camera.``.
 
     Example:
         >>> build_config("tiny", {"face_size": 96, "flight.altitude_m": [5, 30]}).flight.altitude_m
         (5, 30)
     """
     cfg = get_preset(preset)
+    camera = {k.split(".", 1)[1]: overrides[k] for k in overrides if k.startswith("camera.")}
+    overrides = {k: v for k, v in overrides.items() if not k.startswith("camera.")}
+    if camera:
+        overrides = {**overrides, **calibrated_fisheye(cfg, camera)}
     top = {f.name for f in dataclasses.fields(SynthConfig)}
     flight_fields = {f.name for f in dataclasses.fields(type(cfg.flight))}
     changes: dict[str, object] = {}
@@ -67,6 +82,39 @@ def build_config(preset: str, overrides: dict[str, object]) -> SynthConfig:
     if changes and "name" not in changes:
         changes["name"] = f"{preset}-custom"
     return cfg.replace(**changes) if changes else cfg
+
+
+def calibrated_fisheye(cfg: SynthConfig, options: dict[str, object]) -> dict[str, object]:
+    """``SynthConfig`` overrides that render the fisheye through a calibrated lens.
+
+    ``options``: ``calibration`` (a calibration file of any format of :mod:`airfisheye_bench.io.calibration_files`),
+    ``camera`` (which camera of a file with several), ``size`` (the fisheye's side in pixels; default the preset's
+    ``fisheye_size``) and ``fit`` (``pad`` | ``crop`` for a non-square calibration). The lens is served at ``size x
+    size`` by the rule of :mod:`airfisheye_bench.geometry.serving` (the pad or crop is logged).
+
+    Raises:
+        ConfigError: an unknown ``camera.`` key, no ``calibration``, a preset without a fisheye, or a bad file.
+    """
+    unknown = sorted(set(options) - set(CAMERA_KEYS))
+    if unknown:
+        raise ConfigError(f"unknown option camera.{unknown[0]}; camera options: {', '.join(CAMERA_KEYS)}")
+    if not options.get("calibration"):
+        raise ConfigError("camera.calibration=<file> is needed with the other camera. options")
+    size = options.get("size") or cfg.fisheye_size
+    if not isinstance(size, int) or isinstance(size, bool) or size < 8:
+        raise ConfigError(f"camera.size={size!r}: expected an integer >= 8 (the fisheye's side in pixels)")
+    fit = options.get("fit") or "pad"
+    if fit not in FITS:
+        raise ConfigError(f"camera.fit={fit!r}: expected one of {', '.join(FITS)}")
+    if cfg.fisheye_source == "none":
+        raise ConfigError("camera.calibration needs a preset with a fisheye image (fisheye_source is none)")
+    try:
+        lens = load_camera(str(options["calibration"]), options.get("camera"), option="camera.camera")
+    except (ValueError, OSError) as err:
+        raise ConfigError(f"camera.calibration: {err}") from None
+    served = serve_camera(lens, int(size), str(fit))
+    log.info("fisheye camera from %s: %s", options["calibration"], served.describe())
+    return {"fisheye_size": int(size), "fisheye_calibration": served.camera.to_dict()}
 
 
 def presets_table() -> str:

@@ -149,6 +149,7 @@ def make_contact_sheet(root: str | Path, sample_id: str | None = None, tile: int
         points = reader.lidar(sample_id)
         cam_pts = transform_points(reader.T_cam_lidar(sample_id), points[:, :3].astype(np.float64))
         uv, valid = camera.project(cam_pts)
+        valid &= camera.in_image(uv)
         rng = np.linalg.norm(cam_pts, axis=1)
         order = np.argsort(-rng[valid])  # far first, near points drawn on top
         uv_v, rng_v = uv[valid][order], rng[valid][order]

@@ -47,7 +47,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.cameras import camera_from_dict
 from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.io.calibration_files import camera_label
 from airfisheye_bench.synth.sensors import ScanModel
 from airfisheye_bench.synth.trajectory import FlightConfig, SensorRig
 
@@ -71,6 +73,9 @@ class SynthConfig:
         fisheye_size: Width = height of the pre-rendered fisheye image (0: none).
         fisheye_fov_deg: Fisheye field of view.
         fisheye_model: Fisheye projection model (``FisheyeCamera`` model name).
+        fisheye_calibration: A calibrated camera's flat dict (``CameraModel.to_dict()``, already at
+            ``fisheye_size``), rendered instead of the ideal ``fisheye_model`` / ``fisheye_fov_deg`` lens; set by
+            ``airfisheye-generate camera.calibration=<file>`` (:func:`airfisheye_bench.synth.cli.build_config`).
         fisheye_source: ``raycast`` (directly ray-cast through the lens), ``remap`` (from the cube faces) or
             ``none``.
         lidar_channels: LiDAR channels (64 in the paper).
@@ -100,6 +105,7 @@ class SynthConfig:
     fisheye_fov_deg: float = 190.0
     fisheye_model: str = "equidistant"
     fisheye_source: str = "raycast"
+    fisheye_calibration: dict[str, Any] | None = None
     lidar_channels: int = 64
     lidar_points_per_channel: int = 2048
     lidar_hfov_deg: float = 270.0
@@ -151,6 +157,13 @@ class SynthConfig:
         if self.environments is not None and not self.environments:
             raise ValueError("environments must be None (all) or a non-empty tuple")
         self.scan_model()  # validates the lidar_phase / jitter / dropout fields
+        if self.fisheye_calibration is not None:
+            camera = self.fisheye_camera()  # validates the dict (camera_from_dict)
+            if camera is None or (camera.width, camera.height) != (self.fisheye_size, self.fisheye_size):
+                raise ValueError(
+                    f"fisheye_calibration is a {camera_label(self.fisheye_calibration)} camera, but fisheye_size is "
+                    f"{self.fisheye_size}; serve it at that size (airfisheye_bench.geometry.serving.serve_camera)"
+                )
 
     # --------------------------------------------------------------------------------- helpers
     def scan_model(self) -> ScanModel:
@@ -175,6 +188,8 @@ class SynthConfig:
         """The pre-rendered fisheye camera, or ``None`` if there is none."""
         if self.fisheye_size == 0:
             return None
+        if self.fisheye_calibration is not None:
+            return camera_from_dict(self.fisheye_calibration)
         return FisheyeCamera(
             self.fisheye_size, self.fisheye_size, fov_deg=self.fisheye_fov_deg, model=self.fisheye_model
         )
@@ -182,11 +197,11 @@ class SynthConfig:
     def to_dict(self) -> dict[str, Any]:
         """Plain nested dict (recorded in ``dataset.yaml``; :meth:`from_dict` inverts it).
 
-        The scan-model fields are left out while they have their defaults, so that datasets generated before
-        they existed keep their identity (and bytes).
+        The scan-model fields and ``fisheye_calibration`` are left out while they have their defaults, so that
+        datasets generated before they existed keep their identity (and bytes).
         """
         d = _plain(dataclasses.asdict(self))
-        for name, default in _SCAN_DEFAULTS.items():
+        for name, default in _OMITTED_DEFAULTS.items():
             if d[name] == default:
                 del d[name]
         return d
@@ -210,7 +225,8 @@ class SynthConfig:
         return dataclasses.replace(self, **changes)
 
 
-_SCAN_DEFAULTS = {
+_OMITTED_DEFAULTS = {
+    "fisheye_calibration": None,  # the ideal lens of fisheye_model (datasets before calibrated lenses)
     "lidar_phase": "fixed",
     "lidar_rotation_hz": 10.0,
     "lidar_jitter_cells": [0.0, 0.0],

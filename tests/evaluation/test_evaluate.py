@@ -10,6 +10,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig, open_dict
 
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation import SubmissionError, load_entry
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.training import train
@@ -197,6 +198,22 @@ def test_onnx_export_gives_checkpoint_metrics(depth_run: Path, tmp_path: Path) -
             compose_eval([f"onnx_path={onnx_path}", "data.camera.size=32"], tmp_path / "other"),
             ["data.camera.size=32"],
         )
+    # The model carries its camera: data served through another lens of the same size is refused, naming both...
+    with pytest.raises(
+        ConfigError, match=r"exported for another camera .*equidistant 64x64 .*allow_camera_mismatch"
+    ):
+        evaluate(
+            compose_eval([f"onnx_path={onnx_path}", "num_panels=0"], tmp_path / "lens"),
+            ["data.camera.fov_deg=170"],
+        )
+    # ...unless told to score it anyway.
+    allowed = evaluate(
+        compose_eval(
+            [f"onnx_path={onnx_path}", "num_panels=0", "allow_camera_mismatch=true"], tmp_path / "lens2"
+        ),
+        ["data.camera.fov_deg=170"],
+    )
+    assert allowed["config"]["camera"]["fov_deg"] == 170.0
 
 
 def test_training_and_evaluation_agree_to_the_documented_precision(depth_run: Path, tmp_path: Path) -> None:

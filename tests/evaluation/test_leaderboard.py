@@ -129,15 +129,16 @@ def test_paper_rows_are_included_by_default_in_their_own_group(tmp_path: Path) -
     assert paper_row.paper and paper_row.source == "paper (real AirFisheye)" and paper_row.split == "test"
 
     md = board.to_markdown()
-    assert "| 1 | DeepLabV3+ / ResNet50 | paper | paper (real AirFisheye) | test | 51.2 | – |" in md
+    assert "| 1 | DeepLabV3+ / ResNet50 | paper | paper (real AirFisheye) | test | – | 51.2 | – |" in md
     assert (
-        "| AdaBins / ResNet50 | paper | paper (real AirFisheye) | test | 0.1320 | 2.575 | 13.324 | 0.270 | 0.865 |"
+        "| AdaBins / ResNet50 | paper | paper (real AirFisheye) | test | – | 0.1320 | 2.575 | 13.324 | 0.270 | 0.865 |"
         in md
     )
     assert (
-        "| NLSPN / ResNet34 | paper | paper (real AirFisheye) | test | 0.0834 | 6.971 | 2.377 | 0.934 |" in md
+        "| NLSPN / ResNet34 | paper | paper (real AirFisheye) | test | – | 0.0834 | 6.971 | 2.377 | 0.934 |"
+        in md
     )
-    assert "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | 90.0 |" in md
+    assert "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | – | 90.0 |" in md
 
 
 def test_paper_rows_hold_the_design_table_as_fractions() -> None:
@@ -185,10 +186,10 @@ def test_nan_and_null_values_are_missing_and_rank_last(tmp_path: Path) -> None:
     assert _groups(board, "depth") == [[(1, "ok"), (None, "hand"), (None, "no_rmse")]]
     md = board.to_markdown()
     assert (
-        "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | 0.2000 | – | 9.000 | – | – | – | – |"
+        "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | – | 0.2000 | – | 9.000 | – | – | – | – |"
         in md
     )
-    assert "| – | deeplabv3plus / resnet18 | – | ours (synth) | test | 0.1000 | – | – |" in md
+    assert "| – | deeplabv3plus / resnet18 | – | ours (synth) | test | – | 0.1000 | – | – |" in md
     rows = {r["run"]: r for r in _csv_rows(board.to_csv())}
     assert rows["no_rmse"]["rank"] == "" and rows["no_rmse"]["rmse"] == "" and rows["ok"]["delta1"] == ""
 
@@ -302,8 +303,8 @@ def test_markdown_has_one_section_per_task_with_order_and_units(tmp_path: Path) 
     ]
     assert "Sorted by mIoU (%), higher is better;" in md and "Sorted by RMSE (m), lower is better;" in md
     assert "| 24.4 | 69.4 |" in md  # fractions printed as percentages, one decimal like the paper
-    header = "| rank | model | evaluated | source | split | mIoU (%) | pixel acc (%) | run |"
-    assert header in md and "|---:|---|---|---|---|---:|---:|---|" in md
+    header = "| rank | model | evaluated | source | split | camera | mIoU (%) | pixel acc (%) | run |"
+    assert header in md and "|---:|---|---|---|---|---|---:|---:|---|" in md
 
 
 def test_csv_round_trips_every_value(tmp_path: Path) -> None:
@@ -363,7 +364,7 @@ def test_main_writes_both_files_and_prints_the_markdown(tmp_path: Path, capsys) 
     assert leaderboard([f"runs=[{tmp_path / 'a'},{other}]", f"out={out}"]) == 0
     printed = capsys.readouterr()
     assert printed.out == (out / "leaderboard.md").read_text()
-    assert "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | 30.0 |" in printed.out
+    assert "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | – | 30.0 |" in printed.out
     assert "paper IV-A" in printed.out and str(out / "leaderboard.csv") in printed.err
     assert {r["run"] for r in _csv_rows((out / "leaderboard.csv").read_text())} >= {"s", "d"}
 
@@ -496,3 +497,18 @@ def test_onnx_and_its_checkpoint_are_two_rows_of_one_run(tmp_path: Path) -> None
         ("r18", "ONNX int8", "1"),
         ("r18", "checkpoint epoch_002", "1"),
     ]
+
+
+def test_the_served_camera_is_shown(tmp_path: Path) -> None:
+    camera = {"model": "double_sphere", "width": 512, "height": 512, "fx": 158.3, "fy": 158.3, "cx": 255.0,
+              "cy": 256.9, "xi": -0.17, "alpha": 0.59}  # fmt: skip
+    _write(tmp_path, "ds", "seg", {"mIoU": 0.3, "pixel_acc": 0.7}, config={"camera": camera})
+    _write(tmp_path, "old", "seg", {"mIoU": 0.2, "pixel_acc": 0.6})  # written before the camera was recorded
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    rows = {r["run"]: r for r in _csv_rows(board.to_csv())}
+    assert (rows["ds"]["camera"], rows["old"]["camera"]) == ("double_sphere 512x512", "")
+    md = board.to_markdown()
+    assert (
+        "| test | double_sphere 512x512 | 30.0 | 70.0 | ds |" in md
+        and "| test | – | 20.0 | 60.0 | old |" in md
+    )

@@ -1,0 +1,287 @@
+"""The interface every camera model implements (docs/design.md, "Fisheye camera").
+
+A model is a small class of one shape, as in COLMAP's ``sensor/models.h`` and basalt's ``camera/`` folder: its
+parameters, a float64 projection ``_project(x, y, z) -> (u, v, in_region)`` and a float64 back-projection
+``_unproject(u, v) -> (x, y, z)`` (NaN where no ray exists). :class:`CameraModel` wraps both with the numpy/torch
+plumbing, the field-of-view limit, the per-pixel grids the rest of the project uses, and the flat ``to_dict``.
+
+Conventions: camera frame x right, y down, z forward; the centre of pixel (row i, col j) is at ``(u=j, v=i)``.
+``project`` reports ``valid`` = "the point is in the model's valid region and within ``fov_deg``"; whether its
+pixel lies inside the image is the caller's test (:meth:`CameraModel.in_image`). ``unproject`` returns unit rays
+for every pixel the model can back-project, also beyond ``fov_deg`` (the image circle is :meth:`valid_mask`), and NaN
+where the model has no ray.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cached_property
+from typing import Any, ClassVar
+
+import torch
+
+from airfisheye_bench.geometry._arrays import ArrayLike, as_tensor, back, check_last_dim
+
+#: Step (radians) of the central differences behind :meth:`CameraModel.pixels_per_radian`.
+_PPR_STEP = 1e-6
+
+
+class CameraModel:
+    """Base class of the camera models; subclasses set ``model`` and ``params`` and implement the two maps.
+
+    Subclasses store every name of ``params`` as an attribute (``to_dict`` reads them back) and call
+    ``super().__init__(width, height, fov_deg)`` first.
+    """
+
+    #: Registry name (``CAMERA_MODELS`` key, the ``model`` entry of ``to_dict``).
+    model: ClassVar[str] = ""
+    #: Parameter names in ``to_dict`` order, besides ``model``, ``width`` and ``height``.
+    params: ClassVar[tuple[str, ...]] = ()
+    #: Parameters that may be left out of a dict, with their defaults.
+    defaults: ClassVar[dict[str, Any]] = {"fov_deg": None}
+
+    def __init__(self, width: int, height: int, fov_deg: float | None = None) -> None:
+        if (
+            isinstance(width, bool)
+            or isinstance(height, bool)
+            or int(width) != width
+            or int(height) != height
+        ):
+            raise ValueError(f"width and height must be positive integers, got {width}x{height}")
+        if width <= 0 or height <= 0:
+            raise ValueError(f"width and height must be positive integers, got {width}x{height}")
+        if fov_deg is not None and not (math.isfinite(fov_deg) and 0.0 < fov_deg <= 360.0):
+            raise ValueError(f"fov_deg must be in (0, 360] or None, got {fov_deg}")
+        self.width = int(width)
+        self.height = int(height)
+        self.fov_deg = None if fov_deg is None else float(fov_deg)
+        self._grid_cache: dict[tuple[torch.dtype, str], torch.Tensor] = {}
+
+    # ------------------------------------------------------------------ the model (float64 tensors)
+    def _project(self, x: torch.Tensor, y: torch.Tensor, z: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """``(u, v, in_region)`` of points (not necessarily unit); ``in_region``: the model's valid region."""
+        raise NotImplementedError
+
+    def _unproject(self, u: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """``(x, y, z)`` of a ray through each pixel (any positive length); NaN where the model has none."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ public API
+    @property
+    def max_theta(self) -> float:
+        """Half the field of view in radians (``pi`` without ``fov_deg``: the model's region decides alone)."""
+        return math.pi if self.fov_deg is None else math.radians(self.fov_deg) / 2.0
+
+    @property
+    def coverage_deg(self) -> float:
+        """Full field of view the image covers (degrees): ``fov_deg`` when set, else twice the largest incidence
+        angle of a valid pixel (what the incidence-angle rings must reach)."""
+        if self.fov_deg is not None:
+            return self.fov_deg
+        theta = self._theta64[self._valid]
+        return 2.0 * math.degrees(float(theta.max())) if len(theta) else 0.0
+
+    def project(self, points: ArrayLike) -> tuple[ArrayLike, ArrayLike]:
+        """Project camera-frame points ``[..., 3]`` to pixels.
+
+        Returns:
+            ``(uv [..., 2], valid [...])``. ``valid``: the point is finite, neither the camera centre nor on the
+            optical axis behind it, inside the model's
+            valid region and within ``fov_deg / 2`` of the optical axis. Whether ``uv`` lies in the image is left to
+            the caller (:meth:`in_image`). ``uv`` comes back in the input's kind and dtype.
+        """
+        p, was_numpy = as_tensor(points, "points")
+        check_last_dim(p, 3, "points")
+        out_dtype = p.dtype
+        batch_shape = p.shape[:-1]
+        # Contiguous coordinates: torch's vectorised kernels run only on contiguous inputs (several times faster).
+        x, y, z = p.to(torch.float64).reshape(-1, 3).T.contiguous()
+        u, v, in_region = self._project(x, y, z)
+        finite = torch.isfinite(x) & torch.isfinite(y) & torch.isfinite(z)
+        # A point on the optical axis behind the camera has no azimuth (it would map to a whole circle), and the
+        # camera centre has no direction: neither projects.
+        off_back_axis = (x != 0) | (y != 0) | (z > 0)
+        valid = finite & off_back_axis & in_region & torch.isfinite(u) & torch.isfinite(v)
+        if self.fov_deg is not None:
+            valid &= torch.atan2(torch.hypot(x, y), z) <= self.max_theta + 1e-12
+        uv = torch.stack([u, v], -1).view(*batch_shape, 2)
+        return back(uv.to(out_dtype), was_numpy), back(valid.view(batch_shape), was_numpy)
+
+    def unproject(self, uv: ArrayLike) -> ArrayLike:
+        """Back-project pixels ``[..., 2]`` to unit rays ``[..., 3]`` in the camera frame.
+
+        NaN where the model has no ray (outside its valid region). Rays beyond ``fov_deg / 2`` are returned as the
+        model extends them; :meth:`valid_mask` marks the pixels within the field of view.
+        """
+        q, was_numpy = as_tensor(uv, "uv")
+        check_last_dim(q, 2, "uv")
+        out_dtype = q.dtype
+        q = q.to(torch.float64)
+        x, y, z = self._unproject(q[..., 0].contiguous(), q[..., 1].contiguous())
+        norm = torch.sqrt(x * x + y * y + z * z)
+        rays = torch.stack([x / norm, y / norm, z / norm], -1)
+        return back(rays.to(out_dtype), was_numpy)
+
+    def in_image(self, uv: ArrayLike) -> ArrayLike:
+        """``[...]`` bool: the pixel position lies inside the image ``[-0.5, W - 0.5] x [-0.5, H - 0.5]``."""
+        q, was_numpy = as_tensor(uv, "uv")
+        check_last_dim(q, 2, "uv")
+        u, v = q[..., 0], q[..., 1]
+        inside = (u >= -0.5) & (u <= self.width - 0.5) & (v >= -0.5) & (v <= self.height - 0.5)
+        return back(inside, was_numpy)
+
+    # ------------------------------------------------------------------ per-pixel grids
+    def pixel_grid(self, dtype: torch.dtype = torch.float64) -> torch.Tensor:
+        """Pixel-centre coordinates ``[H, W, 2]`` as ``(u, v)``."""
+        v, u = torch.meshgrid(
+            torch.arange(self.height, dtype=dtype), torch.arange(self.width, dtype=dtype), indexing="ij"
+        )
+        return torch.stack([u, v], -1)
+
+    def ray_grid(
+        self, dtype: torch.dtype = torch.float32, device: torch.device | str | None = None
+    ) -> torch.Tensor:
+        """Unit rays through every pixel centre ``[H, W, 3]`` (cached per dtype and device); NaN without a ray."""
+        key = (dtype, str(device or "cpu"))
+        if key not in self._grid_cache:
+            self._grid_cache[key] = self._rays64.to(dtype=dtype, device=device)
+        return self._grid_cache[key]
+
+    def theta_grid(self) -> torch.Tensor:
+        """Incidence angle (radians, float32) of every pixel ``[H, W]``; NaN where the model has no ray."""
+        return self._theta64.to(torch.float32)
+
+    def valid_mask(self) -> torch.Tensor:
+        """``[H, W]`` bool: the pixel has a ray, within ``fov_deg``, that projects back (the image's valid region)."""
+        return self._valid
+
+    def pixels_per_radian(self) -> torch.Tensor:
+        """``[H, W]`` float64: the largest local image scale at each pixel, in pixels per radian of ray direction.
+
+        The larger singular value of the projection's Jacobian with respect to the ray direction, by central
+        differences (what the z-buffer window of any model needs); pixels without a ray get the scale on the
+        optical axis.
+        """
+        return self._pixels_per_radian
+
+    @cached_property
+    def _rays64(self) -> torch.Tensor:
+        return self.unproject(self.pixel_grid())
+
+    @cached_property
+    def _theta64(self) -> torch.Tensor:
+        return torch.acos(self._rays64[..., 2].clamp(-1.0, 1.0))
+
+    @cached_property
+    def _valid(self) -> torch.Tensor:
+        rays = self._rays64
+        _, valid = self.project(rays)
+        return valid & torch.isfinite(rays).all(-1)
+
+    @cached_property
+    def _pixels_per_radian(self) -> torch.Tensor:
+        rays = self._rays64.reshape(-1, 3)
+        has_ray = torch.isfinite(rays).all(-1)
+        axis = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
+        d = torch.where(has_ray[:, None], rays, axis)
+        # Two unit tangents orthogonal to d: e1 = normalise(d x a) with a helper axis not parallel to d, e2 = d x e1.
+        helper = torch.where(d[:, 2:3].abs() < 0.9, axis, torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64))
+        e1 = torch.linalg.cross(d, helper)
+        e1 = e1 / e1.norm(dim=-1, keepdim=True)
+        e2 = torch.linalg.cross(d, e1)
+        h = _PPR_STEP
+        cols = []
+        for e in (e1, e2):
+            plus, _ = self.project(d * math.cos(h) + e * math.sin(h))
+            minus, _ = self.project(d * math.cos(h) - e * math.sin(h))
+            cols.append((plus - minus) / (2.0 * h))
+        # Largest singular value of the 2x2 Jacobian [c1 c2]: sqrt of the largest eigenvalue of J^T J.
+        a, b, c = (cols[0] * cols[0]).sum(-1), (cols[0] * cols[1]).sum(-1), (cols[1] * cols[1]).sum(-1)
+        scale = torch.sqrt(0.5 * (a + c) + torch.sqrt(0.25 * (a - c) ** 2 + b * b))
+        ok = torch.isfinite(scale) & has_ray
+        if not ok.all():
+            scale = torch.where(ok, scale, self._axis_scale())
+        return scale.view(self.height, self.width)
+
+    def _axis_scale(self) -> float:
+        """Pixels per radian along the optical axis (fallback of :meth:`pixels_per_radian`)."""
+        h = _PPR_STEP
+        pts = torch.tensor(
+            [
+                [math.sin(h), 0, math.cos(h)],
+                [-math.sin(h), 0, math.cos(h)],
+                [0, math.sin(h), math.cos(h)],
+                [0, -math.sin(h), math.cos(h)],
+            ],
+            dtype=torch.float64,
+        )
+        uv, _ = self.project(pts)
+        return float(max((uv[0] - uv[1]).norm(), (uv[2] - uv[3]).norm()) / (2.0 * h))
+
+    # ------------------------------------------------------------------ identity and serialisation
+    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
+        """Parameters of the same lens on a sensor scaled by ``sx, sy`` (pixel centres scale about the corner)."""
+        raise NotImplementedError
+
+    def resized(self, width: int, height: int) -> CameraModel:
+        """The same lens seen by a sensor of another resolution (intrinsics scaled with the image).
+
+        Pixel centres scale about the image corner ``(-0.5, -0.5)``: ``c' = (c + 0.5) s - 0.5``, focal lengths by
+        ``s``; the aspect ratio must be kept (a change of aspect would stretch the lens).
+        """
+        sx, sy = width / self.width, height / self.height
+        if not math.isclose(sx, sy, rel_tol=1e-9):
+            raise ValueError(
+                f"resized() keeps the aspect ratio: {self.width}x{self.height} -> {width}x{height}"
+            )
+        params = {**self._param_dict(), **self._scaled_params(sx, sy)}
+        return type(self)(width, height, **params)
+
+    def _param_dict(self) -> dict[str, Any]:
+        return {name: getattr(self, name) for name in self.params}
+
+    def key(self) -> tuple:
+        """Hashable identity of the camera (for lookup-table caches)."""
+        values = tuple(tuple(v) if isinstance(v, list | tuple) else v for v in self._param_dict().values())
+        return (self.model, self.width, self.height, *values)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, CameraModel) and self.key() == other.key()
+
+    def __hash__(self) -> int:
+        return hash(self.key())
+
+    def __repr__(self) -> str:
+        inner = ", ".join(f"{k}={v!r}" for k, v in self._param_dict().items() if v is not None)
+        return f"{type(self).__name__}({self.width}x{self.height}, {inner})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Flat plain-Python description ``{"model", "width", "height", <params>}`` (``calib.yaml``, ONNX
+        metadata); ``camera_from_dict`` inverts it. Optional parameters left at ``None`` are omitted."""
+        d: dict[str, Any] = {"model": self.model, "width": self.width, "height": self.height}
+        for name, value in self._param_dict().items():
+            if value is None and name in self.defaults:
+                continue
+            d[name] = list(value) if isinstance(value, tuple) else value
+        return d
+
+
+def finite_float(name: str, value: Any, positive: bool = False) -> float:
+    """``value`` as a float, or ``ValueError`` naming the parameter."""
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(out) or (positive and out <= 0):
+        raise ValueError(f"{name} must be a finite{' positive' if positive else ''} number, got {value!r}")
+    return out
+
+
+def float_list(name: str, values: Any, min_len: int = 1) -> tuple[float, ...]:
+    """A sequence of finite floats as a tuple, or ``ValueError`` naming the parameter."""
+    if isinstance(values, str) or not hasattr(values, "__len__") or len(values) < min_len:
+        raise ValueError(f"{name} must be a list of at least {min_len} numbers, got {values!r}")
+    return tuple(finite_float(f"{name}[{i}]", v) for i, v in enumerate(values))
+
+
+__all__ = ["CameraModel", "finite_float", "float_list"]

@@ -1,0 +1,84 @@
+"""Double Sphere camera model (Usenko, Demmel and Cremers, 3DV 2018): basalt ``ds``, Kalibr ``ds``, TartanAir V2.
+
+Projection and its valid region, back-projection and its valid region in closed form, as in basalt's
+``include/basalt/camera/double_sphere_camera.hpp``:
+``d1 = |p|``, ``d2 = |(x, y, xi d1 + z)|``, ``u = fx x / (alpha d2 + (1 - alpha)(xi d1 + z)) + cx`` (v likewise),
+valid where ``z > -w2 d1``; back-projection valid where ``alpha <= 0.5`` or ``r^2 < 1 / (2 alpha - 1)``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import torch
+
+from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+
+
+class DoubleSphere(CameraModel):
+    """Double Sphere: ``fx, fy, cx, cy, xi, alpha``.
+
+    Example:
+        >>> import numpy as np
+        >>> cam = DoubleSphere(512, 512, fx=158.286, fy=158.274, cx=254.961, cy=256.889, xi=-0.1721, alpha=0.5931)
+        >>> uv, valid = cam.project(np.array([[1.0, 0.0, -0.2]]))  # 101 deg off-axis
+        >>> bool(valid[0]), bool(np.allclose(cam.unproject(uv), np.array([[1.0, 0.0, -0.2]]) / np.hypot(1, 0.2)))
+        (True, True)
+    """
+
+    model = "double_sphere"
+    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "xi", "alpha", "fov_deg")
+
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        fx: float,
+        fy: float,
+        cx: float,
+        cy: float,
+        xi: float,
+        alpha: float,
+        fov_deg: float | None = None,
+    ) -> None:
+        super().__init__(width, height, fov_deg)
+        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
+        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
+        self.xi = finite_float("xi", xi)
+        self.alpha = finite_float("alpha", alpha)
+        if not 0.0 <= self.alpha <= 1.0:
+            raise ValueError(f"alpha must be in [0, 1], got {alpha}")
+        w1 = (1.0 - self.alpha) / self.alpha if self.alpha > 0.5 else self.alpha / (1.0 - self.alpha)
+        self._w2 = (w1 + self.xi) / math.sqrt(2.0 * w1 * self.xi + self.xi * self.xi + 1.0)
+
+    def _project(self, x, y, z):
+        r2 = x * x + y * y
+        d1 = torch.sqrt(r2 + z * z)
+        k = self.xi * d1 + z
+        d2 = torch.sqrt(r2 + k * k)
+        norm = self.alpha * d2 + (1.0 - self.alpha) * k
+        return self.fx * x / norm + self.cx, self.fy * y / norm + self.cy, z > -self._w2 * d1
+
+    def _unproject(self, u, v):
+        mx, my = (u - self.cx) / self.fx, (v - self.cy) / self.fy
+        r2 = mx * mx + my * my
+        a, xi = self.alpha, self.xi
+        mz = (1.0 - a * a * r2) / (a * torch.sqrt(1.0 - (2.0 * a - 1.0) * r2) + 1.0 - a)
+        k = (mz * xi + torch.sqrt(mz * mz + (1.0 - xi * xi) * r2)) / (mz * mz + r2)
+        x, y, z = k * mx, k * my, k * mz - xi
+        if a > 0.5:
+            ok = r2 < 1.0 / (2.0 * a - 1.0)
+            x, y, z = (torch.where(ok, c, torch.nan) for c in (x, y, z))
+        return x, y, z
+
+    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
+        return {
+            "fx": self.fx * sx,
+            "fy": self.fy * sy,
+            "cx": (self.cx + 0.5) * sx - 0.5,
+            "cy": (self.cy + 0.5) * sy - 0.5,
+        }
+
+
+__all__ = ["DoubleSphere"]

@@ -1,0 +1,176 @@
+"""Kannala-Brandt (KB4): OpenCV ``cv2.fisheye``, ROS ``equidistant``, Kalibr ``pinhole-equi``, COLMAP
+``OPENCV_FISHEYE``, basalt ``kb4``.
+
+``theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8)`` with ``theta`` the incidence angle;
+``u = fx (theta_d x / r + skew theta_d y / r) + cx``, ``v = fy theta_d y / r + cy`` (``r = sqrt(x^2 + y^2)``;
+``skew`` is OpenCV's ``alpha``). Unlike OpenCV's ``projectPoints`` (``theta = atan(r / z)``, valid below 90 deg)
+the angle is ``atan2(r, z)`` as in basalt, so the model covers lenses wider than 180 deg. The valid region is
+``theta`` up to where ``theta_d`` stops increasing (at most pi); back-projection inverts ``theta_d`` with the
+bounded Newton solver of ``_solve.py``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import torch
+
+from airfisheye_bench.geometry.cameras._solve import MonotoneInverse, increasing_limit
+from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+
+
+class KannalaBrandt(CameraModel):
+    """Kannala-Brandt fisheye with two focal lengths and optional skew.
+
+    Args:
+        width: Image width in pixels.
+        height: Image height in pixels.
+        fx: Focal length along u (pixels).
+        fy: Focal length along v (pixels).
+        cx: Principal point column.
+        cy: Principal point row.
+        k1: Distortion coefficient of ``theta^3``; ``k2``, ``k3``, ``k4`` of ``theta^5, theta^7, theta^9``.
+        skew: OpenCV's ``alpha`` (``u = fx (x_d + alpha y_d) + cx``).
+        fov_deg: Optional field of view limiting the valid region (the image circle).
+
+    Example:
+        >>> import numpy as np
+        >>> cam = KannalaBrandt(512, 512, fx=160.0, fy=160.0, cx=255.5, cy=255.5, k1=0.01)
+        >>> uv, valid = cam.project(np.array([[1.0, 0.0, 0.0]]))  # 90 deg off-axis
+        >>> round(float(uv[0, 0] - 255.5), 4) == round(160 * (math.pi / 2) * (1 + 0.01 * (math.pi / 2) ** 2), 4)
+        True
+    """
+
+    model = "kannala_brandt"
+    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4", "skew", "fov_deg")
+    defaults: ClassVar[dict[str, Any]] = {
+        "k1": 0.0,
+        "k2": 0.0,
+        "k3": 0.0,
+        "k4": 0.0,
+        "skew": 0.0,
+        "fov_deg": None,
+    }
+
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        fx: float,
+        fy: float,
+        cx: float,
+        cy: float,
+        k1: float = 0.0,
+        k2: float = 0.0,
+        k3: float = 0.0,
+        k4: float = 0.0,
+        skew: float = 0.0,
+        fov_deg: float | None = None,
+    ) -> None:
+        super().__init__(width, height, fov_deg)
+        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
+        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
+        self.k1, self.k2, self.k3, self.k4 = (
+            finite_float(n, v) for n, v in zip(("k1", "k2", "k3", "k4"), (k1, k2, k3, k4), strict=True)
+        )
+        self.skew = finite_float("skew", skew)
+        #: Largest incidence angle where theta_d still increases (the model's valid region).
+        self.theta_limit = increasing_limit(self._dtheta_d, math.pi)
+        if self.fov_deg is not None and self.max_theta > self.theta_limit + 1e-12:
+            raise ValueError(
+                f"k={self.k}: the Kannala-Brandt polynomial is not increasing up to fov_deg/2={self.fov_deg / 2:g} deg"
+                f" (only up to {math.degrees(self.theta_limit):.1f} deg), so it cannot be inverted there; reduce "
+                "fov_deg or fix the coefficients"
+            )
+        self._inverse = MonotoneInverse(self.theta_d, self._dtheta_d, self.theta_limit)
+
+    @property
+    def k(self) -> tuple[float, float, float, float]:
+        """``(k1, k2, k3, k4)``."""
+        return (self.k1, self.k2, self.k3, self.k4)
+
+    def theta_d(self, theta: torch.Tensor) -> torch.Tensor:
+        """The distorted angle ``theta (1 + k1 theta^2 + ... + k4 theta^8)``."""
+        t2 = theta * theta
+        return theta * (1.0 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4))))
+
+    def _dtheta_d(self, theta: torch.Tensor) -> torch.Tensor:
+        t2 = theta * theta
+        return 1.0 + t2 * (3 * self.k1 + t2 * (5 * self.k2 + t2 * (7 * self.k3 + t2 * 9 * self.k4)))
+
+    def _project(self, x, y, z):
+        rho = torch.hypot(x, y)
+        theta = torch.atan2(rho, z)
+        scale = self.theta_d(theta) / rho.clamp_min(1e-300)  # the axis (x = y = 0) maps to the centre
+        mx, my = x * scale, y * scale
+        return (
+            self.fx * (mx + self.skew * my) + self.cx,
+            self.fy * my + self.cy,
+            theta <= self.theta_limit + 1e-12,
+        )
+
+    def _unproject(self, u, v):
+        my = (v - self.cy) / self.fy
+        mx = (u - self.cx) / self.fx - self.skew * my
+        td = torch.hypot(mx, my)
+        theta = self._inverse(td)
+        s = torch.sin(theta) / td.clamp_min(1e-300)
+        on_axis = td == 0
+        return torch.where(on_axis, 0.0, s * mx), torch.where(on_axis, 0.0, s * my), torch.cos(theta)
+
+    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
+        return {
+            "fx": self.fx * sx,
+            "fy": self.fy * sy,
+            "cx": (self.cx + 0.5) * sx - 0.5,
+            "cy": (self.cy + 0.5) * sy - 0.5,
+        }
+
+    @classmethod
+    def from_focal(
+        cls,
+        width: int,
+        height: int,
+        fov_deg: float = 190.0,
+        cx: float | None = None,
+        cy: float | None = None,
+        focal: float | None = None,
+        k: Any = None,
+    ) -> KannalaBrandt:
+        """The single-focal form of ``calib.yaml`` before issue #22 (``focal``, ``k: [k1..k4]``; the default focal
+        inscribes the image circle ``theta = fov_deg / 2`` in the image)."""
+        k = (0.0, 0.0, 0.0, 0.0) if k is None else k
+        if isinstance(k, str) or not hasattr(k, "__len__") or len(k) != 4:
+            raise ValueError(f"k must be four finite Kannala-Brandt coefficients (k1..k4), got {k}")
+        k = tuple(finite_float(f"k[{i}]", v) for i, v in enumerate(k))
+        fov_deg = finite_float("fov_deg", fov_deg)
+        if not 0.0 < fov_deg <= 360.0:
+            raise ValueError(f"fov_deg must be in (0, 360], got {fov_deg}")
+        cx = (int(width) - 1) / 2.0 if cx is None else cx
+        cy = (int(height) - 1) / 2.0 if cy is None else cy
+        if focal is None:
+            t = math.radians(fov_deg) / 2.0
+            t2 = t * t
+            r_unit = t * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))))
+            if r_unit <= 0:  # the polynomial turned back before fov_deg / 2: let the constructor say so
+                cls(width, height, 1.0, 1.0, cx, cy, *k, fov_deg=fov_deg)
+            focal = (min(int(width), int(height)) / 2.0) / r_unit
+        if not (isinstance(focal, int | float) and math.isfinite(focal) and focal > 0):
+            raise ValueError(f"focal must be a positive number of pixels, got {focal}")
+        return cls(
+            width,
+            height,
+            fx=focal,
+            fy=focal,
+            cx=cx,
+            cy=cy,
+            k1=k[0],
+            k2=k[1],
+            k3=k[2],
+            k4=k[3],
+            fov_deg=fov_deg,
+        )
+
+
+__all__ = ["KannalaBrandt"]

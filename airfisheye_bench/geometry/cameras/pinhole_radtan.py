@@ -1,0 +1,85 @@
+"""Pinhole with OpenCV's radial-tangential distortion (plumb_bob: ``k1, k2, p1, p2, k3``): the perspective
+baseline, ROS ``plumb_bob``, Kalibr ``pinhole-radtan``, and the cube faces (``fx = fy = S / 2``, no distortion).
+
+``m = (x, y) / z`` distorted as in OpenCV's ``projectPoints``; valid in front of the camera (``z > 0``) while the
+radial factor still increases; back-projection by bounded Newton steps on the distortion (``_solve.py``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+from airfisheye_bench.geometry.cameras._solve import RadtanInverse, radial_limit, radtan
+from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+
+
+class PinholeRadtan(CameraModel):
+    """Pinhole camera, OpenCV distortion order ``k1, k2, p1, p2, k3``.
+
+    Example:
+        >>> import numpy as np
+        >>> cam = PinholeRadtan(640, 480, fx=500.0, fy=500.0, cx=319.5, cy=239.5)
+        >>> uv, valid = cam.project(np.array([[0.1, -0.2, 1.0], [0.0, 0.0, -1.0]]))
+        >>> uv[0].tolist(), valid.tolist()
+        ([369.5, 139.5], [True, False])
+    """
+
+    model = "pinhole_radtan"
+    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "fov_deg")
+    defaults: ClassVar[dict[str, Any]] = {
+        "k1": 0.0,
+        "k2": 0.0,
+        "p1": 0.0,
+        "p2": 0.0,
+        "k3": 0.0,
+        "fov_deg": None,
+    }
+
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        fx: float,
+        fy: float,
+        cx: float,
+        cy: float,
+        k1: float = 0.0,
+        k2: float = 0.0,
+        p1: float = 0.0,
+        p2: float = 0.0,
+        k3: float = 0.0,
+        fov_deg: float | None = None,
+    ) -> None:
+        super().__init__(width, height, fov_deg)
+        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
+        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
+        self.k1, self.k2, self.k3 = finite_float("k1", k1), finite_float("k2", k2), finite_float("k3", k3)
+        self.p1, self.p2 = finite_float("p1", p1), finite_float("p2", p2)
+        self._m_max = radial_limit(self.k1, self.k2, self.k3)
+        self._distorted = any(c != 0.0 for c in (self.k1, self.k2, self.p1, self.p2, self.k3))
+        self._undistort = RadtanInverse(self.k1, self.k2, self.p1, self.p2, self.k3, r_max=self._m_max)
+
+    def _project(self, x, y, z):
+        mx, my = x / z, y / z
+        in_region = z > 0
+        if self._distorted:
+            in_region &= mx.hypot(my) <= self._m_max
+            mx, my = radtan(mx, my, self.k1, self.k2, self.p1, self.p2, self.k3)
+        return self.fx * mx + self.cx, self.fy * my + self.cy, in_region
+
+    def _unproject(self, u, v):
+        mx, my = (u - self.cx) / self.fx, (v - self.cy) / self.fy
+        if self._distorted:
+            mx, my = self._undistort(mx, my)
+        return mx, my, mx * 0.0 + 1.0
+
+    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
+        return {
+            "fx": self.fx * sx,
+            "fy": self.fy * sy,
+            "cx": (self.cx + 0.5) * sx - 0.5,
+            "cy": (self.cy + 0.5) * sy - 0.5,
+        }
+
+
+__all__ = ["PinholeRadtan"]

@@ -1,0 +1,168 @@
+"""The ideal radially symmetric fisheye models: ``r(theta)`` with one focal length (docs/design.md).
+
+================  ==========================  =========================
+model             r(theta)                    largest FOV it represents
+================  ==========================  =========================
+equidistant       f theta                     360 deg
+equisolid         2 f sin(theta / 2)          360 deg
+stereographic     2 f tan(theta / 2)          < 360 deg
+orthographic      f sin(theta)                180 deg
+================  ==========================  =========================
+
+The default principal point is the image centre ``((W-1)/2, (H-1)/2)``; the default focal length inscribes the
+image circle (``theta = fov_deg / 2``) in the image: ``r_max = min(W, H) / 2``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import torch
+
+from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+
+
+class RadialCamera(CameraModel):
+    """A central lens mapping the incidence angle ``theta`` to the image radius ``f r(theta)``.
+
+    Args:
+        width: Image width in pixels.
+        height: Image height in pixels.
+        fov_deg: Full field of view in degrees (the image circle).
+        cx: Principal point column; default ``(width - 1) / 2``.
+        cy: Principal point row; default ``(height - 1) / 2``.
+        focal: Focal length in pixels; default inscribes the image circle in the image.
+
+    Example:
+        >>> import numpy as np
+        >>> cam = Equidistant(512, 512)  # 190 deg, image circle inscribed
+        >>> uv, valid = cam.project(np.array([[0.0, 0.0, 5.0], [1.0, 0.0, -0.05]]))
+        >>> uv[0].round(3).tolist(), valid.tolist()
+        ([255.5, 255.5], [True, True])
+    """
+
+    params: ClassVar[tuple[str, ...]] = ("fov_deg", "cx", "cy", "focal")
+    defaults: ClassVar[dict[str, Any]] = {"fov_deg": 190.0, "cx": None, "cy": None, "focal": None}
+    #: Largest half-FOV the model represents (radians) and whether it is excluded.
+    max_model_theta: ClassVar[float] = math.pi
+    open_limit: ClassVar[bool] = False
+
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        fov_deg: float = 190.0,
+        cx: float | None = None,
+        cy: float | None = None,
+        focal: float | None = None,
+    ) -> None:
+        fov_deg = finite_float("fov_deg", fov_deg)
+        super().__init__(width, height, fov_deg)
+        limit = math.degrees(2 * self.max_model_theta)
+        if fov_deg > limit or (self.open_limit and fov_deg >= limit):
+            raise ValueError(
+                f"fov_deg={fov_deg} cannot be represented by the {self.model} model (maximum {limit:g} deg"
+                f"{', exclusive' if self.open_limit else ''})"
+            )
+        self.cx = finite_float("cx", cx) if cx is not None else (self.width - 1) / 2.0
+        self.cy = finite_float("cy", cy) if cy is not None else (self.height - 1) / 2.0
+        if focal is None:
+            focal = (min(self.width, self.height) / 2.0) / self.radius(self.max_theta)
+        if not (isinstance(focal, int | float) and math.isfinite(focal) and focal > 0):
+            raise ValueError(f"focal must be a positive number of pixels, got {focal}")
+        self.focal = float(focal)
+
+    # r(theta) / f and its inverse, for floats and float64 tensors
+    @staticmethod
+    def radius(theta: Any) -> Any:
+        raise NotImplementedError
+
+    @staticmethod
+    def _theta_of(rho: torch.Tensor) -> torch.Tensor:
+        raise NotImplementedError
+
+    def _project(self, x, y, z):
+        rho_xy = torch.hypot(x, y)
+        theta = torch.atan2(rho_xy, z)
+        r = self.focal * self.radius(theta)
+        # rho_xy is 0 only on the optical axis, where x = y = 0: the clamped division maps it to the centre.
+        rho_c = rho_xy.clamp_min(1e-300)
+        in_region = theta < self.max_model_theta if self.open_limit else theta <= self.max_model_theta + 1e-12
+        return self.cx + r * (x / rho_c), self.cy + r * (y / rho_c), in_region
+
+    def _unproject(self, u, v):
+        dx, dy = u - self.cx, v - self.cy
+        r = torch.hypot(dx, dy)
+        theta = self._theta_of(r / self.focal)
+        s = torch.sin(theta) / r.clamp_min(1e-300)
+        on_axis = r == 0
+        return torch.where(on_axis, 0.0, s * dx), torch.where(on_axis, 0.0, s * dy), torch.cos(theta)
+
+    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
+        return {"cx": (self.cx + 0.5) * sx - 0.5, "cy": (self.cy + 0.5) * sy - 0.5, "focal": self.focal * sx}
+
+
+class Equidistant(RadialCamera):
+    """``r = f theta`` (see :class:`RadialCamera`)."""
+
+    model = "equidistant"
+
+    @staticmethod
+    def radius(theta):
+        return theta
+
+    @staticmethod
+    def _theta_of(rho):
+        return rho
+
+
+class Equisolid(RadialCamera):
+    """``r = 2 f sin(theta / 2)`` (see :class:`RadialCamera`)."""
+
+    model = "equisolid"
+
+    @staticmethod
+    def radius(theta):
+        return 2.0 * (torch.sin(theta / 2.0) if isinstance(theta, torch.Tensor) else math.sin(theta / 2.0))
+
+    @staticmethod
+    def _theta_of(rho):
+        return torch.where(rho <= 2.0, 2.0 * torch.asin((rho / 2.0).clamp(max=1.0)), torch.nan)
+
+
+class Stereographic(RadialCamera):
+    """``r = 2 f tan(theta / 2)`` (see :class:`RadialCamera`)."""
+
+    model = "stereographic"
+    open_limit = True
+
+    @staticmethod
+    def radius(theta):
+        return 2.0 * (torch.tan(theta / 2.0) if isinstance(theta, torch.Tensor) else math.tan(theta / 2.0))
+
+    @staticmethod
+    def _theta_of(rho):
+        return 2.0 * torch.atan(rho / 2.0)
+
+
+class Orthographic(RadialCamera):
+    """``r = f sin(theta)`` (see :class:`RadialCamera`)."""
+
+    model = "orthographic"
+    max_model_theta = math.pi / 2
+
+    @staticmethod
+    def radius(theta):
+        return torch.sin(theta) if isinstance(theta, torch.Tensor) else math.sin(theta)
+
+    @staticmethod
+    def _theta_of(rho):
+        return torch.where(rho <= 1.0, torch.asin(rho.clamp(max=1.0)), torch.nan)
+
+
+RADIAL_MODELS: dict[str, type[RadialCamera]] = {
+    cls.model: cls for cls in (Equidistant, Equisolid, Stereographic, Orthographic)
+}
+
+__all__ = ["RADIAL_MODELS", "Equidistant", "Equisolid", "Orthographic", "RadialCamera", "Stereographic"]

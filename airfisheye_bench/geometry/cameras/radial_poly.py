@@ -1,0 +1,103 @@
+"""WoodScape's ``radial_poly`` model (github:valeoai/WoodScape, ``scripts/calibration/projection.py``).
+
+``rho(theta) = k1 theta + k2 theta^2 + k3 theta^3 + k4 theta^4`` (pixels) with ``theta`` the incidence angle;
+``u = cx + rho x / n``, ``v = cy + aspect_ratio rho y / n`` (``n = sqrt(x^2 + y^2)``). WoodScape's JSON stores
+``cx_offset``, ``cy_offset`` from the image centre; its ``Camera`` turns them into
+``cx = W / 2 + cx_offset - 0.5`` (likewise cy), which is what the readers pass here. The valid region is
+``theta`` up to where ``rho`` stops increasing (at most pi); back-projection inverts ``rho`` by bounded Newton steps
+(WoodScape itself takes the smallest real root of the polynomial, one pixel at a time).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import torch
+
+from airfisheye_bench.geometry.cameras._solve import MonotoneInverse, increasing_limit, polyder, polyval
+from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+
+
+class RadialPoly(CameraModel):
+    """WoodScape radial polynomial: ``k1..k4`` (pixels per radian^i), ``cx, cy``, ``aspect_ratio``.
+
+    Example:
+        >>> import numpy as np
+        >>> cam = RadialPoly(1280, 966, k1=339.749, k2=-31.988, k3=48.275, k4=-7.201, cx=639.5, cy=482.5)
+        >>> uv, valid = cam.project(np.array([[1.0, 0.0, 0.0]]))
+        >>> round(float(uv[0, 0]) - 639.5, 3), bool(valid[0])
+        (598.013, True)
+    """
+
+    model = "radial_poly"
+    params: ClassVar[tuple[str, ...]] = ("k1", "k2", "k3", "k4", "cx", "cy", "aspect_ratio", "fov_deg")
+    defaults: ClassVar[dict[str, Any]] = {
+        "k2": 0.0,
+        "k3": 0.0,
+        "k4": 0.0,
+        "aspect_ratio": 1.0,
+        "fov_deg": None,
+    }
+
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        k1: float,
+        k2: float = 0.0,
+        k3: float = 0.0,
+        k4: float = 0.0,
+        cx: float = 0.0,
+        cy: float = 0.0,
+        aspect_ratio: float = 1.0,
+        fov_deg: float | None = None,
+    ) -> None:
+        super().__init__(width, height, fov_deg)
+        self.k1, self.k2, self.k3, self.k4 = (
+            finite_float(n, v) for n, v in zip(("k1", "k2", "k3", "k4"), (k1, k2, k3, k4), strict=True)
+        )
+        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
+        self.aspect_ratio = finite_float("aspect_ratio", aspect_ratio, positive=True)
+        self._coeffs = (0.0, self.k1, self.k2, self.k3, self.k4)
+        self._dcoeffs = polyder(self._coeffs)
+        self.theta_limit = increasing_limit(lambda t: polyval(self._dcoeffs, t), math.pi)
+        if self.theta_limit <= 0:
+            raise ValueError(f"rho(theta) must increase from the optical axis (k1 > 0), got k1={k1}")
+        if self.fov_deg is not None and self.max_theta > self.theta_limit + 1e-12:
+            raise ValueError(
+                f"rho(theta) stops increasing at {math.degrees(self.theta_limit):.1f} deg, below fov_deg/2="
+                f"{self.fov_deg / 2:g} deg"
+            )
+        self._inverse = MonotoneInverse(self.rho, lambda t: polyval(self._dcoeffs, t), self.theta_limit)
+
+    def rho(self, theta: torch.Tensor) -> torch.Tensor:
+        """Image radius (pixels) at incidence angle ``theta``."""
+        return polyval(self._coeffs, theta)
+
+    def _project(self, x, y, z):
+        n = torch.hypot(x, y)
+        theta = torch.atan2(n, z)
+        s = self.rho(theta) / n.clamp_min(1e-300)
+        return self.cx + s * x, self.cy + self.aspect_ratio * s * y, theta <= self.theta_limit + 1e-12
+
+    def _unproject(self, u, v):
+        gx, gy = u - self.cx, (v - self.cy) / self.aspect_ratio
+        r = torch.hypot(gx, gy)
+        theta = self._inverse(r)
+        s = torch.sin(theta) / r.clamp_min(1e-300)
+        on_axis = r == 0
+        return torch.where(on_axis, 0.0, s * gx), torch.where(on_axis, 0.0, s * gy), torch.cos(theta)
+
+    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
+        return {
+            "k1": self.k1 * sx,
+            "k2": self.k2 * sx,
+            "k3": self.k3 * sx,
+            "k4": self.k4 * sx,
+            "cx": (self.cx + 0.5) * sx - 0.5,
+            "cy": (self.cy + 0.5) * sy - 0.5,
+        }
+
+
+__all__ = ["RadialPoly"]

@@ -1,0 +1,138 @@
+"""OpenCV FileStorage calibrations (YAML ``%YAML:1.0`` with ``!!opencv-matrix``, or JSON with
+``"type_id": "opencv-matrix"``), as OpenCV's calibration samples write them.
+
+Layout (``samples/cpp/tutorial_code/calib3d/camera_calibration/camera_calibration.cpp``, ``saveCameraParams``;
+``samples/cpp/calibration.cpp`` writes the same keys without ``fisheye_model``): ``image_width``, ``image_height``,
+``camera_matrix`` (3x3 K), ``distortion_coefficients`` (a 1xN or Nx1 matrix), ``fisheye_model`` (0 or 1).
+
+- ``fisheye_model: 1``, or no ``fisheye_model`` and 4 coefficients: ``cv::fisheye`` (``kannala_brandt``, k1..k4;
+  K[0, 1] = alpha * fx, alpha being ``cv::fisheye``'s skew).
+- otherwise ``cv::calibrateCamera``'s order k1, k2, p1, p2[, k3[, k4, k5, k6[, s1..s4[, tauX, tauY]]]]:
+  ``pinhole_radtan`` (4 or 5 coefficients; the rational, thin-prism and tilt terms must be zero).
+
+Pixel convention: OpenCV's (pixel centre at integer coordinates), the project's: nothing to convert.
+
+Example:
+    >>> from airfisheye_bench.io.calibration_files._fields import parse_structured
+    >>> doc = parse_structured('''%YAML:1.0
+    ... ---
+    ... image_width: 640
+    ... image_height: 480
+    ... camera_matrix: !!opencv-matrix
+    ...    rows: 3
+    ...    cols: 3
+    ...    dt: d
+    ...    data: [ 300., 0., 319.5, 0., 301., 239.5, 0., 0., 1. ]
+    ... distortion_coefficients: !!opencv-matrix
+    ...    rows: 4
+    ...    cols: 1
+    ...    dt: d
+    ...    data: [ 0.01, -0.002, 1e-05, 0. ]
+    ... ''')
+    >>> camera, _ = FORMAT.cameras(Fields("c.yaml", doc))["0"](Fields("c.yaml", doc))
+    >>> camera["model"], camera["k3"], camera["fy"]
+    ('kannala_brandt', 1e-05, 301.0)
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from airfisheye_bench.io.calibration_files._camera_dicts import kannala_brandt, pinhole_radtan
+from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
+
+__all__ = ["FORMAT", "camera_from_matrices"]
+
+_RADTAN_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tauX", "tauY")
+
+
+def camera_from_matrices(
+    fields: Fields,
+    width: int,
+    height: int,
+    K: np.ndarray,
+    D: list[float],
+    fisheye: bool,
+    k_key: str,
+    d_key: str,
+) -> dict[str, Any]:
+    """The camera of a 3x3 ``K`` and coefficients ``D`` (OpenCV's meaning), shared with the ROS reader.
+
+    Args:
+        fields: The document (for errors).
+        width, height: Image size in pixels.
+        K: Camera matrix.
+        D: Distortion coefficients.
+        fisheye: ``cv::fisheye`` (4 coefficients, ``kannala_brandt``) rather than ``cv::calibrateCamera``'s model.
+        k_key, d_key: The keys of ``K`` and ``D`` in the file (named in errors).
+    """
+    if not (K[0, 0] > 0 and K[1, 1] > 0) or K[1, 0] != 0 or list(K[2]) != [0.0, 0.0, 1.0]:
+        raise fields.error(
+            k_key, f"expected [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0, got {K.tolist()}"
+        )
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    if fisheye:
+        if len(D) != 4:
+            raise fields.error(
+                d_key, f"a fisheye (cv::fisheye) calibration has 4 coefficients k1..k4, got {len(D)}"
+            )
+        return kannala_brandt(width, height, fx, fy, cx, cy, D, skew=K[0, 1] / fx)
+    if K[0, 1] != 0:
+        raise fields.error(
+            k_key, "a skewed camera matrix (K[0][1] != 0) is only supported for fisheye calibrations"
+        )
+    if len(D) not in (4, 5, 8, 12, 14):
+        raise fields.error(
+            d_key, f"expected 4, 5, 8, 12 or 14 coefficients (k1, k2, p1, p2[, k3, ...]), got {len(D)}"
+        )
+    extra = {name: v for name, v in zip(_RADTAN_NAMES[5:], D[5:], strict=False) if v != 0}
+    if extra:
+        raise fields.error(
+            d_key,
+            f"non-zero {', '.join(extra)}: the rational, thin-prism and tilted models are not supported; supported: "
+            "k1, k2, p1, p2, k3 (pinhole_radtan) or 4 fisheye coefficients (kannala_brandt)",
+        )
+    return pinhole_radtan(width, height, fx, fy, cx, cy, *D[:5])
+
+
+def _detect(text: str, doc: Any) -> bool:
+    return isinstance(doc, dict) and "camera_matrix" in doc and "distortion_coefficients" in doc
+
+
+def _cameras(fields: Fields) -> dict[str, CameraEntry]:
+    return {"0": _read}
+
+
+def _read(f: Fields) -> tuple[dict[str, Any], dict]:
+    width = f.whole("image_width")
+    height = f.whole("image_height")
+    K = f.opencv_matrix("camera_matrix", (3, 3))
+    D = f.opencv_matrix("distortion_coefficients")
+    if 1 not in D.shape:
+        raise f.error(
+            "distortion_coefficients", f"expected a 1xN or Nx1 matrix, got {D.shape[0]}x{D.shape[1]}"
+        )
+    coefficients = D.reshape(-1).tolist()
+    flag = f.get("fisheye_model", None)
+    if flag is not None and flag not in (0, 1):  # True and False compare equal to 1 and 0
+        raise f.error("fisheye_model", f"expected 0 or 1, got {flag!r}")
+    fisheye = bool(flag) if flag is not None else len(coefficients) == 4
+    return (
+        camera_from_matrices(
+            f, width, height, K, coefficients, fisheye, "camera_matrix", "distortion_coefficients"
+        ),
+        {},
+    )
+
+
+FORMAT = CalibrationFormat(
+    name="opencv",
+    summary="OpenCV FileStorage YAML/JSON (camera_matrix, distortion_coefficients, image_width, image_height; "
+    "4 coefficients or fisheye_model: 1 = kannala_brandt, 5 = pinhole_radtan)",
+    source="OpenCV samples/cpp/calibration.cpp and tutorial_code/calib3d/camera_calibration/camera_calibration.cpp "
+    "(saveCameraParams); cv::fisheye and cv::calibrateCamera docs for the coefficient order",
+    detect=_detect,
+    cameras=_cameras,
+)

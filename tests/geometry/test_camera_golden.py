@@ -1,0 +1,147 @@
+"""The camera models against the implementations people trust, on published calibrations.
+
+Committed golden values (``tests/geometry/golden/*.json``, written by ``scripts/golden_cameras.py``; each file names
+its source, version and command): basalt's camera headers compiled (DS, EUCM, KB4 beyond 90 deg, unified),
+``cv2.fisheye``, ``cv2.omnidir``, ``cv2.projectPoints``, the KITTI-360 devkit, WoodScape's ``projection.py`` and
+OCamCalib's ``world2cam`` / ``cam2world``. Bars: projection <= 1e-6 px, back-projection <= 1e-9 rad, over the
+model's whole valid field of view. Where OpenCV (opencv-contrib-python-headless, the ``test-ref`` extra) is
+installed the OpenCV models are also compared live, on fresh points.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from airfisheye_bench.geometry.cameras import camera_from_dict
+from tests.geometry.camera_tester import CALIBRATIONS, angle_between, sphere_directions
+
+GOLDEN = Path(__file__).parent / "golden"
+FILES = ("basalt", "opencv_fisheye", "opencv_omnidir", "opencv_pinhole", "kitti360", "woodscape", "ocamcalib")
+CASES = [
+    pytest.param(json.loads((GOLDEN / f"{name}.json").read_text()), case, id=f"{name}:{case['name']}")
+    for name in FILES
+    for case in json.loads((GOLDEN / f"{name}.json").read_text())["cases"]
+]
+MAX_PX = 1e-6
+MAX_RAD = 1e-9
+
+
+def test_every_golden_file_names_its_source_version_and_command() -> None:
+    for name in FILES:
+        header = json.loads((GOLDEN / f"{name}.json").read_text())
+        assert (
+            header["source"]
+            and header["version"]
+            and header["command"].startswith("python scripts/golden_cameras.py")
+        )
+    assert {case.values[1]["camera"]["model"] for case in CASES} >= {
+        "kannala_brandt",
+        "unified",
+        "double_sphere",
+        "eucm",
+        "ocam",
+        "radial_poly",
+        "pinhole_radtan",
+    }
+
+
+@pytest.mark.parametrize(("golden", "case"), CASES)
+def test_projection_matches_the_reference(golden: dict, case: dict) -> None:
+    cam = camera_from_dict(case["camera"])
+    points = np.array(case["project"]["points"])
+    expected_uv = np.array(case["project"]["uv"])
+    expected_valid = np.array(case["project"]["valid"])
+    uv, valid = cam.project(points)
+    # The reference's valid region (basalt reports it; the others were sampled inside it) is ours too.
+    np.testing.assert_array_equal(valid, expected_valid, err_msg=golden["source"])
+    err = np.abs(uv[valid] - expected_uv[valid]).max()
+    assert err <= MAX_PX, f"{golden['source']}: {err:.3g} px"
+    # Points spread over the field of view up to its edge (the pinhole is sampled to 55 deg).
+    theta = np.degrees(np.arctan2(np.hypot(points[:, 0], points[:, 1]), points[:, 2]))
+    assert theta[expected_valid].max() >= 55.0
+
+
+@pytest.mark.parametrize(
+    ("golden", "case"), [c for c in CASES if "unproject" in c.values[1]], ids=lambda v: None
+)
+def test_back_projection_matches_the_reference(golden: dict, case: dict) -> None:
+    cam = camera_from_dict(case["camera"])
+    uv = np.array(case["unproject"]["uv"])
+    rays = cam.unproject(uv)
+    assert np.isfinite(rays).all()
+    err = angle_between(rays, np.array(case["unproject"]["rays"])).max().item()
+    assert err <= MAX_RAD, f"{golden['source']}: {err:.3g} rad"
+
+
+def test_ocam_cam2world_matches_ocamcalib_and_unproject_inverts_world2cam() -> None:
+    """``cam2world_rays`` is OCamCalib's cam2world; ``unproject`` inverts world2cam (the toolbox's fit of the
+    inverse), so the two differ by that fit's error, here below 5e-5 rad (0.02 px)."""
+    case = json.loads((GOLDEN / "ocamcalib.json").read_text())["cases"][0]
+    cam = camera_from_dict(case["camera"])
+    uv = torch.tensor(case["cam2world"]["uv"], dtype=torch.float64)
+    expected = torch.tensor(case["cam2world"]["rays"], dtype=torch.float64)
+    assert angle_between(cam.cam2world_rays(uv), expected).max() <= MAX_RAD
+    assert angle_between(cam.unproject(uv), expected).max() <= 5e-5
+
+
+# ---------------------------------------------------------------------------------------------- live OpenCV
+def _cv2():
+    return pytest.importorskip("cv2", reason="opencv-contrib-python-headless (extra test-ref) not installed")
+
+
+def test_live_cv2_fisheye_project_points() -> None:
+    cv2 = _cv2()
+    cam_d = {**CALIBRATIONS["tumvi512_cam0_kb"]["camera"], "skew": 0.003}
+    cam = camera_from_dict(cam_d)
+    dirs = sphere_directions(3000, seed=7)
+    dirs = dirs[dirs[:, 2] > 0.02]  # cv2.fisheye: theta = atan(r / z), valid below 90 deg only
+    K = np.array([[cam.fx, cam.fx * cam.skew, cam.cx], [0, cam.fy, cam.cy], [0, 0, 1.0]])
+    D = np.array(cam.k)
+    expected, _ = cv2.fisheye.projectPoints(
+        dirs.numpy()[:, None], np.zeros(3), np.zeros(3), K, D, alpha=cam.skew
+    )
+    uv, valid = cam.project(dirs.numpy())
+    assert valid.all()
+    assert np.abs(uv - expected[:, 0]).max() <= MAX_PX
+
+
+def test_live_cv2_omnidir_project_points() -> None:
+    cv2 = _cv2()
+    if not hasattr(cv2, "omnidir"):
+        pytest.skip("cv2 without the contrib modules (cv2.omnidir)")
+    for name in ("kitti360_image_02", "kitti360_image_03"):
+        cam = camera_from_dict(CALIBRATIONS[name]["camera"])
+        dirs = sphere_directions(3000, seed=8)
+        _, valid = cam.project(dirs)
+        pts = dirs[valid].numpy()
+        K = np.array([[cam.fx, 0.0, cam.cx], [0, cam.fy, cam.cy], [0, 0, 1.0]])
+        D = np.array([[cam.k1, cam.k2, cam.p1, cam.p2]])
+        expected, _ = cv2.omnidir.projectPoints(
+            pts[:, None], np.zeros((1, 3)), np.zeros((1, 3)), K, cam.xi, D
+        )
+        uv, _ = cam.project(pts)
+        theta = np.degrees(np.arccos(pts[:, 2]))
+        assert theta.max() > 110  # past 90 deg: the KITTI-360 lens reaches ~117 deg
+        assert np.abs(uv - expected[:, 0]).max() <= MAX_PX
+
+
+def test_live_cv2_pinhole_project_and_undistort() -> None:
+    cv2 = _cv2()
+    cam = camera_from_dict(CALIBRATIONS["ros_kodak_plumb_bob"]["camera"])
+    dirs = sphere_directions(3000, seed=9)
+    dirs = dirs[dirs[:, 2] > math.cos(math.radians(55))]
+    K = np.array([[cam.fx, 0.0, cam.cx], [0, cam.fy, cam.cy], [0, 0, 1.0]])
+    D = np.array([cam.k1, cam.k2, cam.p1, cam.p2, cam.k3])
+    expected, _ = cv2.projectPoints(dirs.numpy()[:, None], np.zeros(3), np.zeros(3), K, D)
+    uv, valid = cam.project(dirs.numpy())
+    assert valid.all() and np.abs(uv - expected[:, 0]).max() <= MAX_PX
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-15)
+    und = cv2.undistortPoints(uv[:, None], K, D, None, None, None, crit)[:, 0]
+    rays = np.concatenate([und, np.ones((len(und), 1))], 1)
+    assert angle_between(cam.unproject(uv), rays).max() <= MAX_RAD

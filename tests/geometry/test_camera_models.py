@@ -1,0 +1,182 @@
+"""Every camera model through the shared tester: real published calibrations and the ideal lenses."""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import pytest
+import torch
+
+from airfisheye_bench.geometry.cameras import CAMERA_MODELS, camera_from_dict
+from tests.geometry.camera_tester import CALIBRATIONS, CameraModelTester
+
+
+class TestEquidistant(CameraModelTester):
+    camera_dict: ClassVar[dict] = {"model": "equidistant", "width": 320, "height": 256, "fov_deg": 190.0}
+
+
+class TestEquidistantFullSphere(CameraModelTester):
+    camera_dict: ClassVar[dict] = {"model": "equidistant", "width": 128, "height": 128, "fov_deg": 360.0}
+    full_sphere = True
+
+
+class TestEquisolid(CameraModelTester):
+    camera_dict: ClassVar[dict] = {
+        "model": "equisolid",
+        "width": 300,
+        "height": 300,
+        "fov_deg": 230.0,
+        "cx": 140.2,
+    }
+
+
+class TestStereographic(CameraModelTester):
+    camera_dict: ClassVar[dict] = {"model": "stereographic", "width": 256, "height": 192, "fov_deg": 200.0}
+
+
+class TestOrthographic(CameraModelTester):
+    camera_dict: ClassVar[dict] = {"model": "orthographic", "width": 256, "height": 256, "fov_deg": 180.0}
+
+
+class TestKannalaBrandtTumVI(CameraModelTester):
+    camera_dict: ClassVar[dict] = CALIBRATIONS["tumvi512_cam0_kb"]["camera"]
+    full_sphere = True  # no fov_deg, and the polynomial increases up to 180 deg
+
+
+class TestKannalaBrandtSkewAndFov(CameraModelTester):
+    camera_dict: ClassVar[dict] = {
+        **CALIBRATIONS["tumvi512_cam0_kb"]["camera"],
+        "skew": 0.002,
+        "fov_deg": 195.0,
+    }
+
+
+class TestKannalaBrandtOldForm(CameraModelTester):
+    camera_dict: ClassVar[dict] = {
+        "model": "kannala_brandt",
+        "width": 512,
+        "height": 512,
+        "fov_deg": 190.0,
+        "k": [0.05, -0.01, 0.002, -0.0003],
+    }
+
+
+class TestDoubleSphereTumVI(CameraModelTester):
+    camera_dict: ClassVar[dict] = CALIBRATIONS["tumvi512_cam0_ds"]["camera"]
+
+
+class TestEucmTumVI(CameraModelTester):
+    camera_dict: ClassVar[dict] = CALIBRATIONS["tumvi512_cam0_eucm"]["camera"]
+
+
+class TestUnifiedKitti360Image02(CameraModelTester):
+    camera_dict: ClassVar[dict] = CALIBRATIONS["kitti360_image_02"]["camera"]
+
+
+class TestUnifiedKitti360Image03(CameraModelTester):
+    camera_dict: ClassVar[dict] = CALIBRATIONS["kitti360_image_03"]["camera"]
+
+
+class TestUnifiedSmallXi(CameraModelTester):
+    camera_dict: ClassVar[dict] = {
+        "model": "unified",
+        "width": 400,
+        "height": 300,
+        "fx": 300.0,
+        "fy": 290.0,
+        "cx": 201.0,
+        "cy": 148.0,
+        "xi": 0.8,
+        "k1": -0.1,
+        "k2": 0.02,
+        "p1": 1e-3,
+        "p2": -5e-4,
+    }
+
+
+class TestRadialPolyWoodScape(CameraModelTester):
+    camera_dict: ClassVar[dict] = CALIBRATIONS["woodscape_front"]["camera"]
+    full_sphere = True  # no fov_deg, and the polynomial increases up to 180 deg
+
+
+class TestOcamKodak(CameraModelTester):
+    camera_dict: ClassVar[dict] = CALIBRATIONS["ocam_kodak_sp360"]["camera"]
+    full_sphere = True  # no fov_deg, and the polynomial increases up to 180 deg
+
+
+class TestPinholeRadtanRos(CameraModelTester):
+    camera_dict: ClassVar[dict] = CALIBRATIONS["ros_kodak_plumb_bob"]["camera"]
+
+
+class TestPinholeCubeFace(CameraModelTester):
+    camera_dict: ClassVar[dict] = {
+        "model": "pinhole_radtan",
+        "width": 64,
+        "height": 64,
+        "fx": 32.0,
+        "fy": 32.0,
+        "cx": 31.5,
+        "cy": 31.5,
+    }
+
+
+def test_every_model_is_tested_on_a_real_calibration_or_an_ideal_lens() -> None:
+    tested = {c.camera_dict["model"] for c in CameraModelTester.__subclasses__()}
+    assert tested == set(CAMERA_MODELS)
+
+
+def test_unknown_model_and_missing_parameters_are_named() -> None:
+    with pytest.raises(ValueError, match=r"unknown camera model 'fisheye624'; expected one of \["):
+        camera_from_dict({"model": "fisheye624", "width": 4, "height": 4})
+    with pytest.raises(ValueError, match=r"missing \['alpha', 'xi'\].*parameters are"):
+        camera_from_dict(
+            {"model": "double_sphere", "width": 4, "height": 4, "fx": 1, "fy": 1, "cx": 1, "cy": 1}
+        )
+    with pytest.raises(ValueError, match="fx must be a finite positive number"):
+        camera_from_dict(
+            {
+                "model": "eucm",
+                "width": 4,
+                "height": 4,
+                "fx": -1,
+                "fy": 1,
+                "cx": 1,
+                "cy": 1,
+                "alpha": 0.5,
+                "beta": 1.0,
+            }
+        )
+    with pytest.raises(ValueError, match="alpha must be in"):
+        camera_from_dict(
+            {
+                "model": "double_sphere",
+                "width": 4,
+                "height": 4,
+                "fx": 1,
+                "fy": 1,
+                "cx": 1,
+                "cy": 1,
+                "xi": 0.0,
+                "alpha": 1.5,
+            }
+        )
+
+
+def test_kitti360_corners_lie_outside_the_unified_region() -> None:
+    """KITTI-360's 1400 x 1400 frame reaches past the MEI model's region (z > -d / xi): the corners have no ray."""
+    cam = camera_from_dict(CALIBRATIONS["kitti360_image_02"]["camera"])
+    mask = cam.valid_mask()
+    assert not mask[0, 0] and not mask[-1, -1] and mask[700, 700] and mask[700, 0]
+    edge = math.degrees(math.acos(-1.0 / cam.xi))
+    assert math.degrees(cam.theta_grid()[mask].max().item()) == pytest.approx(edge, abs=0.5)
+
+
+def test_kannala_brandt_beyond_90_degrees_is_not_mirrored() -> None:
+    """atan2(r, z), not OpenCV's atan(r / z): a point 100 deg off-axis lands further out than one at 80 deg."""
+    cam = camera_from_dict(CALIBRATIONS["tumvi512_cam0_kb"]["camera"])
+    t = torch.tensor([math.radians(80), math.radians(100)], dtype=torch.float64)
+    uv, valid = cam.project(
+        torch.stack([torch.sin(t), torch.zeros(2, dtype=torch.float64), torch.cos(t)], -1)
+    )
+    assert valid.all() and uv[1, 0] > uv[0, 0] > cam.cx

@@ -1,0 +1,250 @@
+"""Real published calibrations, written by the tests in the formats their tools write.
+
+Calibration parameters only (no images): their values come from the sources named next to them.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+# TUM-VI 512 cam0 / cam1 Double Sphere and EUCM: github:VladyslavUsenko/basalt data/tumvi_512_ds_calib.json and
+# data/tumvi_512_eucm_calib.json (T_imu_cam, intrinsics, resolution; the IMU and vignette entries left out).
+TUMVI_T_IMU_CAM = [
+    {
+        "px": 0.04548094812071685,
+        "py": -0.07145370002838907,
+        "pz": -0.046315428444919249,
+        "qx": -0.013392900690257393,
+        "qy": -0.6945866755293793,
+        "qz": 0.7192437840259219,
+        "qw": 0.007639340823570553,
+    },
+    {
+        "px": -0.05546984222234079,
+        "py": -0.06999334244486549,
+        "pz": -0.049092582974927929,
+        "qx": -0.01340980138125811,
+        "qy": -0.7115668842588793,
+        "qz": 0.7024477338114514,
+        "qw": 0.007741299385907546,
+    },
+]
+TUMVI_DS = [
+    {
+        "fx": 158.28600034966977,
+        "fy": 158.2743455478755,
+        "cx": 254.96116578191653,
+        "cy": 256.8894394501779,
+        "xi": -0.17213086034353243,
+        "alpha": 0.5931177593944744,
+    },
+    {
+        "fx": 157.91830144176309,
+        "fy": 157.8901286125632,
+        "cx": 252.56547609702953,
+        "cy": 255.02489416194656,
+        "xi": -0.17114780716007858,
+        "alpha": 0.5925543396658507,
+    },
+]
+TUMVI_EUCM = [
+    {
+        "fx": 191.14799836282189,
+        "fy": 191.13150963902818,
+        "cx": 254.9585771534443,
+        "cy": 256.88154645599448,
+        "alpha": 0.6291060881178562,
+        "beta": 1.0418067381860868,
+    },
+    {
+        "fx": 190.47905769226575,
+        "fy": 190.44567561523216,
+        "cx": 252.55882115024333,
+        "cy": 255.02104780344699,
+        "alpha": 0.6281040684983363,
+        "beta": 1.041250259119081,
+    },
+]
+# TUM-VI 512 pinhole-equi (Kalibr) cam0 / cam1: the TUM-VI dataset's published calibration (cvg.cit.tum.de), as
+# quoted in public code that uses the dataset (e.g. an Undistort.m attached to a Kalibr issue, "pinhole-equi-512").
+TUMVI_EQUI = [
+    {
+        "intrinsics": [190.97847715128717, 190.9733070521226, 254.93170605935475, 256.8974428996504],
+        "distortion_coeffs": [
+            0.0034823894022493434,
+            0.0007150348452162257,
+            -0.0020532361418706202,
+            0.00020293673591811182,
+        ],
+    },
+    {
+        "intrinsics": [190.44236969414825, 190.4344384721956, 252.59949716835982, 254.91723064636983],
+        "distortion_coeffs": [
+            0.0034003170790442797,
+            0.001766278153469831,
+            -0.00266312569781606,
+            0.0003299517423931039,
+        ],
+    },
+]
+
+# KITTI-360 calibration/image_02.yaml and image_03.yaml (MEI), the values of the KITTI-360 calibration download as
+# reproduced in github:yuliangguo/depth_any_camera (its KITTI-360 fisheye grid script).
+KITTI360 = {
+    "image_02": {
+        "xi": 2.2134047507854890e00,
+        "k1": 1.6798235660113681e-02,
+        "k2": 1.6548773243373522e00,
+        "p1": 4.2223943394772046e-04,
+        "p2": 4.2462134260997584e-04,
+        "gamma1": 1.3363220825849971e03,
+        "gamma2": 1.3357883350012958e03,
+        "u0": 7.1694323510126321e02,
+        "v0": 7.0576498308221585e02,
+    },
+    "image_03": {
+        "xi": 2.5535139132482758e00,
+        "k1": 4.9370396274089505e-02,
+        "k2": 4.5068455478645308e00,
+        "p1": 1.3477698472982495e-03,
+        "p2": -7.0340482615055284e-04,
+        "gamma1": 1.4854388981875156e03,
+        "gamma2": 1.4849477411748708e03,
+        "u0": 6.9888316784030962e02,
+        "v0": 6.9814541887723055e02,
+    },
+}
+
+# WoodScape front camera: github:valeoai/WoodScape scripts/calibration/front.json (commit 2bf2161).
+WOODSCAPE_FRONT = {
+    "extrinsic": {
+        "quaternion": [0.5941767906169857, -0.5878843193897473, 0.3873184109007999, -0.3890121040340926],
+        "translation": [3.7484, 0.0, 0.6601699999999999],
+    },
+    "intrinsic": {
+        "aspect_ratio": 1.0,
+        "cx_offset": 3.942,
+        "cy_offset": -3.093,
+        "height": 966.0,
+        "k1": 339.749,
+        "k2": -31.988,
+        "k3": 48.275,
+        "k4": -7.201,
+        "model": "radial_poly",
+        "poly_order": 4,
+        "width": 1280.0,
+    },
+    "name": "FV",
+}
+
+# An OCamCalib v3.0 calibration of a Kodak PIXPRO SP360 4K (1440 x 1440): github:uts-magic-lab/kodak_pixpro_sp360_ros
+# calib_results_kodak.txt, as the toolbox's export_data.m writes it.
+OCAM_KODAK = """#polynomial coefficients for the DIRECT mapping function (ocam_model.ss in MATLAB). These are used by cam2world
+
+5 -2.716972e+02 0.000000e+00 -2.741744e-06 1.840940e-06 -8.024838e-10 
+
+#polynomial coefficients for the inverse mapping function (ocam_model.invpol in MATLAB). These are used by world2cam
+
+13 583.439624 470.805865 97.165132 120.712689 100.686168 55.067847 67.348203 15.186683 1.492255 84.459767 105.607698 48.090642 7.785426 
+
+#center: "row" and "column", starting from 0 (C convention)
+
+728.648728 729.090632
+
+#affine parameters "c", "d", "e"
+
+1.001407 -0.000818 0.000221
+
+#image size: "height" and "width"
+
+1440 1440
+"""  # noqa: W291 (the toolbox ends value lines with a space)
+
+# The same camera calibrated with ROS cameracalibrator.py (plumb_bob): github:uts-magic-lab/kodak_pixpro_sp360_ros
+# kodak.yaml, in camera_calibration_parsers' layout.
+ROS_KODAK = """image_width: 1440
+image_height: 1440
+camera_name: kodak
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [559.7772332675477, 0, 654.6891822497959, 0, 537.9001480261843, 757.5374958985061, 0, 0, 1]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [-0.1710342568253523, 0.01562344385534763, -0.006842079559350427, 0.005880933792022186, 0]
+rectification_matrix:
+  rows: 3
+  cols: 3
+  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+projection_matrix:
+  rows: 3
+  cols: 4
+  data: [471.8281555175781, 0, 686.7856496391687, 0, 0, 427.0946044921875, 763.6798197288299, 0, 0, 0, 1, 0]
+"""
+
+
+def write_basalt(path: Path, intrinsics: list[dict], camera_type: str) -> Path:
+    """basalt's calibration JSON (cereal layout) of TUM-VI's two cameras."""
+    doc = {
+        "value0": {
+            "T_imu_cam": TUMVI_T_IMU_CAM,
+            "intrinsics": [{"camera_type": camera_type, "intrinsics": p} for p in intrinsics],
+            "resolution": [[512, 512], [512, 512]],
+            "imu_update_rate": 200.0,
+        }
+    }
+    path.write_text(json.dumps(doc, indent=4))
+    return path
+
+
+def write_kalibr_camchain(path: Path, model: str = "ds", cameras: int = 2) -> Path:
+    """A Kalibr camchain.yaml of TUM-VI's 512 cameras (``cameras``: 2, or 1 for cam0 alone): ``ds`` (Double
+    Sphere, basalt's values in Kalibr's intrinsics order xi, alpha, fu, fv, pu, pv) or ``pinhole-equi``."""
+    blocks = []
+    for i in range(cameras):
+        if model == "ds":
+            p = TUMVI_DS[i]
+            intrinsics = [p["xi"], p["alpha"], p["fx"], p["fy"], p["cx"], p["cy"]]
+            camera_model, distortion, coeffs = "ds", "none", []
+        else:
+            intrinsics = TUMVI_EQUI[i]["intrinsics"]
+            camera_model, distortion, coeffs = "pinhole", "equidistant", TUMVI_EQUI[i]["distortion_coeffs"]
+        block = [
+            f"cam{i}:",
+            f"  cam_overlaps: [{1 - i}]",
+            f"  camera_model: {camera_model}",
+            f"  distortion_coeffs: [{', '.join(repr(c) for c in coeffs)}]",
+            f"  distortion_model: {distortion}",
+            f"  intrinsics: [{', '.join(repr(v) for v in intrinsics)}]",
+            "  resolution: [512, 512]",
+            f"  rostopic: /cam{i}/image_raw",
+        ]
+        if i == 1:  # an illustrative baseline (not TUM-VI's): 10.1 cm along x
+            block += [
+                "  T_cn_cnm1:",
+                "  - [1.0, 0.0, 0.0, -0.101]",
+                "  - [0.0, 1.0, 0.0, 0.0]",
+                "  - [0.0, 0.0, 1.0, 0.0]",
+                "  - [0.0, 0.0, 0.0, 1.0]",
+            ]
+        blocks.append("\n".join(block))
+    path.write_text("\n".join(blocks) + "\n")
+    return path
+
+
+def write_kitti360(path: Path, name: str = "image_02") -> Path:
+    """KITTI-360 ``calibration/image_0x.yaml`` in its OpenCV FileStorage layout (``%YAML:1.0``)."""
+    p = KITTI360[name]
+    path.write_text(
+        "%YAML:1.0\n---\nmodel_type: MEI\n"
+        f"camera_name: {name}\nimage_width: 1400\nimage_height: 1400\n"
+        f"mirror_parameters:\n   xi: {p['xi']:.16e}\n"
+        "distortion_parameters:\n"
+        + "".join(f"   {k}: {p[k]:.16e}\n" for k in ("k1", "k2", "p1", "p2"))
+        + "projection_parameters:\n"
+        + "".join(f"   {k}: {p[k]:.16e}\n" for k in ("gamma1", "gamma2", "u0", "v0"))
+    )
+    return path

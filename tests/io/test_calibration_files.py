@@ -1,0 +1,527 @@
+"""Calibration files as the tools write them -> the camera contract's flat dicts (airfisheye_bench.io.calibration_files).
+
+The fixtures are real published calibrations (tests/io/calibration_fixtures.py names each source) written in their
+tools' formats; expected values are those of the source, converted by the documented pixel conventions.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from airfisheye_bench.errors import MissingFileError
+from airfisheye_bench.io.calibration_files import FORMATS, load_camera, read_calibration, save_camera
+from airfisheye_bench.io.errors import CalibrationFileError
+from tests.io import calibration_fixtures as fx
+
+
+def _rigid(T: np.ndarray) -> bool:
+    R = T[:3, :3]
+    return (
+        np.allclose(R @ R.T, np.eye(3), atol=1e-12)
+        and math.isclose(np.linalg.det(R), 1.0)
+        and list(T[3]) == [0, 0, 0, 1]
+    )
+
+
+# ------------------------------------------------------------------------------------------------------------ basalt
+@pytest.mark.parametrize(
+    ("camera_type", "values", "model"),
+    [("ds", fx.TUMVI_DS, "double_sphere"), ("eucm", fx.TUMVI_EUCM, "eucm")],
+)
+def test_basalt_tumvi(tmp_path: Path, camera_type: str, values: list[dict], model: str) -> None:
+    path = fx.write_basalt(tmp_path / f"tumvi_512_{camera_type}_calib.json", values, camera_type)
+    with pytest.raises(CalibrationFileError, match=r"holds 2 cameras \(0, 1\).*camera="):
+        read_calibration(path)
+    for index in (0, 1):
+        record = read_calibration(path, camera=index)
+        assert (record.format, record.name) == ("basalt", str(index))
+        assert record.camera == {"model": model, "width": 512, "height": 512, **values[index]}
+        assert _rigid(record.extrinsics["T_imu_cam"])
+    assert read_calibration(path, camera="1").camera["fx"] == values[1]["fx"]
+
+
+def test_basalt_ucm_is_the_unified_model(tmp_path: Path) -> None:
+    # basalt's UCM (unified_camera.hpp): u = fx x / (alpha d + (1 - alpha) z) + cx. Mei: gamma x / (z + xi d) + u0.
+    p = {"fx": 150.0, "fy": 151.0, "cx": 255.0, "cy": 256.0, "alpha": 0.6}
+    path = tmp_path / "ucm.json"
+    path.write_text(
+        json.dumps(
+            {"value0": {"intrinsics": [{"camera_type": "ucm", "intrinsics": p}], "resolution": [[512, 512]]}}
+        )
+    )
+    camera = read_calibration(path).camera
+    x, y, z = 0.3, -0.2, 0.5
+    d = math.sqrt(x * x + y * y + z * z)
+    basalt_u = p["fx"] * x / (p["alpha"] * d + (1 - p["alpha"]) * z) + p["cx"]
+    basalt_v = p["fy"] * y / (p["alpha"] * d + (1 - p["alpha"]) * z) + p["cy"]
+    mei_u = camera["fx"] * x / (z + camera["xi"] * d) + camera["cx"]
+    mei_v = camera["fy"] * y / (z + camera["xi"] * d) + camera["cy"]
+    assert camera["model"] == "unified"
+    assert mei_u == pytest.approx(basalt_u, abs=1e-12) and mei_v == pytest.approx(basalt_v, abs=1e-12)
+
+
+def test_basalt_unsupported_type(tmp_path: Path) -> None:
+    path = tmp_path / "calib.json"
+    intrinsics = [
+        {"camera_type": "fov", "intrinsics": {"fx": 1.0, "fy": 1.0, "cx": 0.0, "cy": 0.0, "w": 0.9}}
+    ]
+    path.write_text(json.dumps({"value0": {"intrinsics": intrinsics, "resolution": [[64, 64]]}}))
+    with pytest.raises(CalibrationFileError) as err:
+        read_calibration(path)
+    assert str(path) in str(err.value) and "value0.intrinsics[0].camera_type" in str(err.value)
+    assert "'fov' is not supported; supported: ds, eucm, kb4, ucm, pinhole" in str(err.value)
+
+
+# ------------------------------------------------------------------------------------------------------------ Kalibr
+def test_kalibr_ds_camchain(tmp_path: Path) -> None:
+    path = fx.write_kalibr_camchain(tmp_path / "camchain.yaml", "ds")
+    with pytest.raises(CalibrationFileError, match=r"holds 2 cameras \(cam0, cam1\)"):
+        read_calibration(path)
+    for camera in ("cam1", 1, "1"):
+        record = read_calibration(path, camera=camera)
+        assert (record.format, record.name) == ("kalibr", "cam1")
+        assert record.camera == {"model": "double_sphere", "width": 512, "height": 512, **fx.TUMVI_DS[1]}
+    assert read_calibration(path, camera="cam1").extrinsics["T_cn_cnm1"][0, 3] == -0.101
+    with pytest.raises(CalibrationFileError, match=r"camera='cam7' is not in the file; it holds cam0, cam1"):
+        read_calibration(path, camera="cam7")
+
+
+def test_kalibr_pinhole_equi_is_kannala_brandt(tmp_path: Path) -> None:
+    path = fx.write_kalibr_camchain(tmp_path / "camchain-imucam.txt", "equi")  # recognised from the contents
+    camera = read_calibration(path, camera="cam0").camera
+    fu, fv, pu, pv = fx.TUMVI_EQUI[0]["intrinsics"]
+    k1, k2, k3, k4 = fx.TUMVI_EQUI[0]["distortion_coeffs"]
+    assert camera == {
+        "model": "kannala_brandt", "width": 512, "height": 512, "fx": fu, "fy": fv, "cx": pu, "cy": pv,
+        "k1": k1, "k2": k2, "k3": k3, "k4": k4, "skew": 0.0,
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("camera_model", "distortion", "intrinsics", "key"),
+    [
+        ("ds", "radtan", [0.1, 0.5, 1, 1, 1, 1], "cam0.distortion_model"),
+        ("omni", "equidistant", [1.0, 1, 1, 1, 1], "cam0.distortion_model"),
+        ("fisheye62", "none", [1, 1, 1, 1], "cam0.camera_model"),
+    ],
+)
+def test_kalibr_unsupported_pair(
+    tmp_path: Path, camera_model: str, distortion: str, intrinsics: list, key: str
+) -> None:
+    path = tmp_path / "camchain.yaml"
+    path.write_text(
+        f"cam0:\n  camera_model: {camera_model}\n  distortion_model: {distortion}\n  distortion_coeffs: [0, 0, 0, 0]\n"
+        f"  intrinsics: {intrinsics}\n  resolution: [64, 64]\n"
+    )
+    with pytest.raises(CalibrationFileError) as err:
+        read_calibration(path)
+    message = str(err.value)
+    assert f"key '{key}'" in message and f"{camera_model}-{distortion} is not supported" in message
+    assert "pinhole-equidistant" in message and "ds-none" in message and "eucm-none" in message
+
+
+def test_kalibr_missing_and_wrong_keys(tmp_path: Path) -> None:
+    path = tmp_path / "camchain.yaml"
+    path.write_text(
+        "cam0:\n  camera_model: eucm\n  distortion_model: none\n  intrinsics: [0.6, 1.0, 190, 190, 255, 256]\n"
+    )
+    with pytest.raises(CalibrationFileError, match=r"key 'cam0.resolution': is missing"):
+        read_calibration(path)
+    path.write_text(
+        "cam0:\n  camera_model: eucm\n  distortion_model: none\n  intrinsics: [0.6, 1.0, 190]\n  resolution: [64, 64]\n"
+    )
+    with pytest.raises(CalibrationFileError, match=r"key 'cam0.intrinsics': expected 6 numbers, got 3"):
+        read_calibration(path)
+
+
+# ------------------------------------------------------------------------------------------------ KITTI-360 (MEI)
+@pytest.mark.parametrize("name", ["image_02", "image_03"])
+def test_kitti360_mei(tmp_path: Path, name: str) -> None:
+    path = fx.write_kitti360(tmp_path / f"{name}.yaml", name)
+    assert path.read_text().startswith("%YAML:1.0\n")
+    record = read_calibration(path)
+    p = fx.KITTI360[name]
+    assert (record.format, record.name) == ("kitti360", name)
+    assert record.camera == {
+        "model": "unified", "width": 1400, "height": 1400, "fx": p["gamma1"], "fy": p["gamma2"], "cx": p["u0"],
+        "cy": p["v0"], "xi": p["xi"], "k1": p["k1"], "k2": p["k2"], "p1": p["p1"], "p2": p["p2"],
+    }  # fmt: skip
+
+
+def test_kitti360_devkit_projection_agrees(tmp_path: Path) -> None:
+    """Without p1, p2 the unified dict projects as the KITTI-360 devkit's cam2image (kitti360scripts/helpers/project.py)."""
+    camera = read_calibration(fx.write_kitti360(tmp_path / "image_02.yaml")).camera
+    p = fx.KITTI360["image_02"]
+    rng = np.random.default_rng(0)
+    points = rng.normal(size=(100, 3)) + np.array([0.0, 0.0, 1.0])
+    # The devkit's cam2image, step by step.
+    norm = np.linalg.norm(points, axis=1)
+    x, y, z = (points / norm[:, None]).T
+    x, y = x / (z + p["xi"]), y / (z + p["xi"])
+    ro2 = x * x + y * y
+    x, y = x * (1 + p["k1"] * ro2 + p["k2"] * ro2 * ro2), y * (1 + p["k1"] * ro2 + p["k2"] * ro2 * ro2)
+    devkit = np.stack([p["gamma1"] * x + p["u0"], p["gamma2"] * y + p["v0"]], -1)
+    # The same from the dict's parameters (Mei's unified model with p1 = p2 = 0).
+    xs, ys, zs = (points / norm[:, None]).T
+    mx, my = xs / (zs + camera["xi"]), ys / (zs + camera["xi"])
+    r2 = mx * mx + my * my
+    radial = 1 + camera["k1"] * r2 + camera["k2"] * r2 * r2
+    ours = np.stack(
+        [camera["fx"] * mx * radial + camera["cx"], camera["fy"] * my * radial + camera["cy"]], -1
+    )
+    assert np.abs(ours - devkit).max() < 1e-9
+
+
+def test_camodocs_other_model_types_are_named(tmp_path: Path) -> None:
+    path = tmp_path / "cam.yaml"
+    path.write_text(
+        "%YAML:1.0\n---\nmodel_type: KANNALA_BRANDT\ncamera_name: camera\nimage_width: 640\nimage_height: 480\n"
+    )
+    with pytest.raises(
+        CalibrationFileError, match=r"key 'model_type': 'KANNALA_BRANDT' is not supported; supported: MEI"
+    ):
+        read_calibration(path)
+
+
+# ------------------------------------------------------------------------------------------------------- WoodScape
+def test_woodscape_front(tmp_path: Path) -> None:
+    path = tmp_path / "front.json"
+    path.write_text(json.dumps(fx.WOODSCAPE_FRONT, indent=2))
+    record = read_calibration(path)
+    intrinsic = fx.WOODSCAPE_FRONT["intrinsic"]
+    # WoodScape's Camera: principle point = 0.5 * size + offset - 0.5 (projection.py).
+    assert record.camera == {
+        "model": "radial_poly", "width": 1280, "height": 966, "k1": 339.749, "k2": -31.988, "k3": 48.275,
+        "k4": -7.201, "cx": 0.5 * 1280 + intrinsic["cx_offset"] - 0.5, "cy": 0.5 * 966 + intrinsic["cy_offset"] - 0.5,
+        "aspect_ratio": 1.0,
+    }  # fmt: skip
+    assert record.name == "FV"
+    T = record.extrinsics["T_vehicle_cam"]
+    assert _rigid(T) and T[:3, 3].tolist() == fx.WOODSCAPE_FRONT["extrinsic"]["translation"]
+    # The front camera looks forward along the vehicle's x axis, tilted down, its image x axis to the vehicle's right.
+    forward, right = T[:3, 2], T[:3, 0]
+    assert forward[0] > 0.8 and forward[2] < 0 and right[1] < -0.9
+
+
+def test_woodscape_other_model(tmp_path: Path) -> None:
+    doc = json.loads(json.dumps(fx.WOODSCAPE_FRONT))
+    doc["intrinsic"]["model"] = "polynomial_8"
+    path = tmp_path / "front.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(
+        CalibrationFileError,
+        match=r"key 'intrinsic.model': 'polynomial_8' is not supported; supported: radial_poly",
+    ):
+        read_calibration(path)
+
+
+# ------------------------------------------------------------------------------------------------------- OCamCalib
+def test_ocamcalib_kodak(tmp_path: Path) -> None:
+    path = tmp_path / "calib_results.txt"
+    path.write_text(fx.OCAM_KODAK)
+    record = read_calibration(path)
+    assert record.format == "ocamcalib"
+    assert record.camera == {
+        "model": "ocam", "width": 1440, "height": 1440, "cx": 729.090632, "cy": 728.648728, "c": 1.001407,
+        "d": -0.000818, "e": 0.000221,
+        "cam2world": [-2.716972e02, 0.0, -2.741744e-06, 1.840940e-06, -8.024838e-10],
+        "world2cam": [583.439624, 470.805865, 97.165132, 120.712689, 100.686168, 55.067847, 67.348203, 15.186683,
+                      1.492255, 84.459767, 105.607698, 48.090642, 7.785426],
+    }  # fmt: skip
+
+
+def test_ocamcalib_matlab_centre_and_bad_counts(tmp_path: Path) -> None:
+    old = fx.OCAM_KODAK.replace(
+        '#center: "row" and "column", starting from 0 (C convention)',
+        "#center: (ocam_model.xc and ocam_model.yc in MATLAB)",
+    )
+    path = tmp_path / "calib_results.txt"
+    path.write_text(old)
+    camera = read_calibration(path).camera
+    assert (camera["cx"], camera["cy"]) == (729.090632 - 1, 728.648728 - 1)
+    path.write_text(fx.OCAM_KODAK.replace("\n5 -2.716972e+02", "\n6 -2.716972e+02"))
+    with pytest.raises(
+        CalibrationFileError, match=r"key 'ss': expected the coefficient count N followed by N"
+    ):
+        read_calibration(path)
+
+
+# ------------------------------------------------------------------------------------------------------ OpenCV
+OPENCV_FISHEYE_YAML = """%YAML:1.0
+---
+calibration_time: "Wed 25 Nov 2026 10:00:00 UTC"
+nr_of_frames: 25
+image_width: 1280
+image_height: 960
+board_width: 9
+board_height: 6
+square_size: 25.
+flags: 0
+fisheye_model: 1
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 4.1234567890123457e+02, 2.0000000000000001e-01, 6.3950000000000000e+02, 0., 4.1300000000000000e+02,
+       4.7950000000000000e+02, 0., 0., 1. ]
+distortion_coefficients: !!opencv-matrix
+   rows: 4
+   cols: 1
+   dt: d
+   data: [ 1.2000000000000000e-02, -3.0000000000000001e-03, 5.0000000000000001e-04, -2.0000000000000001e-05 ]
+avg_reprojection_error: 2.1000000000000002e-01
+"""
+
+
+def test_opencv_filestorage_fisheye_yaml(tmp_path: Path) -> None:
+    path = tmp_path / "out_camera_data.yml"
+    path.write_text(OPENCV_FISHEYE_YAML)
+    record = read_calibration(path)
+    assert record.format == "opencv"
+    assert record.camera == {
+        "model": "kannala_brandt", "width": 1280, "height": 960, "fx": 412.34567890123457, "fy": 413.0,
+        "cx": 639.5, "cy": 479.5, "k1": 0.012, "k2": -0.003, "k3": 0.0005, "k4": -2e-05,
+        "skew": 0.2 / 412.34567890123457,
+    }  # fmt: skip
+
+
+def test_opencv_plumb_bob_json_and_bad_coefficients(tmp_path: Path) -> None:
+    matrix = {
+        "type_id": "opencv-matrix",
+        "rows": 3,
+        "cols": 3,
+        "dt": "d",
+        "data": [500.0, 0, 319.5, 0, 501.0, 239.5, 0, 0, 1],
+    }
+    dist = {
+        "type_id": "opencv-matrix",
+        "rows": 1,
+        "cols": 5,
+        "dt": "d",
+        "data": [-0.2, 0.05, 0.001, -0.002, 0.01],
+    }
+    doc = {"image_width": 640, "image_height": 480, "camera_matrix": matrix, "distortion_coefficients": dist}
+    path = tmp_path / "calibration.json"
+    path.write_text(json.dumps(doc, indent=4))
+    assert read_calibration(path).camera == {
+        "model": "pinhole_radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 501.0, "cx": 319.5, "cy": 239.5,
+        "k1": -0.2, "k2": 0.05, "p1": 0.001, "p2": -0.002, "k3": 0.01,
+    }  # fmt: skip
+    dist["rows"], dist["data"] = 1, [-0.2, 0.05, 0.001, -0.002, 0.01, 0.3, 0.0, 0.0]
+    dist["cols"] = 8
+    path.write_text(json.dumps(doc))
+    with pytest.raises(
+        CalibrationFileError, match=r"key 'distortion_coefficients': non-zero k4: the rational"
+    ):
+        read_calibration(path)
+
+
+def test_opencv_live_filestorage(tmp_path: Path) -> None:
+    """What OpenCV's own cv::FileStorage writes (YAML and JSON) reads back to the same numbers."""
+    cv2 = pytest.importorskip("cv2")
+    K = np.array([[412.3456789, 0.0, 639.5], [0.0, 413.0, 479.5], [0.0, 0.0, 1.0]])
+    for suffix, D, fisheye in (
+        (".yml", np.array([[0.012], [-0.003], [5e-4], [-2e-5]]), 1),
+        (".json", np.array([[-0.2, 0.05, 1e-3, -2e-3, 0.01]]), 0),
+    ):
+        path = tmp_path / f"camera{suffix}"
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+        fs.write("image_width", 1280)
+        fs.write("image_height", 960)
+        fs.write("fisheye_model", fisheye)
+        fs.write("camera_matrix", K)
+        fs.write("distortion_coefficients", D)
+        fs.release()
+        camera = read_calibration(path).camera
+        assert camera["model"] == ("kannala_brandt" if fisheye else "pinhole_radtan")
+        assert (camera["fx"], camera["fy"], camera["cx"], camera["cy"]) == (
+            K[0, 0],
+            K[1, 1],
+            K[0, 2],
+            K[1, 2],
+        )
+        names = ("k1", "k2", "k3", "k4") if fisheye else ("k1", "k2", "p1", "p2", "k3")
+        assert [camera[n] for n in names] == D.reshape(-1).tolist()
+
+
+# ------------------------------------------------------------------------------------------------------------ ROS
+def test_ros_parsers_layout_plumb_bob(tmp_path: Path) -> None:
+    path = tmp_path / "kodak.yaml"
+    path.write_text(fx.ROS_KODAK)
+    record = read_calibration(path)
+    assert (record.format, record.name) == ("ros", "kodak")
+    assert record.camera == {
+        "model": "pinhole_radtan", "width": 1440, "height": 1440, "fx": 559.7772332675477, "fy": 537.9001480261843,
+        "cx": 654.6891822497959, "cy": 757.5374958985061, "k1": -0.1710342568253523, "k2": 0.01562344385534763,
+        "p1": -0.006842079559350427, "p2": 0.005880933792022186, "k3": 0.0,
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize(("k", "d"), [("K", "D"), ("k", "d")])
+def test_ros_message_dump_equidistant(tmp_path: Path, k: str, d: str) -> None:
+    equi = fx.TUMVI_EQUI[0]
+    fu, fv, pu, pv = equi["intrinsics"]
+    path = tmp_path / "camera_info.yaml"
+    path.write_text(
+        "header:\n  seq: 12\n  frame_id: cam0\nheight: 512\nwidth: 512\ndistortion_model: equidistant\n"
+        f"{d}: {equi['distortion_coeffs']}\n{k}: {[fu, 0.0, pu, 0.0, fv, pv, 0.0, 0.0, 1.0]}\n"
+        "R: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]\nbinning_x: 0\nbinning_y: 0\n---\n"
+        if k == "K"
+        else "height: 512\nwidth: 512\ndistortion_model: equidistant\n"
+        f"{d}:\n"
+        + "".join(f"- {c!r}\n" for c in equi["distortion_coeffs"])
+        + f"{k}:\n"
+        + "".join(f"- {v!r}\n" for v in [fu, 0.0, pu, 0.0, fv, pv, 0.0, 0.0, 1.0])
+    )
+    camera = read_calibration(path).camera
+    assert camera["model"] == "kannala_brandt" and (camera["fx"], camera["cy"]) == (fu, pv)
+    assert [camera[n] for n in ("k1", "k2", "k3", "k4")] == equi["distortion_coeffs"]
+
+
+def test_ros_unsupported_distortion_model(tmp_path: Path) -> None:
+    path = tmp_path / "info.yaml"
+    path.write_text(fx.ROS_KODAK.replace("plumb_bob", "fov"))
+    with pytest.raises(
+        CalibrationFileError,
+        match=r"key 'distortion_model': 'fov' is not supported; supported: equidistant, plumb_bob, rational_polynomial",
+    ):
+        read_calibration(path)
+
+
+# ---------------------------------------------------------------------------------------------------------- COLMAP
+COLMAP_TXT = """# Camera list with one line of data per camera:
+#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]
+# Number of cameras: 3
+1 OPENCV_FISHEYE 512 512 190.97847715128717 190.9733070521226 255.43170605935475 257.3974428996504 0.0034823894022493434 0.0007150348452162257 -0.0020532361418706202 0.00020293673591811182
+2 SIMPLE_RADIAL 640 480 500 320 240 -0.1
+7 FOV 640 480 300 300 320 240 0.9
+"""
+
+
+def test_colmap_cameras_txt(tmp_path: Path) -> None:
+    path = tmp_path / "cameras.txt"
+    path.write_text(COLMAP_TXT)
+    with pytest.raises(CalibrationFileError, match=r"holds 3 cameras \(1, 2, 7\)"):
+        read_calibration(path)
+    record = read_calibration(path, camera=1)
+    fu, _fv, pu, pv = fx.TUMVI_EQUI[0]["intrinsics"]
+    # COLMAP's pixel centres are at half-integers: the same lens has its principal point 0.5 px further.
+    assert record.camera["model"] == "kannala_brandt" and record.name == "1"
+    assert (record.camera["fx"], record.camera["cx"], record.camera["cy"]) == (fu, pu, pv)
+    assert read_calibration(path, camera="2").camera == {
+        "model": "pinhole_radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 500.0, "cx": 319.5, "cy": 239.5,
+        "k1": -0.1, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0,
+    }  # fmt: skip
+    with pytest.raises(
+        CalibrationFileError, match=r"key '7.model': FOV is not supported; supported: SIMPLE_PINHOLE"
+    ):
+        read_calibration(path, camera=7)
+    with pytest.raises(CalibrationFileError, match=r"camera='0' is not in the file; it holds 1, 2, 7"):
+        read_calibration(path, camera="0")  # COLMAP ids are names, never indices
+
+
+# -------------------------------------------------------------------------------------- the project's own + errors
+def test_project_calib_yaml_camera_section(tmp_path: Path) -> None:
+    path = tmp_path / "calib.yaml"
+    camera = {
+        "model": "equidistant",
+        "width": 64,
+        "height": 64,
+        "fov_deg": 190.0,
+        "cx": 31.5,
+        "cy": 31.5,
+        "focal": 19.3,
+    }
+    path.write_text(
+        json.dumps(
+            {"camera": camera, "cubemap": {"face_size": 32}, "T_body_cam": np.eye(4).tolist(), "lidar": {}}
+        )
+    )
+    record = read_calibration(path)
+    assert record.format == "airfisheye" and record.camera == camera
+
+
+def test_unknown_format_lists_the_formats(tmp_path: Path) -> None:
+    path = tmp_path / "what.yaml"
+    path.write_text("focal_length: 3.2\nsensor: imx477\n")
+    with pytest.raises(CalibrationFileError) as err:
+        read_calibration(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: not a calibration file of a known format")
+    assert all(fmt.name in message for fmt in FORMATS)
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(MissingFileError, match="no such calibration file"):
+        read_calibration(tmp_path / "nope.yaml")
+
+
+def test_every_format_names_its_source() -> None:
+    assert len({fmt.name for fmt in FORMATS}) == len(FORMATS) == 9
+    assert all(fmt.source and fmt.summary for fmt in FORMATS)
+
+
+# ------------------------------------------------------------------------------ cameras of the contract, round trip
+def _every_fixture(tmp_path: Path) -> list[tuple[Path, str | None]]:
+    woodscape = tmp_path / "front.json"
+    woodscape.write_text(json.dumps(fx.WOODSCAPE_FRONT))
+    ocam = tmp_path / "calib_results.txt"
+    ocam.write_text(fx.OCAM_KODAK)
+    ros = tmp_path / "kodak.yaml"
+    ros.write_text(fx.ROS_KODAK)
+    opencv_yaml = tmp_path / "out_camera_data.yml"
+    opencv_yaml.write_text(OPENCV_FISHEYE_YAML)
+    colmap = tmp_path / "cameras.txt"
+    colmap.write_text(COLMAP_TXT)
+    return [
+        (fx.write_basalt(tmp_path / "ds.json", fx.TUMVI_DS, "ds"), "0"),
+        (fx.write_basalt(tmp_path / "eucm.json", fx.TUMVI_EUCM, "eucm"), "1"),
+        (fx.write_kalibr_camchain(tmp_path / "camchain_ds.yaml", "ds"), "cam0"),
+        (fx.write_kalibr_camchain(tmp_path / "camchain_equi.yaml", "equi"), "cam1"),
+        (fx.write_kitti360(tmp_path / "image_02.yaml", "image_02"), None),
+        (fx.write_kitti360(tmp_path / "image_03.yaml", "image_03"), None),
+        (woodscape, None),
+        (ocam, None),
+        (ros, None),
+        (opencv_yaml, None),
+        (colmap, "1"),
+    ]
+
+
+@pytest.mark.parametrize("suffix", [".yaml", ".json"])
+def test_every_fixture_loads_and_round_trips_through_save_camera(tmp_path: Path, suffix: str) -> None:
+    for path, name in _every_fixture(tmp_path):
+        camera = load_camera(path, name)
+        assert camera.to_dict() == read_calibration(path, name).camera, path.name
+        saved = save_camera(camera, tmp_path / f"{path.stem}_saved{suffix}")
+        again = load_camera(saved)
+        assert again == camera and again.to_dict() == camera.to_dict(), path.name
+        # The project's own format round-trips exactly: the same bytes when saved again.
+        resaved = save_camera(again, tmp_path / f"{path.stem}_resaved{suffix}")
+        assert resaved.read_bytes() == saved.read_bytes()
+
+
+def test_load_camera_refuses_what_the_model_refuses(tmp_path: Path) -> None:
+    path = tmp_path / "camchain.yaml"
+    path.write_text(
+        "cam0:\n  camera_model: eucm\n  distortion_model: none\n  intrinsics: [0.6, -1.0, 190, 190, 255, 256]\n"
+        "  resolution: [512, 512]\n"
+    )
+    with pytest.raises(
+        CalibrationFileError, match=r"camchain.yaml: key 'cam0': not a valid eucm camera \(.*beta"
+    ):
+        load_camera(path)
+
+
+def test_basalt_and_kalibr_share_a_pixel_convention(tmp_path: Path) -> None:
+    """TUM-VI's cam0 calibrated by basalt (ds, eucm) and by Kalibr (pinhole-equi): the principal points agree to a
+    few hundredths of a pixel, so neither reader shifts by half a pixel against the other."""
+    kalibr = read_calibration(fx.write_kalibr_camchain(tmp_path / "camchain.yaml", "equi"), "cam0").camera
+    for values, kind in ((fx.TUMVI_DS, "ds"), (fx.TUMVI_EUCM, "eucm")):
+        basalt = read_calibration(fx.write_basalt(tmp_path / f"{kind}.json", values, kind), 0).camera
+        assert abs(basalt["cx"] - kalibr["cx"]) < 0.05 and abs(basalt["cy"] - kalibr["cy"]) < 0.05
