@@ -189,7 +189,7 @@ def _set(words, w0, c):  # pragma: no cover - compiled
 def ordering_keep(
     row, pos, col, theta, phi, n_c, row_len, n_cols, az_win, el_win, tol, keep
 ):  # pragma: no cover - compiled
-    """Step 4 of III-C: the sequential loop of ``occlusion._ordering_loop``, with the same result.
+    """Step 4 of III-C: the sequential loop of ``occlusion.ordering.ordering_loop``, with the same result.
 
     Points come in visiting order (ascending camera range), each at its own place ``(row, pos)`` of a row
     and in a column ``col`` that may hold several points of one row. A point is kept iff its ``theta`` is
