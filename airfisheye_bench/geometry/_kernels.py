@@ -76,7 +76,21 @@ def blend_interleaved3(src, pixels, index, weight, out, is_int, lo, hi):  # prag
 # -------------------------------------------------------------------------- LiDAR: organisation and ordering
 @njit(cache=True, nogil=True)
 def lidar_layout(
-    r, az, el, lower, v_res, edge, h_res, n_c, wrap_last, first_col, n_cols, ring, position, column
+    r,
+    az,
+    el,
+    lower,
+    v_res,
+    edge,
+    h_res,
+    n_c,
+    wrap_last,
+    first_col,
+    n_cols,
+    ring_given,
+    ring,
+    position,
+    column,
 ):  # pragma: no cover - compiled
     """Step 1 of III-C: ring, rank in azimuth within the ring and azimuth sector of every point.
 
@@ -92,7 +106,9 @@ def lidar_layout(
         n_c: Channels.
         wrap_last: Clamp the sector to ``wrap_last`` (a 360 deg sensor: azimuth +pi is the last sector); -1: no.
         first_col, n_cols: Sectors span ``[first_col, first_col + n_cols)`` (``lidar.column_range``).
-        ring, position, column: ``int64 [N]`` outputs.
+        ring_given: ``ring`` holds every point's ring already (-1: none; a ring field or an estimate from a
+            channel table); otherwise it is the nearest of the evenly spaced channels.
+        ring, position, column: ``int64 [N]`` outputs (``ring`` an input too with ``ring_given``).
 
     Returns:
         The length of the longest ring (0 for no point).
@@ -101,7 +117,7 @@ def lidar_layout(
     count = np.zeros(n_c * n_cols + 1, np.int64)
     bucket = np.empty(n, np.int64)
     for p in range(n):
-        i = np.rint((el[p] - lower) / v_res)
+        i = float(ring[p]) if ring_given else np.rint((el[p] - lower) / v_res)
         j = np.floor((az[p] - edge) / h_res)
         if wrap_last >= 0 and j > wrap_last:
             j = float(wrap_last)

@@ -14,7 +14,7 @@ import torch
 from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.camera import FisheyeCamera
-from airfisheye_bench.geometry.lidar import LidarSpec, as_points64, layout_from_angles, like
+from airfisheye_bench.geometry.lidar import LidarSpec, as_points64, check_rings, layout_from_angles, like
 from airfisheye_bench.geometry.occlusion.hpr import hpr_mask
 from airfisheye_bench.geometry.occlusion.options import check_occlusion_options
 from airfisheye_bench.geometry.occlusion.ordering import (
@@ -56,6 +56,7 @@ def occlusion_mask(
     camera: FisheyeCamera,
     spec: LidarSpec | None = None,
     method: str = "ordering",
+    rings: ArrayLike | None = None,
     **options: Any,
 ) -> ArrayLike:
     """Which LiDAR points project into the image *and* are seen by the camera.
@@ -78,6 +79,8 @@ def occlusion_mask(
             metres; default True; False needs a ``threshold``), ``max_incidence_deg`` (steepest surface
             the derived margin accepts, default 87). ``hpr``: ``radius`` (flipping sphere radius as a
             multiple of the farthest point's range from the camera, > 1; default 1000).
+        rings: Optional ``[N]`` ring of every point (a sensor's ring field, or an estimate from the firing order;
+            integers in ``[-1, channels)``), used by ``ordering`` instead of estimating it from the elevation.
 
     Returns:
         ``bool [N]`` mask, numpy or torch like ``points_lidar``.
@@ -94,7 +97,7 @@ def occlusion_mask(
         >>> bool(visible.any()), bool((visible == in_view).all())  # camera at the LiDAR: nothing hidden
         (True, True)
     """
-    return project_lidar(points_lidar, T_cam_lidar, camera, spec, method, **options).mask
+    return project_lidar(points_lidar, T_cam_lidar, camera, spec, method, rings, **options).mask
 
 
 def project_lidar(
@@ -103,6 +106,7 @@ def project_lidar(
     camera: FisheyeCamera,
     spec: LidarSpec | None = None,
     method: str = "ordering",
+    rings: ArrayLike | None = None,
     **options: Any,
 ) -> LidarProjection:
     """Project a scan into the image: pixel coordinates, camera ranges and the visibility mask of every point.
@@ -127,10 +131,11 @@ def project_lidar(
     elif not isinstance(spec, LidarSpec):
         raise ValueError(f"spec must be a LidarSpec or None, got {type(spec).__name__}")
     opts = check_occlusion_options(method, options)
+    ring = None if rings is None else check_rings(rings, len(points), spec)
 
     proj = project_points(points, T, camera)
     if method == "ordering":
-        mask = solve_ordering(points, T, proj, spec, opts, "numba")
+        mask = solve_ordering(points, T, proj, spec, opts, "numba", ring)
     elif method == "zbuffer":
         mask = zbuffer_mask(proj, camera, spec, **opts)
     elif method == "hpr":
@@ -154,6 +159,7 @@ def lidar_depth_map(
     method: str = "ordering",
     max_depth: float = 120.0,
     mirror: bool = False,
+    rings: ArrayLike | None = None,
     **options: Any,
 ) -> ArrayLike:
     """Sparse LiDAR range map ``[H, W]`` (float32 metres from the camera centre, 0 = no point).
@@ -176,7 +182,7 @@ def lidar_depth_map(
     """
     if not (isinstance(max_depth, (int, float)) and math.isfinite(max_depth) and max_depth > 0):
         raise ValueError(f"max_depth must be a positive number of metres, got {max_depth!r}")
-    uv, rng, mask = project_lidar(points_lidar, T_cam_lidar, camera, spec, method, **options)
+    uv, rng, mask = project_lidar(points_lidar, T_cam_lidar, camera, spec, method, rings, **options)
     if isinstance(mask, torch.Tensor):
         uv, rng, mask = uv.cpu().numpy(), rng.cpu().numpy(), mask.cpu().numpy()
     keep = mask & (rng <= max_depth)
@@ -198,6 +204,7 @@ def ordering_reference(
     T_cam_lidar: ArrayLike,
     camera: FisheyeCamera,
     spec: LidarSpec | None = None,
+    rings: ArrayLike | None = None,
     **options: Any,
 ) -> ArrayLike:
     """The ordering method as a plain loop over the points, written to follow the text of III-C line by line.
@@ -205,7 +212,7 @@ def ordering_reference(
     Slow (a Python loop); it exists to check the fast implementation (``method="ordering"``), which must
     return the same mask. Arguments as for :func:`occlusion_mask` with ``method="ordering"``.
     """
-    return ordering_mask(points_lidar, T_cam_lidar, camera, spec, "loop", **options)
+    return ordering_mask(points_lidar, T_cam_lidar, camera, spec, "loop", rings, **options)
 
 
 def ordering_mask(
@@ -214,6 +221,7 @@ def ordering_mask(
     camera: FisheyeCamera,
     spec: LidarSpec | None = None,
     implementation: str = "numba",
+    rings: ArrayLike | None = None,
     **options: Any,
 ) -> ArrayLike:
     """The ``ordering`` mask computed by one of :data:`ORDERING_IMPLEMENTATIONS` (tests and benchmarks).
@@ -243,7 +251,8 @@ def ordering_mask(
     if not isinstance(spec, LidarSpec):
         raise ValueError(f"spec must be a LidarSpec or None, got {type(spec).__name__}")
     opts = check_occlusion_options("ordering", options)
-    mask = solve_ordering(points, T, project_points(points, T, camera), spec, opts, implementation)
+    ring = None if rings is None else check_rings(rings, len(points), spec)
+    mask = solve_ordering(points, T, project_points(points, T, camera), spec, opts, implementation, ring)
     return like(mask, points_lidar)
 
 
@@ -254,10 +263,11 @@ def solve_ordering(
     spec: LidarSpec,
     opts: dict[str, Any],
     implementation: str,
+    rings: np.ndarray | None = None,
 ) -> np.ndarray:
     """Steps 1-4 of the ordering method on validated inputs; the mask over all points."""
     layout, solver = ORDERING_IMPLEMENTATIONS[implementation]
-    prob = ordering_problem(points, T, proj, spec, layout)
+    prob = ordering_problem(points, T, proj, spec, layout, rings)
     tolerance = float(opts["elevation_tolerance"]) * spec.vertical_resolution
     keep = solver(prob, opts["azimuth_window"], opts["elevation_window"], tolerance)
     mask = np.zeros(len(points), dtype=bool)

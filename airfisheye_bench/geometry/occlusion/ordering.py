@@ -14,7 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from airfisheye_bench.geometry import _kernels
-from airfisheye_bench.geometry.lidar import LidarSpec, ScanLayout, column_range, spherical_coordinates
+from airfisheye_bench.geometry.lidar import (
+    LidarSpec,
+    ScanLayout,
+    column_range,
+    rings_from_elevation,
+    spherical_coordinates,
+)
 from airfisheye_bench.geometry.occlusion.projection import Projection
 
 
@@ -31,19 +37,29 @@ class OrderingProblem:
     shape: tuple[int, int, int]  # (rows N_C, places per row, columns)
 
 
-Layout = Callable[[np.ndarray, np.ndarray, np.ndarray, LidarSpec], ScanLayout]
+Layout = Callable[[np.ndarray, np.ndarray, np.ndarray, LidarSpec, np.ndarray | None], ScanLayout]
 Solver = Callable[[OrderingProblem, int | None, int | None, float], np.ndarray]
 
 
 def ordering_problem(
-    points: np.ndarray, T: np.ndarray, proj: Projection, spec: LidarSpec, layout: Layout
+    points: np.ndarray,
+    T: np.ndarray,
+    proj: Projection,
+    spec: LidarSpec,
+    layout: Layout,
+    rings: np.ndarray | None = None,
 ) -> OrderingProblem:
+    """Steps 1-3 of III-C: the in-image returns in visiting order with their places in ``I_LiDAR`` and their
+    angles seen from the camera. ``rings``: every point's ring where known (checked), else estimated from the
+    channel table."""
     # Steps 1-2: I_LiDAR, then I_proj (the returns that project into the image).
     r, az, el = spherical_coordinates(points)
+    if rings is None and not spec.is_uniform:
+        rings = rings_from_elevation(r, el, spec)
     cut = widest_gap(az, proj.valid, spec.horizontal_resolution) if spec.hfov_deg == 360.0 else None
     if cut is not None:
         az = turn(az, cut)
-    ring, position, column = layout(r, az, el, spec)
+    ring, position, column = layout(r, az, el, spec, rings)
     ids = np.flatnonzero((ring >= 0) & proj.valid)
     # Visiting order: ascending range from the camera, ties to the lower point index (a stable sort only when
     # needed: it is ten times slower than the default one).
@@ -103,10 +119,15 @@ def turn(az: np.ndarray, cut: float) -> np.ndarray:
     return np.remainder(az - cut, 2.0 * math.pi) - math.pi
 
 
-def layout_numba(r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec) -> ScanLayout:
+def layout_numba(
+    r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec, rings: np.ndarray | None = None
+) -> ScanLayout:
     """:func:`~airfisheye_bench.geometry.lidar.layout_from_angles` in O(N), compiled (the same result)."""
     n = len(r)
-    ring, position, column = (np.empty(n, dtype=np.int64) for _ in range(3))
+    position, column = (np.empty(n, dtype=np.int64) for _ in range(2))
+    if rings is None and not spec.is_uniform:
+        rings = rings_from_elevation(r, el, spec)
+    ring = np.empty(n, dtype=np.int64) if rings is None else np.array(rings, dtype=np.int64)
     first_col, n_cols = column_range(spec)
     wrap_last = spec.points_per_channel - 1 if spec.hfov_deg == 360.0 else -1
     _kernels.lidar_layout(
@@ -121,6 +142,7 @@ def layout_numba(r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec)
         wrap_last,
         first_col,
         n_cols,
+        rings is not None,
         ring,
         position,
         column,

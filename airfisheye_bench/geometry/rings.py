@@ -1,0 +1,148 @@
+"""The ring (channel) of every return: from the data where it says so, else estimated, robustly.
+
+Three sources, best first (docs/design.md, "Rings", says which file format gives which):
+
+``field``         The sensor's own ring (nuScenes ``.pcd.bin``, ROS drivers' ``ring`` in PCD / PLY): passed through
+                  (:func:`~airfisheye_bench.geometry.lidar.check_rings`).
+``firing_order``  The order of the points (KITTI ``.bin`` stores each laser's revolution contiguously, top laser
+                  first, starting near azimuth 0 and wrapping once at +-180 deg): the scan is cut into one block
+                  per revolution of a laser, and the blocks are matched to the channel table in order
+                  (:func:`rings_from_firing_order`). Near returns keep their laser's ring whatever their
+                  elevation, and a laser with no return at all does not shift the others.
+``channel_table`` Each point's elevation against the channel table, measured from where each channel's beam
+                  starts (:func:`~airfisheye_bench.geometry.lidar.rings_from_elevation`): exact beyond a few metres; near returns of a sensor whose
+                  beam origins are not described can land in a neighbouring ring.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from airfisheye_bench.geometry.lidar import LidarSpec, channel_residuals
+
+RING_SOURCES = ("field", "firing_order", "channel_table")
+
+
+def firing_blocks(az: np.ndarray, jump_deg: float = 20.0) -> np.ndarray | None:
+    """Cut a scan stored in firing order into revolutions of one laser each: the block index of every point.
+
+    The points of a laser follow the rotation; a new block starts where the azimuth comes back to the start
+    azimuth (0) after at least half a turn, or jumps back against the rotation by more than ``jump_deg`` (a
+    partial horizontal field of view). ``None`` if the order shows no rotation (the points are not in firing
+    order).
+    """
+    n = len(az)
+    if n < 2:
+        return None
+    step = np.remainder(np.diff(az) + math.pi, 2.0 * math.pi) - math.pi
+    direction = np.sign(np.median(step))
+    if direction == 0:
+        return None
+    aligned = direction * az  # increases along a laser's revolution
+    step *= direction
+    turned = np.concatenate([[0.0], np.cumsum(step)])
+    up = np.flatnonzero((aligned[:-1] < 0.0) & (aligned[1:] >= 0.0) & (np.abs(step) < math.pi / 2)) + 1
+    jumped = np.zeros(n, dtype=bool)
+    jumped[1:] = step < -math.radians(jump_deg)
+    starts = [0]
+    for k in np.unique(np.concatenate([up, np.flatnonzero(jumped)])):
+        if jumped[k] or turned[k] - turned[starts[-1]] > math.pi:
+            starts.append(int(k))
+    if len(starts) < 2:
+        return None
+    block = np.zeros(n, dtype=np.int64)
+    block[np.asarray(starts[1:])] = 1
+    return np.cumsum(block)
+
+
+def rings_from_firing_order(
+    r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec, top_first: bool | None = None
+) -> np.ndarray | None:
+    """Rings from the storage order (``firing_order`` source): ``int64 [N]``, or ``None`` if there is none.
+
+    The scan is cut into one block per laser revolution (:func:`firing_blocks`); the blocks are then matched to
+    the channels in order by dynamic programming: block ``b + 1`` gets a lower ring than block ``b`` (``top_first``;
+    ``None`` tries both and keeps the better match), and the match minimises, over each block's returns beyond
+    2 m (all of them if it has none), their capped elevation residual to the channel (seen from its beam origin).
+    A block may skip channels (a laser that returned nothing) and two consecutive blocks may share one (a
+    revolution cut twice), at a penalty. ``None`` when the order holds fewer than 2 or more than 4 x channels
+    blocks: the points are not in firing order.
+
+    Example:
+        >>> spec = LidarSpec(channels=3, points_per_channel=90, hfov_deg=360.0, vfov_deg=(-2.0, 2.0))
+        >>> az = np.tile(np.linspace(0.0, 2 * np.pi, 90, endpoint=False), 3)
+        >>> az = np.remainder(az + np.pi, 2 * np.pi) - np.pi  # each laser: from 0 round to 0, wrapping at 180
+        >>> el = np.radians(np.repeat([2.0, 0.0, -2.0], 90))  # top laser first
+        >>> rings_from_firing_order(np.full(270, 10.0), az, el, spec)[::90].tolist()
+        [2, 1, 0]
+    """
+    block = firing_blocks(az)
+    if block is None:
+        return None
+    n_blocks = int(block[-1]) + 1
+    if n_blocks > 4 * spec.channels:
+        return None
+    cost = _block_costs(r, el, block, n_blocks, spec)
+    options = (True, False) if top_first is None else (top_first,)
+    best = min((_match_in_order(cost, top) for top in options), key=lambda m: m[0])
+    ring = best[1][block]
+    return np.where(r > 0, ring, -1).astype(np.int64)
+
+
+def _block_costs(
+    r: np.ndarray, el: np.ndarray, block: np.ndarray, n_blocks: int, spec: LidarSpec
+) -> np.ndarray:
+    """``[B, N_C]``: for each block, the summed capped residual of (up to 64 of) its returns to each channel."""
+    cap = 3.0 * spec.vertical_resolution
+    far = r * np.cos(el) > 2.0
+    cost = np.zeros((n_blocks, spec.channels))
+    starts = np.searchsorted(block, np.arange(n_blocks + 1))
+    picks = []
+    for b in range(n_blocks):
+        ids = np.arange(starts[b], starts[b + 1])
+        ids = ids[far[ids]] if far[ids].any() else ids
+        picks.append(
+            ids[np.linspace(0, len(ids) - 1, min(64, len(ids))).astype(np.int64)] if len(ids) else ids
+        )
+    ids = np.concatenate(picks)
+    owner = np.repeat(np.arange(n_blocks), [len(p) for p in picks])
+    residual = np.minimum(np.abs(channel_residuals(r[ids], el[ids], spec)), cap)
+    np.add.at(cost, owner, residual)
+    counts = np.array([max(len(p), 1) for p in picks], dtype=np.float64)
+    return cost / counts[:, None] * np.sqrt(counts)[:, None]  # mean residual, weighted by evidence
+
+
+def _match_in_order(cost: np.ndarray, top_first: bool) -> tuple[float, np.ndarray]:
+    """Channels for the blocks, monotone in block order, minimising the summed cost (a repeat costs extra)."""
+    c = cost if not top_first else cost[:, ::-1]  # make the order ascending in the column index
+    n_blocks, n_c = c.shape
+    repeat = float(np.median(c)) if c.size else 0.0
+    total = c[0].copy()
+    choice = np.zeros((n_blocks, n_c), dtype=np.int64)  # previous block's column
+    for b in range(1, n_blocks):
+        # previous column strictly lower (prefix minimum up to j - 1), or the same column with a penalty
+        prefix = np.minimum.accumulate(total)
+        arg = _prefix_argmin(total)
+        strict = np.concatenate([[np.inf], prefix[:-1]])
+        strict_arg = np.concatenate([[0], arg[:-1]])
+        same = total + repeat
+        take_same = same < strict
+        choice[b] = np.where(take_same, np.arange(n_c), strict_arg)
+        total = np.where(take_same, same, strict) + c[b]
+    cols = np.empty(n_blocks, dtype=np.int64)
+    cols[-1] = int(np.argmin(total))
+    for b in range(n_blocks - 1, 0, -1):
+        cols[b - 1] = choice[b, cols[b]]
+    rings = n_c - 1 - cols if top_first else cols
+    return float(total.min()), rings
+
+
+def _prefix_argmin(values: np.ndarray) -> np.ndarray:
+    idx = np.arange(len(values))
+    best = np.minimum.accumulate(values)
+    return np.maximum.accumulate(np.where(values == best, idx, 0))
+
+
+__all__ = ["RING_SOURCES", "firing_blocks", "rings_from_firing_order"]
