@@ -20,7 +20,13 @@ import math
 
 import numpy as np
 
-from airfisheye_bench.geometry.lidar import LidarSpec, channel_residuals
+from airfisheye_bench.geometry.lidar import (
+    LidarSpec,
+    channel_residuals,
+    check_rings,
+    rings_from_elevation,
+    spherical_coordinates,
+)
 
 RING_SOURCES = ("field", "firing_order", "channel_table")
 
@@ -62,8 +68,10 @@ def rings_from_firing_order(
 ) -> np.ndarray | None:
     """Rings from the storage order (``firing_order`` source): ``int64 [N]``, or ``None`` if there is none.
 
-    The scan is cut into one block per laser revolution (:func:`firing_blocks`); the blocks are then matched to
-    the channels in order by dynamic programming: block ``b + 1`` gets a lower ring than block ``b`` (``top_first``;
+    The scan is cut into one block per laser revolution (:func:`firing_blocks`). With one block per channel the
+    order alone assigns them (top laser first, or last if that fits the elevations better), so a biased channel
+    table (beam origins not described) cannot shift them. Otherwise the blocks are matched to the channels in
+    order by dynamic programming: block ``b + 1`` gets a lower ring than block ``b`` (``top_first``;
     ``None`` tries both and keeps the better match), and the match minimises, over each block's returns beyond
     2 m (all of them if it has none), their capped elevation residual to the channel (seen from its beam origin).
     A block may skip channels (a laser that returned nothing) and two consecutive blocks may share one (a
@@ -78,17 +86,70 @@ def rings_from_firing_order(
         >>> rings_from_firing_order(np.full(270, 10.0), az, el, spec)[::90].tolist()
         [2, 1, 0]
     """
-    block = firing_blocks(az)
-    if block is None:
+    # Returns within a metre (self-hits, zeros standing for no return) have unreliable azimuths: the blocks are
+    # cut on the others, and each of them joins the block of the return stored before it.
+    steady = r * np.cos(el) > 1.0
+    steady_block = firing_blocks(az[steady])
+    if steady_block is None:
         return None
+    block = np.zeros(len(r), dtype=np.int64)
+    block[steady] = steady_block
+    block = np.maximum.accumulate(np.where(steady, block, 0))
     n_blocks = int(block[-1]) + 1
     if n_blocks > 4 * spec.channels:
         return None
     cost = _block_costs(r, el, block, n_blocks, spec)
     options = (True, False) if top_first is None else (top_first,)
-    best = min((_match_in_order(cost, top) for top in options), key=lambda m: m[0])
-    ring = best[1][block]
+    if n_blocks == spec.channels:  # one revolution per laser: the order alone says which is which
+        forced = np.arange(n_blocks)
+        matches = [
+            (float(cost[forced, forced[::-1] if top else forced].sum()), forced[::-1] if top else forced)
+            for top in options
+        ]
+    else:  # lasers without a return, or revolutions cut twice: the elevations decide
+        matches = [_match_in_order(cost, top) for top in options]
+    best = min(matches, key=lambda m: m[0])
+    ring = _refine_boundaries(r, el, best[1][block], spec)
     return np.where(r > 0, ring, -1).astype(np.int64)
+
+
+def _refine_boundaries(r: np.ndarray, el: np.ndarray, ring: np.ndarray, spec: LidarSpec) -> np.ndarray:
+    """Move each cut between two lasers' runs to where the elevations change from one channel to the other.
+
+    A laser's revolution starts near azimuth 0, but not exactly there (its azimuth offset, the scan's phase):
+    the cut found from the azimuth alone can leave a few degrees of one laser in its neighbour's run. Around
+    each cut (a window of an eighth of the shorter run) the split minimises the summed capped residuals of the
+    points before it to the first ring and after it to the second.
+    """
+    cuts = np.flatnonzero(np.diff(ring)) + 1
+    if len(cuts) == 0:
+        return ring
+    ring = ring.copy()
+    edges = np.concatenate([[0], cuts, [len(ring)]])
+    cap = 3.0 * spec.vertical_resolution
+    # A run whose far returns sit off their channel (a table that misses beam origins or calibration) cannot
+    # place the cut better than the azimuth did: its cuts are left alone.
+    bias = np.zeros(len(edges) - 1)
+    far = r * np.cos(el) > 5.0
+    for k in range(len(edges) - 1):
+        ids = np.arange(edges[k], edges[k + 1])
+        ids = ids[far[ids]][:: max(1, int(far[ids].sum()) // 256)]
+        if len(ids):
+            bias[k] = float(np.median(channel_residuals(r[ids], el[ids], spec)[:, ring[edges[k]]]))
+    for k in range(1, len(edges) - 1):
+        cut = edges[k]
+        w = max(1, min(edges[k] - edges[k - 1], edges[k + 1] - edges[k]) // 8)
+        lo, hi = cut - w, cut + w
+        a, b = ring[cut - 1], ring[cut]
+        if max(abs(bias[k - 1]), abs(bias[k])) > 0.1 * spec.vertical_resolution:
+            continue
+        res = np.minimum(np.abs(channel_residuals(r[lo:hi], el[lo:hi], spec)[:, [a, b]]), cap)
+        # cost of splitting at lo + s: points [lo, lo + s) to a, [lo + s, hi) to b
+        before = np.concatenate([[0.0], np.cumsum(res[:, 0])])
+        after = np.concatenate([np.cumsum(res[::-1, 1])[::-1], [0.0]])
+        split = lo + int(np.argmin(before + after))
+        ring[lo:split], ring[split:hi] = a, b
+    return ring
 
 
 def _block_costs(
@@ -145,4 +206,33 @@ def _prefix_argmin(values: np.ndarray) -> np.ndarray:
     return np.maximum.accumulate(np.where(values == best, idx, 0))
 
 
-__all__ = ["RING_SOURCES", "firing_blocks", "rings_from_firing_order"]
+def resolve_rings(
+    points: np.ndarray, spec: LidarSpec, rings: np.ndarray | None = None, firing_order: bool = False
+) -> tuple[np.ndarray, str]:
+    """Every point's ring and where it came from (one of :data:`RING_SOURCES`), the best source first.
+
+    Args:
+        points: ``float64 [N, 3]`` in the order of the file.
+        spec: The sensor.
+        rings: The file's ring field, if it has one (checked against the spec).
+        firing_order: The file keeps the firing order (KITTI ``.bin``); falls back to the channel table when the
+            order shows no revolutions.
+
+    Example:
+        >>> spec = LidarSpec(channels=4, points_per_channel=8)
+        >>> pts = 10.0 * spec.beam_directions().reshape(-1, 3).double().numpy()
+        >>> ring, source = resolve_rings(pts, spec)
+        >>> source, ring[::8].tolist()
+        ('channel_table', [0, 1, 2, 3])
+    """
+    if rings is not None:
+        return check_rings(rings, len(points), spec), "field"
+    r, az, el = spherical_coordinates(points)
+    if firing_order:
+        ordered = rings_from_firing_order(r, az, el, spec)
+        if ordered is not None:
+            return ordered, "firing_order"
+    return rings_from_elevation(r, el, spec), "channel_table"
+
+
+__all__ = ["RING_SOURCES", "firing_blocks", "resolve_rings", "rings_from_firing_order"]
