@@ -80,6 +80,7 @@ def inspect(argv: Sequence[str] | None = None) -> int:
     if parsed is None:
         return 0
 
+    from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
     from airfisheye_bench.io.inspect import inspect_dataset  # at run time: see the module docstring
     from airfisheye_bench.io.inspect_scans import inspect_scans  # at run time: see the module docstring
 
@@ -92,6 +93,8 @@ def inspect(argv: Sequence[str] | None = None) -> int:
             report = inspect_scans(root, opts.lidar, opts.min_range)
         except ValueError as err:
             raise ConfigError(f"lidar={opts.lidar!r}: {err}") from None
+        if root.is_file() and report.problems:  # the one file asked about is unusable: a user error
+            raise DatasetFormatError(*report.problems[0])
     print(report.summary(limit=opts.limit))
     return 0 if report.ok else 1
 
