@@ -406,16 +406,43 @@ def rings_from_elevation(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> np.n
         ring = np.searchsorted((table[1:] + table[:-1]) / 2.0, el)
         offside = (el < table[0] - below) | (el > table[-1] + above)
     else:
-        ring = np.empty(len(r), dtype=np.int64)
-        offside = np.zeros(len(r), dtype=bool)
-        for start in range(0, len(r), _CHUNK):
-            part = slice(start, start + _CHUNK)
-            res = channel_residuals(r[part], el[part], spec)
-            best = np.argmin(np.abs(res), axis=1)
-            ring[part] = best
-            miss = np.take_along_axis(res, best[:, None], axis=1)[:, 0]
-            offside[part] = ((best == 0) & (miss < -below)) | ((best == spec.channels - 1) & (miss > above))
+        ring, miss = _nearest_from_origins(r, el, spec)
+        offside = ((ring == 0) & (miss < -below)) | ((ring == spec.channels - 1) & (miss > above))
     return np.where((r > 0) & ~offside, ring, -1).astype(np.int64)
+
+
+def _nearest_from_origins(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> tuple[np.ndarray, np.ndarray]:
+    """The channel whose beam, from its own origin, points nearest each point, and that residual (radians).
+
+    A fixed point instead of all ``N x N_C`` residuals: the table's nearest channel seen from the mean origin,
+    then from the origin of the channel found (three rounds: origins differ by centimetres, so the channel
+    settles), then the best of it and its two neighbours. ``channels_exhaustive`` checks it against the full
+    search in the tests.
+    """
+    table = spec.channel_elevations()
+    tan_mids = np.tan((table[1:] + table[:-1]) / 2.0)  # elevations within +-90 deg: tan keeps their order
+    z, rho = r * np.sin(el), r * np.cos(el)
+    origins = spec.channel_origins()
+    radial, vertical = origins[:, 0], origins[:, 2]
+    ring = np.searchsorted(tan_mids, (z - vertical.mean()) / np.maximum(rho - radial.mean(), 1e-6))
+    for _ in range(3):
+        ring = np.searchsorted(tan_mids, (z - vertical[ring]) / np.maximum(rho - radial[ring], 1e-6))
+    candidates = np.clip(ring[:, None] + np.arange(-1, 2), 0, spec.channels - 1)
+    seen = np.arctan2(z[:, None] - vertical[candidates], np.maximum(rho[:, None] - radial[candidates], 1e-6))
+    residual = seen - table[candidates]
+    best = np.argmin(np.abs(residual), axis=1)[:, None]
+    return np.take_along_axis(candidates, best, axis=1)[:, 0], np.take_along_axis(residual, best, axis=1)[
+        :, 0
+    ]
+
+
+def channels_exhaustive(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> np.ndarray:
+    """The nearest channel seen from each channel's origin by testing all of them (the reference, O(N x N_C))."""
+    ring = np.empty(len(r), dtype=np.int64)
+    for start in range(0, len(r), _CHUNK):
+        part = slice(start, start + _CHUNK)
+        ring[part] = np.argmin(np.abs(channel_residuals(r[part], el[part], spec)), axis=1)
+    return ring
 
 
 # ---------------------------------------------------------------------- organisation (step 1 of III-C)

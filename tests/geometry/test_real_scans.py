@@ -16,7 +16,13 @@ import numpy as np
 import pytest
 
 from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
-from airfisheye_bench.geometry.lidar import LidarSpec, organize_scan
+from airfisheye_bench.geometry.lidar import (
+    LidarSpec,
+    channels_exhaustive,
+    organize_scan,
+    rings_from_elevation,
+    spherical_coordinates,
+)
 from airfisheye_bench.geometry.occlusion import occlusion_mask
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import filter_scan
@@ -126,3 +132,15 @@ def test_ordering_keeps_the_same_points_with_estimated_rings(tmp_path: Path) -> 
     assert in_view.sum() > 20000 and with_truth.sum() < in_view.sum()
     assert (with_truth == with_estimate).mean() >= 0.995
     assert (with_truth == with_estimate)[in_view].mean() >= 0.995
+
+
+@pytest.mark.parametrize(
+    "spec", [HDL64E, HDL32E, LidarSpec.from_preset("os1-64")], ids=["hdl64e", "hdl32e", "os1"]
+)
+def test_the_fast_channel_search_equals_the_exhaustive_one(spec: LidarSpec) -> None:
+    points, _ = simulate(spec, 8, order="firing", self_hits=1000)
+    r, _, el = spherical_coordinates(points)
+    fast, exhaustive = rings_from_elevation(r, el, spec), channels_exhaustive(r, el, spec)
+    inside = fast >= 0
+    assert (fast == exhaustive)[inside & (r > 2.0)].all()
+    assert (fast == exhaustive)[inside].mean() > 0.995
