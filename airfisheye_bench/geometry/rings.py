@@ -31,13 +31,15 @@ from airfisheye_bench.geometry.lidar import (
 RING_SOURCES = ("field", "firing_order", "channel_table")
 
 
-def firing_blocks(az: np.ndarray, jump_deg: float = 20.0) -> np.ndarray | None:
+def firing_blocks(az: np.ndarray, full_turn: bool = True, jump_deg: float = 20.0) -> np.ndarray | None:
     """Cut a scan stored in firing order into revolutions of one laser each: the block index of every point.
 
-    The points of a laser follow the rotation; a new block starts where the azimuth comes back to the start
-    azimuth (0) after at least half a turn, or jumps back against the rotation by more than ``jump_deg`` (a
-    partial horizontal field of view). ``None`` if the order shows no rotation (the points are not in firing
-    order).
+    The points of a laser follow the rotation. ``full_turn`` (a 360 deg sensor): a step against the rotation by
+    more than ``jump_deg`` is a gap without returns (the sky above a drone, a laser that sees only part of the
+    scene), so the rotation is unwrapped forward, and a new block starts where it passes the start azimuth (0)
+    again, at least half a turn after the block began. Otherwise (a partial field of view) a new block also
+    starts where the azimuth jumps back by more than ``jump_deg``. ``None`` if the order shows no rotation (the
+    points are not in firing order).
     """
     n = len(az)
     if n < 2:
@@ -46,14 +48,18 @@ def firing_blocks(az: np.ndarray, jump_deg: float = 20.0) -> np.ndarray | None:
     direction = np.sign(np.median(step))
     if direction == 0:
         return None
-    aligned = direction * az  # increases along a laser's revolution
-    step *= direction
-    turned = np.concatenate([[0.0], np.cumsum(step)])
-    up = np.flatnonzero((aligned[:-1] < 0.0) & (aligned[1:] >= 0.0) & (np.abs(step) < math.pi / 2)) + 1
-    jumped = np.zeros(n, dtype=bool)
-    jumped[1:] = step < -math.radians(jump_deg)
+    step *= direction  # positive along a laser's revolution
+    back = step < -math.radians(jump_deg)
+    if full_turn:
+        step = np.where(back, step + 2.0 * math.pi, step)
+        back[:] = False
+    # rotation from azimuth 0, unwrapped: a block starts where it passes a multiple of a turn
+    turned = np.concatenate([[0.0], np.cumsum(step)]) + np.remainder(direction * az[0], 2.0 * math.pi)
+    lap = np.floor(turned / (2.0 * math.pi))
+    jumped = np.concatenate([[False], back])
+    candidates = np.flatnonzero(np.concatenate([[False], np.diff(lap) > 0]) | jumped)
     starts = [0]
-    for k in np.unique(np.concatenate([up, np.flatnonzero(jumped)])):
+    for k in candidates:
         if jumped[k] or turned[k] - turned[starts[-1]] > math.pi:
             starts.append(int(k))
     if len(starts) < 2:
@@ -89,7 +95,7 @@ def rings_from_firing_order(
     # Returns within a metre (self-hits, zeros standing for no return) have unreliable azimuths: the blocks are
     # cut on the others, and each of them joins the block of the return stored before it.
     steady = r * np.cos(el) > 1.0
-    steady_block = firing_blocks(az[steady])
+    steady_block = firing_blocks(az[steady], full_turn=spec.hfov_deg == 360.0)
     if steady_block is None:
         return None
     block = np.zeros(len(r), dtype=np.int64)
