@@ -9,6 +9,8 @@ over the frames: the share of in-view returns each source removes, the hidden re
 ones it drops (against the ray-cast truth), and how many returns get their laser's ring.
 
     python scripts/lidar_rings_study.py --preset tiny --lidar hdl64e --json docs/figures/lidar_rings_study.json
+    python scripts/generate_synthetic.py preset=occlusion out=DIR lidar.preset=hdl64e total_frames=48
+    python scripts/lidar_rings_study.py --root DIR
 """
 
 from __future__ import annotations
@@ -52,9 +54,12 @@ def main() -> None:
     parser.add_argument("--splits", nargs="+", default=["train", "val", "test"])
     parser.add_argument("--min-range", type=float, default=1.0)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument(
+        "--root", type=Path, default=None, help="a generated dataset instead of --preset/--lidar"
+    )
     args = parser.parse_args()
 
-    root = ensure_dataset(args.preset, lidar_preset=args.lidar, progress=False)
+    root = args.root or ensure_dataset(args.preset, lidar_preset=args.lidar, progress=False)
     reader = DatasetReader(root)
     totals: dict[str, dict[str, int]] = {}
     frames = 0

@@ -156,6 +156,56 @@ def lidar_layout(
     return longest
 
 
+@njit(cache=True, nogil=True)
+def _search_left(sorted_values, x):  # pragma: no cover - compiled
+    """``np.searchsorted(sorted_values, x)`` (side left) for one value."""
+    lo, hi = 0, sorted_values.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if sorted_values[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, nogil=True)
+def nearest_channel(z, rho, tan_mids, table, radial, vertical, ring, residual):  # pragma: no cover - compiled
+    """The channel whose beam, from its own origin, points nearest each point (``lidar._nearest_from_origins``).
+
+    The table's nearest channel seen from the mean origin, then three rounds seen from the origin of the channel
+    found, then the best of it and its two neighbours by the elevation residual (``residual``, radians; only
+    computed where a neighbour also claims the point or the channel is the lowest / highest, 0 elsewhere).
+    """
+    n_c = table.shape[0]
+    r_mean = radial.mean()
+    v_mean = vertical.mean()
+    for p in range(z.shape[0]):
+        c = _search_left(tan_mids, (z[p] - v_mean) / max(rho[p] - r_mean, 1e-6))
+        for _ in range(3):
+            c = _search_left(tan_mids, (z[p] - vertical[c]) / max(rho[p] - radial[c], 1e-6))
+        # the neighbours matter only where they claim the point too (seen from their own origins it lies in
+        # their cell): decide by the elevation residual there; the residual is needed at the table's ends
+        claims = 0
+        for d in range(-1, 2):
+            k = c + d
+            if 0 <= k < n_c:
+                t = (z[p] - vertical[k]) / max(rho[p] - radial[k], 1e-6)
+                if (k == 0 or tan_mids[k - 1] < t) and (k == n_c - 1 or t <= tan_mids[k]):
+                    claims += 1
+        best = min(max(c, 0), n_c - 1)
+        best_res = 0.0
+        if claims > 1 or best == 0 or best == n_c - 1:
+            best_res = np.inf
+            for d in range(-1, 2):
+                k = min(max(c + d, 0), n_c - 1)
+                res = np.arctan2(z[p] - vertical[k], max(rho[p] - radial[k], 1e-6)) - table[k]
+                if abs(res) < abs(best_res):
+                    best, best_res = k, res
+        ring[p] = best
+        residual[p] = best_res
+
+
 _ALL = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 

@@ -38,6 +38,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import torch
 
+from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 
@@ -414,26 +415,26 @@ def rings_from_elevation(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> np.n
 def _nearest_from_origins(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> tuple[np.ndarray, np.ndarray]:
     """The channel whose beam, from its own origin, points nearest each point, and that residual (radians).
 
-    A fixed point instead of all ``N x N_C`` residuals: the table's nearest channel seen from the mean origin,
-    then from the origin of the channel found (three rounds: origins differ by centimetres, so the channel
-    settles), then the best of it and its two neighbours. ``channels_exhaustive`` checks it against the full
-    search in the tests.
+    A fixed point instead of all ``N x N_C`` residuals (compiled, ``_kernels.nearest_channel``): the table's
+    nearest channel seen from the mean origin, then from the origin of the channel found (three rounds: origins
+    differ by centimetres, so the channel settles), then the best of it and its two neighbours.
+    ``channels_exhaustive`` checks it against the full search in the tests.
     """
     table = spec.channel_elevations()
     tan_mids = np.tan((table[1:] + table[:-1]) / 2.0)  # elevations within +-90 deg: tan keeps their order
-    z, rho = r * np.sin(el), r * np.cos(el)
     origins = spec.channel_origins()
-    radial, vertical = origins[:, 0], origins[:, 2]
-    ring = np.searchsorted(tan_mids, (z - vertical.mean()) / np.maximum(rho - radial.mean(), 1e-6))
-    for _ in range(3):
-        ring = np.searchsorted(tan_mids, (z - vertical[ring]) / np.maximum(rho - radial[ring], 1e-6))
-    candidates = np.clip(ring[:, None] + np.arange(-1, 2), 0, spec.channels - 1)
-    seen = np.arctan2(z[:, None] - vertical[candidates], np.maximum(rho[:, None] - radial[candidates], 1e-6))
-    residual = seen - table[candidates]
-    best = np.argmin(np.abs(residual), axis=1)[:, None]
-    return np.take_along_axis(candidates, best, axis=1)[:, 0], np.take_along_axis(residual, best, axis=1)[
-        :, 0
-    ]
+    ring, residual = np.empty(len(r), dtype=np.int64), np.empty(len(r))
+    _kernels.nearest_channel(
+        r * np.sin(el),
+        r * np.cos(el),
+        tan_mids,
+        table,
+        origins[:, 0].copy(),
+        origins[:, 2].copy(),
+        ring,
+        residual,
+    )
+    return ring, residual
 
 
 def channels_exhaustive(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> np.ndarray:
