@@ -31,13 +31,16 @@ from airfisheye_bench.geometry.lidar import (
 RING_SOURCES = ("field", "firing_order", "channel_table")
 
 
-def firing_blocks(az: np.ndarray, full_turn: bool = True, jump_deg: float = 20.0) -> np.ndarray | None:
+def firing_blocks(
+    az: np.ndarray, full_turn: bool = True, jump_deg: float = 20.0, min_turn_deg: float = 30.0
+) -> np.ndarray | None:
     """Cut a scan stored in firing order into revolutions of one laser each: the block index of every point.
 
     The points of a laser follow the rotation. ``full_turn`` (a 360 deg sensor): a step against the rotation by
     more than ``jump_deg`` is a gap without returns (the sky above a drone, a laser that sees only part of the
     scene), so the rotation is unwrapped forward, and a new block starts where it passes the start azimuth (0)
-    again, at least half a turn after the block began. Otherwise (a partial field of view) a new block also
+    again, at least ``min_turn_deg`` after the block began (a laser's first returns may lie a few degrees before
+    0: its azimuth offset, the scan's phase). Otherwise (a partial field of view) a new block also
     starts where the azimuth jumps back by more than ``jump_deg``. ``None`` if the order shows no rotation (the
     points are not in firing order).
     """
@@ -60,7 +63,7 @@ def firing_blocks(az: np.ndarray, full_turn: bool = True, jump_deg: float = 20.0
     candidates = np.flatnonzero(np.concatenate([[False], np.diff(lap) > 0]) | jumped)
     starts = [0]
     for k in candidates:
-        if jumped[k] or turned[k] - turned[starts[-1]] > math.pi:
+        if jumped[k] or turned[k] - turned[starts[-1]] > math.radians(min_turn_deg):
             starts.append(int(k))
     if len(starts) < 2:
         return None
@@ -82,7 +85,8 @@ def rings_from_firing_order(
     2 m (all of them if it has none), their capped elevation residual to the channel (seen from its beam origin).
     A block may skip channels (a laser that returned nothing) and two consecutive blocks may share one (a
     revolution cut twice), at a penalty. ``None`` when the order holds fewer than 2 or more than 4 x channels
-    blocks: the points are not in firing order.
+    blocks, or when the blocks' far returns do not share one elevation each: the points are not in KITTI's firing
+    order.
 
     Example:
         >>> spec = LidarSpec(channels=3, points_per_channel=90, hfov_deg=360.0, vfov_deg=(-2.0, 2.0))
@@ -103,6 +107,8 @@ def rings_from_firing_order(
     block = np.maximum.accumulate(np.where(steady, block, 0))
     n_blocks = int(block[-1]) + 1
     if n_blocks > 4 * spec.channels:
+        return None
+    if not _blocks_hold_one_laser(r, el, block, n_blocks, spec):
         return None
     cost = _block_costs(r, el, block, n_blocks, spec)
     options = (True, False) if top_first is None else (top_first,)
@@ -156,6 +162,26 @@ def _refine_boundaries(r: np.ndarray, el: np.ndarray, ring: np.ndarray, spec: Li
         split = lo + int(np.argmin(before + after))
         ring[lo:split], ring[split:hi] = a, b
     return ring
+
+
+def _blocks_hold_one_laser(
+    r: np.ndarray, el: np.ndarray, block: np.ndarray, n_blocks: int, spec: LidarSpec
+) -> bool:
+    """Whether the blocks look like single lasers: the far returns of a block share one elevation.
+
+    A file whose order is not KITTI's (another laser order, another start azimuth) cuts into blocks that mix
+    lasers: their far returns spread over many channel spacings. Beyond 10 m a laser's returns lie within a few
+    tenths of a degree even where its beam starts 0.2 m off the centre; the median block's interquartile range
+    must stay under two mean channel spacings.
+    """
+    far = r * np.cos(el) > 10.0
+    spreads = []
+    for b in np.unique(block[far]):
+        values = el[far & (block == b)]
+        if len(values) >= 8:
+            q1, q3 = np.percentile(values, [25, 75])
+            spreads.append(q3 - q1)
+    return bool(spreads) and float(np.median(spreads)) < 2.0 * spec.vertical_resolution
 
 
 def _block_costs(

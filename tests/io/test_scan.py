@@ -154,3 +154,47 @@ def test_inspect_a_folder_of_kitti_scans(tmp_path: Path, capsys: pytest.CaptureF
     assert inspect([f"root={tmp_path}", "lidar=hdl64e"]) == 1
     assert "000009.bin" in capsys.readouterr().out
     assert json.dumps(report.scans[0].line())  # a plain one-line summary
+
+
+def test_a_release_whose_lidar_files_are_kitti_scans(tiny_dataset: Path, tmp_path: Path) -> None:
+    """``layout.lidar`` may name real scan files: the same points as KITTI ``.bin`` (re-stored in KITTI's firing
+    order, no ring field) serve the same sparse depth as the layout's own ``.npy``, and so do they in the
+    generator's own order."""
+    import shutil
+
+    import yaml
+
+    from airfisheye_bench.geometry.lidar import rings_from_elevation, spherical_coordinates
+    from airfisheye_bench.io import DatasetReader
+    from datamodules.dataset import AirFisheyeDataset
+
+    root = tmp_path / "kitti_style"
+    shutil.copytree(tiny_dataset, root)
+    meta = yaml.safe_load((root / "dataset.yaml").read_text())
+    meta.setdefault("layout", {})["lidar"] = "{env}/{traj}/velodyne/{frame}.bin"
+    (root / "dataset.yaml").write_text(yaml.safe_dump(meta))
+    original = DatasetReader(tiny_dataset)
+    for npy in sorted(root.rglob("lidar/*.npy")):
+        data = np.load(npy)
+        r, _, el = spherical_coordinates(data[:, :3].astype(np.float64))
+        channel = rings_from_elevation(
+            r, el, original.calib("suburban/traj00").lidar_spec()
+        )  # uniform: exact
+        az = np.remainder(np.arctan2(data[:, 1], data[:, 0]), 2 * np.pi)  # from azimuth 0, round once
+        kitti_order = np.lexsort((az, -channel))  # top laser first
+        out = npy.parent.parent / "velodyne" / (npy.stem + ".bin")
+        out.parent.mkdir(exist_ok=True)
+        np.column_stack([data[kitti_order, :3], np.zeros(len(data))]).astype(np.float32).tofile(out)
+    kitti = AirFisheyeDataset(root, "test", "completion", source="fisheye", augment=None)
+    own = AirFisheyeDataset(tiny_dataset, "test", "completion", source="fisheye", augment=None)
+    sid = kitti.sample_ids[0]
+    assert kitti.reader.lidar_scan(sid).format == "kitti_bin" and original.spec.has("lidar")
+    assert np.array_equal(kitti[0]["sparse_depth"].numpy(), own[0]["sparse_depth"].numpy())
+    assert kitti.lidar_counts["rings from firing_order"] == 1
+    for path in root.rglob("velodyne/*.bin"):  # the generator's own order: lasers bottom first, from -135 deg
+        npy = path.parent.parent / "lidar" / (path.stem + ".npy")
+        data = np.load(npy)
+        np.column_stack([data[:, :3], np.zeros(len(data))]).astype(np.float32).tofile(path)
+    other = AirFisheyeDataset(root, "test", "completion", source="fisheye", augment=None)
+    assert np.array_equal(other[0]["sparse_depth"].numpy(), own[0]["sparse_depth"].numpy())
+    assert sum(v for k, v in other.lidar_counts.items() if k.startswith("rings from ")) == 1
