@@ -170,11 +170,11 @@ def _blocks_hold_one_laser(
     """Whether the blocks look like single lasers: the far returns of a block share one elevation.
 
     A file whose order is not KITTI's (another laser order, another start azimuth) cuts into blocks that mix
-    lasers: their far returns spread over many channel spacings. Beyond 10 m a laser's returns lie within a few
-    tenths of a degree even where its beam starts 0.2 m off the centre; the median block's interquartile range
+    lasers: their far returns spread over many channel spacings. Beyond 5 m a laser's returns lie within about a
+    degree even where its beam starts 0.2 m off the centre; the median block's interquartile range
     must stay under two mean channel spacings.
     """
-    far = r * np.cos(el) > 10.0
+    far = r * np.cos(el) > 5.0
     spreads = []
     for b in np.unique(block[far]):
         values = el[far & (block == b)]
