@@ -23,7 +23,7 @@ import numpy as np
 
 from airfisheye_bench.geometry.lidar import LidarSpec, rings_from_elevation, spherical_coordinates
 from airfisheye_bench.geometry.occlusion import occlusion_mask
-from airfisheye_bench.geometry.rings import rings_from_firing_order
+from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import filter_scan
 from airfisheye_bench.io import DatasetReader
 from airfisheye_bench.synth.writer import ensure_dataset
@@ -31,7 +31,7 @@ from airfisheye_bench.synth.writer import ensure_dataset
 
 def sources(points: np.ndarray, truth: np.ndarray, spec: LidarSpec) -> dict[str, np.ndarray]:
     """Every source's rings of a scan stored in KITTI's order."""
-    r, az, el = spherical_coordinates(points)
+    r, _, el = spherical_coordinates(points)
     bare = LidarSpec(
         elevations_deg=spec.elevations_deg, points_per_channel=spec.points_per_channel, hfov_deg=360.0
     )
@@ -40,7 +40,7 @@ def sources(points: np.ndarray, truth: np.ndarray, spec: LidarSpec) -> dict[str,
     )  # HDL-64E datasheet FOV
     return {
         "true rings (a ring field)": truth,
-        "firing order": rings_from_firing_order(r, az, el, spec),
+        "firing order (else the table, as resolve_rings does)": resolve_rings(points, spec, None, True)[0],
         "channel table + beam origins": rings_from_elevation(r, el, spec),
         "channel table, beams from the centre": rings_from_elevation(r, el, bare),
         "uniform grid over the datasheet FOV": rings_from_elevation(r, el, datasheet),

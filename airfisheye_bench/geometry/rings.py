@@ -170,18 +170,21 @@ def _blocks_hold_one_laser(
     """Whether the blocks look like single lasers: the far returns of a block share one elevation.
 
     A file whose order is not KITTI's (another laser order, another start azimuth) cuts into blocks that mix
-    lasers: their far returns spread over many channel spacings. Beyond 5 m a laser's returns lie within about a
-    degree even where its beam starts 0.2 m off the centre; the median block's interquartile range
-    must stay under two mean channel spacings.
+    lasers: their far returns spread over many channel spacings. Seen from the lasers' mean beam origin, a laser's
+    returns beyond 5 m lie within a degree or so; the median block's interquartile range must stay under three
+    mean channel spacings.
     """
-    far = r * np.cos(el) > 5.0
+    radial, _, vertical = spec.channel_origins().mean(axis=0)
+    rho = r * np.cos(el)
+    seen = np.arctan2(r * np.sin(el) - vertical, np.maximum(rho - radial, 1e-6))
+    far = rho > 5.0
     spreads = []
     for b in np.unique(block[far]):
-        values = el[far & (block == b)]
+        values = seen[far & (block == b)]
         if len(values) >= 8:
             q1, q3 = np.percentile(values, [25, 75])
             spreads.append(q3 - q1)
-    return bool(spreads) and float(np.median(spreads)) < 2.0 * spec.vertical_resolution
+    return bool(spreads) and float(np.median(spreads)) < 3.0 * spec.vertical_resolution
 
 
 def _block_costs(
