@@ -19,7 +19,11 @@ from torch.utils.data import DataLoader
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
+from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
+from airfisheye_bench.io.lidar_spec import load_lidar_spec
 from airfisheye_bench.synth.presets import PRESETS
 from airfisheye_bench.synth.writer import ensure_dataset
 from datamodules.augment import FisheyeAugment
@@ -64,6 +68,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
         seed: Seed of the shuffling and augmentation draws.
         dataset_seed: Seed of the synthetic dataset itself (``root=None``); 0 is the canonical release of each
             preset. Independent of ``seed`` so that changing the training seed never changes the data.
+        lidar: ``{"preset": ..., "min_range": 1.0}``. ``preset``: the LiDAR (a preset name such as ``hdl64e``, or a
+            YAML / JSON / Ouster metadata file): with ``root`` it replaces ``calib.yaml``'s spec (a real release
+            whose calibration has none); without, the synthetic ``preset`` is generated with that sensor (cached
+            apart). ``min_range``: returns closer than this many metres are self-hits, removed and counted.
 
     Example:
         >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
@@ -95,6 +103,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         splits: tuple[str, str, str] = ("train", "val", "test"),
         seed: int = 0,
         dataset_seed: int = 0,
+        lidar: dict[str, Any] | None = None,
     ) -> None:
         super().__init__()
         if batch_size < 1:
@@ -131,6 +140,12 @@ class AirFisheyeDataModule(L.LightningDataModule):
             "augment", augment or {}, {"hflip", "rotate_deg", "color_jitter"}, ("color_jitter",)
         )
         self.augment = FisheyeAugment(**augment_kwargs) if augment is not None else None
+        lidar_opts = _options("lidar", dict(lidar or {}), {"preset", "min_range"}, ())
+        self.lidar_preset, lidar_spec = _lidar_spec(lidar_opts.get("preset"), root)
+        min_range = lidar_opts.get("min_range")
+        min_range = DEFAULT_MIN_RANGE if min_range is None else min_range
+        if isinstance(min_range, bool) or not isinstance(min_range, (int, float)) or not min_range >= 0:
+            raise ConfigError(f"data.lidar.min_range={min_range!r}: expected a number of metres >= 0")
         self.dataset_kwargs = dict(
             task=task,
             source=source,
@@ -140,6 +155,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
             motion_compensation=motion_compensation,
             max_depth=max_depth,
             skip_bad_frames=skip_bad_frames,
+            lidar_spec=lidar_spec,
+            lidar_min_range=float(min_range),
         )
         self.batch_size = batch_size
         self.eval_batch_size = eval_batch_size or batch_size
@@ -237,7 +254,9 @@ class AirFisheyeDataModule(L.LightningDataModule):
         if self.root is not None:
             return self.root
 
-        self.root = ensure_dataset(self.preset, root=self.cache_dir, seed=self.dataset_seed)
+        self.root = ensure_dataset(
+            self.preset, root=self.cache_dir, seed=self.dataset_seed, lidar_preset=self.lidar_preset
+        )
         return self.root
 
     @property
@@ -289,6 +308,24 @@ def _occlusion_options(method: str, given: dict[str, Any] | None) -> dict[str, A
     except ValueError as err:
         raise ValueError(f"data.occlusion_options (data.occlusion={method}): {err}") from None
     return given
+
+
+def _lidar_spec(value: Any, root: str | Path | None) -> tuple[str | None, LidarSpec | None]:
+    """``data.lidar.preset`` -> (the generator's sensor for synthetic data, the spec served for a real root)."""
+    if value is None:
+        return None, None
+    try:
+        spec = load_lidar_spec(value)
+    except ValueError as err:  # DatasetFormatError (a spec file) is a ValueError too, naming the file
+        raise ConfigError(f"data.lidar.preset={value!r}: {err}") from None
+    if root is not None:
+        return None, spec
+    if value not in LIDAR_PRESETS:
+        raise ConfigError(
+            f"data.lidar.preset={value!r}: the synthetic data simulates a named sensor only; expected one of "
+            f"{', '.join(sorted(LIDAR_PRESETS))} (a spec file describes the LiDAR of a data.root release)"
+        )
+    return str(value), None
 
 
 def _own_generator() -> torch.Generator:

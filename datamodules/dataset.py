@@ -20,6 +20,11 @@ key                shape, dtype                  meaning
 Sources: ``cubemap`` remaps the raw cube faces on the fly with :class:`~airfisheye_bench.geometry.CubemapToFisheye`
 at the requested camera (any lens, FOV and size, no re-generation: the lookup table is built directly at the
 training resolution); ``fisheye`` reads the pre-rendered fisheye files (resized if the camera asks for another size).
+
+LiDAR (``sparse_depth``): the scan's rings come from where they are known (docs/design.md, "Rings": a ring field
+or the generator's ``lidar_beam``, the firing order of KITTI ``.bin``, else the channel table), then returns closer
+than ``lidar_min_range`` and returns no channel explains are removed and counted (``lidar_counts``; logged for
+the first frame a process serves), before the occlusion correction.
 """
 
 from __future__ import annotations
@@ -39,7 +44,10 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
+from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
+from airfisheye_bench.geometry.rings import resolve_rings
+from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.io import DatasetFormatError, DatasetReader
 from airfisheye_bench.io.calibration_files import load_camera
@@ -172,6 +180,8 @@ class AirFisheyeDataset(Dataset):
         seed: Seed of the augmentation draws.
         skip_bad_frames: Return ``None`` for a frame that fails to load (logged) instead of raising;
             :func:`collate` drops it and counts it.
+        lidar_spec: The LiDAR that recorded the scans; ``None``: each trajectory's ``calib.yaml``.
+        lidar_min_range: Returns closer than this (metres) are self-hits: removed and counted.
 
     Example:
         >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
@@ -193,6 +203,8 @@ class AirFisheyeDataset(Dataset):
         augment: FisheyeAugment | None = None,
         skip_bad_frames: bool = False,
         seed: int = 0,
+        lidar_spec: LidarSpec | None = None,
+        lidar_min_range: float = DEFAULT_MIN_RANGE,
     ) -> None:
         task_spec = get_task(task)
         for name, value, allowed in (
@@ -215,6 +227,10 @@ class AirFisheyeDataset(Dataset):
         self.augment = augment
         self.skip_bad_frames = skip_bad_frames
         self.seed = int(seed)
+        self.lidar_spec = lidar_spec
+        self.lidar_min_range = float(lidar_min_range)
+        #: Returns removed from the scans served by this process, by reason, and the ring sources used.
+        self.lidar_counts: dict[str, int] = {}
         self._epoch = SharedEpoch()
         self.sample_ids = self.reader.split(split)
         if not self.sample_ids:
@@ -380,28 +396,59 @@ class AirFisheyeDataset(Dataset):
         x = torch.from_numpy(faces)
         return x.permute(0, 3, 1, 2) if x.ndim == 4 else x[:, None]
 
-    def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:
-        scan = self.reader.lidar(sample_id)
-        if len(scan) == 0:
-            raise DatasetFormatError(self.reader.layout.lidar(sample_id), "the LiDAR scan is empty")
-        if not np.isfinite(scan[:, :3]).all():
-            raise DatasetFormatError(
-                self.reader.layout.lidar(sample_id), "the LiDAR scan has non-finite coordinates"
+    def lidar_points(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec]:
+        """``(points float64 [M, 3], rings int64 [M], spec)`` of a frame after the counted filtering."""
+        scan = self.reader.lidar_scan(sample_id)
+        if len(scan.points) == 0:
+            raise DatasetFormatError(scan.path, "the LiDAR scan is empty")
+        if not np.isfinite(scan.points).all():
+            raise DatasetFormatError(scan.path, "the LiDAR scan has non-finite coordinates")
+        spec = self.lidar_spec or self.reader.calib(sample_id).lidar_spec()
+        try:
+            rings, source = resolve_rings(scan.points, spec, scan.rings, scan.firing_order)
+        except ValueError as err:  # a ring field that does not fit the spec
+            raise DatasetFormatError(scan.path, f"{err} (LiDAR spec: {spec.name or 'calib.yaml'})") from None
+        kept = filter_scan(scan.points, rings, self.lidar_min_range)
+        counts = {
+            "scans": 1,
+            f"rings from {source}": 1,
+            "returns": len(scan.points) + scan.no_returns,
+            "no_returns": scan.no_returns,
+            **kept.counts(),
+        }
+        first = not self.lidar_counts
+        for key, value in counts.items():
+            self.lidar_counts[key] = self.lidar_counts.get(key, 0) + value
+        if first:
+            log.info(
+                "LiDAR %s: rings from %s; removed %d returns within %.2f m, %d no channel explains, %d empty "
+                "cells (of %d)",
+                scan.path.name,
+                source,
+                kept.near_origin,
+                self.lidar_min_range,
+                kept.unexplained,
+                scan.no_returns,
+                counts["returns"],
             )
-        calib = self.reader.calib(sample_id)
+        return scan.points[kept.keep], rings[kept.keep], spec
+
+    def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:
+        points, rings, spec = self.lidar_points(sample_id)
         T = torch.from_numpy(self.T_cam_lidar(sample_id))
         if params is not None and params.angle_rad != 0.0:
             # Dense maps are mirrored, then rotated; the points are rotated, then mirrored (in lidar_depth_map).
             # mirror . rot(a) == rot(-a) . mirror, so the points turn the other way when the frame is mirrored.
             T = rotation_about_optical_axis(-params.angle_rad if params.flip else params.angle_rad) @ T
         depth = lidar_depth_map(
-            scan[:, :3].astype(np.float64),
+            points,
             T.numpy(),
             self.camera,
-            calib.lidar_spec(),
+            spec,
             method=self.occlusion,
             max_depth=self.max_depth,
             mirror=params is not None and params.flip,
+            rings=rings,
             **self.occlusion_options,
         )
         return torch.from_numpy(depth)[None]

@@ -37,7 +37,7 @@ import torch
 
 from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.occlusion import _ordering, occlusion_mask, ordering_reference
+from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_mask, ordering_reference
 
 
 def ray_box_entry(origin: np.ndarray, dirs: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -180,7 +180,7 @@ METHODS = {
 def mask_fn(points, T, camera, spec, name: str):
     """The mask of one table row (see :data:`METHODS`)."""
     if name == "ordering (numpy)":
-        return lambda: _ordering(points, T, camera, spec, "vectorised")
+        return lambda: ordering_mask(points, T, camera, spec, "vectorised")
     method, options = METHODS[name]
     return lambda: occlusion_mask(points, T, camera, spec, method, **options)
 

@@ -37,6 +37,8 @@ ROOT = Path(__file__).resolve().parents[1]
 TRAIN = "train.py"
 EVALUATE = "scripts/evaluate.py"
 EXPORT = "scripts/export_onnx.py"
+INSPECT = "-c"  # python -c "<the console entry point>" key=value ...
+INSPECT_ENTRY = "from airfisheye_bench.cli.commands import inspect; inspect()"
 
 
 @dataclass(frozen=True)
@@ -98,6 +100,10 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
         "cam0:\n  camera_model: ds\n  distortion_model: radtan\n  distortion_coeffs: [0.01, 0.0, 0.0, 0.0]\n"
         "  intrinsics: [-0.17, 0.59, 158.3, 158.3, 254.9, 256.9]\n  resolution: [512, 512]\n"
     )
+    bad_scan = tmp / "000000.bin"
+    bad_scan.write_bytes(b"\0" * 20)  # not a whole number of float32 x 4 records
+    bad_spec = tmp / "sensor.yaml"
+    bad_spec.write_text("channels: 64\nelevations_deg: [2, 1]\n")
     train = [*tiny_run_overrides("seg", dataset)]
     # On the synthetic preset with an empty cache: a row refused before any work leaves the cache without a dataset.
     fresh = [*train, "data.root=null", "data.preset=tiny", f"paths.data_dir={tmp}/cache"]
@@ -191,6 +197,26 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             TRAIN,
             [*fresh, "data.preset=null", f"hydra.run.dir={tmp}/r13"],
             ("data.root", "data.preset"),
+        ),
+        "lidar_preset": (
+            TRAIN,
+            [*fresh, "data.lidar.preset=hdl65e", f"hydra.run.dir={tmp}/r16"],
+            ("data.lidar.preset='hdl65e'", "hdl64e"),
+        ),
+        "lidar_spec_file": (
+            TRAIN,
+            [*train, f"data.lidar.preset={bad_spec}", f"hydra.run.dir={tmp}/r17"],
+            (str(bad_spec), "strictly ascending"),
+        ),
+        "scan_file": (
+            INSPECT,
+            [INSPECT_ENTRY, f"root={bad_scan}", "lidar=hdl64e"],
+            (str(bad_scan), "float32 x 4"),
+        ),
+        "inspect_lidar": (
+            INSPECT,
+            [INSPECT_ENTRY, f"root={tmp}", "lidar=hdl65e"],
+            ("lidar='hdl65e'", "vlp16"),
         ),
         "ckpt_missing": (
             TRAIN,
@@ -309,6 +335,7 @@ FAIL_FAST = (
     "root_unset",
     "calibration_missing",
     "calibration_model",
+    "lidar_preset",
 )
 """Rows on the synthetic preset with an empty cache, refused before the dataset is generated."""
 
@@ -332,6 +359,8 @@ DEFAULT_ROWS = (
     "unknown_option",
     "logger_missing",
     "offline_weights",
+    "lidar_preset",
+    "scan_file",
 )
 """Rows of the default suite; the other schema rows are ``slow`` (test_schema_table covers them in-process)."""
 SLOW_ROWS = (
@@ -348,6 +377,8 @@ SLOW_ROWS = (
     "tta",
     "split",
     "onnx_missing",
+    "lidar_spec_file",
+    "inspect_lidar",
 )
 
 

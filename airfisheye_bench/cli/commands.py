@@ -14,14 +14,16 @@ Example:
     ...
     SystemExit: 2
     >>> print(render_help(INSPECT))  # doctest: +NORMALIZE_WHITESPACE
-    Report missing or malformed files of a dataset (exit status 1 when there are any).
+    Report missing or malformed files of a dataset, or the rings and removed returns of LiDAR scan files (exit status 1 when there are problems).
     <BLANKLINE>
     usage: airfisheye-inspect root=DIR [key=value ...]
     <BLANKLINE>
     options (key=value; defaults from configs/inspect.yaml):
-      root   str   (required)  the dataset root folder (it holds dataset.yaml)
-      deep   bool  false       also decode every image and array (slower)
-      limit  int   20          problems listed in the summary
+      root       str       (required)  the dataset root folder (it holds dataset.yaml), or a folder / file of LiDAR scans
+      deep       bool      false       also decode every image and array (slower)
+      limit      int       20          problems listed in the summary
+      lidar      str|null  null        LiDAR scans: the sensor (a preset such as hdl64e, or a spec file) to estimate rings
+      min_range  float     1.0         LiDAR scans: returns closer than this (m) count as self-hits
     <BLANKLINE>
     Booleans: true/false, yes/no, on/off, 1/0. Lists: key=[a,b].
 """
@@ -54,15 +56,20 @@ def _run(command: Command, argv: Sequence[str] | None) -> Parsed | None:
 # ------------------------------------------------------------------------------------------------ inspect
 @dataclass
 class InspectOptions:
-    root: str = option("the dataset root folder (it holds dataset.yaml)")
+    root: str = option("the dataset root folder (it holds dataset.yaml), or a folder / file of LiDAR scans")
     deep: bool = option("also decode every image and array (slower)")
     limit: int = option("problems listed in the summary")
+    lidar: str | None = option(
+        "LiDAR scans: the sensor (a preset such as hdl64e, or a spec file) to estimate rings"
+    )
+    min_range: float = option("LiDAR scans: returns closer than this (m) count as self-hits")
 
 
 INSPECT = Command(
     "inspect",
     InspectOptions,
-    "Report missing or malformed files of a dataset (exit status 1 when there are any).",
+    "Report missing or malformed files of a dataset, or the rings and removed returns of LiDAR scan files "
+    "(exit status 1 when there are problems).",
     "airfisheye-inspect root=DIR",
 )
 
@@ -74,10 +81,21 @@ def inspect(argv: Sequence[str] | None = None) -> int:
     if parsed is None:
         return 0
 
+    from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
     from airfisheye_bench.io.inspect import inspect_dataset  # at run time: see the module docstring
+    from airfisheye_bench.io.inspect_scans import inspect_scans  # at run time: see the module docstring
 
     opts = parsed.options
-    report = inspect_dataset(opts.root, deep=opts.deep)
+    root = Path(opts.root)
+    if (root / "dataset.yaml").is_file() or not root.exists():
+        report = inspect_dataset(opts.root, deep=opts.deep)
+    else:  # a folder (or a file) of LiDAR scans
+        try:
+            report = inspect_scans(root, opts.lidar, opts.min_range)
+        except ValueError as err:
+            raise ConfigError(f"lidar={opts.lidar!r}: {err}") from None
+        if root.is_file() and report.problems:  # the one file asked about is unusable: a user error
+            raise DatasetFormatError(*report.problems[0])
     print(report.summary(limit=opts.limit))
     return 0 if report.ok else 1
 
@@ -322,7 +340,11 @@ class BenchOptions:
 def _synth_key(key: str) -> bool:
     from airfisheye_bench.synth.presets import SynthConfig  # at run time: see the module docstring
 
-    return key.startswith(("flight.", "camera.")) or key in {f.name for f in dataclasses.fields(SynthConfig)}
+    return (
+        key.startswith(("flight.", "camera."))
+        or key == "lidar.preset"
+        or key in {f.name for f in dataclasses.fields(SynthConfig)}
+    )
 
 
 GENERATE = Command(

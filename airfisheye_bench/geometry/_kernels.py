@@ -76,7 +76,21 @@ def blend_interleaved3(src, pixels, index, weight, out, is_int, lo, hi):  # prag
 # -------------------------------------------------------------------------- LiDAR: organisation and ordering
 @njit(cache=True, nogil=True)
 def lidar_layout(
-    r, az, el, lower, v_res, edge, h_res, n_c, wrap_last, first_col, n_cols, ring, position, column
+    r,
+    az,
+    el,
+    lower,
+    v_res,
+    edge,
+    h_res,
+    n_c,
+    wrap_last,
+    first_col,
+    n_cols,
+    ring_given,
+    ring,
+    position,
+    column,
 ):  # pragma: no cover - compiled
     """Step 1 of III-C: ring, rank in azimuth within the ring and azimuth sector of every point.
 
@@ -92,7 +106,9 @@ def lidar_layout(
         n_c: Channels.
         wrap_last: Clamp the sector to ``wrap_last`` (a 360 deg sensor: azimuth +pi is the last sector); -1: no.
         first_col, n_cols: Sectors span ``[first_col, first_col + n_cols)`` (``lidar.column_range``).
-        ring, position, column: ``int64 [N]`` outputs.
+        ring_given: ``ring`` holds every point's ring already (-1: none; a ring field or an estimate from a
+            channel table); otherwise it is the nearest of the evenly spaced channels.
+        ring, position, column: ``int64 [N]`` outputs (``ring`` an input too with ``ring_given``).
 
     Returns:
         The length of the longest ring (0 for no point).
@@ -101,7 +117,7 @@ def lidar_layout(
     count = np.zeros(n_c * n_cols + 1, np.int64)
     bucket = np.empty(n, np.int64)
     for p in range(n):
-        i = np.rint((el[p] - lower) / v_res)
+        i = float(ring[p]) if ring_given else np.rint((el[p] - lower) / v_res)
         j = np.floor((az[p] - edge) / h_res)
         if wrap_last >= 0 and j > wrap_last:
             j = float(wrap_last)
@@ -138,6 +154,56 @@ def lidar_layout(
             position[order[k]] = k - first
         longest = max(longest, start[(i + 1) * n_cols] - first)
     return longest
+
+
+@njit(cache=True, nogil=True)
+def _search_left(sorted_values, x):  # pragma: no cover - compiled
+    """``np.searchsorted(sorted_values, x)`` (side left) for one value."""
+    lo, hi = 0, sorted_values.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if sorted_values[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, nogil=True)
+def nearest_channel(z, rho, tan_mids, table, radial, vertical, ring, residual):  # pragma: no cover - compiled
+    """The channel whose beam, from its own origin, points nearest each point (``lidar._nearest_from_origins``).
+
+    The table's nearest channel seen from the mean origin, then three rounds seen from the origin of the channel
+    found, then the best of it and its two neighbours by the elevation residual (``residual``, radians; only
+    computed where a neighbour also claims the point or the channel is the lowest / highest, 0 elsewhere).
+    """
+    n_c = table.shape[0]
+    r_mean = radial.mean()
+    v_mean = vertical.mean()
+    for p in range(z.shape[0]):
+        c = _search_left(tan_mids, (z[p] - v_mean) / max(rho[p] - r_mean, 1e-6))
+        for _ in range(3):
+            c = _search_left(tan_mids, (z[p] - vertical[c]) / max(rho[p] - radial[c], 1e-6))
+        # the neighbours matter only where they claim the point too (seen from their own origins it lies in
+        # their cell): decide by the elevation residual there; the residual is needed at the table's ends
+        claims = 0
+        for d in range(-1, 2):
+            k = c + d
+            if 0 <= k < n_c:
+                t = (z[p] - vertical[k]) / max(rho[p] - radial[k], 1e-6)
+                if (k == 0 or tan_mids[k - 1] < t) and (k == n_c - 1 or t <= tan_mids[k]):
+                    claims += 1
+        best = min(max(c, 0), n_c - 1)
+        best_res = 0.0
+        if claims > 1 or best == 0 or best == n_c - 1:
+            best_res = np.inf
+            for d in range(-1, 2):
+                k = min(max(c + d, 0), n_c - 1)
+                res = np.arctan2(z[p] - vertical[k], max(rho[p] - radial[k], 1e-6)) - table[k]
+                if abs(res) < abs(best_res):
+                    best, best_res = k, res
+        ring[p] = best
+        residual[p] = best_res
 
 
 _ALL = np.uint64(0xFFFFFFFFFFFFFFFF)
@@ -189,7 +255,7 @@ def _set(words, w0, c):  # pragma: no cover - compiled
 def ordering_keep(
     row, pos, col, theta, phi, n_c, row_len, n_cols, az_win, el_win, tol, keep
 ):  # pragma: no cover - compiled
-    """Step 4 of III-C: the sequential loop of ``occlusion._ordering_loop``, with the same result.
+    """Step 4 of III-C: the sequential loop of ``occlusion.ordering.ordering_loop``, with the same result.
 
     Points come in visiting order (ascending camera range), each at its own place ``(row, pos)`` of a row
     and in a column ``col`` that may hold several points of one row. A point is kept iff its ``theta`` is

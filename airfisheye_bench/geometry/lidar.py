@@ -6,15 +6,22 @@ Frames (docs/design.md): the LiDAR frame is x forward, y left, z up. A point's s
   sensor's left), and
 * elevation ``phi = atan2(z, hypot(x, y))``: positive up.
 
-Beam pattern (the single definition; the synthetic generator casts :meth:`LidarSpec.beam_directions`):
+Beam pattern (the single definition; the synthetic generator casts :meth:`LidarSpec.beam_rays`):
 
-* channel ``i`` (row ``i`` of ``I_LiDAR``) has elevation ``linspace(lower, upper, channels)[i]``: channel 0
-  is the lowest beam, so elevation increases with the row (the paper's "ascending order of phi along each
-  column");
-* column ``j`` has azimuth ``-hfov/2 + (j + 0.5) * hfov / points_per_channel``: the horizontal FOV, centred
-  on the x axis, is split into equal cells whose centres are the beam azimuths. Azimuth increases with the
-  column (the paper's "ascending order of theta from left to right"), and a 360 deg sensor has no duplicated
-  column.
+* channel ``i`` (row ``i`` of ``I_LiDAR``) has elevation ``elevations_deg[i]`` (a sensor's channel table,
+  ascending) or, for a uniform sensor, ``linspace(lower, upper, channels)[i]``: channel 0 is the lowest beam, so
+  elevation increases with the row (the paper's "ascending order of phi along each column");
+* column ``j`` has azimuth ``-hfov/2 + (j + 0.5) * hfov / points_per_channel`` (plus the channel's
+  ``azimuth_offsets_deg``, where the sensor's lasers do not fire in one vertical line): the horizontal FOV,
+  centred on the x axis, is split into equal cells whose centres are the beam azimuths. Azimuth increases with
+  the column (the paper's "ascending order of theta from left to right"), and a 360 deg sensor has no duplicated
+  column;
+* a beam starts at the sensor's centre, or where ``beam_origins_m`` puts its channel's laser: ``(radial,
+  tangential, vertical)`` metres, along the beam's horizontal direction, to its left, and up. Real sensors'
+  beams do (the HDL-64E's up to 0.21 m above its base), which biases the elevation of near returns.
+
+Named sensors with their datasheet or calibration tables are in :mod:`~airfisheye_bench.geometry.lidar_presets`
+(``LidarSpec.from_preset("hdl64e")``).
 
 This is the *nominal* pattern. A real spinning sensor fires at an arbitrary azimuth phase every frame (and
 per ring), with jitter and dropped returns: :func:`organize_scan` therefore uses the channel elevations and the
@@ -23,6 +30,7 @@ column width, never the column centres.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import asdict, dataclass
 from typing import Any, NamedTuple
@@ -30,7 +38,9 @@ from typing import Any, NamedTuple
 import numpy as np
 import torch
 
+from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
+from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 
 
 @dataclass(frozen=True)
@@ -39,11 +49,19 @@ class LidarSpec:
 
     Args:
         channels: Number of channels / rings ``N_C`` (rows of ``I_LiDAR``), at least 2.
-        points_per_channel: Number of azimuth cells per channel ``N_PC`` (columns of ``I_LiDAR``).
+        points_per_channel: Number of azimuth cells per channel ``N_PC`` (columns of ``I_LiDAR``): the points per
+            revolution (or per ``hfov_deg``).
         hfov_deg: Horizontal field of view in degrees, in ``(0, 360]``, centred on the LiDAR x axis.
         vfov_deg: ``(lower, upper)`` elevations of the lowest and highest channels in degrees, in ``[-90,
-        90]``.
+            90]``. With ``elevations_deg`` it is their first and last value (given or not).
         max_range: Maximum range in metres (beams that hit nothing closer give no return).
+        elevations_deg: The channel table: one elevation per channel in degrees, strictly ascending (ring 0 is
+            the lowest). ``None``: ``channels`` channels evenly spaced over ``vfov_deg``.
+        azimuth_offsets_deg: Per channel, the azimuth of its laser relative to the column's (degrees, counter-
+            clockwise seen from above). ``None``: all zero.
+        beam_origins_m: Per channel, where its beam starts: ``(radial, tangential, vertical)`` metres from the
+            sensor's centre, along the beam's horizontal direction, to its left and up. ``None``: the centre.
+        name: The preset's name, if the spec is one (kept in ``to_dict``).
 
     Example:
         >>> spec = LidarSpec(channels=16, points_per_channel=360, hfov_deg=360.0, vfov_deg=(-15.0, 15.0))
@@ -53,6 +71,9 @@ class LidarSpec:
         torch.Size([16, 360, 3])
         >>> LidarSpec.from_dict(spec.to_dict()) == spec
         True
+        >>> table = LidarSpec(elevations_deg=(-10.0, -2.0, 0.0, 1.0), points_per_channel=8)
+        >>> table.channels, table.vfov_deg, table.is_uniform
+        (4, (-10.0, 1.0), False)
     """
 
     channels: int = 64
@@ -60,9 +81,29 @@ class LidarSpec:
     hfov_deg: float = 270.0
     vfov_deg: tuple[float, float] = (-45.0, 15.0)
     max_range: float = 120.0
+    elevations_deg: tuple[float, ...] | None = None
+    azimuth_offsets_deg: tuple[float, ...] | None = None
+    beam_origins_m: tuple[tuple[float, float, float], ...] | None = None
+    name: str | None = None
 
     def __post_init__(self) -> None:
         # Coerce (YAML may give ints for floats, lists for tuples) and validate; frozen, hence object.__setattr__.
+        if self.elevations_deg is not None:
+            table = _table(self.elevations_deg, "elevations_deg")
+            if len(table) < 2 or any(b <= a for a, b in itertools.pairwise(table)):
+                raise ValueError(
+                    "LidarSpec.elevations_deg must hold at least 2 strictly ascending elevations (ring 0 the "
+                    f"lowest), got {list(self.elevations_deg)!r}"
+                )
+            if not all(-90.0 <= v <= 90.0 for v in table):
+                raise ValueError(f"LidarSpec.elevations_deg must lie in [-90, 90], got {list(table)!r}")
+            object.__setattr__(self, "elevations_deg", table)
+            if self.channels != 64 and self.channels != len(table):  # 64: the default, i.e. not given
+                raise ValueError(
+                    f"LidarSpec.channels={self.channels} but elevations_deg has {len(table)} entries"
+                )
+            object.__setattr__(self, "channels", len(table))
+            object.__setattr__(self, "vfov_deg", (table[0], table[-1]))
         for name in ("channels", "points_per_channel"):
             value = getattr(self, name)
             if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool)):
@@ -93,11 +134,39 @@ class LidarSpec:
                 f"LidarSpec.max_range must be a positive number of metres, got {self.max_range!r}"
             )
         object.__setattr__(self, "max_range", max_range)
+        if self.azimuth_offsets_deg is not None:
+            offsets = _table(self.azimuth_offsets_deg, "azimuth_offsets_deg")
+            if len(offsets) != self.channels or any(abs(v) >= 180.0 for v in offsets):
+                raise ValueError(
+                    f"LidarSpec.azimuth_offsets_deg must hold {self.channels} angles in (-180, 180) degrees, "
+                    f"one per channel, got {len(offsets)}"
+                )
+            object.__setattr__(self, "azimuth_offsets_deg", offsets)
+        if self.beam_origins_m is not None:
+            try:
+                origins = tuple(tuple(_number(v, "beam_origins_m") for v in o) for o in self.beam_origins_m)
+            except TypeError as err:
+                raise ValueError(
+                    "LidarSpec.beam_origins_m must be one (radial, tangential, vertical) per channel"
+                ) from err
+            if len(origins) != self.channels or any(len(o) != 3 or max(map(abs, o)) > 1.0 for o in origins):
+                raise ValueError(
+                    f"LidarSpec.beam_origins_m must hold {self.channels} triples (radial, tangential, vertical) of "
+                    f"metres within 1 m of the centre, one per channel, got {len(origins)}"
+                )
+            object.__setattr__(self, "beam_origins_m", origins)
+        if self.name is not None and not isinstance(self.name, str):
+            raise ValueError(f"LidarSpec.name must be a string or None, got {self.name!r}")
 
     # ------------------------------------------------------------------ beam pattern
     @property
+    def is_uniform(self) -> bool:
+        """Evenly spaced channels, all beams from the centre: the ring of a point is its rounded elevation."""
+        return self.elevations_deg is None and self.beam_origins_m is None
+
+    @property
     def vertical_resolution(self) -> float:
-        """Elevation step between neighbouring channels, ``VFOV / (N_C - 1)``, in radians."""
+        """Mean elevation step between neighbouring channels, ``VFOV / (N_C - 1)``, in radians."""
         lower, upper = self.vfov_deg
         return math.radians(upper - lower) / (self.channels - 1)
 
@@ -108,8 +177,22 @@ class LidarSpec:
 
     def channel_elevations(self) -> np.ndarray:
         """Elevation of every channel ``[N_C]`` (float64 radians, ascending: channel 0 is the lowest)."""
+        if self.elevations_deg is not None:
+            return np.radians(np.asarray(self.elevations_deg, dtype=np.float64))
         lower, upper = self.vfov_deg
         return np.radians(np.linspace(lower, upper, self.channels))
+
+    def channel_azimuth_offsets(self) -> np.ndarray:
+        """Azimuth offset of every channel ``[N_C]`` (float64 radians; zeros without ``azimuth_offsets_deg``)."""
+        if self.azimuth_offsets_deg is None:
+            return np.zeros(self.channels)
+        return np.radians(np.asarray(self.azimuth_offsets_deg, dtype=np.float64))
+
+    def channel_origins(self) -> np.ndarray:
+        """``[N_C, 3]`` float64 ``(radial, tangential, vertical)`` beam origins in metres (zeros: the centre)."""
+        if self.beam_origins_m is None:
+            return np.zeros((self.channels, 3))
+        return np.asarray(self.beam_origins_m, dtype=np.float64)
 
     def column_azimuths(self) -> np.ndarray:
         """Azimuth of every column ``[N_PC]`` (float64 radians, ascending, centred on the x axis)."""
@@ -128,32 +211,87 @@ class LidarSpec:
             True
         """
         el = self.channel_elevations()[:, None]
-        az = self.column_azimuths()[None, :]
+        az = self.column_azimuths()[None, :] + self.channel_azimuth_offsets()[:, None]
         dirs = np.stack(
             np.broadcast_arrays(np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)), axis=-1
         )
         return torch.from_numpy(dirs).to(dtype=dtype, device=device)
 
-    # ------------------------------------------------------------------ serialisation
+    def beam_origins(self, azimuth: np.ndarray, channel: np.ndarray) -> np.ndarray:
+        """Start points ``[N, 3]`` (float64, LiDAR frame) of beams fired at ``azimuth [N]`` by ``channel [N]``.
+
+        Example:
+            >>> spec = LidarSpec(channels=2, vfov_deg=(-1.0, 1.0), beam_origins_m=((0.0, 0.0, 0.2), (0.1, 0.0, 0.0)))
+            >>> spec.beam_origins(np.array([0.0, np.pi / 2]), np.array([0, 1])).round(6).tolist()
+            [[0.0, 0.0, 0.2], [0.0, 0.1, 0.0]]
+        """
+        radial, tangential, vertical = self.channel_origins()[np.asarray(channel)].T
+        c, s = np.cos(azimuth), np.sin(azimuth)
+        return np.stack([radial * c - tangential * s, radial * s + tangential * c, vertical], axis=-1)
+
+    # ------------------------------------------------------------------ construction and serialisation
+    @classmethod
+    def from_preset(cls, name: str, **changes: Any) -> LidarSpec:
+        """A named sensor (:data:`~airfisheye_bench.geometry.lidar_presets.LIDAR_PRESETS`), with ``changes``.
+
+        Example:
+            >>> spec = LidarSpec.from_preset("hdl64e")
+            >>> spec.channels, spec.hfov_deg, round(spec.vfov_deg[1], 2)
+            (64, 360.0, 1.94)
+        """
+        if name not in LIDAR_PRESETS:
+            raise ValueError(f"unknown LiDAR preset {name!r}; expected one of {sorted(LIDAR_PRESETS)}")
+        return cls(**{**LIDAR_PRESETS[name], "name": name, **changes})
+
     def to_dict(self) -> dict[str, Any]:
-        """Plain-Python description (for ``calib.yaml``)."""
+        """Plain-Python description (for ``calib.yaml``); the optional tables only where they are set."""
         d = asdict(self)
         d["vfov_deg"] = list(self.vfov_deg)
+        for key in _OPTIONAL:
+            if d[key] is None:
+                del d[key]
+            elif key != "name":
+                d[key] = [list(v) if isinstance(v, tuple) else v for v in d[key]]
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> LidarSpec:
-        """Inverse of :meth:`to_dict`; unknown keys raise ``ValueError`` naming them."""
-        allowed = {"channels", "points_per_channel", "hfov_deg", "vfov_deg", "max_range"}
+        """Inverse of :meth:`to_dict`; ``{"preset": name, ...}`` starts from a preset. Unknown keys raise
+        ``ValueError`` naming them."""
+        allowed = {
+            "channels",
+            "points_per_channel",
+            "hfov_deg",
+            "vfov_deg",
+            "max_range",
+            "preset",
+            *_OPTIONAL,
+        }
         unknown = set(d) - allowed
         if unknown:
             raise ValueError(
                 f"unknown LiDAR spec keys {sorted(unknown)}; expected a subset of {sorted(allowed)}"
             )
         kwargs = dict(d)
-        if "vfov_deg" in kwargs:
-            kwargs["vfov_deg"] = tuple(kwargs["vfov_deg"])
+        for key in ("vfov_deg", "elevations_deg", "azimuth_offsets_deg"):
+            if kwargs.get(key) is not None:
+                kwargs[key] = tuple(kwargs[key])
+        if kwargs.get("beam_origins_m") is not None:
+            kwargs["beam_origins_m"] = tuple(tuple(o) for o in kwargs["beam_origins_m"])
+        preset = kwargs.pop("preset", None)
+        if preset is not None:
+            return cls.from_preset(preset, **kwargs)
         return cls(**kwargs)
+
+
+_OPTIONAL = ("elevations_deg", "azimuth_offsets_deg", "beam_origins_m", "name")
+
+
+def _table(values: Any, name: str) -> tuple[float, ...]:
+    try:
+        return tuple(_number(v, name) for v in values)
+    except TypeError as err:
+        raise ValueError(f"LidarSpec.{name} must be a list of numbers, got {values!r}") from err
 
 
 def _number(value: Any, name: str) -> float:
@@ -205,13 +343,117 @@ def spherical_coordinates(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return np.sqrt(r, out=r), np.arctan2(y, x), np.arctan2(z, rho)
 
 
+# ---------------------------------------------------------------------- a point's channel from its elevation
+_CHUNK = 16384  # points per block of the [points x channels] residuals (a few MB)
+
+
+def check_rings(rings: object, n_points: int, spec: LidarSpec, name: str = "rings") -> np.ndarray:
+    """A given per-point ring as ``int64 [N]``: integers in ``[-1, channels)`` (-1: no ring), one per point.
+
+    Example:
+        >>> check_rings([0, 3, -1], 3, LidarSpec(channels=4)).tolist()
+        [0, 3, -1]
+    """
+    arr = np.asarray(rings.detach().cpu().numpy() if hasattr(rings, "detach") else rings)
+    if arr.shape != (n_points,):
+        raise ValueError(f"{name} must have one ring per point, shape ({n_points},), got {arr.shape}")
+    integral = np.issubdtype(arr.dtype, np.integer) or (
+        np.isfinite(arr).all() and (arr == np.round(arr)).all()
+    )
+    if arr.size and not integral:
+        raise ValueError(f"{name} must be integers, got dtype {arr.dtype}")
+    arr = arr.astype(np.int64)
+    if arr.size and (arr.min() < -1 or arr.max() >= spec.channels):
+        raise ValueError(
+            f"{name} must lie in [0, {spec.channels}) (the spec's channels; -1 for none), got "
+            f"[{int(arr.min())}, {int(arr.max())}]"
+        )
+    return arr
+
+
+def channel_residuals(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> np.ndarray:
+    """``[N, N_C]`` elevation (radians) of each point seen from each channel's beam origin, minus the channel's.
+
+    Where a channel's beam starts ``(radial, tangential, vertical)`` off the centre, a point at horizontal
+    distance ``rho`` and height ``z`` has, seen from there, the elevation ``atan2(z - vertical, rho - radial)``
+    (the tangential offset changes ``rho`` by ``tangential^2 / 2 rho``: neglected).
+    """
+    z, rho = r * np.sin(el), r * np.cos(el)
+    radial, _, vertical = spec.channel_origins().T
+    table = spec.channel_elevations()
+    return np.arctan2(z[:, None] - vertical, np.maximum(rho[:, None] - radial, 1e-6)) - table
+
+
+def rings_from_elevation(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> np.ndarray:
+    """The channel nearest each point's elevation (``channel_table`` source); ``int64 [N]``, -1 for none.
+
+    -1 for a point at the origin or more than half a channel spacing beyond the lowest / highest channel: no
+    beam of the sensor can have returned it. Uniform channels from the centre: ``rint((el - lower) / res)``
+    (what ``organize_scan`` has always done); a table: its nearest entry; beam origins off the centre: the
+    channel whose beam, from its own origin, points nearest the point.
+
+    Example:
+        >>> spec = LidarSpec(elevations_deg=(-10.0, -2.0, 0.0, 1.0), points_per_channel=8)
+        >>> rings_from_elevation(np.ones(4), np.radians([-9.0, -1.2, 0.8, 2.0]), spec).tolist()
+        [0, 1, 3, -1]
+    """
+    r, el = np.asarray(r, dtype=np.float64), np.asarray(el, dtype=np.float64)
+    if spec.is_uniform:
+        ring = np.rint((el - math.radians(spec.vfov_deg[0])) / spec.vertical_resolution)
+        return np.where((r > 0) & (ring >= 0) & (ring < spec.channels), ring, -1).astype(np.int64)
+    table = spec.channel_elevations()
+    below, above = (table[1] - table[0]) / 2.0, (table[-1] - table[-2]) / 2.0
+    if spec.beam_origins_m is None:
+        ring = np.searchsorted((table[1:] + table[:-1]) / 2.0, el)
+        offside = (el < table[0] - below) | (el > table[-1] + above)
+    else:
+        ring, miss = _nearest_from_origins(r, el, spec)
+        offside = ((ring == 0) & (miss < -below)) | ((ring == spec.channels - 1) & (miss > above))
+    return np.where((r > 0) & ~offside, ring, -1).astype(np.int64)
+
+
+def _nearest_from_origins(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> tuple[np.ndarray, np.ndarray]:
+    """The channel whose beam, from its own origin, points nearest each point, and that residual (radians).
+
+    A fixed point instead of all ``N x N_C`` residuals (compiled, ``_kernels.nearest_channel``): the table's
+    nearest channel seen from the mean origin, then from the origin of the channel found (three rounds: origins
+    differ by centimetres, so the channel settles), then the best of it and its two neighbours.
+    ``channels_exhaustive`` checks it against the full search in the tests.
+    """
+    table = spec.channel_elevations()
+    tan_mids = np.tan((table[1:] + table[:-1]) / 2.0)  # elevations within +-90 deg: tan keeps their order
+    origins = spec.channel_origins()
+    ring, residual = np.empty(len(r), dtype=np.int64), np.empty(len(r))
+    _kernels.nearest_channel(
+        r * np.sin(el),
+        r * np.cos(el),
+        tan_mids,
+        table,
+        origins[:, 0].copy(),
+        origins[:, 2].copy(),
+        ring,
+        residual,
+    )
+    return ring, residual
+
+
+def channels_exhaustive(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> np.ndarray:
+    """The nearest channel seen from each channel's origin by testing all of them (the reference, O(N x N_C))."""
+    ring = np.empty(len(r), dtype=np.int64)
+    for start in range(0, len(r), _CHUNK):
+        part = slice(start, start + _CHUNK)
+        ring[part] = np.argmin(np.abs(channel_residuals(r[part], el[part], spec)), axis=1)
+    return ring
+
+
 # ---------------------------------------------------------------------- organisation (step 1 of III-C)
 class ScanLayout(NamedTuple):
     """Where each point of a scan sits in ``I_LiDAR`` (see :func:`organize_scan`); ``int64 [N]`` arrays.
 
     Attributes:
         ring: Channel (row of ``I_LiDAR``, 0 = the lowest beam), or -1 for a point no beam of the sensor can
-            have returned (at the origin, or more than half a channel spacing outside the vertical FOV).
+            have returned (at the origin, or more than half a channel spacing outside the vertical FOV), or
+            given -1.
         position: Rank of the point in azimuth within its ring (its place along the row; -1 where ``ring`` is).
         column: Azimuth sector, ``floor((azimuth + HFOV/2) / (HFOV/N_PC))``: the spec's column ``j`` covers
             ``[-HFOV/2 + j * res, -HFOV/2 + (j + 1) * res)``. Points outside a partial HFOV get the sectors
@@ -235,14 +477,16 @@ def column_range(spec: LidarSpec) -> tuple[int, int]:
     return first, math.floor((math.pi - edge) / res) - first + 1
 
 
-def layout_from_angles(r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec) -> ScanLayout:
+def layout_from_angles(
+    r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec, rings: np.ndarray | None = None
+) -> ScanLayout:
     """:func:`organize_scan` from the points' spherical coordinates (see :func:`spherical_coordinates`).
 
     The numpy reference of the compiled ``_kernels.lidar_layout`` (bit-identical: the same float64
-    operations); numpy in, numpy out.
+    operations); numpy in, numpy out. ``rings``: every point's ring (checked), else :func:`rings_from_elevation`.
     """
-    ring = np.rint((el - math.radians(spec.vfov_deg[0])) / spec.vertical_resolution)
-    ring = np.where((r > 0) & (ring >= 0) & (ring < spec.channels), ring, -1).astype(np.int64)
+    ring = rings_from_elevation(r, el, spec) if rings is None else np.asarray(rings, dtype=np.int64).copy()
+    ring[r <= 0] = -1
     column = np.floor((az - (-math.radians(spec.hfov_deg) / 2.0)) / spec.horizontal_resolution)
     if spec.hfov_deg == 360.0:
         column = np.minimum(column, spec.points_per_channel - 1)  # azimuth +pi exactly: the last sector
@@ -255,19 +499,21 @@ def layout_from_angles(r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: Lida
     return ScanLayout(ring, position, column.astype(np.int64))
 
 
-def organize_scan(points_lidar: ArrayLike, spec: LidarSpec) -> ScanLayout:
+def organize_scan(points_lidar: ArrayLike, spec: LidarSpec, rings: ArrayLike | None = None) -> ScanLayout:
     """Organise a LiDAR scan into the paper's ``I_LiDAR`` (III-C, first step), wherever its beams sit.
 
-    Row ``i`` of ``I_LiDAR`` is ring ``i`` (the channel nearest the point's elevation: rings are a full
-    channel spacing apart, so jitter cannot move a point to another ring) with its points in ascending
-    azimuth; column ``j`` is the spec's azimuth sector ``j``. No point competes for a cell: a real scan's
-    beams sit at an arbitrary azimuth phase (per frame, per ring), with jitter and dropped returns, so a
-    sector may hold zero, one or two points of a ring, and every one of them keeps its place. The result
-    does not depend on the order of the points.
+    Row ``i`` of ``I_LiDAR`` is ring ``i`` with its points in ascending azimuth; column ``j`` is the spec's
+    azimuth sector ``j``. The ring is the one the data gives (``rings``: a sensor's ring field, or an estimate
+    from the firing order, :mod:`~airfisheye_bench.geometry.rings`), else the channel nearest the point's
+    elevation seen from its beam's origin (:func:`rings_from_elevation`). No point competes for a cell: a real
+    scan's beams sit at an arbitrary azimuth phase (per frame, per ring), with jitter and dropped returns, so a
+    sector may hold zero, one or two points of a ring, and every one of them keeps its place. The result does
+    not depend on the order of the points.
 
     Args:
         points_lidar: ``[N, 3]`` points in the LiDAR frame (numpy or torch, floating, finite).
-        spec: The sensor that recorded the scan (channel elevations, sector width).
+        spec: The sensor that recorded the scan (channel table, sector width).
+        rings: Optional ``[N]`` ring of every point (integers in ``[-1, channels)``; -1: none).
 
     Returns:
         :class:`ScanLayout` of ``int64 [N]`` arrays, numpy or torch like the input.
@@ -278,12 +524,25 @@ def organize_scan(points_lidar: ArrayLike, spec: LidarSpec) -> ScanLayout:
         >>> layout = organize_scan(10.0 * beams.flip(0), spec)  # points listed in reverse order
         >>> [int(v[0]) for v in layout], [int(v[31]) for v in layout]  # (ring, position, column)
         ([3, 7, 7], [0, 0, 0])
+        >>> given = organize_scan(10.0 * beams.flip(0), spec, rings=np.repeat([3, 2, 1, 0], 8))
+        >>> bool((given.ring == layout.ring).all())
+        True
     """
     if not isinstance(spec, LidarSpec):
         raise ValueError(f"spec must be a LidarSpec, got {type(spec).__name__}")
     points = as_points64(points_lidar, "points_lidar")
-    layout = layout_from_angles(*spherical_coordinates(points), spec)
+    if rings is not None:
+        rings = check_rings(rings, len(points), spec)
+    layout = layout_from_angles(*spherical_coordinates(points), spec, rings)
     return ScanLayout(*(like(v, points_lidar) for v in layout))
 
 
-__all__ = ["LidarSpec", "ScanLayout", "organize_scan", "spherical_coordinates"]
+__all__ = [
+    "LidarSpec",
+    "ScanLayout",
+    "channel_residuals",
+    "check_rings",
+    "organize_scan",
+    "rings_from_elevation",
+    "spherical_coordinates",
+]

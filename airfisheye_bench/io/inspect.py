@@ -27,6 +27,7 @@ from airfisheye_bench.io import codecs
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import trajectory_of
 from airfisheye_bench.io.reader import DatasetReader
+from airfisheye_bench.io.scan import load_scan
 
 _IMAGE_MODES = {"rgb": ("RGB", "RGBA", "L"), "seg": ("L", "P"), "depth": ("I;16", "I;16B", "I;16L", "I")}
 
@@ -127,7 +128,12 @@ def _check_sample(reader, sid: str, calib: np.ndarray, deep: bool, report: Inspe
             _check_image(reader.layout.fisheye(sid, modality), modality, size, reader, deep, report)
     n_points = None
     report.files += spec.has("lidar") + spec.has("lidar_visible")
-    if spec.has("lidar"):
+    if spec.has("lidar") and reader.layout.lidar(sid).suffix != ".npy":  # a real sensor's scan files
+        try:
+            n_points = len(load_scan(reader.layout.lidar(sid)).points)
+        except DatasetFormatError as err:
+            report.add(err.path, err.message)
+    elif spec.has("lidar"):
         n_points = _check_array(reader.layout.lidar(sid), 2, 4, np.floating, deep, report, "LiDAR scan")
     if spec.has("lidar_visible"):
         n_vis = _check_array(reader.layout.lidar_visible(sid), 1, None, np.bool_, False, report, "visibility")

@@ -12,6 +12,7 @@ from airfisheye_bench.io.calib import Calibration
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
 from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
+from airfisheye_bench.io.scan import Scan, load_scan
 from airfisheye_bench.io.spec import DatasetSpec
 from airfisheye_bench.io.splits import parse_sample_id, read_split
 
@@ -105,6 +106,25 @@ class DatasetReader:
     def lidar(self, sample_id: str) -> np.ndarray:
         """``float32 [N, 4]``: x, y, z in the LiDAR frame at ``t_lidar``, raw semantic id."""
         return codecs.read_lidar(self.layout.lidar(sample_id))
+
+    def lidar_scan(self, sample_id: str) -> Scan:
+        """The LiDAR scan of a frame with its rings where the release records them.
+
+        The layout's own ``lidar/<frame>.npy`` (x, y, z, raw id; the ids in ``extra["raw_id"]``) takes its rings
+        from ``lidar_beam`` where the release has it (synthetic scans of a channel-table sensor or a realistic
+        scan model); a release whose ``layout.lidar`` names real scan files (``.bin``, ``.pcd.bin``, ``.pcd``,
+        ``.ply``, ``.npz``) is read by :func:`~airfisheye_bench.io.scan.load_scan`, rings from the file's field.
+        """
+        path = self.layout.lidar(sample_id)
+        if path.suffix != ".npy":
+            return load_scan(path)
+        data = codecs.read_lidar(path)
+        rings = None
+        if self.spec.has("lidar_beam"):
+            beams = codecs.read_beams(self.layout.lidar_beam(sample_id), len(data))
+            rings = beams.astype(np.int64) // self.calib(sample_id).lidar_spec().points_per_channel
+        points = data[:, :3].astype(np.float64)
+        return Scan(points, None, rings, False, 0, path, "airfisheye_npy", {"raw_id": data[:, 3]})
 
     def lidar_visible(self, sample_id: str) -> np.ndarray:
         """``bool [N]`` ground-truth visibility (synthetic releases only; see ``sensors.visibility``)."""

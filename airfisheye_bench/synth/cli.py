@@ -66,6 +66,7 @@ def build_config(preset: str, overrides: dict[str, object]) -> SynthConfig:
     for key, value in overrides.items():
         if isinstance(value, list):
             value = tuple(value)
+        key = "lidar_preset" if key == "lidar.preset" else key  # the spelling of train.py's data.lidar.preset
         if key.startswith("flight."):
             name = key.split(".", 1)[1]
             if name not in flight_fields:

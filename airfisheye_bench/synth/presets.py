@@ -49,6 +49,7 @@ from typing import Any
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.cameras import camera_from_dict
 from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.io.calibration_files import camera_label
 from airfisheye_bench.synth.sensors import ScanModel
 from airfisheye_bench.synth.trajectory import FlightConfig, SensorRig
@@ -83,6 +84,9 @@ class SynthConfig:
         lidar_hfov_deg: LiDAR horizontal field of view (270 deg in the paper).
         lidar_vfov_deg: LiDAR (lower, upper) elevation.
         lidar_max_range: LiDAR range (120 m in the paper).
+        lidar_preset: A named real sensor (``hdl64e``, ``os1-64``, ...; ``geometry.lidar_presets``): its channel
+            table, azimuth offsets, beam origins, points per revolution and range replace the five ``lidar_*``
+            fields above. ``None``: the uniform sensor they describe.
         lidar_phase: Azimuth phase of each frame's scan: ``fixed`` (the ideal grid of ``LidarSpec``), ``random``
             (uniform per frame) or ``spin`` (a sensor turning at ``lidar_rotation_hz``); see ``ScanModel``.
         lidar_rotation_hz: Rotation rate of a ``spin`` scan.
@@ -111,6 +115,7 @@ class SynthConfig:
     lidar_hfov_deg: float = 270.0
     lidar_vfov_deg: tuple[float, float] = (-45.0, 15.0)
     lidar_max_range: float = 120.0
+    lidar_preset: str | None = None
     lidar_phase: str = "fixed"
     lidar_rotation_hz: float = 10.0
     lidar_jitter_cells: tuple[float, float] = (0.0, 0.0)
@@ -164,6 +169,10 @@ class SynthConfig:
                     f"fisheye_calibration is a {camera_label(self.fisheye_calibration)} camera, but fisheye_size is "
                     f"{self.fisheye_size}; serve it at that size (airfisheye_bench.geometry.serving.serve_camera)"
                 )
+        if self.lidar_preset is not None and self.lidar_preset not in LIDAR_PRESETS:
+            raise ValueError(
+                f"lidar_preset must be one of {sorted(LIDAR_PRESETS)} or null, got {self.lidar_preset!r}"
+            )
 
     # --------------------------------------------------------------------------------- helpers
     def scan_model(self) -> ScanModel:
@@ -175,7 +184,10 @@ class SynthConfig:
             dropout=self.lidar_dropout,
         )
 
-    def lidar_spec(self):
+    def lidar_spec(self) -> LidarSpec:
+        """The simulated LiDAR: ``lidar_preset``'s sensor, or the uniform one of the ``lidar_*`` fields."""
+        if self.lidar_preset is not None:
+            return LidarSpec.from_preset(self.lidar_preset)
         return LidarSpec(
             channels=self.lidar_channels,
             points_per_channel=self.lidar_points_per_channel,
@@ -227,6 +239,7 @@ class SynthConfig:
 
 _OMITTED_DEFAULTS = {
     "fisheye_calibration": None,  # the ideal lens of fisheye_model (datasets before calibrated lenses)
+    "lidar_preset": None,
     "lidar_phase": "fixed",
     "lidar_rotation_hz": 10.0,
     "lidar_jitter_cells": [0.0, 0.0],

@@ -8,7 +8,8 @@ them from the sensor poses and packs the results:
 * **Fisheye** — either ray-cast directly through the lens (``FisheyeCamera.ray_grid``: exact, the yardstick for
   the cubemap remap) or remapped from the faces with ``CubemapToFisheye`` (like the real release). Pixels outside
   the image circle are ``rgb = 0``, ``seg = 255`` (ignore), ``depth = 0``.
-* **LiDAR** — ``LidarSpec.beam_directions`` from the LiDAR pose at the LiDAR timestamp; beams with no return
+* **LiDAR** — ``LidarSpec.beam_directions`` from the LiDAR pose at the LiDAR timestamp, each from its laser's
+  origin (``LidarSpec.beam_origins``: off the centre for a preset such as ``hdl64e``); beams with no return
   within ``max_range`` are dropped. Points are stored in the LiDAR frame in beam order (channel-major). A
   :class:`ScanModel` makes the scan look like a real spinning sensor's: a per-frame azimuth phase (the firing
   grid slides by a fraction of a column from frame to frame), per-beam angular jitter and random dropped
@@ -162,6 +163,7 @@ class ScanModel:
         n = spec.channels * spec.points_per_channel
         el = np.repeat(spec.channel_elevations(), spec.points_per_channel)
         az = np.tile(spec.column_azimuths(), spec.channels) + phase
+        az += np.repeat(spec.channel_azimuth_offsets(), spec.points_per_channel)
         sigma_az, sigma_el = self.jitter_cells
         if sigma_az > 0:
             az = az + rng.normal(0.0, sigma_az * spec.horizontal_resolution, n)
@@ -270,11 +272,19 @@ def scan_lidar(
         raise ValueError("scan_lidar needs an rng for a scan model with phase, jitter or dropout")
     beams, beam_index = scan.beams(spec, phase, rng, device=scene.device)
     dirs = _rotate(T_world_lidar[:3, :3], beams)
-    origin = torch.as_tensor(T_world_lidar[:3, 3], dtype=torch.float32, device=scene.device).expand_as(dirs)
+    centre = torch.as_tensor(T_world_lidar[:3, 3], dtype=torch.float32, device=scene.device)
+    if spec.beam_origins_m is None:
+        start = torch.zeros_like(dirs)
+        origin = centre.expand_as(dirs)
+    else:  # each laser's beam starts where the spec puts it (e.g. 0.2 m above an HDL-64E's base)
+        d = beams.cpu().numpy()
+        start_np = spec.beam_origins(np.arctan2(d[:, 1], d[:, 0]), beam_index // spec.points_per_channel)
+        start = torch.from_numpy(start_np).to(device=scene.device, dtype=torch.float32)
+        origin = centre + _rotate(T_world_lidar[:3, :3], start.to(torch.float64))
     hits = scene.raycast(origin.contiguous(), dirs.contiguous(), max_dist=spec.max_range)
     keep = torch.isfinite(hits.dist) & (hits.dist <= spec.max_range)
     dist = hits.dist[keep]
-    local = beams[keep].to(torch.float32) * dist[:, None]
+    local = start[keep] + beams[keep].to(torch.float32) * dist[:, None]
     world = origin[keep] + dirs[keep] * dist[:, None]
     points = torch.cat([local, hits.raw_id[keep].to(torch.float32)[:, None]], dim=1)
     return points.cpu().numpy(), world, beam_index[keep.cpu().numpy()].astype(np.int32)

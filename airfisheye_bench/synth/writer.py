@@ -193,8 +193,10 @@ def dataset_spec(config: SynthConfig, seed: int, plans: list[TrajectoryPlan]) ->
     contents += ["lidar", "lidar_visible", "poses", "imu"]
     sensors["lidar"] = {**lidar.to_dict(), "frame": "x forward, y left, z up", "captured_at": "t_lidar"}
     scan = config.scan_model()
+    if not scan.ideal or not lidar.is_uniform:  # a channel table: the true ring of every point is recorded
+        contents.append("lidar_beam")
     if not scan.ideal:  # ideal scans are described by the LiDAR spec alone (and keep earlier datasets' bytes)
-        contents += ["lidar_beam", "lidar_scan"]
+        contents.append("lidar_scan")
         sensors["lidar"]["scan"] = {
             "phase": scan.phase,
             **({"rotation_hz": scan.rotation_hz} if scan.phase == "spin" else {}),
@@ -344,7 +346,7 @@ def _write_frame(
         )
     out.put(layout.lidar(sid), codecs.npy_bytes(frame.lidar.astype(np.float32)))
     out.put(layout.lidar_visible(sid), codecs.npy_bytes(frame.lidar_visible.astype(bool)))
-    if not sensors.scan.ideal:
+    if not sensors.scan.ideal or not sensors.lidar.is_uniform:
         out.put(layout.lidar_beam(sid), codecs.npy_bytes(frame.lidar_beam.astype(np.int32)))
     return out.files
 
@@ -598,11 +600,14 @@ def default_data_root() -> Path:
     return Path(env).expanduser() if env else Path.home() / ".cache" / "airfisheye-bench"
 
 
-def cached_dataset_path(preset: str, root: str | Path | None = None, seed: int = 0) -> Path:
-    """Where :func:`ensure_dataset` keeps ``preset``: ``<root>/<preset>-v<version>[-seed<seed>]``."""
+def cached_dataset_path(
+    preset: str, root: str | Path | None = None, seed: int = 0, lidar_preset: str | None = None
+) -> Path:
+    """Where :func:`ensure_dataset` keeps ``preset``: ``<root>/<preset>[-<lidar_preset>]-v<version>[-seed<seed>]``."""
     base = Path(root).expanduser() if root is not None else default_data_root()
     suffix = f"-seed{seed}" if seed else ""
-    return base / f"{preset}-v{GENERATOR_VERSION}{suffix}"
+    lidar = f"-{lidar_preset}" if lidar_preset else ""
+    return base / f"{preset}{lidar}-v{GENERATOR_VERSION}{suffix}"
 
 
 def ensure_dataset(
@@ -612,6 +617,7 @@ def ensure_dataset(
     workers: int | None = None,
     device: str = "cpu",
     progress: bool = True,
+    lidar_preset: str | None = None,
 ) -> Path:
     """Path of a complete generated ``preset``, generating it on first use.
 
@@ -625,14 +631,18 @@ def ensure_dataset(
         workers: Rendering processes (default: the number of CPUs, at most 8).
         device: Torch device for ray casting.
         progress: Show a progress bar.
+        lidar_preset: Simulate this real sensor (``SynthConfig.lidar_preset``) instead of the preset's LiDAR;
+            cached apart from the preset itself.
 
     Example:
         >>> path = ensure_dataset("tiny")          # doctest: +SKIP
         >>> (path / "dataset.yaml").exists()       # doctest: +SKIP
         True
     """
-    get_preset(preset)
-    target = cached_dataset_path(preset, root, seed)
+    config = get_preset(preset)
+    if lidar_preset is not None:
+        config = config.replace(lidar_preset=lidar_preset)
+    target = cached_dataset_path(preset, root, seed, lidar_preset)
     if (target / "manifest.json").is_file():
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -643,7 +653,14 @@ def ensure_dataset(
         if workers is None:
             workers = max(1, min(8, os.cpu_count() or 1))
         log.info("generating the %r synthetic dataset into %s (first use)", preset, target)
-        generate_dataset(preset, partial, seed=seed, workers=workers, device=device, progress=progress)
+        generate_dataset(
+            preset if lidar_preset is None else config,
+            partial,
+            seed=seed,
+            workers=workers,
+            device=device,
+            progress=progress,
+        )
         if target.exists():  # a stale, incomplete folder (e.g. removed manifest): replace it
             shutil.rmtree(target)
         os.replace(partial, target)

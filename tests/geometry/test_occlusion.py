@@ -11,13 +11,13 @@ import torch
 from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
 from airfisheye_bench.geometry.lidar import LidarSpec, layout_from_angles, spherical_coordinates
 from airfisheye_bench.geometry.occlusion import (
-    _layout_numba,
-    _ordering,
     lidar_depth_map,
     occlusion_mask,
+    ordering_mask,
     ordering_reference,
     project_lidar,
 )
+from airfisheye_bench.geometry.occlusion.ordering import layout_numba
 
 SPEC = LidarSpec(channels=32, points_per_channel=512)  # 270 x (-45..15) deg, a quarter of the paper's density
 CAMERA = FisheyeCamera(512, 512, fov_deg=190.0)
@@ -222,7 +222,9 @@ def assert_fast_equals_reference(points, T, camera, spec, options) -> np.ndarray
     np.testing.assert_array_equal(occlusion_mask(points, T, camera, spec, "ordering", **options), expected)
     for implementation in FAST:
         np.testing.assert_array_equal(
-            _ordering(points, T, camera, spec, implementation, **options), expected, err_msg=implementation
+            ordering_mask(points, T, camera, spec, implementation, **options),
+            expected,
+            err_msg=implementation,
         )
     return expected
 
@@ -280,7 +282,7 @@ def test_numba_equals_vectorised_on_a_paper_size_scan() -> None:
     _, T = rig((0.1, 0.3, -0.4), 20.0)
     camera = FisheyeCamera(256, 256, fov_deg=100.0)
     for options in (OPTION_SETS[2], OPTION_SETS[3], OPTION_SETS[0]):  # the literal reading last
-        expected = _ordering(points, T, camera, spec, "vectorised", **options)
+        expected = ordering_mask(points, T, camera, spec, "vectorised", **options)
         np.testing.assert_array_equal(
             occlusion_mask(points, T, camera, spec, "ordering", **options), expected
         )
@@ -306,7 +308,7 @@ def test_numba_layout_equals_numpy_layout(hfov: float) -> None:
     )
     r = np.concatenate([r, [5.0, 5.0, 5.0, 5.0]])
     expected = layout_from_angles(r, az, el, spec)
-    layout = _layout_numba(r, az, el, spec)
+    layout = layout_numba(r, az, el, spec)
     for got, want in zip(layout, expected, strict=True):
         np.testing.assert_array_equal(got, want)
     ring, _, column = layout
@@ -316,7 +318,7 @@ def test_numba_layout_equals_numpy_layout(hfov: float) -> None:
 
 def test_unknown_implementation_raises() -> None:
     with pytest.raises(ValueError, match="implementation"):
-        _ordering(np.ones((1, 3)), np.eye(4), CAMERA, SPEC, "gpu")
+        ordering_mask(np.ones((1, 3)), np.eye(4), CAMERA, SPEC, "gpu")
 
 
 def test_result_does_not_depend_on_the_order_of_the_points() -> None:

@@ -12,7 +12,7 @@ import pytest
 
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec, organize_scan
-from airfisheye_bench.geometry.occlusion import _ordering, occlusion_mask, ordering_reference
+from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_mask, ordering_reference
 from tests.geometry.test_occlusion import rig, seen_from
 from tests.scripts import load_script
 
@@ -95,6 +95,6 @@ def test_implementations_agree_on_realistic_scans(variant: str) -> None:
     for options in ({}, {"elevation_tolerance": 0.5}, {"elevation_tolerance": -0.25, "azimuth_window": 8}):
         expected = ordering_reference(points, T, CAMERA, spec, **options)
         for implementation in ("numba", "vectorised"):
-            got = _ordering(points, T, CAMERA, spec, implementation, **options)
+            got = ordering_mask(points, T, CAMERA, spec, implementation, **options)
             np.testing.assert_array_equal(got, expected, err_msg=f"{implementation} {options}")
         assert 0 < expected.sum() < occlusion_mask(points, T, CAMERA, spec, "none").sum()

@@ -1,0 +1,57 @@
+"""The z-buffer baseline: per-pixel nearest range, then a window test (docs/design.md, "LiDAR and occlusion")."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import torch
+
+from airfisheye_bench.geometry import _kernels
+from airfisheye_bench.geometry.cameras import CameraModel
+from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.occlusion.projection import Projection, pixel_index
+
+
+@functools.lru_cache(maxsize=4)  # a few cameras at a time (the served one, a benchmark's sizes)
+def _pixels_per_radian(camera: CameraModel) -> np.ndarray:
+    """Image scale ``[H * W]`` (float32, pixels per radian) at every pixel: the camera model's largest local
+    scale (``CameraModel.pixels_per_radian``; for a radial lens the larger of ``f r'(theta)`` and
+    ``f r(theta) / sin(theta)``)."""
+    return camera.pixels_per_radian().reshape(-1).to(torch.float32).numpy()
+
+
+def zbuffer_mask(
+    proj: Projection,
+    camera: CameraModel,
+    spec: LidarSpec,
+    kernel: int | None,
+    threshold: float | None,
+    relative: bool,
+    max_incidence_deg: float,
+) -> np.ndarray:
+    ids = np.flatnonzero(proj.valid)
+    pix = pixel_index(np.take(proj.uv, ids, axis=0), camera)
+    rng = proj.range[ids].astype(np.float32)
+    depth = np.full(camera.height * camera.width, np.inf, dtype=np.float32)
+    _kernels.scatter_min(rng, pix, depth)  # per-pixel nearest
+    scale = _pixels_per_radian(camera)[pix]
+    if kernel is None:  # half the LiDAR's angular spacing, in pixels at each point's pixel
+        spacing = max(spec.vertical_resolution, spec.horizontal_resolution)
+        radius = np.rint(0.5 * spacing * scale).astype(np.int64)
+    else:
+        radius = np.full(len(ids), kernel // 2, dtype=np.int64)
+    if threshold is None:  # a surface up to the grazing incidence, across the window's half-angle
+        slope = math.tan(math.radians(max_incidence_deg))
+        margin = (slope * (radius + 0.5) / scale).astype(np.float32)
+    else:
+        margin = np.full(len(ids), threshold, dtype=np.float32)
+    keep = np.empty(len(ids), dtype=bool)
+    _kernels.zbuffer_keep(depth, camera.width, pix, rng, radius, relative, margin, keep)
+    mask = np.zeros(len(proj.valid), dtype=bool)
+    mask[ids] = keep
+    return mask
+
+
+__all__ = ["zbuffer_mask"]
