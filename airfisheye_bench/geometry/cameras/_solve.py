@@ -144,11 +144,16 @@ class RadtanInverse:
     ) -> None:
         self.k = (k1, k2, p1, p2, k3)
         self.r_max = r_max
-        coeffs = (0.0, 1.0, 0.0, k1, 0.0, k2, 0.0, k3)  # r (1 + k1 r^2 + k2 r^4 + k3 r^6)
-        dcoeffs = polyder(coeffs)
-        self._radial = MonotoneInverse(
-            lambda r: polyval(coeffs, r), lambda r: polyval(dcoeffs, r), min(r_max, 1e3), y_cap=r_cap
-        )
+
+        def f(r: torch.Tensor) -> torch.Tensor:  # r (1 + k1 r^2 + k2 r^4 + k3 r^6)
+            s = r * r
+            return r * (1.0 + s * (k1 + s * (k2 + s * k3)))
+
+        def df(r: torch.Tensor) -> torch.Tensor:
+            s = r * r
+            return 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3))
+
+        self._radial = MonotoneInverse(f, df, min(r_max, 1e3), y_cap=r_cap)
 
     def __call__(
         self, xd: torch.Tensor, yd: torch.Tensor, steps: int = 4
@@ -176,6 +181,8 @@ class RadtanInverse:
         for _ in range(steps):
             fx, fy = radtan(x, y, k1, k2, p1, p2, k3)
             ex, ey = fx - xd, fy - yd
+            if not len(ex) or float(torch.maximum(ex.abs(), ey.abs()).nan_to_num(0.0).max()) <= 1e-14:
+                break  # converged everywhere (typical for KITTI-360's small p1, p2 after one or two steps)
             r2 = x * x + y * y
             radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
             d_radial = 2.0 * (k1 + r2 * (2.0 * k2 + r2 * 3.0 * k3))  # 2 d(radial)/d(r^2)
