@@ -88,7 +88,7 @@ class MonotoneInverse:
     def y_range(self) -> tuple[float, float]:
         return self.y_lo, self.y_hi
 
-    def __call__(self, y: torch.Tensor, steps: int = 3) -> torch.Tensor:
+    def __call__(self, y: torch.Tensor, steps: int = 2) -> torch.Tensor:
         solvable = (y >= self.y_lo) & (y <= self.y_hi)
         pos = ((y - self.y_lo) / self._step).nan_to_num(0.0).clamp(0.0, _TABLE_SIZE - 1.000001)
         idx = pos.to(torch.int64)
