@@ -17,6 +17,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import torch
 
+from airfisheye_bench.geometry import _kernels
+
 _TABLE_SIZE = 1 << 14
 
 
@@ -166,7 +168,13 @@ class RadtanInverse:
         # together with the tangential one.
         scale = self._radial(rd, steps=0) / rd.clamp_min(1e-300)
         x, y = torch.where(rd == 0, xd, xd * scale), torch.where(rd == 0, yd, yd * scale)
-        if any(self.k):
+        if any(self.k) and x.device.type == "cpu":
+            # One fused loop, each point until it converges (several times faster than the masked steps below).
+            xn, yn = x.numpy(), y.numpy()
+            _kernels.newton_radtan(
+                xn, yn, xd.contiguous().numpy(), yd.contiguous().numpy(), k1, k2, p1, p2, k3, 40
+            )
+        elif any(self.k):
             active = None  # all points
             for _ in range(max_steps):
                 xa, ya = (x, y) if active is None else (x[active], y[active])
