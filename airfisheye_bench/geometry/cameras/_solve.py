@@ -5,8 +5,8 @@
   root; linear interpolation inside the bracket starts within ~1e-9 of it and a few Newton steps clamped to the
   bracket polish it to machine precision, whatever the coefficients.
 - :class:`RadtanInverse`: invert OpenCV's radial-tangential distortion: the radial part as above, then Newton
-  steps on the 2x2 system for the tangential terms, each on the points not yet converged (at most 40), NaN where
-  the result does not reproduce the input.
+  steps on the 2x2 system for the tangential terms, each point until it converges (at most 40; a numba loop on
+  CPU), NaN where the result does not reproduce the input.
 """
 
 from __future__ import annotations
@@ -159,16 +159,17 @@ class RadtanInverse:
         self._radial = MonotoneInverse(f, df, min(r_max, 1e3), y_cap=r_cap)
 
     def __call__(
-        self, xd: torch.Tensor, yd: torch.Tensor, max_steps: int = 40
+        self, xd: torch.Tensor, yd: torch.Tensor, max_steps: int = 40, fused: bool = True
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Undistort flat ``[N]`` coordinates; each Newton step runs only on the points not yet converged."""
+        """Undistort flat ``[N]`` coordinates: on CPU (``fused``) a numba loop takes each point until it converges;
+        otherwise each masked torch step runs only on the points not yet converged."""
         k1, k2, p1, p2, k3 = self.k
         rd = torch.hypot(xd, yd)
         # The table's interpolation alone starts within ~1e-7; the 2x2 Newton steps below polish the radial part
         # together with the tangential one.
         scale = self._radial(rd, steps=0) / rd.clamp_min(1e-300)
         x, y = torch.where(rd == 0, xd, xd * scale), torch.where(rd == 0, yd, yd * scale)
-        if any(self.k) and x.device.type == "cpu":
+        if any(self.k) and fused and x.device.type == "cpu":
             # One fused loop, each point until it converges (several times faster than the masked steps below).
             xn, yn = x.numpy(), y.numpy()
             _kernels.newton_radtan(
