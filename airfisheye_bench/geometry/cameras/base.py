@@ -116,10 +116,11 @@ class CameraModel:
         q, was_numpy = as_tensor(uv, "uv")
         check_last_dim(q, 2, "uv")
         out_dtype = q.dtype
-        q = q.to(torch.float64)
-        x, y, z = self._unproject(q[..., 0].contiguous(), q[..., 1].contiguous())
+        batch_shape = q.shape[:-1]
+        u, v = q.to(torch.float64).reshape(-1, 2).T.contiguous()  # flat: the solvers index the stragglers
+        x, y, z = self._unproject(u, v)
         norm = torch.sqrt(x * x + y * y + z * z)
-        rays = torch.stack([x / norm, y / norm, z / norm], -1)
+        rays = torch.stack([x / norm, y / norm, z / norm], -1).view(*batch_shape, 3)
         return back(rays.to(out_dtype), was_numpy)
 
     def in_image(self, uv: ArrayLike) -> ArrayLike:

@@ -95,6 +95,7 @@ class RadialCamera(CameraModel):
         dx, dy = u - self.cx, v - self.cy
         r = torch.hypot(dx, dy)
         theta = self._theta_of(r / self.focal)
+        theta = torch.where(theta <= self.max_model_theta, theta, torch.nan)  # past pi a radius wraps round
         s = torch.sin(theta) / r.clamp_min(1e-300)
         on_axis = r == 0
         return torch.where(on_axis, 0.0, s * dx), torch.where(on_axis, 0.0, s * dy), torch.cos(theta)
