@@ -59,12 +59,13 @@ class CameraModelTester:
     max_pixel_err: ClassVar[float] = 1e-6
 
     @pytest.fixture(scope="class")
-    def camera(self) -> CameraModel:
-        cam = camera_from_dict(self.camera_dict)
+    @classmethod
+    def camera(cls) -> CameraModel:
+        cam = camera_from_dict(cls.camera_dict)
         w, h = cam.width, cam.height
         g = math.gcd(w, h)  # integer steps keep the aspect ratio exactly
         steps = [d for d in range(1, g + 1) if g % d == 0]
-        step = next((d for d in steps if max(w, h) // d <= self.max_side), steps[-1])
+        step = next((d for d in steps if max(w, h) // d <= cls.max_side), steps[-1])
         return cam.resized(w // step, h // step) if step > 1 else cam
 
     # ------------------------------------------------------------------ round trips
