@@ -334,8 +334,8 @@ def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.
         else:
             result = ", ".join(_mean_pm_std(k, summary[k]) for k in QUICKSTART_TASKS[task] if k in summary)
             result += f" ({n} seed{'s' if n != 1 else ''}: {', '.join(entry['seeds'])})"
-            minutes = summary["wall_s"]["mean"] / 60
-            wall = f"{int(minutes)} min {round((minutes % 1) * 60):02d} s"
+            seconds = round(summary["wall_s"]["mean"])
+            wall = f"{seconds // 60} min {seconds % 60:02d} s"
         base = entry.get("baseline")
         base_text = "–"
         if base is not None:
