@@ -22,6 +22,7 @@ from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.evaluation import quickstart
 
 REPO = Path(__file__).resolve().parents[1]
+DEFAULT_JSON = REPO / "docs" / "quickstart_results.json"
 
 
 def parse_args(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
@@ -36,9 +37,12 @@ def parse_args(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
     )
     parser.add_argument("--tasks", nargs="+", default=list(quickstart.QUICKSTART_TASKS))
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--threads", type=int, help="OMP_NUM_THREADS of the runs (default: torch's choice)")
     parser.add_argument("--collect-only", action="store_true", help="train nothing, summarise what is there")
     parser.add_argument("--no-collect", action="store_true", help="train only (another process summarises)")
-    parser.add_argument("--json", type=Path, default=REPO / "docs" / "quickstart_results.json")
+    parser.add_argument(
+        "--json", type=Path, default=DEFAULT_JSON, help="the record (the README cites the default)"
+    )
     parser.add_argument("--readme", action="store_true", help="only regenerate README.md's table from --json")
     return parser.parse_args(argv), overrides
 
@@ -66,9 +70,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         atomic_write_text(args.json, json.dumps(record, indent=2, ensure_ascii=False) + "\n")
         print(f"wrote {args.json}", file=sys.stderr)
     record = json.loads(args.json.read_text(encoding="utf-8"))
-    source = args.json.resolve().relative_to(REPO).as_posix()
-    table = quickstart.readme_table(record, source=source)
-    atomic_write_text(readme, quickstart.replace_table(readme.read_text(encoding="utf-8"), table))
+    committed = args.json.resolve() == DEFAULT_JSON
+    table = quickstart.readme_table(
+        record, source=DEFAULT_JSON.relative_to(REPO).as_posix() if committed else str(args.json)
+    )
+    if committed:  # the README cites the committed file only
+        atomic_write_text(readme, quickstart.replace_table(readme.read_text(encoding="utf-8"), table))
     print(table)
     return 0
 

@@ -142,11 +142,20 @@ def train_missing(
     runs: Sequence[QuickstartRun],
     repo: str | Path,
     overrides: Sequence[str] = (),
-    runner: Callable[[list[str], Path], None] | None = None,
+    runner: Callable[[list[str], Path, dict[str, str]], None] | None = None,
     log: Callable[[str], None] = print,
+    threads: int | None = None,
 ) -> None:
-    """Train every run without a ``benchmark.json``; a failed run stops (its error is the trainer's)."""
+    """Train every run without a ``benchmark.json``; a failed run stops (its error is the trainer's).
+
+    ``threads`` sets ``OMP_NUM_THREADS`` (torch's intra-op threads) of the runs: on a CPU shared with other work,
+    one thread per run wastes far less time spin-waiting than one per core. The results do not depend on it
+    beyond floating-point round-off.
+    """
     runner = runner or _run_subprocess
+    env = dict(os.environ)
+    if threads is not None:
+        env.update(OMP_NUM_THREADS=str(threads), MKL_NUM_THREADS=str(threads))
     for k, run in enumerate(runs, 1):
         if run.record.is_file():
             log(f"[{k}/{len(runs)}] {run.task} seed {run.seed}: done already")
@@ -155,17 +164,22 @@ def train_missing(
         log(f"[{k}/{len(runs)}] {run.task} seed {run.seed}: python {' '.join(argv)}")
         commit = git_commit(repo)
         start = time.perf_counter()
-        runner([sys.executable, *argv], Path(repo))
+        runner([sys.executable, *argv], Path(repo), env)
         seconds = time.perf_counter() - start
         if not run.results.is_file():
             raise RuntimeError(f"{run.out}: the run finished without results.json")
-        record = {"command": "python " + " ".join(argv), "commit": commit, "wall_s": round(seconds, 1)}
+        record = {
+            "command": "python " + " ".join(argv),
+            "commit": commit,
+            "wall_s": round(seconds, 1),
+            "omp_num_threads": env.get("OMP_NUM_THREADS"),
+        }
         atomic_write_text(run.record, json.dumps(record, indent=2) + "\n")
         log(f"[{k}/{len(runs)}] {run.task} seed {run.seed}: {seconds / 60:.1f} min")
 
 
-def _run_subprocess(argv: list[str], cwd: Path) -> None:
-    subprocess.run(argv, check=True, cwd=cwd)
+def _run_subprocess(argv: list[str], cwd: Path, env: dict[str, str]) -> None:
+    subprocess.run(argv, check=True, cwd=cwd, env=env)
 
 
 def evaluate_baseline(run_dir: str | Path, batch_size: int = 16) -> dict[str, Any]:
