@@ -61,10 +61,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         baselines = {}
         for task in args.tasks:
-            done = [r for r in runs if r.task == task and r.record.is_file()]
-            if done:
-                print(f"baseline of {task} (data of {done[0].out})", file=sys.stderr, flush=True)
-                baselines[task] = quickstart.evaluate_baseline(done[0].out)
+            # The data and metric of a run of the task: a finished one, else one with a checkpoint so far.
+            started = [r for r in runs if r.task == task and list(r.out.glob("checkpoints/*.ckpt"))]
+            started.sort(key=lambda r: not r.record.is_file())
+            if started:
+                print(f"baseline of {task} (data of {started[0].out})", file=sys.stderr, flush=True)
+                baselines[task] = quickstart.evaluate_baseline(started[0].out)
         command = "python scripts/quickstart_benchmark.py " + " ".join(argv)
         record = quickstart.summarize(runs, baselines, command, quickstart.git_commit(REPO))
         atomic_write_text(args.json, json.dumps(record, indent=2, ensure_ascii=False) + "\n")
