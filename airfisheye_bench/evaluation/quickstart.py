@@ -343,13 +343,16 @@ def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.
     for task, entry in record["tasks"].items():
         summary = entry.get("summary", {})
         n = len(entry["seeds"])
+        missing = entry.get("missing_seeds") or []
         if n == 0:
-            result, wall = "not run yet", "–"
+            result, wall = "no finished run", "–"
         else:
             result = ", ".join(_mean_pm_std(k, summary[k]) for k in QUICKSTART_TASKS[task] if k in summary)
             result += f" ({n} seed{'s' if n != 1 else ''}: {', '.join(entry['seeds'])})"
             seconds = round(summary["wall_s"]["mean"])
             wall = f"{seconds // 60} min {seconds % 60:02d} s"
+        if missing:
+            result += f"; seed{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} not finished"
         base = entry.get("baseline")
         base_text = "–"
         if base is not None:
