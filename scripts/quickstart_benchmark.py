@@ -64,9 +64,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             # The data and metric of a run of the task: a finished one, else one with a checkpoint so far.
             started = [r for r in runs if r.task == task and list(r.out.glob("checkpoints/*.ckpt"))]
             started.sort(key=lambda r: not r.record.is_file())
-            if started:
+            saved = args.out / task / "baseline.json"  # the data does not change between seeds: fitted once
+            if saved.is_file():
+                baselines[task] = json.loads(saved.read_text(encoding="utf-8"))
+            elif started:
                 print(f"baseline of {task} (data of {started[0].out})", file=sys.stderr, flush=True)
                 baselines[task] = quickstart.evaluate_baseline(started[0].out)
+                atomic_write_text(saved, json.dumps(baselines[task], indent=2) + "\n")
         command = "python scripts/quickstart_benchmark.py " + " ".join(argv)
         record = quickstart.summarize(runs, baselines, command, quickstart.git_commit(REPO))
         atomic_write_text(args.json, json.dumps(record, indent=2, ensure_ascii=False) + "\n")
