@@ -189,7 +189,7 @@ def evaluate_baseline(run_dir: str | Path, batch_size: int = 16) -> dict[str, An
     compare with the run's ``results.json``.
 
     Returns:
-        ``{"name", "metrics", "dataset_root"}``.
+        ``{"name", "metrics", "dataset_root", "dataset_name"}``.
     """
     checkpoint = resolve_checkpoint(run_dir)
     module = load_task(checkpoint)
@@ -214,7 +214,12 @@ def evaluate_baseline(run_dir: str | Path, batch_size: int = 16) -> dict[str, An
     result = evaluate_predictions(
         predictor, datamodule.split_dataset("test"), scorer, theta, batch_size=batch_size, num_panels=0
     )
-    return {"name": predictor.name, "metrics": result.metrics, "dataset_root": str(datamodule.root)}
+    return {
+        "name": predictor.name,
+        "metrics": result.metrics,
+        "dataset_root": str(datamodule.dataset_root()),
+        "dataset_name": datamodule.split_dataset("test").spec.name,
+    }
 
 
 def mean_std(values: Sequence[float]) -> dict[str, float | int | None]:
@@ -272,6 +277,10 @@ def summarize(
         root = results.get("dataset", {}).get("root")
         if root and root not in identities:
             identities[root] = {"name": results["dataset"].get("name"), **content_identity(root)}
+    for task, base in baselines.items():  # the baseline's data is the runs' data
+        root = base.get("dataset_root")
+        if root and root not in identities and task in tasks:
+            identities[root] = {"name": base.get("dataset_name"), **content_identity(root)}
     for task, entry in tasks.items():
         seeds = entry["seeds"].values()
         keys = [k for k in QUICKSTART_TASKS[task] if all(k in s["metrics"] for s in seeds)] if seeds else []
@@ -279,7 +288,7 @@ def summarize(
         if seeds:
             entry["summary"]["wall_s"] = mean_std([s["wall_s"] for s in seeds])
         if task in baselines:
-            entry["baseline"] = {k: v for k, v in baselines[task].items() if k != "dataset_root"}
+            entry["baseline"] = {k: v for k, v in baselines[task].items() if not k.startswith("dataset_")}
     if len(identities) > 1:
         raise ValueError(f"the runs used different datasets: {sorted(identities)}")
     dataset = next(iter(identities.values()), {})
