@@ -61,6 +61,9 @@ def main(argv: list[str]) -> None:
     if small:
         train = [(F.avg_pool2d(x, 2), y[..., ::2, ::2].contiguous()) for x, y in train]
         val = [(F.avg_pool2d(x, 2), y[..., ::2, ::2].contiguous()) for x, y in val]
+    print(
+        f"{tag} baseline: the training batches' mean depth per pixel scores {_mean_depth_baseline(train, val)}"
+    )
     net = module.net
     loss_fn = AdaBinsLoss(w_chamfer=wch, min_depth=1e-3, max_depth=float(cfg.data.max_depth))
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=wd)
@@ -90,6 +93,24 @@ def main(argv: list[str]) -> None:
                 rmse, abs_rel, delta1 = _validate(net, val, train_mode=mode)
                 line += f" | val {'train' if mode else 'eval'}-mode rmse {rmse:.2f} absrel {abs_rel:.3f} d1 {delta1:.3f}"
         print(f"{line} t {time.time() - start:.0f}s", flush=True)
+
+
+def _mean_depth_baseline(train: list, val: list) -> str:
+    """RMSE, AbsRel and δ1 on ``val`` of the per-pixel mean of the valid depths of ``train`` (the trivial baseline;
+    pixels never valid get the mean of all)."""
+    depths = torch.cat([y for _, y in train])
+    valid = (depths > 1e-3) & (depths <= 120)
+    total, count = (depths * valid).sum(0), valid.sum(0)
+    mean = torch.where(count > 0, total / count.clamp_min(1), depths[valid].mean())
+    sq = rel = hits = n = 0.0
+    for _, y in val:
+        m = (y > 1e-3) & (y <= 120)
+        p, g = mean.expand_as(y)[m], y[m]
+        sq += (p - g).square().sum().item()
+        rel += ((p - g).abs() / g).sum().item()
+        hits += (torch.maximum(p / g, g / p) < 1.25).sum().item()
+        n += m.sum().item()
+    return f"rmse {math.sqrt(sq / n):.2f} absrel {rel / n:.3f} d1 {hits / n:.3f}"
 
 
 @torch.no_grad()
