@@ -69,7 +69,7 @@ QUICKSTART_TASKS: dict[str, tuple[str, ...]] = {
 #: What the quick start trains (the README's model column).
 MODELS = {
     "seg": "DeepLabV3+ / ResNet18, 128², 8 epochs",
-    "depth": "AdaBins / ResNet18, 256 bins, 128², 8 epochs",
+    "depth": "AdaBins / ResNet18, 256 bins, SI loss (no bins Chamfer term), 128², 8 epochs",
     "completion": "NLSPN / ResNet18, 6 steps, TGASS, 128², 2 epochs",
 }
 RESULTS_FORMAT = "airfisheye-quickstart-results/1"
