@@ -1,7 +1,7 @@
 """The leaderboard: every ``results.json`` of a task ranked by its primary metric, next to the paper's baselines.
 
-Results are grouped by dataset (name + manifest hash prefix) and split, and ranked within their group only:
-numbers measured on different data are not comparable, and the paper's baselines were measured on the real
+Results are grouped by dataset (name + content hash prefix, or the manifest's for results without one) and split,
+and ranked within their group only: numbers measured on different data are not comparable, and the paper's baselines were measured on the real
 AirFisheye test split, which no synthetic run reproduces. Each task's table shows the headline metrics of the
 design contract plus the outermost incidence-angle ring (the fisheye rim, ``ring_80-95/<primary>`` by default),
 where fisheye distortion hurts most.
@@ -115,6 +115,8 @@ class LeaderboardEntry:
             checkpoint, else the ``results.json`` folder name.
         dataset_name: ``dataset.name`` of the results (``dataset.yaml`` name).
         manifest_sha256: SHA-256 of the dataset's ``manifest.json``, when it had one.
+        content_sha256: The dataset's content identity (decoded arrays, the same on every installation), when
+            the results record it; it groups rows in place of the manifest.
         metrics: Metric values (fractions or metres); ``None`` for missing or non-finite.
         breakdown: Ring/range breakdown values, same rules.
         paper: True for the paper's published baselines.
@@ -133,6 +135,7 @@ class LeaderboardEntry:
     run: str
     dataset_name: str
     manifest_sha256: str | None = None
+    content_sha256: str | None = None
     metrics: Mapping[str, float | None] = field(default_factory=dict)
     breakdown: Mapping[str, float | None] = field(default_factory=dict)
     paper: bool = False
@@ -149,15 +152,21 @@ class LeaderboardEntry:
     @property
     def group_key(self) -> tuple[bool, str, str, str]:
         """Rows with the same key were measured on the same data and may be ranked together."""
-        return (not self.paper, self.dataset_name, (self.manifest_sha256 or "")[:8], self.split)
+        return (not self.paper, self.dataset_name, self._identity(), self.split)
+
+    def _identity(self) -> str:
+        """``content <8 hex>`` when known (it survives a re-encoding of the files), else ``manifest <8 hex>``."""
+        if self.content_sha256:
+            return f"content {self.content_sha256[:8]}"
+        return f"manifest {self.manifest_sha256[:8]}" if self.manifest_sha256 else ""
 
     @property
     def group_title(self) -> str:
         """Human-readable dataset identity of :attr:`group_key`."""
         if self.paper:
             return f"{PAPER_DATASET}, {self.split} split — the paper's published baselines (not re-run here)"
-        manifest = f"manifest {self.manifest_sha256[:8]}" if self.manifest_sha256 else "no manifest"
-        return f"{self.dataset_name} ({manifest}), {self.split} split"
+        label = self._identity() or "no manifest"
+        return f"{self.dataset_name} ({label}), {self.split} split"
 
 
 def paper_baselines() -> tuple[LeaderboardEntry, ...]:
@@ -336,6 +345,7 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         run=_run_name(model, path),
         dataset_name=str(dataset.get("name") or "unknown dataset"),
         manifest_sha256=str(manifest) if manifest else None,
+        content_sha256=str(dataset["content_sha256"]) if dataset.get("content_sha256") else None,
         metrics=_numbers(record, "metrics"),
         breakdown=_numbers(record, "breakdown"),
         path=str(path),
@@ -628,7 +638,7 @@ class Leaderboard:
         lines = [
             "# AirFisheye-bench leaderboard",
             "",
-            f"{self.files} result(s){paper}. Ranks restart for every dataset (name + manifest hash prefix) and "
+            f"{self.files} result(s){paper}. Ranks restart for every dataset (name + content or manifest hash prefix) and "
             "split: results measured on different data are not comparable. Values are fractions and metres "
             f"(columns marked (%) printed in %); {MISSING} = not reported.",
         ]

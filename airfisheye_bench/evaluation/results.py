@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.io.content import content_identity
 from airfisheye_bench.specs import get_task
 
 RESULTS_VERSION = 1
@@ -106,12 +107,15 @@ def evaluated_label(model: Mapping[str, Any]) -> str:
 
 
 def dataset_identity(root: str | Path, name: str) -> dict[str, Any]:
-    """Which data a result was measured on: name, root and the SHA-256 of its ``manifest.json`` when present."""
+    """Which data a result was measured on: name, root, the SHA-256 of its ``manifest.json`` when present, and
+    ``content_sha256``, the identity of what its files hold (:func:`~airfisheye_bench.io.content.content_identity`:
+    the same on every installation that generates the same data, unlike the manifest's file checksums)."""
     root = Path(root)
     identity: dict[str, Any] = {"root": str(root), "name": name}
     manifest = root / "manifest.json"
     if manifest.is_file():
         identity["manifest_sha256"] = hashlib.sha256(manifest.read_bytes()).hexdigest()
+        identity["content_sha256"] = content_identity(root)["content_sha256"]
     return identity
 
 

@@ -114,6 +114,28 @@ def test_results_on_different_datasets_or_splits_are_ranked_apart(tmp_path: Path
     assert all(f"### {title}" in md for title in titles)
 
 
+def test_the_same_content_written_by_another_encoder_is_one_dataset(tmp_path: Path) -> None:
+    # Two installations wrote the same arrays with other PNG bytes: other manifests, one content identity.
+    content = "c0ffee" * 10 + "abcd"
+    _write(
+        tmp_path,
+        "here",
+        "seg",
+        {"mIoU": 0.5},
+        dataset={"name": "synth", "manifest_sha256": HASH_A, "content_sha256": content},
+    )
+    _write(
+        tmp_path,
+        "there",
+        "seg",
+        {"mIoU": 0.4},
+        dataset={"name": "synth", "manifest_sha256": HASH_B, "content_sha256": content},
+    )
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert _groups(board, "seg") == [[(1, "here"), (2, "there")]]
+    assert [g.title for g in board.tables[0].groups] == ["synth (content c0ffeec0), test split"]
+
+
 # ------------------------------------------------------------------------------------------------ paper rows
 
 
