@@ -2,7 +2,7 @@
 
 Hydra's Optuna sweeper prints the best trial's parameters and value and writes them to
 ``<sweep>/optimization_results.yaml``, but not which of the sweep's run directories it was. :class:`BestTrialReport`
-(a Hydra callback of the ``hparams_search`` configs) finds it by the trial's overrides and reports it, with
+(a Hydra callback of the ``hparams_search`` configs) finds it by the trial's saved configuration and reports it, with
 ``<sweep>/best_trial.yaml``.
 """
 
@@ -15,18 +15,11 @@ from typing import Any
 
 import yaml
 from hydra.experimental.callback import Callback
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.atomic import atomic_write_text
 
 log = logging.getLogger(__name__)
-
-
-def _value(text: str) -> Any:
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError:
-        return text
 
 
 def _same(given: Any, best: Any) -> bool:
@@ -36,23 +29,26 @@ def _same(given: Any, best: Any) -> bool:
 
 
 def best_trial_dir(sweep_dir: str | Path, best_params: Mapping[str, Any]) -> Path | None:
-    """The job folder under ``sweep_dir`` whose overrides (``<job>/.hydra/overrides.yaml``) set ``best_params``.
+    """The job folder under ``sweep_dir`` whose configuration (``<job>/config.yaml``, the resolved configuration
+    every run writes) has the values of ``best_params`` (dotted keys).
 
     Example:
         >>> import tempfile
         >>> sweep = Path(tempfile.mkdtemp())
         >>> for job, lr in (("0", 0.01), ("1", 0.003)):
-        ...     (sweep / job / ".hydra").mkdir(parents=True)
-        ...     _ = (sweep / job / ".hydra" / "overrides.yaml").write_text(f"- task=seg\\n- model.lr={lr}\\n")
+        ...     (sweep / job).mkdir(parents=True)
+        ...     _ = (sweep / job / "config.yaml").write_text(f"task: {{name: seg}}\\nmodel: {{lr: {lr}}}\\n")
         >>> best_trial_dir(sweep, {"model.lr": 0.003}).name
         '1'
     """
-    for overrides in sorted(Path(sweep_dir).glob("*/.hydra/overrides.yaml")):
-        given = dict(
-            o.lstrip("+~").split("=", 1) for o in yaml.safe_load(overrides.read_text()) or [] if "=" in o
-        )
-        if all(key in given and _same(_value(given[key]), value) for key, value in best_params.items()):
-            return overrides.parent.parent
+    for saved in sorted(Path(sweep_dir).glob("*/config.yaml")):
+        config = OmegaConf.load(saved)
+        missing = object()
+        values = {key: OmegaConf.select(config, key, default=missing) for key in best_params}
+        if all(
+            values[key] is not missing and _same(values[key], value) for key, value in best_params.items()
+        ):
+            return saved.parent
     return None
 
 

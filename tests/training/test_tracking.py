@@ -166,12 +166,9 @@ def test_the_default_store_is_under_the_run_directory(tiny_dataset: Path, tmp_pa
     stored = Path(run.info.artifact_uri.removeprefix("file://"))
     assert stored.is_relative_to(artifacts) and (stored / "results.json").is_file()
     assert (run_dir / "metrics.csv").is_file()  # the CSV log stays, next to MLflow
-    # A resume (one more epoch) continues the same MLflow run: the validation history grows.
-    _run(
-        "train.py",
-        [*overrides, "ckpt_path=last", "resume_overrides_ok=true", "trainer.max_epochs=2"],
-        tmp_path,
-    )
+    # A resume (one more epoch: the run's own configuration and the one key given) continues the same MLflow run:
+    # the validation history grows.
+    _run("train.py", ["ckpt_path=last", f"hydra.run.dir={run_dir}", "trainer.max_epochs=2"], tmp_path)
     assert read_run_record(run_dir)["run_id"] == record["run_id"]
     assert len(client.get_metric_history(record["run_id"], "val/mIoU")) == 2
     assert RUN_RECORD in {p.name for p in run_dir.iterdir()}
