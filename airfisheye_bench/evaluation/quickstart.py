@@ -374,7 +374,7 @@ def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.
     dataset = record.get("dataset", {})
     lines += [
         "",
-        f"From [`{source}`]({source.removeprefix('docs/')}) (`{record['command']}` at commit "
+        f"From [`{source}`]({source}) (`{record['command']}` at commit "
         f"`{record['commit'][:12]}`, on {record['machine']}; dataset `{dataset.get('name')}`, content "
         f"`{str(dataset.get('content_sha256', ''))[:8]}`). ± is the sample standard deviation over the training "
         "seeds: it is how much a re-run with another seed may differ.",
