@@ -26,6 +26,17 @@ from airfisheye_bench.geometry._arrays import ArrayLike, as_tensor, back, check_
 _PPR_STEP = 1e-6
 
 
+def scaled_centre(cx: float, cy: float, sx: float, sy: float) -> dict[str, float]:
+    """The principal point of a sensor scaled by ``sx, sy``: pixel centres scale about the image corner
+    ``(-0.5, -0.5)``, ``c' = (c + 0.5) s - 0.5``.
+
+    Example:
+        >>> scaled_centre(255.5, 255.5, 0.5, 0.5)
+        {'cx': 127.5, 'cy': 127.5}
+    """
+    return {"cx": (cx + 0.5) * sx - 0.5, "cy": (cy + 0.5) * sy - 0.5}
+
+
 class CameraModel:
     """Base class of the camera models; subclasses set ``model`` and ``params`` and implement the two maps.
 
@@ -221,8 +232,9 @@ class CameraModel:
 
     # ------------------------------------------------------------------ identity and serialisation
     def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        """Parameters of the same lens on a sensor scaled by ``sx, sy`` (pixel centres scale about the corner)."""
-        raise NotImplementedError
+        """Parameters of the same lens on a sensor scaled by ``sx, sy``: by default the pinhole intrinsics
+        ``fx, fy, cx, cy`` that most models share; a model with other scaled parameters overrides it."""
+        return {"fx": self.fx * sx, "fy": self.fy * sy, **scaled_centre(self.cx, self.cy, sx, sy)}
 
     def resized(self, width: int, height: int) -> CameraModel:
         """The same lens seen by a sensor of another resolution (intrinsics scaled with the image).

@@ -9,7 +9,7 @@ valid where ``z > -w2 d1``; back-projection valid where ``alpha <= 0.5`` or ``r^
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import torch
 
@@ -71,14 +71,6 @@ class DoubleSphere(CameraModel):
             ok = r2 < 1.0 / (2.0 * a - 1.0)
             x, y, z = (torch.where(ok, c, torch.nan) for c in (x, y, z))
         return x, y, z
-
-    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        return {
-            "fx": self.fx * sx,
-            "fy": self.fy * sy,
-            "cx": (self.cx + 0.5) * sx - 0.5,
-            "cy": (self.cy + 0.5) * sy - 0.5,
-        }
 
 
 __all__ = ["DoubleSphere"]

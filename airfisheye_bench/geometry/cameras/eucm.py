@@ -8,7 +8,7 @@ Closed forms as in basalt's ``include/basalt/camera/extended_camera.hpp``: ``rho
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import torch
 
@@ -63,14 +63,6 @@ class EUCM(CameraModel):
         if a > 0.5:
             mz = torch.where(r2 < 1.0 / ((2.0 * a - 1.0) * b), mz, torch.nan)
         return mx, my, mz
-
-    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        return {
-            "fx": self.fx * sx,
-            "fy": self.fy * sy,
-            "cx": (self.cx + 0.5) * sx - 0.5,
-            "cy": (self.cy + 0.5) * sy - 0.5,
-        }
 
 
 __all__ = ["EUCM"]

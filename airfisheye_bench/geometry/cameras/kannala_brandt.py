@@ -119,14 +119,6 @@ class KannalaBrandt(CameraModel):
         on_axis = td == 0
         return torch.where(on_axis, 0.0, s * mx), torch.where(on_axis, 0.0, s * my), torch.cos(theta)
 
-    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        return {
-            "fx": self.fx * sx,
-            "fy": self.fy * sy,
-            "cx": (self.cx + 0.5) * sx - 0.5,
-            "cy": (self.cy + 0.5) * sy - 0.5,
-        }
-
     @classmethod
     def from_focal(
         cls,

@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import torch
 
 from airfisheye_bench.geometry.cameras._solve import MonotoneInverse, increasing_limit, polyder, polyval
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, float_list
+from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, float_list, scaled_centre
 
 
 class Ocam(CameraModel):
@@ -115,8 +115,7 @@ class Ocam(CameraModel):
     def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
         # Radii scale by s: rho'(theta) = s rho(theta) and r' = s r, so cam2world's a_i scale by s^(1 - i).
         return {
-            "cx": (self.cx + 0.5) * sx - 0.5,
-            "cy": (self.cy + 0.5) * sy - 0.5,
+            **scaled_centre(self.cx, self.cy, sx, sy),
             "cam2world": [a * sx ** (1 - i) for i, a in enumerate(self.cam2world)],
             "world2cam": [b * sx for b in self.world2cam],
         }

@@ -73,13 +73,5 @@ class PinholeRadtan(CameraModel):
             mx, my = self._undistort(mx, my)
         return mx, my, mx * 0.0 + 1.0
 
-    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        return {
-            "fx": self.fx * sx,
-            "fy": self.fy * sy,
-            "cx": (self.cx + 0.5) * sx - 0.5,
-            "cy": (self.cy + 0.5) * sy - 0.5,
-        }
-
 
 __all__ = ["PinholeRadtan"]

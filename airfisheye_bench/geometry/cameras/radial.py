@@ -20,7 +20,7 @@ from typing import Any, ClassVar
 
 import torch
 
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, scaled_centre
 
 
 class RadialCamera(CameraModel):
@@ -101,7 +101,7 @@ class RadialCamera(CameraModel):
         return torch.where(on_axis, 0.0, s * dx), torch.where(on_axis, 0.0, s * dy), torch.cos(theta)
 
     def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        return {"cx": (self.cx + 0.5) * sx - 0.5, "cy": (self.cy + 0.5) * sy - 0.5, "focal": self.focal * sx}
+        return {**scaled_centre(self.cx, self.cy, sx, sy), "focal": self.focal * sx}
 
 
 class Equidistant(RadialCamera):

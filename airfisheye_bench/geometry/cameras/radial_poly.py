@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 import torch
 
 from airfisheye_bench.geometry.cameras._solve import MonotoneInverse, increasing_limit, polyder, polyval
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, scaled_centre
 
 
 class RadialPoly(CameraModel):
@@ -95,8 +95,7 @@ class RadialPoly(CameraModel):
             "k2": self.k2 * sx,
             "k3": self.k3 * sx,
             "k4": self.k4 * sx,
-            "cx": (self.cx + 0.5) * sx - 0.5,
-            "cy": (self.cy + 0.5) * sy - 0.5,
+            **scaled_centre(self.cx, self.cy, sx, sy),
         }
 
 

@@ -85,14 +85,6 @@ class Unified(CameraModel):
         f = (self.xi + torch.sqrt(disc)) / (1.0 + r2)  # NaN where disc < 0: no ray reaches the pixel
         return f * mx, f * my, f - self.xi
 
-    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        return {
-            "fx": self.fx * sx,
-            "fy": self.fy * sy,
-            "cx": (self.cx + 0.5) * sx - 0.5,
-            "cy": (self.cy + 0.5) * sy - 0.5,
-        }
-
     @property
     def region_theta(self) -> float:
         """Largest incidence angle of the valid region (without distortion limits): ``acos(-w)``."""
