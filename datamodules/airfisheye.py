@@ -23,12 +23,17 @@ from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
-from airfisheye_bench.io.datasets import DATASET_FORMATS
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
-from airfisheye_bench.synth.presets import PRESETS
 from airfisheye_bench.synth.writer import ensure_dataset
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
+from datamodules.multi_source import (
+    MultiSourceDataset,
+    check_location,
+    open_split,
+    resolve_sources,
+    training_sampler,
+)
 from datamodules.sampling import (
     EpochSeededSampler,
     EvaluationLoader,
@@ -77,6 +82,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
             dataset's own layout (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`; ``docs/design.md``,
             "Dataset formats"). Any format but ``airfisheye`` needs ``root``.
         format_options: That format's options (for example which camera of a rig); unset ones take their defaults.
+        sources: Several datasets in one run: source names (``datamodules.multi_source``; ``docs/design.md``, "More
+            than one source"). The top-level ``root``, ``format``, ``preset`` are then what names inherit.
+        source_options: Each source's settings by name (``format``, ``root``, ``format_options``, ``preset``,
+            ``dataset_seed``, ``splits``, ``source``, ``class_map``, ``weight``).
 
     Example:
         >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
@@ -111,33 +120,16 @@ class AirFisheyeDataModule(L.LightningDataModule):
         lidar: dict[str, Any] | None = None,
         format: str = "airfisheye",
         format_options: dict[str, Any] | None = None,
+        sources: list[str] | None = None,
+        source_options: dict[str, dict[str, Any]] | None = None,
     ) -> None:
         super().__init__()
         if batch_size < 1:
             raise ConfigError(f"batch_size must be >= 1, got {batch_size}")
-        if format not in DATASET_FORMATS:
-            raise ConfigError(f"data.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
-        if root is None and format != "airfisheye":
-            raise ConfigError(
-                f"data.format={format} reads that dataset from disk: give data.root=/path/to/it (see the README's "
-                "dataset table)"
-            )
-        if root is None and preset is None:
-            raise ConfigError(
-                "give data.root (a dataset folder) or data.preset (a synthetic preset such as quickstart)"
-            )
-        if root is None and preset not in PRESETS:  # refused before anything is generated
-            raise ConfigError(
-                f"data.preset={preset!r}: expected one of {', '.join(PRESETS)} (or give data.root)"
-            )
-        if root is not None and not Path(root).is_dir():
-            expected = (
-                "a dataset in the AirFisheye layout (holding dataset.yaml) or leave it unset to use the synthetic "
-                "dataset"
-                if format == "airfisheye"
-                else f"the root of the {format} dataset"
-            )
-            raise ConfigError(f"data.root={str(root)!r} is not a folder; point it at {expected}")
+        location = {"format": format, "root": root, "format_options": format_options, "preset": preset}
+        self.sources = resolve_sources(sources, source_options, {**location, "dataset_seed": dataset_seed})
+        if not self.sources:
+            check_location(format, root, preset)
         self.task = task
         self.root = Path(root) if root is not None else None
         self.preset = preset
@@ -159,6 +151,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.augment = FisheyeAugment(**augment_kwargs) if augment is not None else None
         lidar_opts = _options("lidar", dict(lidar or {}), {"preset", "min_range"}, ())
         self.lidar_preset, lidar_spec = _lidar_spec(lidar_opts.get("preset"), root)
+        # Every source of a mixture is served with data.lidar.preset's sensor (synthetic: generated with it).
+        self.source_lidar = {
+            src.name: _lidar_spec(lidar_opts.get("preset"), src.root) for src in self.sources
+        }
         min_range = lidar_opts.get("min_range")
         min_range = DEFAULT_MIN_RANGE if min_range is None else min_range
         if isinstance(min_range, bool) or not isinstance(min_range, (int, float)) or not min_range >= 0:
@@ -186,30 +182,51 @@ class AirFisheyeDataModule(L.LightningDataModule):
             collate_fn=collate,
         )
         self.split_names = tuple(splits)
-        self.datasets: dict[str, AirFisheyeDataset] = {}
+        self.datasets: dict[str, AirFisheyeDataset | MultiSourceDataset] = {}
         self._resume_position: tuple[int, int] | None = None
+        self._source_roots: dict[str, Path] | None = None
 
     # ----------------------------------------------------------------------------------- Lightning hooks
     def prepare_data(self) -> None:
-        """Generate the synthetic dataset on first use (once per node)."""
-        self.dataset_root()
+        """Generate the synthetic dataset (or sources) on first use (once per node)."""
+        self.source_roots() if self.sources else self.dataset_root()
 
     def setup(self, stage: str | None = None) -> None:
         wanted = {"fit": (0, 1), "validate": (1,), "test": (2,), "predict": (2,), None: (0, 1, 2)}[stage]
-        root = self.dataset_root()
         for i in wanted:
             name = self.split_names[i]
             if name not in self.datasets:
                 augment = self.augment if i == 0 else None
-                self.datasets[name] = AirFisheyeDataset(
-                    root, name, augment=augment, seed=self.seed, **self.dataset_kwargs
-                )
+                self.datasets[name] = self._open_split(i, augment)
                 # Build the lookup tables before any worker starts: forked workers share them.
                 self.datasets[name].warm_up()
 
+    def _open_split(
+        self, index: int, augment: FisheyeAugment | None
+    ) -> AirFisheyeDataset | MultiSourceDataset:
+        if self.sources:
+            lidar = {name: spec for name, (_, spec) in self.source_lidar.items()}
+            return open_split(
+                self.sources,
+                self.source_roots(),
+                index,
+                self.split_names,
+                self.seed,
+                augment,
+                self.dataset_kwargs,
+                lidar,
+            )
+        name = self.split_names[index]
+        return AirFisheyeDataset(
+            self.dataset_root(), name, augment=augment, seed=self.seed, **self.dataset_kwargs
+        )
+
     def train_dataloader(self) -> DataLoader:
         dataset = self._dataset(0)
-        sampler = EpochSeededSampler(len(dataset), self.seed)
+        if self.sources:
+            sampler = training_sampler(dataset, self.sources, self.seed)
+        else:
+            sampler = EpochSeededSampler(len(dataset), self.seed)
         if self._resume_position is not None:
             # Lightning creates the first iterator before it sets the epoch of a resumed run: set it here.
             epoch, batches_done = self._resume_position
@@ -269,7 +286,12 @@ class AirFisheyeDataModule(L.LightningDataModule):
 
     # ------------------------------------------------------------------------------------ information
     def dataset_root(self) -> Path:
-        """The dataset folder (generating the synthetic preset if needed)."""
+        """The dataset folder (generating the synthetic preset if needed); a run of several sources has one per
+        source (:meth:`source_roots`)."""
+        if self.sources:
+            raise ConfigError(
+                "data.sources: a run of several sources has one dataset root per source (source_roots())"
+            )
         if self.root is not None:
             return self.root
 
@@ -277,6 +299,32 @@ class AirFisheyeDataModule(L.LightningDataModule):
             self.preset, root=self.cache_dir, seed=self.dataset_seed, lidar_preset=self.lidar_preset
         )
         return self.root
+
+    def source_roots(self) -> dict[str, Path]:
+        """The dataset folder of each source of ``data.sources`` (generating synthetic ones if needed)."""
+        if self._source_roots is None:
+            self._source_roots = {
+                src.name: Path(src.root)
+                if src.root is not None
+                else ensure_dataset(
+                    src.preset,
+                    root=self.cache_dir,
+                    seed=src.dataset_seed,
+                    lidar_preset=self.source_lidar[src.name][0],
+                )
+                for src in self.sources
+            }
+        return self._source_roots
+
+    @property
+    def source_names(self) -> list[str]:
+        """The names of ``data.sources`` (empty for a single-dataset run)."""
+        return [src.name for src in self.sources]
+
+    def camera_of(self, source: str | None = None) -> FisheyeCamera:
+        """The served camera of one source (``None``: the run's camera, the first source's)."""
+        dataset = self._any_dataset()
+        return dataset.datasets[source].camera if source is not None else dataset.camera
 
     @property
     def camera(self) -> FisheyeCamera:

@@ -61,9 +61,13 @@ class EpochSeededSampler(DistributedSampler):
     def set_epoch(self, epoch: int) -> None:
         self.epoch = int(epoch)
 
-    def __iter__(self) -> Iterator[int]:
+    def epoch_order(self) -> list[int]:
+        """The epoch's order of the ``len(dataset)`` draws, the same on every rank (a subclass may draw otherwise)."""
         generator = torch.Generator().manual_seed(draw_seed(self.seed, self.epoch, -1))
-        order = torch.randperm(len(self.dataset), generator=generator).tolist()
+        return torch.randperm(len(self.dataset), generator=generator).tolist()
+
+    def __iter__(self) -> Iterator[int]:
+        order = self.epoch_order()
         if order:  # pad (repeating the start) so every rank gets num_samples indices
             order = (order * math.ceil(self.total_size / len(order)))[: self.total_size]
         start, self.start = self.start, 0

@@ -1,0 +1,620 @@
+"""More than one dataset in a run: ``data.sources`` resolved into sources, served as one dataset per split.
+
+A source is a dataset root in any :data:`~airfisheye_bench.io.datasets.DATASET_FORMATS` format, or a synthetic
+preset. ``data.sources`` lists source *names*; a name means something by itself, and
+``data.source_options.<name>`` sets or overrides its settings (:data:`SOURCE_KEYS`):
+
+* ``synthetic``: the synthetic ``data.preset`` at ``data.dataset_seed``;
+* a synthetic preset (``tiny``, ``quickstart``, ...): that preset at ``data.dataset_seed``;
+* a format (``airfisheye``, ``tartanair``, ...): that format; its root and options are ``data.root`` /
+  ``data.format_options`` when ``data.format`` is that format, else ``data.source_options.<name>.root``;
+* any other name: only what ``data.source_options.<name>`` gives (a ``root``, or a ``preset``).
+
+Every source is served with the run's camera (``data.camera``), task and classes. The classes are the benchmark's
+training classes (:data:`~airfisheye_bench.synth.classes.TRAIN_CLASSES`); a source whose dataset has other
+training classes maps them with ``class_map: {its class: a benchmark class or null (ignored)}``. Training draws
+from the concatenation with an :class:`~datamodules.sampling.EpochSeededSampler` (each frame once per epoch), or,
+with ``weight`` on every source, a :class:`SourceMixtureSampler` (sources in those proportions). Every served
+sample carries its ``source`` name and a ``sample_id`` prefixed with it, so that evaluation can score each source
+apart (docs/design.md, "More than one source").
+
+Example:
+    >>> sources = resolve_sources(["tiny", "tiny_b"], {"tiny_b": {"preset": "tiny", "dataset_seed": 1}},
+    ...                           defaults={"preset": "quickstart"})
+    >>> [(s.name, s.preset, s.dataset_seed, s.root) for s in sources]
+    [('tiny', 'tiny', 0, None), ('tiny_b', 'tiny', 1, None)]
+    >>> resolve_sources(["tiny", "mine"], None)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    airfisheye_bench.errors.ConfigError: data.sources: unknown source name 'mine'; a source is synthetic (data.preset), ...
+"""
+
+from __future__ import annotations
+
+import bisect
+import hashlib
+import json
+import logging
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from airfisheye_bench.errors import ConfigError, UserError
+from airfisheye_bench.io.datasets import DATASET_FORMATS
+from airfisheye_bench.io.spec import IMAGE_SOURCES
+from airfisheye_bench.specs import get_task
+from airfisheye_bench.synth.classes import TRAIN_CLASSES
+from airfisheye_bench.synth.presets import PRESETS
+from datamodules.dataset import AirFisheyeDataset
+from datamodules.sampling import EpochSeededSampler, draw_seed
+
+log = logging.getLogger(__name__)
+
+#: The settings of one source (``data.source_options.<name>.<key>``); unset ones follow the name and ``data.*``.
+SOURCE_KEYS = (
+    "format",  # how root is laid out (DATASET_FORMATS)
+    "root",  # the dataset folder; null: the synthetic preset
+    "format_options",  # that format's options
+    "preset",  # the synthetic preset (root null)
+    "dataset_seed",  # the synthetic dataset's seed
+    "splits",  # [train, val, test] split names of this source (default data.splits)
+    "source",  # cubemap | fisheye image source of this source (default data.source)
+    "class_map",  # {its training class: a benchmark class, or null: ignored}
+    "weight",  # sampling proportion (all sources or none)
+)
+#: The names a source takes by itself besides the presets and the formats.
+SYNTHETIC = "synthetic"
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+#: Breakdown groups of the metrics: a source may not be named like one (``test/<source>/<metric>`` keys).
+_RESERVED_PREFIXES = ("ring_", "range_")
+
+
+def check_location(format: str, root: str | Path | None, preset: str | None, key: str = "data") -> None:
+    """Refuse a dataset location that cannot be read: an unknown format, no root for a format that needs one, an
+    unknown preset, a root that is no folder. ``key`` is the config path the message names.
+
+    Raises:
+        ConfigError: naming ``<key>.format`` / ``<key>.root`` / ``<key>.preset`` and what is expected.
+
+    Example:
+        >>> check_location("airfisheye", None, "tny")
+        Traceback (most recent call last):
+        ...
+        airfisheye_bench.errors.ConfigError: data.preset='tny': expected one of tiny, quickstart, small, medium, paper, occlusion (or give data.root)
+    """
+    if format not in DATASET_FORMATS:
+        raise ConfigError(f"{key}.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
+    if root is None and format != "airfisheye":
+        raise ConfigError(
+            f"{key}.format={format} reads that dataset from disk: give {key}.root=/path/to/it (see the README's "
+            "dataset table)"
+        )
+    if root is None and preset is None:
+        raise ConfigError(
+            f"give {key}.root (a dataset folder) or {key}.preset (a synthetic preset such as quickstart)"
+        )
+    if root is None and preset not in PRESETS:  # refused before anything is generated
+        raise ConfigError(
+            f"{key}.preset={preset!r}: expected one of {', '.join(PRESETS)} (or give {key}.root)"
+        )
+    if root is not None and not Path(root).is_dir():
+        expected = (
+            "a dataset in the AirFisheye layout (holding dataset.yaml) or leave it unset to use the synthetic "
+            "dataset"
+            if format == "airfisheye"
+            else f"the root of the {format} dataset"
+        )
+        raise ConfigError(f"{key}.root={str(root)!r} is not a folder; point it at {expected}")
+
+
+@dataclass(frozen=True)
+class SourceConfig:
+    """One resolved source of a run (see the module docstring for how a name resolves).
+
+    Attributes:
+        name: Its name in ``data.sources`` (logged metrics: ``<stage>/<name>/<metric>``).
+        format: How ``root`` is laid out.
+        root: The dataset folder, or ``None`` for the synthetic ``preset``.
+        format_options: The format's options.
+        preset: The synthetic preset (``root`` ``None``).
+        dataset_seed: The synthetic dataset's seed.
+        splits: Its train, val and test split names (``None``: ``data.splits``).
+        source: ``cubemap`` or ``fisheye`` (``None``: ``data.source``).
+        class_map: Its training class name -> benchmark class name or ``None`` (ignored); ``None``: same classes.
+        weight: Its sampling proportion (``None``: every frame once per epoch).
+    """
+
+    name: str
+    format: str = "airfisheye"
+    root: str | None = None
+    format_options: dict[str, Any] = field(default_factory=dict)
+    preset: str | None = None
+    dataset_seed: int = 0
+    splits: tuple[str, str, str] | None = None
+    source: str | None = None
+    class_map: dict[str, str | None] | None = None
+    weight: float | None = None
+
+    @property
+    def key(self) -> str:
+        """The config path of its settings, for messages."""
+        return f"data.source_options.{self.name}"
+
+    def describe(self) -> str:
+        """``tiny_b (synthetic tiny, dataset_seed 1)`` or ``woodscape (woodscape at /data/ws)``."""
+        if self.root is None:
+            return f"{self.name} (synthetic {self.preset}, dataset_seed {self.dataset_seed})"
+        return f"{self.name} ({self.format} at {self.root})"
+
+    def record(self) -> dict[str, Any]:
+        """What ``results.json`` records of the source's settings."""
+        out: dict[str, Any] = {"source": self.name, "format": self.format}
+        if self.root is None:
+            out |= {"preset": self.preset, "dataset_seed": self.dataset_seed}
+        else:
+            out["root"] = str(self.root)
+        if self.format_options:
+            out["format_options"] = dict(self.format_options)
+        if self.weight is not None:
+            out["weight"] = self.weight
+        return out
+
+
+def resolve_sources(
+    names: Sequence[str] | None,
+    options: Mapping[str, Mapping[str, Any] | None] | None,
+    defaults: Mapping[str, Any] | None = None,
+) -> tuple[SourceConfig, ...]:
+    """``data.sources`` and ``data.source_options`` -> the run's sources, checked (nothing is read or generated).
+
+    Args:
+        names: ``data.sources`` (``None`` or empty: a single-source run, returns ``()``).
+        options: ``data.source_options``: settings by source name (:data:`SOURCE_KEYS`).
+        defaults: The top-level ``data`` keys a name inherits (``format``, ``root``, ``format_options``,
+            ``preset``, ``dataset_seed``).
+
+    Raises:
+        ConfigError: one line naming the key: an unknown or repeated source name, settings for a name not in
+            ``data.sources``, an unknown setting, a location that cannot be read, weights on some sources only.
+    """
+    if names is None or (isinstance(names, Sequence) and not isinstance(names, str) and not names):
+        return ()
+    if isinstance(names, str) or not isinstance(names, Sequence):
+        raise ConfigError(
+            f"data.sources={names!r}: expected a list of source names, e.g. data.sources=[tiny,quickstart]"
+        )
+    names = [str(n) for n in names]
+    defaults = dict(defaults or {})
+    options = dict(options or {})
+    if not isinstance(options, Mapping):
+        raise ConfigError(
+            "data.source_options: expected settings by source name, e.g. {tiny_b: {preset: tiny}}"
+        )
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ConfigError(f"data.sources lists {repeated} more than once; give each source one name")
+    stray = sorted(set(options) - set(names))
+    if stray:
+        raise ConfigError(
+            f"data.source_options.{stray[0]}: no source {stray[0]!r} in data.sources={names}; add it there or "
+            "drop its settings"
+        )
+    sources = tuple(_resolve(name, dict(options.get(name) or {}), defaults) for name in names)
+    weighted = [s.name for s in sources if s.weight is not None]
+    if weighted and len(weighted) != len(sources):
+        unweighted = [s.name for s in sources if s.weight is None]
+        raise ConfigError(
+            f"data.source_options.{unweighted[0]}.weight is unset but {weighted} have one: give every source a "
+            "weight (sampling proportions) or none (every frame once per epoch)"
+        )
+    return sources
+
+
+def _resolve(name: str, given: dict[str, Any], defaults: Mapping[str, Any]) -> SourceConfig:
+    key = f"data.source_options.{name}"
+    if not _NAME.match(name) or name.startswith(_RESERVED_PREFIXES):
+        raise ConfigError(
+            f"data.sources: {name!r} is not a source name: letters, digits, '_', '-' and '.', not starting with "
+            f"{' or '.join(_RESERVED_PREFIXES)} (the metric breakdown's keys)"
+        )
+    unknown = sorted(set(given) - set(SOURCE_KEYS))
+    if unknown:
+        raise ConfigError(f"{key}.{unknown[0]}: unknown setting; a source takes {', '.join(SOURCE_KEYS)}")
+    implied: dict[str, Any]
+    if name == SYNTHETIC:
+        implied = {"format": "airfisheye", "root": None, "preset": defaults.get("preset")}
+    elif name in PRESETS:
+        implied = {"format": "airfisheye", "root": None, "preset": name}
+    elif name in DATASET_FORMATS:
+        same = defaults.get("format", "airfisheye") == name
+        implied = {
+            "format": name,
+            "root": defaults.get("root") if same else None,
+            "format_options": defaults.get("format_options") if same else None,
+            "preset": None,
+        }
+    elif given.get("root") is None and given.get("preset") is None:
+        raise ConfigError(
+            f"data.sources: unknown source name {name!r}; a source is {SYNTHETIC} (data.preset), a synthetic "
+            f"preset ({', '.join(PRESETS)}), a format ({', '.join(DATASET_FORMATS)}), or any name with a root or "
+            f"preset under {key} (e.g. {key}.root=/path {key}.format=airfisheye)"
+        )
+    else:
+        implied = {"format": "airfisheye", "root": None, "preset": None}
+    settings = {"dataset_seed": defaults.get("dataset_seed", 0), **implied, **given}
+    if settings.get("root") is not None:
+        settings["preset"] = given.get("preset")  # a root is read as it is: no preset applies
+    fmt, root, preset = settings.get("format") or "airfisheye", settings.get("root"), settings.get("preset")
+    try:
+        check_location(fmt, root, preset, key)
+    except ConfigError as err:
+        raise ConfigError(f"data.sources: source {name}: {err}") from None
+    image_source = settings.get("source")
+    if image_source is not None and image_source not in IMAGE_SOURCES:
+        raise ConfigError(f"{key}.source={image_source!r}: expected one of {', '.join(IMAGE_SOURCES)}")
+    splits = settings.get("splits")
+    if splits is not None and (isinstance(splits, str) or len(splits) != 3):
+        raise ConfigError(f"{key}.splits={splits!r}: expected [train, val, test] split names")
+    class_map = settings.get("class_map")
+    if class_map is not None and not isinstance(class_map, Mapping):
+        raise ConfigError(
+            f"{key}.class_map: expected {{its class: a benchmark class or null}}, got {class_map!r}"
+        )
+    weight = settings.get("weight")
+    if weight is not None and (
+        isinstance(weight, bool) or not isinstance(weight, (int, float)) or not weight > 0
+    ):
+        raise ConfigError(f"{key}.weight={weight!r}: expected a number > 0 (a sampling proportion)")
+    seed = settings.get("dataset_seed")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError(f"{key}.dataset_seed={seed!r}: expected an integer >= 0")
+    return SourceConfig(
+        name=name,
+        format=fmt,
+        root=str(root) if root is not None else None,
+        format_options=dict(settings.get("format_options") or {}),
+        preset=preset if root is None else None,
+        dataset_seed=seed,
+        splits=tuple(str(s) for s in splits) if splits is not None else None,
+        source=image_source,
+        class_map={str(k): (None if v is None else str(v)) for k, v in class_map.items()}
+        if class_map
+        else None,
+        weight=float(weight) if weight is not None else None,
+    )
+
+
+# ------------------------------------------------------------------------------------------------- classes
+
+
+@dataclass(frozen=True)
+class CommonClasses:
+    """The training classes every source is served in (what a ``DatasetSpec`` offers the datamodule of them).
+
+    Example:
+        >>> common = CommonClasses.benchmark("tiny + tiny_b")
+        >>> common.num_train_classes, common.train_class_names[:2], common.train_palette()[1].tolist()
+        (13, ['sky', 'road'], [128, 64, 128])
+    """
+
+    name: str
+    train_class_names: list[str]
+    colors: tuple[tuple[int, int, int], ...]
+    ignore_index: int = 255
+
+    @classmethod
+    def benchmark(cls, name: str) -> CommonClasses:
+        """The benchmark's training classes (the synthetic dataset's)."""
+        return cls(name, [c.name for c in TRAIN_CLASSES], tuple(tuple(c.color) for c in TRAIN_CLASSES))
+
+    @property
+    def num_train_classes(self) -> int:
+        return len(self.train_class_names)
+
+    def train_palette(self) -> np.ndarray:
+        """``uint8 [256, 3]`` colours by training id."""
+        pal = np.zeros((256, 3), np.uint8)
+        pal[: len(self.colors)] = np.asarray(self.colors, np.uint8)
+        return pal
+
+
+def class_lut(
+    source: SourceConfig, names: Sequence[str], ignore_index: int, common: CommonClasses
+) -> torch.Tensor | None:
+    """``int64 [256]`` lookup table: a source's training id -> the common id (``None``: the same classes).
+
+    Raises:
+        ConfigError: the source has other classes and no (or an incomplete) ``class_map``, naming it.
+
+    Example:
+        >>> common = CommonClasses.benchmark("x")
+        >>> src = SourceConfig("ws", root="/ws", class_map={"car": "vehicle", "lane": "road", "void": None})
+        >>> lut = class_lut(src, ["void", "car", "lane"], 255, common)
+        >>> lut[[0, 1, 2, 255]].tolist()
+        [255, 10, 1, 255]
+    """
+    names = list(names)
+    if source.class_map is None:
+        if names == common.train_class_names:
+            return None
+        raise ConfigError(
+            f"{source.key}.class_map is needed: source {source.name} has the training classes {names}, not the "
+            f"benchmark's {common.train_class_names}; map each of its classes to one of these (or null: ignored)"
+        )
+    missing = [n for n in names if n not in source.class_map]
+    extra = sorted(set(source.class_map) - set(names))
+    bad = sorted(
+        {v for v in source.class_map.values() if v is not None and v not in common.train_class_names}
+    )
+    if missing or extra or bad:
+        problem = (
+            f"misses its classes {missing}"
+            if missing
+            else f"names {extra}, not classes of its dataset ({names})"
+            if extra
+            else f"maps to {bad}, not benchmark classes ({common.train_class_names})"
+        )
+        raise ConfigError(f"{source.key}.class_map {problem}")
+    lut = torch.full((256,), common.ignore_index, dtype=torch.int64)
+    for i, n in enumerate(names):
+        target = source.class_map[n]
+        if target is not None:
+            lut[i] = common.train_class_names.index(target)
+    lut[ignore_index] = common.ignore_index
+    return lut
+
+
+# ------------------------------------------------------------------------------------------------- dataset
+
+
+class MultiSourceDataset(Dataset):
+    """One split of several sources, concatenated in ``data.sources`` order.
+
+    Index ``i`` is frame ``i - offset`` of the source whose range holds it. A served sample is its source's, with
+    ``source`` (the name) added, ``sample_id`` prefixed ``<source>/`` (two sources may share ids) and ``label``
+    mapped to the common classes.
+
+    Args:
+        datasets: The split of each source, by source name.
+        common: The run's classes.
+        luts: Per source, its training id -> common id table (``None``: the same classes).
+    """
+
+    def __init__(
+        self,
+        datasets: Mapping[str, AirFisheyeDataset],
+        common: CommonClasses,
+        luts: Mapping[str, torch.Tensor | None] | None = None,
+    ) -> None:
+        self.datasets = dict(datasets)
+        self.names = list(self.datasets)
+        self.spec = common
+        self.luts = dict(luts or {})
+        sizes = [len(d) for d in self.datasets.values()]
+        #: Index of each source's first frame in the concatenation.
+        self.offsets = [int(x) for x in np.cumsum([0, *sizes[:-1]])]
+        self.sizes = sizes
+        self.sample_ids = [f"{n}/{s}" for n, d in self.datasets.items() for s in d.sample_ids]
+        first = next(iter(self.datasets.values()))
+        self.camera = first.camera
+        self.task = first.task
+
+    def __len__(self) -> int:
+        return sum(self.sizes)
+
+    def locate(self, index: int) -> tuple[str, int]:
+        """``(source name, index in that source)`` of a concatenated index."""
+        if not 0 <= index < len(self):
+            raise IndexError(f"index {index} out of range for {len(self)} frames")
+        k = bisect.bisect_right(self.offsets, index) - 1
+        return self.names[k], index - self.offsets[k]
+
+    def __getitem__(self, index: int) -> dict | None:
+        name, local = self.locate(index)
+        sample = self.datasets[name][local]
+        if sample is None:  # skip_bad_frames: collate drops and counts it
+            return None
+        sample["sample_id"] = f"{name}/{sample['sample_id']}"
+        sample["source"] = name
+        lut = self.luts.get(name)
+        if lut is not None and "label" in sample:
+            sample["label"] = lut[sample["label"]]
+        return sample
+
+    def set_epoch(self, epoch: int) -> None:
+        for dataset in self.datasets.values():
+            dataset.set_epoch(epoch)
+
+    def warm_up(self) -> None:
+        for dataset in self.datasets.values():
+            dataset.warm_up()
+
+    def cameras(self) -> dict[str, Any]:
+        """The served camera of each source."""
+        return {n: d.camera for n, d in self.datasets.items()}
+
+
+def open_split(
+    sources: Sequence[SourceConfig],
+    roots: Mapping[str, Path],
+    split_index: int,
+    default_splits: Sequence[str],
+    seed: int,
+    augment: Any,
+    dataset_kwargs: Mapping[str, Any],
+    lidar_specs: Mapping[str, Any],
+) -> MultiSourceDataset:
+    """One split of every source, checked to serve the same image size and classes, as one dataset.
+
+    Each source's augmentation draws get their own seed (``draw_seed(seed, -3, k)`` for the ``k``-th source), so
+    frame ``i`` of two sources is not augmented alike.
+
+    Raises:
+        UserError: a source that cannot be served, its name in front of the reason.
+    """
+    common = CommonClasses.benchmark(" + ".join(s.name for s in sources))
+    datasets: dict[str, AirFisheyeDataset] = {}
+    luts: dict[str, torch.Tensor | None] = {}
+    uses_classes = "label" in _task_keys(dataset_kwargs["task"])
+    for k, src in enumerate(sources):
+        split = (src.splits or tuple(default_splits))[split_index]
+        kwargs = dict(dataset_kwargs)
+        kwargs |= {"dataset_format": src.format, "format_options": dict(src.format_options)}
+        kwargs["lidar_spec"] = lidar_specs.get(src.name)
+        if src.source is not None:
+            kwargs["source"] = src.source
+        try:
+            dataset = AirFisheyeDataset(
+                roots[src.name], split, augment=augment, seed=draw_seed(seed, -3, k), **kwargs
+            )
+        except UserError as err:
+            raise type(err)(f"data.sources: source {src.describe()}: {err}") from None
+        except ValueError as err:
+            raise ConfigError(f"data.sources: source {src.describe()}: {err}") from None
+        datasets[src.name] = dataset
+        luts[src.name] = (
+            class_lut(src, dataset.spec.train_class_names, dataset.spec.ignore_index, common)
+            if uses_classes
+            else None
+        )
+    _check_same_size(datasets)
+    return MultiSourceDataset(datasets, common, luts)
+
+
+def _task_keys(task: str) -> set[str]:
+    spec = get_task(task)
+    return {spec.target, *spec.inputs}
+
+
+def _check_same_size(datasets: Mapping[str, AirFisheyeDataset]) -> None:
+    """Frames of all sources are batched together: they must have one size. Lenses may differ (logged)."""
+    sizes = {n: (d.camera.width, d.camera.height) for n, d in datasets.items()}
+    first = next(iter(sizes))
+    for name, size in sizes.items():
+        if size != sizes[first]:
+            raise ConfigError(
+                f"data.sources: source {name} is served at {size[0]}x{size[1]}, source {first} at "
+                f"{sizes[first][0]}x{sizes[first][1]}: give data.camera.size (one square size for all; a non-square "
+                "calibration is padded or cropped by data.camera.fit)"
+            )
+    lenses = {n: d.camera.to_dict() for n, d in datasets.items()}
+    if any(lens != lenses[first] for lens in lenses.values()):
+        log.info(
+            "sources served with their own lenses at %dx%d: %s",
+            *sizes[first],
+            "; ".join(f"{n}: {d.camera.model} {d.camera.coverage_deg:.0f} deg" for n, d in datasets.items()),
+        )
+
+
+# ------------------------------------------------------------------------------------------------- sampling
+
+
+class SourceMixtureSampler(EpochSeededSampler):
+    """An epoch of ``len(dataset)`` draws, each source in proportion to its weight, resumable like its base.
+
+    Source ``s`` gets ``round(w_s / sum(w) * N)`` draws (largest remainders, so they add up to ``N``): its frames
+    in a permutation seeded by ``(seed, epoch, s)``, repeated when it has fewer frames than draws; the draws of all
+    sources are then shuffled together by ``(seed, epoch)``. Only the order depends on the epoch, so a resumed run
+    continues with the draws an uninterrupted one makes (``start``, :class:`EpochSeededSampler`).
+
+    Example:
+        >>> s = SourceMixtureSampler([2, 6], [3.0, 1.0], seed=0, num_replicas=1, rank=0)
+        >>> order = list(s)
+        >>> len(order), sum(i < 2 for i in order), sum(i >= 2 for i in order)
+        (8, 6, 2)
+        >>> s.start = 5
+        >>> list(s) == order[5:]
+        True
+    """
+
+    def __init__(
+        self,
+        sizes: Sequence[int],
+        weights: Sequence[float],
+        seed: int = 0,
+        num_replicas: int | None = None,
+        rank: int | None = None,
+    ) -> None:
+        super().__init__(sum(sizes), seed, num_replicas=num_replicas, rank=rank)
+        self.sizes = [int(n) for n in sizes]
+        self.counts = _proportional_counts([float(w) for w in weights], sum(self.sizes))
+
+    def epoch_order(self) -> list[int]:
+        draws: list[int] = []
+        offset = 0
+        for s, (size, count) in enumerate(zip(self.sizes, self.counts, strict=True)):
+            generator = torch.Generator().manual_seed(draw_seed(self.seed, self.epoch, -2 - s))
+            rounds = -(-count // size) if size else 0
+            picks = (
+                torch.cat([torch.randperm(size, generator=generator) for _ in range(rounds)])
+                if rounds
+                else []
+            )
+            draws += [offset + int(i) for i in list(picks)[:count]]
+            offset += size
+        generator = torch.Generator().manual_seed(draw_seed(self.seed, self.epoch, -1))
+        return [draws[i] for i in torch.randperm(len(draws), generator=generator).tolist()]
+
+
+def _proportional_counts(weights: Sequence[float], total: int) -> list[int]:
+    """Whole counts adding up to ``total`` in the proportions of ``weights`` (largest remainders).
+
+    Example:
+        >>> _proportional_counts([1.0, 1.0, 1.0], 10), _proportional_counts([3.0, 1.0], 8)
+        ([4, 3, 3], [6, 2])
+    """
+    shares = [w / sum(weights) * total for w in weights]
+    counts = [int(x) for x in shares]
+    by_remainder = sorted(range(len(shares)), key=lambda i: (counts[i] - shares[i], i))
+    for i in by_remainder[: total - sum(counts)]:
+        counts[i] += 1
+    return counts
+
+
+def training_sampler(
+    dataset: MultiSourceDataset, sources: Sequence[SourceConfig], seed: int
+) -> EpochSeededSampler:
+    """The training sampler of a mixture: weighted when the sources have weights, else the plain epoch order."""
+    if sources and sources[0].weight is not None:
+        return SourceMixtureSampler(dataset.sizes, [s.weight for s in sources], seed)
+    return EpochSeededSampler(len(dataset), seed)
+
+
+def mixture_identity(sources: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The identity of a run's mixture from its sources' identities (``results.json``'s ``dataset``).
+
+    ``content_sha256`` hashes the sources' content identities and weights, in order, when every source has one,
+    so a leaderboard groups runs on the same mixture together.
+
+    Example:
+        >>> m = mixture_identity([{"source": "a", "content_sha256": "1" * 64}, {"source": "b", "content_sha256": "2" * 64}])
+        >>> m["name"], m["sources"], len(m["content_sha256"])
+        ('a + b', ['a', 'b'], 64)
+    """
+    names = [str(s["source"]) for s in sources]
+    identity: dict[str, Any] = {"name": " + ".join(names), "sources": names}
+    if all(s.get("content_sha256") for s in sources):
+        parts = [[s["content_sha256"], s.get("weight")] for s in sources]
+        identity["content_sha256"] = hashlib.sha256(json.dumps(parts).encode()).hexdigest()
+    return identity
+
+
+__all__ = [
+    "SOURCE_KEYS",
+    "CommonClasses",
+    "MultiSourceDataset",
+    "SourceConfig",
+    "SourceMixtureSampler",
+    "check_location",
+    "class_lut",
+    "mixture_identity",
+    "open_split",
+    "resolve_sources",
+    "training_sampler",
+]
