@@ -48,6 +48,7 @@ from airfisheye_bench.runs import (
 )
 from airfisheye_bench.specs import UnknownTaskError, get_task
 from airfisheye_bench.tracking import log_run_outputs, start_tracking
+from datamodules.multi_source import mixture_identity, resolve_sources
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
 
@@ -142,10 +143,18 @@ def check_config(cfg: DictConfig) -> None:
             f"write optimized_metric=val/{cfg.task.get('primary_metric')} (callbacks.model_checkpoint.monitor), "
             "or null for the test primary metric"
         )
-    if cfg.data.get("root") is None and cfg.data.get("preset") is None:
+    if cfg.data.get("sources"):  # each source's location is checked, none read (datamodules.multi_source)
+        resolve_sources(cfg.data.sources, cfg.data.get("source_options"), _source_defaults(cfg.data))
+    elif cfg.data.get("root") is None and cfg.data.get("preset") is None:
         raise ConfigError(
             "data.root is unset and data.preset is null: give data.root=/path or data.preset=quickstart"
         )
+
+
+def _source_defaults(data: DictConfig) -> dict[str, Any]:
+    """The top-level ``data`` keys a source name inherits."""
+    values = OmegaConf.to_container(data, resolve=True)
+    return {key: values.get(key) for key in ("format", "root", "format_options", "preset", "dataset_seed")}
 
 
 def _model_configs(task: str) -> list[str]:
@@ -167,7 +176,13 @@ def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningD
     model_cfg = OmegaConf.to_container(cfg.model, resolve=True)
     # The incidence-angle rings reach the served lens's rim (one more ring beyond 95 deg for a wider lens).
     rings = cfg.task.module.get("ring_edges_deg") or DEFAULT_RING_EDGES_DEG
-    extra: dict[str, Any] = {"ring_edges_deg": ring_edges_for(datamodule.camera.coverage_deg, rings)}
+    names = getattr(datamodule, "source_names", [])
+    coverage = (
+        max(datamodule.camera_of(n).coverage_deg for n in names) if names else datamodule.camera.coverage_deg
+    )
+    extra: dict[str, Any] = {"ring_edges_deg": ring_edges_for(coverage, rings)}
+    if names:
+        extra["source_names"] = list(names)
     if get_task(cfg.task.name).uses_classes:
         extra |= {
             "class_names": datamodule.class_names,
@@ -423,6 +438,7 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
         trainer.test(module, datamodule=datamodule, ckpt_path=best or None, verbose=False)
         results = module.test_results
         if trainer.is_global_zero:
+            dataset, sources = source_results(datamodule, results)
             log.info("%s", summarise_test(cfg, results))
             path = write_results(
                 output_dir / "results.json",
@@ -430,9 +446,9 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
                 split=datamodule.split_names[2],
                 metrics=results["metrics"],
                 breakdown=results["breakdown"],
-                dataset=dataset_identity(
-                    datamodule.dataset_root(), datamodule.split_dataset("test").spec.name
-                ),
+                dataset=dataset
+                or dataset_identity(datamodule.dataset_root(), datamodule.split_dataset("test").spec.name),
+                sources=sources,
                 model={
                     "source": "checkpoint",
                     "stage": "training",  # the leaderboard tells this row from evaluate.py's of the same weights
@@ -455,6 +471,32 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
     if callback is not None and getattr(callback, "best_model_score", None) is not None:
         results["best_val"] = {str(callback.monitor): float(callback.best_model_score)}
     return results
+
+
+def source_results(
+    datamodule: L.LightningDataModule, results: dict[str, Any]
+) -> tuple[dict | None, dict | None]:
+    """``results.json``'s ``dataset`` and ``sources`` of a run of several sources (``(None, None)`` otherwise).
+
+    Each source gets its settings, its dataset's identity (name, root, content identity) and served camera, its
+    test frames, and its metrics; ``dataset`` is the mixture's identity (:func:`mixture_identity`).
+    """
+    if not getattr(datamodule, "source_names", None):
+        return None, None
+    test = datamodule.split_dataset("test")
+    roots = datamodule.source_roots()
+    sources: dict[str, Any] = {}
+    for src in datamodule.sources:
+        part = test.datasets[src.name]
+        identity = {**src.record(), **dataset_identity(roots[src.name], part.spec.name)}
+        identity |= {"frames": len(part), "camera": part.camera.to_dict()}
+        scores = results.get("sources", {}).get(src.name, {})
+        sources[src.name] = {
+            "dataset": identity,
+            "metrics": scores.get("metrics", {}),
+            "breakdown": scores.get("breakdown", {}),
+        }
+    return mixture_identity([s["dataset"] for s in sources.values()]), sources
 
 
 def summarise_test(cfg: DictConfig, results: dict[str, Any]) -> str:

@@ -70,7 +70,7 @@ SOURCE_KEYS = (
 )
 #: The names a source takes by itself besides the presets and the formats.
 SYNTHETIC = "synthetic"
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
 #: Breakdown groups of the metrics: a source may not be named like one (``test/<source>/<metric>`` keys).
 _RESERVED_PREFIXES = ("ring_", "range_")
 
@@ -220,7 +220,7 @@ def _resolve(name: str, given: dict[str, Any], defaults: Mapping[str, Any]) -> S
     key = f"data.source_options.{name}"
     if not _NAME.match(name) or name.startswith(_RESERVED_PREFIXES):
         raise ConfigError(
-            f"data.sources: {name!r} is not a source name: letters, digits, '_', '-' and '.', not starting with "
+            f"data.sources: {name!r} is not a source name: letters, digits, '_' and '-', not starting with "
             f"{' or '.join(_RESERVED_PREFIXES)} (the metric breakdown's keys)"
         )
     unknown = sorted(set(given) - set(SOURCE_KEYS))

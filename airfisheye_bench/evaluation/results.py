@@ -51,8 +51,14 @@ def write_results(
     dataset: dict[str, Any] | None = None,
     model: dict[str, Any] | None = None,
     config: dict[str, Any] | None = None,
+    sources: dict[str, Any] | None = None,
 ) -> Path:
-    """Write ``results.json`` atomically and return its path; ``primary_metric`` is the task spec's."""
+    """Write ``results.json`` atomically and return its path; ``primary_metric`` is the task spec's.
+
+    ``sources`` (a run of several datasets, ``data.sources``): by source name, ``{"dataset": its identity,
+    "metrics": ..., "breakdown": ...}``; ``metrics`` and ``breakdown`` are then the pooled ones and ``dataset`` the
+    mixture's identity (:func:`source_records` turns such a file into one record per source).
+    """
     primary = get_task(task).primary_metric
     record = {
         "version": RESULTS_VERSION,
@@ -66,6 +72,8 @@ def write_results(
         "config": _clean(config or {}),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     }
+    if sources:
+        record["sources"] = _clean(sources)
     path = Path(path)
     atomic_write_text(path, json.dumps(record, indent=2, sort_keys=False) + "\n")
     return path

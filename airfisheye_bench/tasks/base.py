@@ -54,6 +54,9 @@ class BenchmarkTask(L.LightningModule):
             NLSPN's ``--warm_up`` does over its first epoch: step ``s`` of the ``S`` warm-up steps runs at
             ``(s + 1) / (S + 1)`` x the scheduled lr of every group. The factor is applied to the step alone
             (:meth:`optimizer_step`), so checkpoints hold the scheduled lr and a resume needs no extra state.
+        source_names: The sources of a run on several datasets (``data.sources``): each is also scored on its
+            own frames (a batch's ``source`` key says whose each frame is), logged as ``<stage>/<source>/<metric>``
+            next to the pooled ``<stage>/<metric>``.
     """
 
     task: ClassVar[str]
@@ -73,6 +76,7 @@ class BenchmarkTask(L.LightningModule):
         lr_multipliers: dict[str, float] | None = None,
         weights: dict[str, Any] | None = None,
         warmup_epochs: int = 0,
+        source_names: list[str] | None = None,
     ) -> None:
         super().__init__()
         self.save_hyperparameters(ignore=["optimizer", "scheduler"], logger=False)
@@ -106,7 +110,16 @@ class BenchmarkTask(L.LightningModule):
         # whatever the shard sizes (a rank with no frame adds nothing), unlike a mean of per-rank means.
         # nan_strategy="disable": a NaN loss must show in the logged mean, not be dropped with a warning.
         self.eval_losses = nn.ModuleDict({stage: MeanMetric(nan_strategy="disable") for stage in STAGES})
-        self._theta: Tensor | None = None
+        names = list(source_names or [])
+        self.source_scorers = nn.ModuleDict(
+            {
+                stage: nn.ModuleDict(
+                    {name: TaskScorer(self.make_metric, ring_edges_deg, depth_edges) for name in names}
+                )
+                for stage in STAGES
+            }
+        )
+        self._thetas: dict[str | None, Tensor] = {}
         self._panel_rows: list[list[np.ndarray]] = []
         self._panel_ids: set[str] | None = None
 
@@ -215,7 +228,7 @@ class BenchmarkTask(L.LightningModule):
         pred = self.prediction(outputs)
         target = self.target(batch)
         mask = batch["valid_mask"]
-        self.scorers[stage].update(pred, target, theta=self._theta_deg(mask), mask=mask)
+        self._score(stage, pred, target, mask, batch.get("source"))
         self.eval_losses[stage].update(terms["loss"].detach(), weight=batch["image"].shape[0])
         self._log_skipped(batch, stage)
         if stage == "val" and len(self._panel_rows) < self.hparams.num_panels:
@@ -225,6 +238,23 @@ class BenchmarkTask(L.LightningModule):
                     wanted is None or batch["sample_id"][i] in wanted
                 ):
                     self._panel_rows.append(self.panel_row(batch, pred, i))
+
+    def _score(
+        self, stage: str, pred: Tensor, target: Tensor, mask: Tensor, sources: list[str] | None
+    ) -> None:
+        """Add a batch to the pooled scores and, in a run of several sources, to each frame's source's scores
+        (each source's frames with the incidence angles of its own served lens)."""
+        scorers = self.source_scorers[stage]
+        if not sources or not len(scorers):
+            self.scorers[stage].update(pred, target, theta=self._theta_deg(mask), mask=mask)
+            return
+        for name in dict.fromkeys(sources):
+            rows = torch.tensor([i for i, s in enumerate(sources) if s == name], device=pred.device)
+            part = (pred[rows], target[rows], mask[rows])
+            theta = self._theta_deg(mask, name if name in scorers else None)
+            self.scorers[stage].update(*part[:2], theta=theta, mask=part[2])
+            if name in scorers:
+                scorers[name].update(*part[:2], theta=theta, mask=part[2])
 
     def _panel_frames(self) -> set[str] | None:
         """Sample ids of the panel frames, spread over the validated frames (``None``: the first frames).
@@ -270,6 +300,13 @@ class BenchmarkTask(L.LightningModule):
         self.log(f"{stage}/loss", loss, sync_dist=True)
         self.log_dict({f"{stage}/{k}": v for k, v in metrics.items()}, sync_dist=True)
         self.log_dict({f"{stage}/{k}": v for k, v in breakdown.items() if math.isfinite(v)}, sync_dist=True)
+        if len(self.source_scorers[stage]):
+            scores["sources"] = {}
+            for name, scorer in self.source_scorers[stage].items():
+                scores["sources"][name] = scorer.compute()
+                scorer.reset()
+                part = scores["sources"][name]["metrics"]
+                self.log_dict({f"{stage}/{name}/{k}": v for k, v in part.items()}, sync_dist=True)
         return scores
 
     def write_panel(self, panel: np.ndarray, relative_path: str) -> None:
@@ -282,12 +319,15 @@ class BenchmarkTask(L.LightningModule):
             if hasattr(experiment, "add_image"):
                 experiment.add_image("val/panel", panel, self.current_epoch, dataformats="HWC")
 
-    def _theta_deg(self, mask: Tensor) -> Tensor:
-        """Incidence angle (degrees) of every pixel of the served camera, cached on the right device."""
-        if self._theta is None or self._theta.shape != mask.shape[-2:] or self._theta.device != mask.device:
-            camera = self.trainer.datamodule.camera
-            self._theta = torch.rad2deg(camera.theta_grid()).to(mask.device)
-        return self._theta
+    def _theta_deg(self, mask: Tensor, source: str | None = None) -> Tensor:
+        """Incidence angle (degrees) of every pixel of the served camera (of ``source``'s, in a run of several
+        sources), cached on the right device."""
+        theta = self._thetas.get(source)
+        if theta is None or theta.shape != mask.shape[-2:] or theta.device != mask.device:
+            datamodule = self.trainer.datamodule
+            camera = datamodule.camera_of(source) if source is not None else datamodule.camera
+            theta = self._thetas[source] = torch.rad2deg(camera.theta_grid()).to(mask.device)
+        return theta
 
     def _log_skipped(self, batch: dict, stage: str) -> None:
         if batch.get("num_skipped"):
