@@ -43,7 +43,7 @@ from typing import Any
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.errors import MissingFileError, UserError
-from airfisheye_bench.evaluation.results import RESULTS_VERSION, evaluated_label, load_results
+from airfisheye_bench.evaluation.results import RESULTS_VERSION, evaluated_label, load_results, source_records
 from airfisheye_bench.io.calibration_files import camera_label
 from airfisheye_bench.runs import checkpoint_run_name
 from airfisheye_bench.specs import MetricColumn, UnknownTaskError, all_tasks, get_task
@@ -323,6 +323,20 @@ def load_entry(path: str | Path) -> LeaderboardEntry:
         raise ValueError(f"{path}: {err}") from err
 
 
+def load_entry_rows(path: str | Path) -> list[LeaderboardEntry]:
+    """The rows of one ``results.json``: its row, and for a run of several sources one more per source, ranked
+    with that source's dataset (:func:`~airfisheye_bench.evaluation.results.source_records`).
+
+    Raises:
+        ValueError: as :func:`load_entry`.
+    """
+    first = load_entry(path)  # the file is valid; the pooled row
+    try:
+        return [first, *(_entry(r, Path(path)) for r in source_records(load_results(path))[1:])]
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from err
+
+
 def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
     version = record["version"]
     if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= RESULTS_VERSION:
@@ -390,7 +404,7 @@ def load_entries(files: Iterable[str | Path]) -> tuple[list[LeaderboardEntry], l
     entries, problems = [], []
     for path in files:
         try:
-            entries.append(load_entry(path))
+            entries.extend(load_entry_rows(path))
         except ValueError as err:
             problems.append(str(err))
     return entries, problems

@@ -93,6 +93,8 @@ def evaluated_label(model: Mapping[str, Any]) -> str:
         'ONNX int8'
         >>> evaluated_label({"source": "predictions"}), evaluated_label({})
         ('predictions', '')
+        >>> evaluated_label({"source": "onnx", "scored_on": {"source": "tiny", "of": "tiny + other"}})
+        'ONNX, its tiny frames (of tiny + other)'
     """
     source = model.get("source")
     checkpoint = model.get("checkpoint")
@@ -111,6 +113,9 @@ def evaluated_label(model: Mapping[str, Any]) -> str:
         label = str(source or "")
     if model.get("tta"):
         label += f", {model['tta']} TTA"
+    scored_on = model.get("scored_on")
+    if isinstance(scored_on, Mapping):  # one source's frames of a run on several (source_records)
+        label += f", its {scored_on.get('source')} frames (of {scored_on.get('of')})"
     return label
 
 
@@ -125,6 +130,45 @@ def dataset_identity(root: str | Path, name: str) -> dict[str, Any]:
         identity["manifest_sha256"] = hashlib.sha256(manifest.read_bytes()).hexdigest()
         identity["content_sha256"] = content_identity(root)["content_sha256"]
     return identity
+
+
+def source_records(record: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The records a ``results.json`` stands for: itself, and for a run of several sources (``sources``) one more
+    per source, holding that source's dataset identity, metrics and breakdown; its ``model.scored_on`` says which
+    source of which mixture (:func:`evaluated_label` shows it). The leaderboard ranks each with its own dataset.
+
+    Example:
+        >>> record = {"task": "seg", "dataset": {"name": "a + b"}, "metrics": {"mIoU": 0.4}, "model": {},
+        ...           "sources": {"a": {"dataset": {"name": "A"}, "metrics": {"mIoU": 0.5}},
+        ...                       "b": {"dataset": {"name": "B"}, "metrics": {"mIoU": 0.3}}}}
+        >>> [(r["dataset"]["name"], r["metrics"]["mIoU"], r["model"].get("scored_on")) for r in source_records(record)]
+        [('a + b', 0.4, None), ('A', 0.5, {'source': 'a', 'of': 'a + b'}), ('B', 0.3, {'source': 'b', 'of': 'a + b'})]
+    """
+    pooled = {key: value for key, value in record.items() if key != "sources"}
+    sources = record.get("sources") or {}
+    if not isinstance(sources, Mapping):
+        raise ValueError("'sources' must be an object: {source name: {dataset, metrics, breakdown}}")
+    mixture = (pooled.get("dataset") or {}).get("name")
+    records = [pooled]
+    for name, part in sources.items():
+        if not isinstance(part, Mapping):
+            raise ValueError(f"sources.{name} must be an object with dataset, metrics and breakdown")
+        model = {**(pooled.get("model") or {}), "scored_on": {"source": str(name), "of": mixture}}
+        config = dict(pooled.get("config") or {})
+        camera = (part.get("dataset") or {}).get("camera")
+        if isinstance(camera, Mapping):  # the source's own served lens
+            config["camera"] = camera
+        records.append(
+            {
+                **pooled,
+                "dataset": part.get("dataset") or {"name": str(name)},
+                "metrics": part.get("metrics") or {},
+                "breakdown": part.get("breakdown") or {},
+                "model": model,
+                "config": config,
+            }
+        )
+    return records
 
 
 def load_results(path: str | Path) -> dict[str, Any]:

@@ -1,0 +1,172 @@
+"""Several datasets in one run (``data.sources``): names, mistakes, the concatenation, classes, sampling, resume."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+import torch
+import yaml
+
+from airfisheye_bench.errors import ConfigError
+from datamodules import AirFisheyeDataModule
+from datamodules.multi_source import SourceMixtureSampler, resolve_sources
+from datamodules.sampling import EpochSeededSampler, draw_seed
+
+
+def _datamodule(sources: list[str], options: dict, **kwargs) -> AirFisheyeDataModule:
+    base = dict(
+        camera={"size": 32}, batch_size=2, eval_batch_size=4, augment={"hflip": 0.5, "rotate_deg": 10.0}
+    )
+    return AirFisheyeDataModule("seg", sources=sources, source_options=options, **(base | kwargs))
+
+
+def test_a_source_name_means_a_preset_a_format_or_what_its_options_say(tmp_path: Path) -> None:
+    defaults = {"format": "airfisheye", "root": str(tmp_path), "preset": "quickstart", "dataset_seed": 3}
+    options = {"mine": {"root": str(tmp_path)}, "tiny2": {"preset": "tiny", "dataset_seed": 1, "weight": 2}}
+    names = ["synthetic", "tiny", "airfisheye", "mine", "tiny2"]
+    options["synthetic"] = {"weight": 1}
+    options |= {n: {**options.get(n, {}), "weight": 1} for n in ("tiny", "airfisheye", "mine")}
+    got = {s.name: s for s in resolve_sources(names, options, defaults)}
+    assert (got["synthetic"].preset, got["synthetic"].root, got["synthetic"].dataset_seed) == (
+        "quickstart",
+        None,
+        3,
+    )
+    assert (got["tiny"].preset, got["tiny"].root) == ("tiny", None)
+    # A format's name reads data.root when data.format is that format.
+    assert (got["airfisheye"].format, got["airfisheye"].root, got["airfisheye"].preset) == (
+        "airfisheye",
+        str(tmp_path),
+        None,
+    )
+    assert (got["mine"].root, got["mine"].preset) == (str(tmp_path), None)
+    assert (got["tiny2"].preset, got["tiny2"].dataset_seed, got["tiny2"].weight) == ("tiny", 1, 2.0)
+    assert resolve_sources(None, None) == () and resolve_sources([], {}) == ()
+
+
+@pytest.mark.parametrize(
+    ("names", "options", "message"),
+    [
+        (["tiny", "mystery"], {}, r"data\.sources: unknown source name 'mystery'"),
+        (["tiny", "tiny"], {}, r"data\.sources lists \['tiny'\] more than once"),
+        (["tiny"], {"tinny": {"dataset_seed": 1}}, r"data\.source_options\.tinny: no source 'tinny'"),
+        (["tiny"], {"tiny": {"seed": 1}}, r"data\.source_options\.tiny\.seed: unknown setting"),
+        (
+            ["tiny", "quickstart"],
+            {"tiny": {"weight": 2}},
+            r"data\.source_options\.quickstart\.weight is unset",
+        ),
+        (["tiny"], {"tiny": {"weight": -1}}, r"data\.source_options\.tiny\.weight=-1"),
+        (["ring_0-30"], {"ring_0-30": {"preset": "tiny"}}, r"'ring_0-30' is not a source name"),
+        (
+            ["mine"],
+            {"mine": {"root": "/nowhere/at/all"}},
+            r"data\.source_options\.mine\.root='/nowhere/at/all'",
+        ),
+        (["mine"], {"mine": {"preset": "tiniest"}}, r"data\.source_options\.mine\.preset='tiniest'"),
+        (["mine"], {"mine": {"preset": "tiny", "source": "pinhole"}}, r"data\.source_options\.mine\.source"),
+        ("tiny", {}, r"data\.sources='tiny': expected a list"),
+    ],
+)
+def test_a_mistake_is_one_config_error_naming_the_key(names, options, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        resolve_sources(names, options, {"preset": "quickstart"})
+
+
+def test_sources_are_concatenated_with_their_names(tiny_dataset: Path, tiny_dataset_seed1: Path) -> None:
+    dm = _datamodule(["a", "b"], {"a": {"root": str(tiny_dataset)}, "b": {"root": str(tiny_dataset_seed1)}})
+    single = AirFisheyeDataModule("seg", root=tiny_dataset_seed1, camera={"size": 32})
+    test, alone = dm.split_dataset("test"), single.split_dataset("test")
+    assert test.sizes == [2, 2] and len(test) == 4
+    assert test.sample_ids[2:] == [f"b/{s}" for s in alone.sample_ids]
+    sample = test[2]  # the first frame of b: b's own frame, named after its source
+    assert sample["source"] == "b" and sample["sample_id"] == f"b/{alone.sample_ids[0]}"
+    assert torch.equal(sample["image"], alone[0]["image"]) and torch.equal(sample["label"], alone[0]["label"])
+    batch = next(iter(dm.test_dataloader()))
+    assert batch["source"] == ["a", "a", "b", "b"]
+    assert dm.class_names == single.class_names and dm.num_classes == 13
+    assert dm.source_names == ["a", "b"] and dm.camera_of("b").width == 32
+
+
+def _renamed_classes(original: Path, out: Path) -> Path:
+    """``original`` with its training classes renamed (vehicle -> car, roof -> rooftop): a dataset with other
+    classes than the benchmark's. Frames are shared through symbolic links."""
+    out.mkdir()
+    for item in original.iterdir():
+        if item.name != "dataset.yaml":
+            (out / item.name).symlink_to(item)
+    spec = yaml.safe_load((original / "dataset.yaml").read_text())
+    renamed = {"vehicle": "car", "roof": "rooftop"}
+    for cls in spec["classes"]["train"]:
+        cls["name"] = renamed.get(cls["name"], cls["name"])
+    (out / "dataset.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    return out
+
+
+def test_a_source_with_other_classes_maps_them_or_is_refused(tiny_dataset: Path, tmp_path: Path) -> None:
+    other = _renamed_classes(tiny_dataset, tmp_path / "renamed")
+    names = AirFisheyeDataModule("seg", root=other, camera={"size": 32}).class_names
+    assert "car" in names and "rooftop" in names
+    with pytest.raises(ConfigError, match=r"data\.source_options\.other\.class_map is needed: source other"):
+        _datamodule(["a", "other"], {"a": {"root": str(tiny_dataset)}, "other": {"root": str(other)}}).setup(
+            "test"
+        )
+    incomplete = {"root": str(other), "class_map": {"car": "vehicle"}}
+    with pytest.raises(ConfigError, match=r"data\.source_options\.other\.class_map misses its classes"):
+        _datamodule(["other"], {"other": incomplete}).setup("test")
+    wrong = {"root": str(other), "class_map": {n: "lorry" for n in names}}
+    with pytest.raises(ConfigError, match=r"maps to \['lorry'\], not benchmark classes"):
+        _datamodule(["other"], {"other": wrong}).setup("test")
+    # car -> vehicle keeps those pixels; rooftop -> null ignores them.
+    class_map = {n: {"car": "vehicle", "rooftop": None}.get(n, n) for n in names}
+    dm = _datamodule(
+        ["a", "other"],
+        {"a": {"root": str(tiny_dataset)}, "other": {"root": str(other), "class_map": class_map}},
+    )
+    test = dm.split_dataset("test")
+    original, mapped = test[0]["label"], test[2]["label"]  # the same frame through both sources
+    roof = dm.class_names.index("roof")
+    assert (original == roof).any()  # the frame has pixels the map ignores
+    assert torch.equal(mapped, original.masked_fill(original == roof, 255))
+
+
+def test_weights_set_the_share_of_each_source_in_an_epoch() -> None:
+    sampler = SourceMixtureSampler([4, 40], [1.0, 1.0], seed=7, num_replicas=1, rank=0)
+    sampler.set_epoch(3)
+    order = list(sampler)
+    assert len(order) == 44 and sum(i < 4 for i in order) == 22  # the small source repeats to half the draws
+    assert sorted(set(i for i in order if i < 4)) == [0, 1, 2, 3]
+    assert list(sampler) == order  # a function of (seed, epoch) only
+    sampler.set_epoch(4)
+    assert list(sampler) != order
+
+
+def test_the_unweighted_order_is_the_single_dataset_one() -> None:
+    sampler = EpochSeededSampler(10, seed=3, num_replicas=1, rank=0)
+    sampler.set_epoch(2)
+    generator = torch.Generator().manual_seed(draw_seed(3, 2, -1))
+    assert list(sampler) == torch.randperm(10, generator=generator).tolist()
+
+
+@pytest.mark.parametrize("weights", [None, (3.0, 1.0)])
+def test_a_mixture_resumes_mid_epoch_at_the_same_batch(
+    tiny_dataset: Path, tiny_dataset_seed1: Path, weights
+) -> None:
+    options = {"a": {"root": str(tiny_dataset)}, "b": {"root": str(tiny_dataset_seed1)}}
+    if weights is not None:
+        options = {n: {**o, "weight": w} for (n, o), w in zip(options.items(), weights, strict=True)}
+    uninterrupted = _datamodule(["a", "b"], options)
+    loader = uninterrupted.train_dataloader()
+    loader.sampler.set_epoch(1)
+    uninterrupted.set_epoch(1)
+    full = list(loader)
+    assert len(full) == 8  # 16 training frames, batches of 2
+    if weights is not None:  # a: 12 of the 16 draws
+        assert sum(s == "a" for b in full for s in b["source"]) == 12
+    resumed = _datamodule(["a", "b"], options)
+    resumed.load_state_dict({"train_epoch": 1, "train_batches_done": 3})
+    rest = list(resumed.train_dataloader())
+    assert [b["sample_id"] for b in rest] == [b["sample_id"] for b in full[3:]]
+    assert all(torch.equal(x["image"], y["image"]) for x, y in zip(rest, full[3:], strict=True))

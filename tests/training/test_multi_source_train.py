@@ -1,0 +1,96 @@
+"""A run on several datasets (``data.sources``): composed by Hydra, trained, scored per source, on the board."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+from omegaconf import open_dict
+
+from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.evaluation.leaderboard import collect_results
+from airfisheye_bench.training import check_config, train
+from tests.training.test_configs import compose_train
+from tests.training.test_train import tiny_run_overrides
+
+
+def _overrides(root: Path, other: Path, *extra: str) -> list[str]:
+    """The tiny run on the synthetic ``tiny`` preset plus an AirFisheye-format root (``other``)."""
+    base = [o for o in tiny_run_overrides("seg", root) if not o.startswith("data.root=")]
+    return [*base, "data.sources=[tiny,other]", f"data.source_options={{other:{{root:'{other}'}}}}", *extra]
+
+
+def test_sources_compose_from_the_command_line(tiny_dataset: Path, tmp_path: Path) -> None:
+    cfg = compose_train(_overrides(tiny_dataset, tiny_dataset, "data.preset=quickstart"))
+    assert list(cfg.data.sources) == ["tiny", "other"] and cfg.data.source_options.other.root == str(
+        tiny_dataset
+    )
+    check_config(cfg)
+    cfg = compose_train(
+        ["task=seg", "data.sources=[tiny,quickstart]", "data.source_options={quickstart:{weight:2}}"]
+    )
+    with pytest.raises(ConfigError, match=r"data\.source_options\.tiny\.weight is unset"):
+        check_config(cfg)
+    # A real-data config with no root of its own: its sources carry the locations.
+    cfg = compose_train(
+        [
+            "task=seg",
+            "data=airfisheye",
+            "data.sources=[tiny,mine]",
+            f"data.source_options={{mine:{{root:'{tmp_path}'}}}}",
+        ]
+    )
+    check_config(cfg)
+    cfg = compose_train(["task=seg", "data=airfisheye", "data.sources=[tiny,airfisheye]"])
+    with pytest.raises(ConfigError, match=r"give data\.source_options\.airfisheye\.root"):
+        check_config(cfg)
+
+
+def test_a_two_source_run_records_each_source(
+    tiny_dataset: Path, tiny_dataset_seed1: Path, tmp_path: Path
+) -> None:
+    cfg = compose_train(_overrides(tiny_dataset, tiny_dataset_seed1, "logger=csv", "data.eval_batch_size=4"))
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(tmp_path)
+    results = train(cfg)
+    record = json.loads((tmp_path / "results.json").read_text())
+    assert record["dataset"]["name"] == "tiny + other" and record["dataset"]["sources"] == ["tiny", "other"]
+    assert record["metrics"]["mIoU"] == pytest.approx(results["metrics"]["mIoU"])
+    tiny, other = record["sources"]["tiny"], record["sources"]["other"]
+    assert (tiny["dataset"]["preset"], tiny["dataset"]["dataset_seed"], tiny["dataset"]["format"]) == (
+        "tiny",
+        0,
+        "airfisheye",
+    )
+    assert other["dataset"]["root"] == str(tiny_dataset_seed1) and "preset" not in other["dataset"]
+    for part in (tiny, other):
+        assert part["dataset"]["name"] == "airfisheye-synthetic-tiny" and part["dataset"]["frames"] == 2
+        assert part["dataset"]["content_sha256"] and part["dataset"]["camera"]["width"] == 64
+        assert 0.0 <= part["metrics"]["mIoU"] <= 1.0 and any(k.startswith("ring_") for k in part["breakdown"])
+    # Different data (seed 0 and seed 1): different content, different scores.
+    assert tiny["dataset"]["content_sha256"] != other["dataset"]["content_sha256"]
+    assert tiny["metrics"]["pixel_acc"] != other["metrics"]["pixel_acc"]
+    # Pixel accuracy pools pixels: the pooled value lies between the sources' (both have 2 full-circle frames).
+    low, high = sorted((tiny["metrics"]["pixel_acc"], other["metrics"]["pixel_acc"]))
+    assert low <= record["metrics"]["pixel_acc"] <= high
+    with (tmp_path / "metrics.csv").open() as f:
+        header = next(csv.reader(f))
+    assert {"test/tiny/mIoU", "test/other/mIoU", "val/tiny/mIoU", "val/other/mIoU", "test/mIoU"} <= set(
+        header
+    )
+    # The leaderboard ranks each source's numbers with its own dataset, and the pooled ones with the mixture.
+    rows = collect_results([tmp_path])
+    assert [r.dataset_name for r in rows] == [
+        "tiny + other",
+        "airfisheye-synthetic-tiny",
+        "airfisheye-synthetic-tiny",
+    ]
+    assert (
+        rows[1].content_sha256 == tiny["dataset"]["content_sha256"] and "its tiny frames" in rows[1].evaluated
+    )
+    assert (
+        rows[2].metrics["mIoU"] == pytest.approx(other["metrics"]["mIoU"])
+        and "its other frames" in rows[2].evaluated
+    )
