@@ -208,10 +208,11 @@ def _datamodule(
     else:  # configs/evaluate.yaml's data group, overrides already composed in by Hydra
         data = apply_data_overrides(cfg.data, task=task)
     check_common_values(OmegaConf.create({"data": data}))  # the run's values with the command line's on top
-    if data.get("sources"):  # one dataset at a time: the per-source scores of training are in its results.json
+    # One dataset at a time: a run's per-source scores at the end of training are in its results.json.
+    if data.get("sources"):
         raise ConfigError(
             f"data.sources={list(data.sources)}: evaluation scores one dataset; add data.sources=null with that "
-            "source's data.root (and data.format) or data.preset (docs/design.md, \"More than one source\")"
+            "source's data.root (and data.format) or data.preset (docs/design.md: More than one source)"
         )
     data.num_workers = 0  # the evaluation loop makes its own loader (cfg.num_workers)
     data.persistent_workers = False
