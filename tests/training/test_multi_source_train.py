@@ -12,6 +12,7 @@ from omegaconf import open_dict
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.leaderboard import collect_results
 from airfisheye_bench.training import check_config, train
+from tests.test_user_errors import TRAIN, assert_one_line_error, run_command
 from tests.training.test_configs import compose_train
 from tests.training.test_train import tiny_run_overrides
 
@@ -94,3 +95,19 @@ def test_a_two_source_run_records_each_source(
         rows[2].metrics["mIoU"] == pytest.approx(other["metrics"]["mIoU"])
         and "its other frames" in rows[2].evaluated
     )
+
+
+def test_train_py_stops_on_an_unknown_source_with_one_line_before_writing(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    args = [
+        "task=seg",
+        "data.sources=[tiny,mystery]",
+        f"hydra.run.dir={run_dir}",
+        f"paths.data_dir={tmp_path}/cache",
+    ]
+    error = assert_one_line_error(
+        run_command(TRAIN, args), "data.sources", "'mystery'", "data.source_options.mystery"
+    )
+    assert "unknown source name" in error
+    assert not (run_dir / "config.yaml").exists()  # refused before the run directory is written
+    assert not any((tmp_path / "cache").rglob("dataset.yaml"))  # ... and before any source is generated
