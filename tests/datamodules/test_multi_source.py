@@ -9,6 +9,7 @@ import torch
 import yaml
 
 from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.synth.writer import cached_dataset_path
 from datamodules import AirFisheyeDataModule
 from datamodules.multi_source import SourceMixtureSampler, resolve_sources
 from datamodules.sampling import EpochSeededSampler, draw_seed
@@ -169,3 +170,24 @@ def test_a_mixture_resumes_mid_epoch_at_the_same_batch(
     rest = list(resumed.train_dataloader())
     assert [b["sample_id"] for b in rest] == [b["sample_id"] for b in full[3:]]
     assert all(torch.equal(x["image"], y["image"]) for x, y in zip(rest, full[3:], strict=True))
+
+
+def test_two_synthetic_sources_differ_by_their_dataset_seed(
+    tiny_dataset: Path, tiny_dataset_seed1: Path, tmp_path: Path
+) -> None:
+    # The cache holds both seeds where ensure_dataset looks for them (linked: nothing is generated here).
+    cached_dataset_path("tiny", tmp_path, 0).symlink_to(tiny_dataset)
+    cached_dataset_path("tiny", tmp_path, 1).symlink_to(tiny_dataset_seed1)
+    dm = _datamodule(
+        ["tiny", "tiny_b"], {"tiny_b": {"preset": "tiny", "dataset_seed": 1}}, cache_dir=tmp_path
+    )
+    dm.prepare_data()
+    assert dm.source_roots() == {
+        "tiny": cached_dataset_path("tiny", tmp_path, 0),
+        "tiny_b": cached_dataset_path("tiny", tmp_path, 1),
+    }
+    test = dm.split_dataset("test")
+    seed1 = AirFisheyeDataModule("seg", root=tiny_dataset_seed1, camera={"size": 32}).split_dataset("test")
+    assert torch.equal(test[2]["image"], seed1[0]["image"]) and not torch.equal(
+        test[0]["image"], test[2]["image"]
+    )
