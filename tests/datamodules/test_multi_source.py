@@ -13,6 +13,7 @@ from airfisheye_bench.synth.writer import cached_dataset_path
 from datamodules import AirFisheyeDataModule
 from datamodules.multi_source import SourceMixtureSampler, resolve_sources
 from datamodules.sampling import EpochSeededSampler, draw_seed
+from tests.scripts import load_script
 
 
 def _datamodule(sources: list[str], options: dict, **kwargs) -> AirFisheyeDataModule:
@@ -191,3 +192,12 @@ def test_two_synthetic_sources_differ_by_their_dataset_seed(
     assert torch.equal(test[2]["image"], seed1[0]["image"]) and not torch.equal(
         test[0]["image"], test[2]["image"]
     )
+
+
+def test_the_benchmark_script_compares_one_source_with_two(tiny_dataset: Path, capsys) -> None:
+    script = load_script("bench_multi_source")
+    script.main(
+        ["--root", str(tiny_dataset), "--size", "32", "--samples", "2", "--repeats", "1", "--batch", "2"]
+    )
+    rows = capsys.readouterr().out.splitlines()[1:]
+    assert len(rows) == 4 and sum("two sources" in r for r in rows) == 2

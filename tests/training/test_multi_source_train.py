@@ -10,6 +10,7 @@ import pytest
 from omegaconf import open_dict
 
 from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.evaluation import command
 from airfisheye_bench.evaluation.leaderboard import collect_results
 from airfisheye_bench.training import check_config, train
 from tests.test_user_errors import TRAIN, assert_one_line_error, run_command
@@ -111,3 +112,13 @@ def test_train_py_stops_on_an_unknown_source_with_one_line_before_writing(tmp_pa
     assert "unknown source name" in error
     assert not (run_dir / "config.yaml").exists()  # refused before the run directory is written
     assert not any((tmp_path / "cache").rglob("dataset.yaml"))  # ... and before any source is generated
+
+
+def test_evaluate_scores_one_source_of_a_mixture_at_a_time(tiny_dataset: Path) -> None:
+    data = compose_train(_overrides(tiny_dataset, tiny_dataset)).data  # a mixture run's data config
+    with pytest.raises(
+        ConfigError, match=r"data\.sources=\['tiny', 'other'\]: evaluation scores one dataset"
+    ):
+        command._datamodule(None, "seg", data, [])
+    datamodule, _ = command._datamodule(None, "seg", data, ["data.sources=null", f"data.root={tiny_dataset}"])
+    assert datamodule.source_names == [] and datamodule.dataset_root() == tiny_dataset
