@@ -5,7 +5,8 @@ Loading: ms per training sample (CPU, one thread) of ``AirFisheyeDataset`` alone
 lookup runs), measured alternately in one process, ``--repeats`` times each (minimum and median).
 
 Scoring: ms per batch of ``TaskScorer.update`` on the whole batch (one source), and split by source into two
-updates as ``BenchmarkTask._score`` does for a mixture (pooled and per-source scorers).
+updates of the sources' scorers, as ``BenchmarkTask._score`` does for a mixture (the pooled scores are the sources'
+added up once per epoch, ``TaskScorer.add``; its cost is printed too).
 
 Usage:
     python scripts/bench_multi_source.py --root DIR [--size 128] [--samples 40] [--repeats 5] [--batch 8]
@@ -69,11 +70,10 @@ def scoring(size: int, batch: int, repeats: int) -> dict[str, list[float]]:
     def whole() -> None:
         pooled.update(pred, target, theta=theta, mask=mask)
 
-    def split() -> None:  # as BenchmarkTask._score: each source's rows into the pooled and its own scorer
+    def split() -> None:  # as BenchmarkTask._score: each source's rows into its own scorer
         for name, scorer in (("a", a), ("b", b)):
             rows = torch.tensor([i for i, s in enumerate(sources) if s == name])
             part = (pred[rows], target[rows], mask[rows])
-            pooled.update(*part[:2], theta=theta, mask=part[2])
             scorer.update(*part[:2], theta=theta, mask=part[2])
 
     times: dict[str, list[float]] = {"one source": [], "two sources": []}
@@ -83,6 +83,11 @@ def scoring(size: int, batch: int, repeats: int) -> dict[str, list[float]]:
             for _ in range(10):
                 step()
             times[label].append((time.process_time() - t0) / 10 * 1e3)
+        t0 = time.process_time()
+        total = TaskScorer(make, DEFAULT_RING_EDGES_DEG, None)
+        total.add(a)
+        total.add(b)
+        times.setdefault("pool: add", []).append((time.process_time() - t0) * 1e3)
     return times
 
 

@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from torch import Tensor, nn
 from torchmetrics import Metric
 
+from airfisheye_bench.metrics._torchmetrics_compat import record_update, state_names, sums_every_state
 from airfisheye_bench.metrics.binned import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, BinnedMetrics
 
 __all__ = ["TaskScorer"]
@@ -80,6 +81,24 @@ class TaskScorer(nn.Module):
         if self.ranges is not None:
             breakdown.update({k: float(v) for k, v in self.ranges.compute().items()})
         return {"metrics": metrics, "breakdown": breakdown}
+
+    def stateful_metrics(self) -> list[Metric]:
+        """The metrics holding states (the task metric and every bin's), in a fixed order."""
+        return [m for m in self.modules() if isinstance(m, Metric) and state_names(m)]
+
+    def can_add(self) -> bool:
+        """Whether :meth:`add` applies: every state is a sum, merged without a synchronisation of its own."""
+        return all(
+            m.full_state_update is False and not m.dist_sync_on_step and sums_every_state(m)
+            for m in self.stateful_metrics()
+        )
+
+    def add(self, other: TaskScorer) -> None:
+        """Add the states of ``other`` (a scorer built alike, updated with other frames) to this one's: as if
+        this scorer had been updated with those frames too. Needs :meth:`can_add`."""
+        for mine, theirs in zip(self.stateful_metrics(), other.stateful_metrics(), strict=True):
+            mine.merge_state(dict(theirs.metric_state))
+            record_update(mine)
 
     def reset(self) -> None:
         """Clear every accumulated state."""

@@ -119,6 +119,9 @@ class BenchmarkTask(L.LightningModule):
                 for stage in STAGES
             }
         )
+        # The pooled scores of a mixture are the sum of its sources' (metric states are sums): each frame is scored
+        # once, into its source's scorer, and the sources are added up at the epoch's end.
+        self._pool_by_adding = bool(names) and self.scorers["val"].can_add()
         self._thetas: dict[str | None, Tensor] = {}
         self._panel_rows: list[list[np.ndarray]] = []
         self._panel_ids: set[str] | None = None
@@ -252,9 +255,10 @@ class BenchmarkTask(L.LightningModule):
             rows = torch.tensor([i for i, s in enumerate(sources) if s == name], device=pred.device)
             part = (pred[rows], target[rows], mask[rows])
             theta = self._theta_deg(mask, name if name in scorers else None)
-            self.scorers[stage].update(*part[:2], theta=theta, mask=part[2])
             if name in scorers:
                 scorers[name].update(*part[:2], theta=theta, mask=part[2])
+            if name not in scorers or not self._pool_by_adding:
+                self.scorers[stage].update(*part[:2], theta=theta, mask=part[2])
 
     def _panel_frames(self) -> set[str] | None:
         """Sample ids of the panel frames, spread over the validated frames (``None``: the first frames).
@@ -290,6 +294,9 @@ class BenchmarkTask(L.LightningModule):
 
     def _log_stage(self, stage: str) -> dict[str, dict[str, float]]:
         """Log ``<stage>/<metric>`` and ``<stage>/<ring or range>/<metric>``; return the plain values."""
+        if self._pool_by_adding:
+            for scorer in self.source_scorers[stage].values():
+                self.scorers[stage].add(scorer)
         scores = self.scorers[stage].compute()
         self.scorers[stage].reset()
         loss = self.eval_losses[stage].compute()

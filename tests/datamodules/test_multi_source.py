@@ -200,4 +200,4 @@ def test_the_benchmark_script_compares_one_source_with_two(tiny_dataset: Path, c
         ["--root", str(tiny_dataset), "--size", "32", "--samples", "2", "--repeats", "1", "--batch", "2"]
     )
     rows = capsys.readouterr().out.splitlines()[1:]
-    assert len(rows) == 4 and sum("two sources" in r for r in rows) == 2
+    assert len(rows) == 5 and sum("two sources" in r for r in rows) == 2 and "pool: add" in rows[-1]
