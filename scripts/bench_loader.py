@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
     torch.set_num_threads(1)
     root = args.root
     if root is None:
-        from airfisheye_bench.synth.writer import ensure_dataset
+        from airfisheye_bench.synth.cache import ensure_dataset
 
         root = ensure_dataset(args.preset)
     print(

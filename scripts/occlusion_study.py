@@ -59,7 +59,7 @@ from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.geometry import FisheyeCamera, LidarSpec, lidar_depth_map, occlusion, project_lidar
 from airfisheye_bench.io.spec import DatasetSpec
-from airfisheye_bench.synth.writer import ensure_dataset
+from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.viz import denormalize, make_panel, save_png
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 
