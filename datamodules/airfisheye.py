@@ -24,8 +24,8 @@ from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import check_occlusion_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
-from airfisheye_bench.synth.presets import PRESETS
 from airfisheye_bench.synth.cache import ensure_dataset
+from airfisheye_bench.synth.presets import PRESETS
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 from datamodules.sampling import (

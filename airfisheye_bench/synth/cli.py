@@ -31,10 +31,10 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.serving import FITS, serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.manifest import verify as verify_manifest
+from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.synth.contact_sheet import write_contact_sheet
 from airfisheye_bench.synth.presets import PRESETS, SynthConfig, get_preset, plan_trajectories
 from airfisheye_bench.synth.scene import ENVIRONMENTS
-from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.synth.writer import _Job, _Worker, generate_dataset
 
 log = logging.getLogger(__name__)
