@@ -209,7 +209,7 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
     board = build_leaderboard(entries, paper=opts.paper, invalid=problems)
     written = list(board.write(opts.out))
     if opts.html is not None:
-        from airfisheye_bench.evaluation.leaderboard_html import write_html  # matplotlib, only for html=
+        from airfisheye_bench.evaluation.leaderboard.html import write_html  # matplotlib, only for html=
 
         folders = [Path(r.strip()).expanduser().resolve() for r in runs]
         folders = [f if f.is_dir() else f.parent for f in folders]
