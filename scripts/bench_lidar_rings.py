@@ -33,12 +33,8 @@ sys.path.insert(0, str(ROOT / "scripts"))
 from bench_lidar import camera_rig, ray_box_entry, scan, structured_scene  # noqa: E402
 
 from airfisheye_bench.geometry import FisheyeCamera  # noqa: E402
-from airfisheye_bench.geometry.lidar import (  # noqa: E402
-    LidarSpec,
-    organize_scan,
-    rings_from_elevation,
-    spherical_coordinates,
-)
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates  # noqa: E402
+from airfisheye_bench.geometry.lidar_layout import organize_scan, rings_from_elevation  # noqa: E402
 from airfisheye_bench.geometry.occlusion import occlusion_mask  # noqa: E402
 
 OLD_FILES = ("_arrays.py", "_kernels.py", "lidar.py", "occlusion.py")

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from airfisheye_bench.geometry.lidar import LidarSpec, rings_from_elevation, spherical_coordinates
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
 from airfisheye_bench.geometry.occlusion import occlusion_mask
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import filter_scan

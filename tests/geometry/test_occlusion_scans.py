@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from airfisheye_bench.geometry import FisheyeCamera
-from airfisheye_bench.geometry.lidar import LidarSpec, organize_scan
+from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.lidar_layout import organize_scan
 from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_mask, ordering_reference
 from tests.geometry.test_occlusion import rig, seen_from
 from tests.scripts import load_script

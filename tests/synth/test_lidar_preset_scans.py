@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from airfisheye_bench.geometry import make_transform, transform_points
-from airfisheye_bench.geometry.lidar import LidarSpec, rings_from_elevation, spherical_coordinates
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
 from airfisheye_bench.synth.builder import SceneBuilder
 from airfisheye_bench.synth.cli import build_config
 from airfisheye_bench.synth.dataset_yaml import dataset_spec
