@@ -189,7 +189,9 @@ class _Sensors:
 
 
 @dataclass(frozen=True)
-class _Job:
+class Job:
+    """One unit of work of :func:`generate_dataset`: a trajectory's metadata (``frame=-1``) or one frame."""
+
     traj: int  # index into the plans
     frame: int  # -1: trajectory metadata
 
@@ -198,8 +200,9 @@ class _Job:
         return f"{self.traj}:{self.frame}"
 
 
-class _Worker:
-    """Per-process state: the configuration and a small cache of built trajectories."""
+class Worker:
+    """Per-process state: the configuration and a small cache of built trajectories; :meth:`run` does one
+    :class:`Job` (the frame-writer benchmark of ``airfisheye-generate bench`` times it)."""
 
     def __init__(
         self, config: SynthConfig, seed: int, root: str, plans: list[TrajectoryPlan], device: str
@@ -216,23 +219,23 @@ class _Worker:
             self._cache[traj] = build_trajectory(self.config, self.seed, self.plans[traj], self.device)
         return self._cache[traj]
 
-    def run(self, job: _Job) -> tuple[str, dict]:
+    def run(self, job: Job) -> tuple[str, dict]:
         rec = self.recording(job.traj)
         if job.frame < 0:
             return job.key, _write_trajectory_meta(rec, self.config, self.layout)
         return job.key, _write_frame(rec, job.frame, self.config, self.sensors, self.layout)
 
 
-_WORKER: _Worker | None = None
+_WORKER: Worker | None = None
 
 
 def _init_worker(args: tuple, threads: int) -> None:
     global _WORKER
     torch.set_num_threads(threads)
-    _WORKER = _Worker(*args)
+    _WORKER = Worker(*args)
 
 
-def _run_in_worker(job: _Job) -> tuple[str, dict]:
+def _run_in_worker(job: Job) -> tuple[str, dict]:
     assert _WORKER is not None
     return _WORKER.run(job)
 
@@ -286,10 +289,10 @@ def generate_dataset(
     journal = root / JOURNAL_NAME
     done = _read_journal(journal, root)
     jobs = [
-        _Job(t, f)
+        Job(t, f)
         for t, plan in enumerate(plans)
         for f in range(-1, plan.num_frames)
-        if _Job(t, f).key not in done
+        if Job(t, f).key not in done
     ]
     total_frames = sum(p.num_frames for p in plans)
     bar = _progress_bar(
@@ -309,7 +312,7 @@ def generate_dataset(
     return root
 
 
-def _execute(jobs: list[_Job], args: tuple, workers: int) -> Iterator[tuple[str, dict]]:
+def _execute(jobs: list[Job], args: tuple, workers: int) -> Iterator[tuple[str, dict]]:
     if not jobs:
         return
     # One torch thread per process: the ray caster's many small ops scale badly with intra-op threads (4x slower
@@ -319,7 +322,7 @@ def _execute(jobs: list[_Job], args: tuple, workers: int) -> Iterator[tuple[str,
         previous = torch.get_num_threads()
         torch.set_num_threads(1)
         try:
-            worker = _Worker(*args)
+            worker = Worker(*args)
             for job in jobs:
                 yield worker.run(job)
         finally:

@@ -271,7 +271,7 @@ def test_two_workers_give_identical_bytes(micro_reference, tmp_path):
 def test_resume_after_interruption_is_byte_identical(micro_reference, tmp_path, monkeypatch):
     out = tmp_path / "resumed"
     calls = {"n": 0}
-    original = writer._Worker.run
+    original = writer.Worker.run
 
     def flaky(self, job):
         calls["n"] += 1
@@ -279,7 +279,7 @@ def test_resume_after_interruption_is_byte_identical(micro_reference, tmp_path, 
             raise _Interrupted
         return original(self, job)
 
-    monkeypatch.setattr(writer._Worker, "run", flaky)
+    monkeypatch.setattr(writer.Worker, "run", flaky)
     with pytest.raises(_Interrupted):
         writer.generate_dataset(MICRO, out, seed=3, workers=1, progress=False)
     monkeypatch.undo()

@@ -1,8 +1,8 @@
 """The leaderboard: every ``results.json`` of a task ranked by its primary metric, next to the paper's baselines.
 
 Results are grouped by dataset (name + content hash prefix, or the manifest's for results without one) and split,
-and ranked within their group only: numbers measured on different data are not comparable, and the paper's baselines were measured on the real
-AirFisheye test split, which no synthetic run reproduces. Each task's table shows the headline metrics of the
+and ranked within their group only: numbers measured on different data are not comparable, and the paper's
+baselines were measured on the real AirFisheye test split, which no synthetic run reproduces. Each task's table shows the headline metrics of the
 design contract plus the outermost incidence-angle ring (the fisheye rim, ``ring_80-95/<primary>`` by default),
 where fisheye distortion hurts most.
 
@@ -21,17 +21,17 @@ It writes ``<out>/leaderboard.md`` and ``<out>/leaderboard.csv`` (atomically) an
 also writes the same tables as one self-contained, sortable HTML page with a detail view per entry
 (:mod:`airfisheye_bench.evaluation.leaderboard.html`).
 
+Modules: :mod:`~.collect` (rows from ``results.json`` files and the paper), :mod:`~.columns` (how a metric is
+shown), :mod:`~.rank` (groups and ranks), :mod:`~.text` (markdown, CSV), :mod:`~.board` (the
+:class:`Leaderboard` of every task), :mod:`~.html` and :mod:`~.charts` (the HTML page). The public names are
+re-exported here.
+
 Example:
     >>> board = build_leaderboard([], paper=True)   # the paper's baselines alone
     >>> [table.task for table in board.tables]
     ['seg', 'depth', 'completion']
     >>> print(board.to_markdown().splitlines()[0])
     # AirFisheye-bench leaderboard
-
-Modules: :mod:`~.collect` (rows from ``results.json`` files and the paper), :mod:`~.columns` (how a metric is
-shown), :mod:`~.rank` (groups and ranks), :mod:`~.text` (markdown, CSV), :mod:`~.board` (the
-:class:`Leaderboard` of every task), :mod:`~.html` and :mod:`~.charts` (the HTML page). The public names are
-re-exported here.
 """
 
 from airfisheye_bench.evaluation.leaderboard.board import Leaderboard, build_leaderboard
