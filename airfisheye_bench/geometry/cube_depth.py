@@ -71,7 +71,9 @@ def planar_to_range(depth: np.ndarray) -> np.ndarray:
     return (depth.astype(np.float32) * range_factor(depth.shape[-1])).astype(np.float32)
 
 
-def locate_six(directions: np.ndarray, face_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def locate_six(
+    directions: np.ndarray, face_size: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Camera-frame directions ``[N, 3]`` on the six-face cube.
 
     Returns:

@@ -39,7 +39,12 @@ import numpy as np
 from PIL import Image
 
 from airfisheye_bench.geometry.camera import FisheyeCamera
-from airfisheye_bench.geometry.cube_depth import SIX_FACE_NAMES, lidar_from_faces, planar_to_range, sample_range
+from airfisheye_bench.geometry.cube_depth import (
+    SIX_FACE_NAMES,
+    lidar_from_faces,
+    planar_to_range,
+    sample_range,
+)
 from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
@@ -51,7 +56,14 @@ from airfisheye_bench.io.scan import Scan, load_scan
 from airfisheye_bench.io.spec import ClassDef, DatasetSpec, SplitsSpec
 
 #: Our face name -> TartanAir's (``tartanair_module.py`` ``camera_directions``).
-TARTANAIR_FACE = {"front": "front", "left": "left", "right": "right", "up": "top", "down": "bottom", "back": "back"}
+TARTANAIR_FACE = {
+    "front": "front",
+    "left": "left",
+    "right": "right",
+    "up": "top",
+    "down": "bottom",
+    "back": "back",
+}
 DIFFICULTIES = ("easy", "hard")
 SIDE = "lcam"  # the LiDAR and the poses are the left camera rig's
 #: The dataset's own LiDAR: mvs_utils ``VELODYNE_VLP_16`` (elevations -15..15 deg every 2 deg, 0.1 deg azimuth
@@ -114,18 +126,26 @@ class TartanAirSource:
     ) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
-            raise DatasetFormatError(self.root, "not a folder (the TartanAir V2 root holds <env>/Data_easy/...)")
+            raise DatasetFormatError(
+                self.root, "not a folder (the TartanAir V2 root holds <env>/Data_easy/...)"
+            )
         bad = sorted(set(difficulties) - set(DIFFICULTIES))
         if bad or not difficulties:
-            raise ValueError(f"data.format_options.difficulties: expected some of {list(DIFFICULTIES)}, got {bad}")
+            raise ValueError(
+                f"data.format_options.difficulties: expected some of {list(DIFFICULTIES)}, got {bad}"
+            )
         if int(split_period) != split_period or split_period < 3:
             raise ValueError(f"data.format_options.split_period must be an integer >= 3, got {split_period}")
         if int(frame_stride) != frame_stride or frame_stride < 1:
-            raise ValueError(f"data.format_options.frame_stride must be a positive integer, got {frame_stride}")
+            raise ValueError(
+                f"data.format_options.frame_stride must be a positive integer, got {frame_stride}"
+            )
         if lidar != "dataset" and lidar not in LIDAR_PRESETS:
             raise ValueError(f"data.format_options.lidar: expected dataset or one of {sorted(LIDAR_PRESETS)}")
         if lidar_frame != "auto" and lidar_frame not in LIDAR_FRAMES:
-            raise ValueError(f"data.format_options.lidar_frame: expected auto or one of {sorted(LIDAR_FRAMES)}")
+            raise ValueError(
+                f"data.format_options.lidar_frame: expected auto or one of {sorted(LIDAR_FRAMES)}"
+            )
         self.options = {"split_period": int(split_period), "frame_stride": int(frame_stride)}
         self.lidar_mode, self.lidar_frame = lidar, lidar_frame
         self._lidar = TARTANAIR_VLP16 if lidar == "dataset" else LidarSpec.from_preset(lidar)
@@ -163,7 +183,8 @@ class TartanAirSource:
                         trajs[f"{env}/{diff}_{traj.name}"] = traj
         if not trajs:
             raise DatasetFormatError(
-                self.root, f"no TartanAir V2 trajectory: expected <env>/Data_easy|Data_hard/P000/image_{SIDE}_front/"
+                self.root,
+                f"no TartanAir V2 trajectory: expected <env>/Data_easy|Data_hard/P000/image_{SIDE}_front/",
             )
         return trajs
 
@@ -237,7 +258,9 @@ class TartanAirSource:
         if modality == "seg":
             seg = _read_image(path, None)
             if seg.ndim != 2 or seg.dtype != np.uint8:
-                raise DatasetFormatError(path, f"expected a single-channel 8-bit label PNG, got {seg.shape} {seg.dtype}")
+                raise DatasetFormatError(
+                    path, f"expected a single-channel 8-bit label PNG, got {seg.shape} {seg.dtype}"
+                )
             return self._label_lut(sample_id.split("/", 1)[0])[seg]
         return planar_to_range(read_depth_png(path))
 
@@ -247,7 +270,9 @@ class TartanAirSource:
     def _face_file(self, sample_id: str, face: str, modality: str) -> Path:
         key, frame = self._key(sample_id), sample_id.rsplit("/", 1)[1]
         name = f"{SIDE}_{TARTANAIR_FACE[face]}"
-        folder, suffix = {"rgb": ("image", ""), "depth": ("depth", "_depth"), "seg": ("seg", "_seg")}[modality]
+        folder, suffix = {"rgb": ("image", ""), "depth": ("depth", "_depth"), "seg": ("seg", "_seg")}[
+            modality
+        ]
         return self._trajs[key] / f"{folder}_{name}" / f"{frame}_{name}{suffix}.png"
 
     def _label_lut(self, env: str) -> np.ndarray:
@@ -274,7 +299,9 @@ class TartanAirSource:
             return Scan(points, None, rings, False, beams - len(points), path, "tartanair_depth")
         scan = load_scan(self._lidar_file(sample_id))
         R = LIDAR_FRAMES[self._lidar_axes(sample_id)]
-        return Scan(scan.points @ R.T, scan.intensity, scan.rings, False, scan.no_returns, scan.path, scan.format)
+        return Scan(
+            scan.points @ R.T, scan.intensity, scan.rings, False, scan.no_returns, scan.path, scan.format
+        )
 
     def _lidar_file(self, sample_id: str) -> Path:
         key, frame = self._key(sample_id), sample_id.rsplit("/", 1)[1]
@@ -332,7 +359,9 @@ class TartanAirSource:
     def _key(self, sample_id: str) -> str:
         key = sample_id.rsplit("/", 1)[0]
         if key not in self._trajs:
-            raise ValueError(f"sample id {sample_id!r} is not <env>/<difficulty>_<Pxxx>/<frame> of {self.root}")
+            raise ValueError(
+                f"sample id {sample_id!r} is not <env>/<difficulty>_<Pxxx>/<frame> of {self.root}"
+            )
         return key
 
     def _image_size(self, path: Path) -> int:
@@ -362,7 +391,9 @@ def read_depth_png(path: Path) -> np.ndarray:
     """
     rgba = _read_image(path, None)
     if rgba.ndim != 3 or rgba.shape[2] != 4 or rgba.dtype != np.uint8:
-        raise DatasetFormatError(path, f"expected an 8-bit RGBA PNG (float32 depth in its bytes), got {rgba.shape}")
+        raise DatasetFormatError(
+            path, f"expected an 8-bit RGBA PNG (float32 depth in its bytes), got {rgba.shape}"
+        )
     return np.ascontiguousarray(rgba[..., [2, 1, 0, 3]]).view("<f4")[..., 0].astype(np.float32)
 
 

@@ -92,7 +92,13 @@ def scene_hit(directions: np.ndarray, frame: int = 0) -> tuple[np.ndarray, np.nd
     """``(range [N], label name index [N] into COLORS' keys)`` of camera-frame directions ``[N, 3]``."""
     d = directions / np.linalg.norm(directions, axis=-1, keepdims=True)
     names = list(COLORS)
-    planes = [(1, 1.5, None), (0, 6.0, "fence"), (0, -4.0, "tree"), (2, 8.0 + frame, "building"), (2, -5.0, "chair")]
+    planes = [
+        (1, 1.5, None),
+        (0, 6.0, "fence"),
+        (0, -4.0, "tree"),
+        (2, 8.0 + frame, "building"),
+        (2, -5.0, "chair"),
+    ]
     best = np.full(d.shape[:-1], np.inf)
     label = np.full(d.shape[:-1], names.index("sky"))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -105,7 +111,9 @@ def scene_hit(directions: np.ndarray, frame: int = 0) -> tuple[np.ndarray, np.nd
             best = np.where(closer, t, best)
             if name is None:
                 hit_x = t * d[..., 0]
-                label = np.where(closer, np.where(hit_x < 0, names.index("road"), names.index("grass")), label)
+                label = np.where(
+                    closer, np.where(hit_x < 0, names.index("road"), names.index("grass")), label
+                )
             else:
                 label = np.where(closer, names.index(name), label)
     return best, label
@@ -132,7 +140,9 @@ FROM_CAMERA = {
 }
 
 
-def write_frame(traj: Path, frame: int, name_map: dict[str, int], size: int, lidar_frame: str, azimuths: int) -> None:
+def write_frame(
+    traj: Path, frame: int, name_map: dict[str, int], size: int, lidar_frame: str, azimuths: int
+) -> None:
     stem = f"{frame:06d}"
     names = list(COLORS)
     values = np.array([name_map[n] for n in names], dtype=np.uint8)
@@ -146,12 +156,16 @@ def write_frame(traj: Path, frame: int, name_map: dict[str, int], size: int, lid
         for folder in ("image", "depth", "seg"):
             (traj / f"{folder}_{cam}").mkdir(parents=True, exist_ok=True)
         Image.fromarray(colors[label]).save(traj / f"image_{cam}" / f"{stem}_{cam}.png")
-        Image.fromarray(depth_png_bytes_order(planar), "RGBA").save(traj / f"depth_{cam}" / f"{stem}_{cam}_depth.png")
+        Image.fromarray(depth_png_bytes_order(planar), "RGBA").save(
+            traj / f"depth_{cam}" / f"{stem}_{cam}_depth.png"
+        )
         Image.fromarray(values[label], "L").save(traj / f"seg_{cam}" / f"{stem}_{cam}_seg.png")
     # VLP-16 beams in FLU (azimuth counter-clockwise from x), cast in the camera frame, stored in lidar_frame axes.
     el = np.radians(np.array(VLP16_ELEVATIONS, dtype=np.float64))[:, None]
     az = np.radians(np.arange(azimuths) * 360.0 / azimuths - 180.0)[None, :]
-    flu = np.stack(np.broadcast_arrays(np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)), -1).reshape(-1, 3)
+    flu = np.stack(
+        np.broadcast_arrays(np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)), -1
+    ).reshape(-1, 3)
     cam = flu @ FROM_CAMERA["flu"]  # FROM_CAMERA["flu"] maps camera -> FLU; its transpose maps back
     rng, _ = scene_hit(cam, frame)
     hit = np.isfinite(rng)
@@ -177,6 +191,8 @@ def write_tartanair_fixture(
             lines = []
             for i in range(frames):
                 half = np.radians(10.0 * i) / 2
-                lines.append(f"{float(i):.6f} 0.000000 -2.000000 0.000000 0.000000 {np.sin(half):.6f} {np.cos(half):.6f}")
+                lines.append(
+                    f"{float(i):.6f} 0.000000 -2.000000 0.000000 0.000000 {np.sin(half):.6f} {np.cos(half):.6f}"
+                )
             (traj / "pose_lcam_front.txt").write_text("\n".join(lines) + "\n")
     return root
