@@ -322,3 +322,11 @@ def test_the_command_line_names_a_root_without_trajectories(tmp_path: Path) -> N
     done = run_command("train.py", ["task=seg", "data=tartanair", f"data.root={tmp_path / 'empty'}"])
     assert done.returncode == 2, done.stderr
     assert "no TartanAir V2 trajectory" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_design_md_prints_the_label_table_of_the_code() -> None:
+    text = (Path(__file__).resolve().parents[3] / "docs" / "design.md").read_text(encoding="utf-8")
+    section = text.split("### TartanAir V2", 1)[1].split("\n## ", 1)[0]
+    for i, (name, _) in enumerate(TRAIN_CLASSES):
+        names = ", ".join(f"`{n}`" for n, t in TARTANAIR_TO_TRAIN.items() if t == name)
+        assert f"| {i} | {name} | {names} |" in section, name
