@@ -36,7 +36,11 @@ def datasets(work: Path) -> dict[str, tuple[Path, str, dict]]:
     if not tartanair.is_dir():
         write_tartanair_fixture(tartanair, size=FACE, frames=4, azimuths=3600)
     cfg = dataclasses.replace(
-        get_preset("tiny"), face_size=FACE, fisheye_size=FACE, lidar_channels=16, lidar_points_per_channel=1800
+        get_preset("tiny"),
+        face_size=FACE,
+        fisheye_size=FACE,
+        lidar_channels=16,
+        lidar_points_per_channel=1800,
     )
     synthetic = generate_dataset(cfg, work / "synthetic", seed=0, workers=1, progress=False)
     return {
@@ -57,7 +61,8 @@ def loader(root: Path, fmt: str, options: dict, task: str, size: int) -> AirFish
         format_options=options,
     )
     ds.warm_up()
-    for i in range(len(ds)):  # compile kernels, fill the per-trajectory caches (TartanAir: the LiDAR axes check)
+    # Compile the kernels and fill the per-trajectory caches (TartanAir: the LiDAR axes check).
+    for i in range(len(ds)):
         ds[i]
     return ds
 
@@ -79,7 +84,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     data = datasets(Path(args.work))
-    print(f"served {args.size}^2 from {FACE}^2 faces; one process, one thread; {args.samples} samples x {args.repeats}")
+    print(
+        f"served {args.size}^2 from {FACE}^2 faces; one process, one thread; {args.samples} samples x {args.repeats}"
+    )
     print("| task | dataset | ms / sample (CPU, min) | ms / sample (CPU, median) |")
     print("|---|---|---|---|")
     results = []
