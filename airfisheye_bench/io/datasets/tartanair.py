@@ -262,7 +262,8 @@ class TartanAirSource:
                     path, f"expected a single-channel 8-bit label PNG, got {seg.shape} {seg.dtype}"
                 )
             return self._label_lut(sample_id.split("/", 1)[0])[seg]
-        return planar_to_range(read_depth_png(path))
+        # Sky is a very large finite value in the toolkit's data; anything non-finite is no depth (0).
+        return planar_to_range(np.nan_to_num(read_depth_png(path), nan=0.0, posinf=0.0, neginf=0.0))
 
     def fisheye(self, sample_id: str, modality: str) -> np.ndarray:
         raise DatasetFormatError(self._trajs[self._key(sample_id)], self.missing_reason("fisheye"))

@@ -324,6 +324,14 @@ def test_the_command_line_names_a_root_without_trajectories(tmp_path: Path) -> N
     assert "no TartanAir V2 trajectory" in done.stderr and "Traceback" not in done.stderr
 
 
+def test_the_config_lists_every_option_with_its_default() -> None:
+    from tests.training.test_configs import compose_train
+
+    cfg = compose_train(["task=seg", "data=tartanair"])
+    assert cfg.data.format == "tartanair" and cfg.data.root is None
+    assert dict(cfg.data.format_options) == TartanAirSource.OPTIONS
+
+
 def test_design_md_prints_the_label_table_of_the_code() -> None:
     text = (Path(__file__).resolve().parents[3] / "docs" / "design.md").read_text(encoding="utf-8")
     section = text.split("### TartanAir V2", 1)[1].split("\n## ", 1)[0]
