@@ -4,10 +4,13 @@ Loads ``sample_coor`` from a checkout of github:castacks/image_sampler (tartanai
 ``tartanair/image_resampling/image_sampler`` submodule; it needs numba), sends every ray of a 190 deg equidistant
 fisheye through it and through :func:`~airfisheye_bench.geometry.cubemap.direction_to_face`, and prints how often
 the two pick the same face (``top`` = our ``up``, ``bottom`` = ``down``) and the largest difference of the face pixel
-coordinates, per face.
+coordinates, per face. With ``--tartanairpy <checkout>`` it also compares the toolkit's planar depth -> distance
+(``tartanair/reader.py`` ``TartanAirImageReader.depth_to_dist``) with :func:`~airfisheye_bench.geometry.cube_depth.
+planar_to_range` on a random 640^2 face.
 
 Usage:
     python scripts/check_tartanair_sampler.py /path/to/image_sampler [--face-size 640] [--size 512]
+        [--tartanairpy /path/to/tartanairpy]
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import numpy as np
 import torch
 
 from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.cube_depth import planar_to_range
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, direction_to_face
 
 #: ``six_images_common.OFFSETS`` columns (x, y in the 4 x 3 image cross) -> face, as that file draws the cross.
@@ -47,11 +51,29 @@ def load_sample_coor(checkout: Path):
     return module.sample_coor
 
 
+def depth_to_dist_difference(checkout: Path) -> float:
+    """Largest relative difference between the toolkit's ``depth_to_dist`` and ``planar_to_range`` (640^2)."""
+    package = types.ModuleType("tartanair")
+    package.__path__ = [str(checkout / "tartanair")]
+    base = types.ModuleType("tartanair.tartanair_module")  # the reader's base class only holds dataset names
+    base.TartanAirModule = object
+    sys.modules.update({"tartanair": package, "tartanair.tartanair_module": base})
+    spec = importlib.util.spec_from_file_location("tartanair.reader", checkout / "tartanair" / "reader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)  # needs OpenCV, as the toolkit does
+    depth = np.random.default_rng(0).uniform(0.5, 100.0, (640, 640)).astype(np.float32)
+    theirs = module.TartanAirImageReader().depth_to_dist(depth)
+    return float(np.max(np.abs(theirs - planar_to_range(depth)) / theirs))
+
+
 def main(argv: list[str] | None = None) -> dict[str, float]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkout", type=Path, help="a checkout of github:castacks/image_sampler")
     parser.add_argument("--face-size", type=int, default=640)
     parser.add_argument("--size", type=int, default=512)
+    parser.add_argument(
+        "--tartanairpy", type=Path, default=None, help="a checkout of github:castacks/tartanairpy"
+    )
     args = parser.parse_args(argv)
     sample_coor = load_sample_coor(args.checkout)
     camera = FisheyeCamera(args.size, args.size, fov_deg=190.0, model="equidistant")
@@ -80,6 +102,9 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
         print(
             f"{name}: {k.sum()} rays, max |pixel difference| {err.max():.2e} px at face size {args.face_size}"
         )
+    if args.tartanairpy is not None:
+        out["depth_to_dist"] = depth_to_dist_difference(args.tartanairpy)
+        print(f"depth_to_dist vs planar_to_range: max relative difference {out['depth_to_dist']:.1e}")
     return out
 
 
