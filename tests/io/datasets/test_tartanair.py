@@ -338,3 +338,25 @@ def test_design_md_prints_the_label_table_of_the_code() -> None:
     for i, (name, _) in enumerate(TRAIN_CLASSES):
         names = ", ".join(f"`{n}`" for n, t in TARTANAIR_TO_TRAIN.items() if t == name)
         assert f"| {i} | {name} | {names} |" in section, name
+
+
+@pytest.mark.parametrize("lidar", ["dataset", "hdl64e"])
+def test_sparse_depth_lands_on_the_dense_depth(fixture_root: Path, lidar: str) -> None:
+    """The whole chain (PLY axes or cast beams, T_cam_lidar, projection, occlusion): LiDAR ranges agree with the
+    remapped depth at the pixels they land on."""
+    from datamodules import AirFisheyeDataset, CameraConfig
+
+    ds = AirFisheyeDataset(
+        fixture_root,
+        "train",
+        "completion",
+        camera=CameraConfig(size=128),
+        dataset_format="tartanair",
+        format_options={"split_period": 3, "lidar": lidar},
+    )
+    sample = ds[0]
+    sparse, dense = sample["sparse_depth"][0], sample["depth"][0]
+    hit = (sparse > 0) & (dense > 0)
+    assert hit.sum() > 200
+    rel = ((sparse[hit] - dense[hit]).abs() / dense[hit]).numpy()
+    assert np.median(rel) < 0.02 and np.mean(rel < 0.1) > 0.9
