@@ -102,6 +102,10 @@ class TartanAirSource:
             :data:`~airfisheye_bench.geometry.lidar_presets.LIDAR_PRESETS`, cast into the six depth faces.
         lidar_frame: Axes of the PLY points: ``auto`` (the candidate of :data:`LIDAR_FRAMES` whose ranges match the
             depth faces, checked on each trajectory's first frame), ``flu``, ``ned`` or ``camera``.
+
+    Example:
+        >>> TartanAirSource.format, TartanAirSource.OPTIONS["split_period"], TARTANAIR_FACE["up"]
+        ('tartanair', 10, 'top')
     """
 
     format: ClassVar[str] = "tartanair"
@@ -162,7 +166,7 @@ class TartanAirSource:
             ignore_index=IGNORE,
             splits=SplitsSpec(files={s: s for s in ("train", "val", "test")}, by="trajectory"),
             sensors={"cubemap": {"face_size": self._image_size(front)}},
-            contents=("cubemap", "lidar", "poses"),
+            contents=("cubemap", "lidar"),  # poses: T_world_cam, not the AirFisheye pose table
             description="TartanAir V2 (CC BY 4.0), read in place",
         )
 
