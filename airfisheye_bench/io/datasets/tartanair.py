@@ -257,6 +257,11 @@ class TartanAirSource:
     def face(self, sample_id: str, face: str, modality: str) -> np.ndarray:
         """One face (any of ``SIX_FACE_NAMES``) of ``modality`` (depth as range)."""
         path = self._face_file(sample_id, face, modality)
+        if not path.is_file():
+            raise DatasetFormatError(
+                path,
+                "missing (the fisheye needs the lcam front, left, right, top and bottom faces; a cast LiDAR the back too)",
+            )
         if modality == "rgb":
             return _read_image(path, "RGB")
         if modality == "seg":
@@ -312,7 +317,9 @@ class TartanAirSource:
         key, frame = self._key(sample_id), sample_id.rsplit("/", 1)[1]
         path = self._trajs[key] / "lidar" / f"{frame}_{SIDE}_front_lidar.ply"
         if not path.is_file():
-            raise DatasetFormatError(path, "missing (the LiDAR scan of this frame)")
+            raise DatasetFormatError(
+                path, "missing (the LiDAR scan of this frame; lidar=<preset> casts one from the depth)"
+            )
         return path
 
     def _planar_faces(self, sample_id: str) -> np.ndarray:
