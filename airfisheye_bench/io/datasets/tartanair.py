@@ -38,6 +38,7 @@ from typing import ClassVar
 import numpy as np
 from PIL import Image
 
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.camera import FisheyeCamera
 from airfisheye_bench.geometry.cube_depth import (
     SIX_FACE_NAMES,
@@ -135,19 +136,21 @@ class TartanAirSource:
             )
         bad = sorted(set(difficulties) - set(DIFFICULTIES))
         if bad or not difficulties:
-            raise ValueError(
+            raise ConfigError(
                 f"data.format_options.difficulties: expected some of {list(DIFFICULTIES)}, got {bad}"
             )
         if int(split_period) != split_period or split_period < 3:
-            raise ValueError(f"data.format_options.split_period must be an integer >= 3, got {split_period}")
+            raise ConfigError(f"data.format_options.split_period must be an integer >= 3, got {split_period}")
         if int(frame_stride) != frame_stride or frame_stride < 1:
-            raise ValueError(
+            raise ConfigError(
                 f"data.format_options.frame_stride must be a positive integer, got {frame_stride}"
             )
         if lidar != "dataset" and lidar not in LIDAR_PRESETS:
-            raise ValueError(f"data.format_options.lidar: expected dataset or one of {sorted(LIDAR_PRESETS)}")
+            raise ConfigError(
+                f"data.format_options.lidar: expected dataset or one of {sorted(LIDAR_PRESETS)}"
+            )
         if lidar_frame != "auto" and lidar_frame not in LIDAR_FRAMES:
-            raise ValueError(
+            raise ConfigError(
                 f"data.format_options.lidar_frame: expected auto or one of {sorted(LIDAR_FRAMES)}"
             )
         self.options = {"split_period": int(split_period), "frame_stride": int(frame_stride)}
