@@ -8,12 +8,12 @@ import pytest
 import torch
 import yaml
 
+from airfisheye_bench.benchmarks import multi_source_cost
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.synth.writer import cached_dataset_path
+from airfisheye_bench.synth.cache import cached_dataset_path
 from datamodules import AirFisheyeDataModule
 from datamodules.multi_source import SourceMixtureSampler, resolve_sources
 from datamodules.sampling import EpochSeededSampler, draw_seed
-from tests.scripts import load_script
 
 
 def _datamodule(sources: list[str], options: dict, **kwargs) -> AirFisheyeDataModule:
@@ -195,8 +195,7 @@ def test_two_synthetic_sources_differ_by_their_dataset_seed(
 
 
 def test_the_benchmark_script_compares_one_source_with_two(tiny_dataset: Path, capsys) -> None:
-    script = load_script("bench_multi_source")
-    script.main(
+    multi_source_cost.main(
         ["--root", str(tiny_dataset), "--size", "32", "--samples", "2", "--repeats", "1", "--batch", "2"]
     )
     rows = capsys.readouterr().out.splitlines()[1:]
