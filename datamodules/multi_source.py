@@ -4,7 +4,7 @@ A source is a dataset root in any :data:`~airfisheye_bench.io.datasets.DATASET_F
 preset. ``data.sources`` lists source *names*; a name means something by itself, and
 ``data.source_options.<name>`` sets or overrides its settings (:data:`SOURCE_KEYS`):
 
-* ``synthetic``: the synthetic ``data.preset`` at ``data.dataset_seed``;
+* ``synthetic``: the synthetic ``data.preset`` (``quickstart`` when null) at ``data.dataset_seed``;
 * a synthetic preset (``tiny``, ``quickstart``, ...): that preset at ``data.dataset_seed``;
 * a format (``airfisheye``, ``tartanair``, ...): that format; its root and options are ``data.root`` /
   ``data.format_options`` when ``data.format`` is that format, else ``data.source_options.<name>.root``;
@@ -70,6 +70,8 @@ SOURCE_KEYS = (
 )
 #: The names a source takes by itself besides the presets and the formats.
 SYNTHETIC = "synthetic"
+#: The preset of ``synthetic`` when ``data.preset`` is null (configs/data/synthetic.yaml's).
+DEFAULT_PRESET = "quickstart"
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
 #: Breakdown groups of the metrics: a source may not be named like one (``test/<source>/<metric>`` keys).
 _RESERVED_PREFIXES = ("ring_", "range_")
@@ -228,7 +230,8 @@ def _resolve(name: str, given: dict[str, Any], defaults: Mapping[str, Any]) -> S
         raise ConfigError(f"{key}.{unknown[0]}: unknown setting; a source takes {', '.join(SOURCE_KEYS)}")
     implied: dict[str, Any]
     if name == SYNTHETIC:
-        implied = {"format": "airfisheye", "root": None, "preset": defaults.get("preset")}
+        # data=tartanair and the like set no preset: the synthetic data is then the default preset's.
+        implied = {"format": "airfisheye", "root": None, "preset": defaults.get("preset") or DEFAULT_PRESET}
     elif name in PRESETS:
         implied = {"format": "airfisheye", "root": None, "preset": name}
     elif name in DATASET_FORMATS:
@@ -278,7 +281,7 @@ def _resolve(name: str, given: dict[str, Any], defaults: Mapping[str, Any]) -> S
         name=name,
         format=fmt,
         root=str(root) if root is not None else None,
-        format_options=dict(settings.get("format_options") or {}),
+        format_options=_plain(dict(settings.get("format_options") or {})),
         preset=preset if root is None else None,
         dataset_seed=seed,
         splits=tuple(str(s) for s in splits) if splits is not None else None,
@@ -288,6 +291,15 @@ def _resolve(name: str, given: dict[str, Any], defaults: Mapping[str, Any]) -> S
         else None,
         weight=float(weight) if weight is not None else None,
     )
+
+
+def _plain(value: Any) -> Any:
+    """Config containers (OmegaConf's, from Hydra) as plain dicts and lists, for records and JSON."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, Sequence) and not isinstance(value, str):
+        return [_plain(v) for v in value]
+    return value
 
 
 # ------------------------------------------------------------------------------------------------- classes

@@ -45,6 +45,11 @@ def test_a_source_name_means_a_preset_a_format_or_what_its_options_say(tmp_path:
     assert (got["mine"].root, got["mine"].preset) == (str(tmp_path), None)
     assert (got["tiny2"].preset, got["tiny2"].dataset_seed, got["tiny2"].weight) == ("tiny", 1, 2.0)
     assert resolve_sources(None, None) == () and resolve_sources([], {}) == ()
+    # A data config without a preset (data=tartanair): synthetic is the default preset.
+    assert (
+        resolve_sources(["synthetic"], None, {"format": "tartanair", "preset": None})[0].preset
+        == "quickstart"
+    )
 
 
 @pytest.mark.parametrize(

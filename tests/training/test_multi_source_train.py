@@ -13,6 +13,7 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation import command
 from airfisheye_bench.evaluation.leaderboard import collect_results
 from airfisheye_bench.training import check_config, train
+from tests.io.datasets.tartanair_fixture import write_tartanair_fixture
 from tests.test_user_errors import TRAIN, assert_one_line_error, run_command
 from tests.training.test_configs import compose_train
 from tests.training.test_train import tiny_run_overrides
@@ -122,3 +123,35 @@ def test_evaluate_scores_one_source_of_a_mixture_at_a_time(tiny_dataset: Path) -
         command._datamodule(None, "seg", data, [])
     datamodule, _ = command._datamodule(None, "seg", data, ["data.sources=null", f"data.root={tiny_dataset}"])
     assert datamodule.source_names == [] and datamodule.dataset_root() == tiny_dataset
+
+
+@pytest.fixture(scope="module")
+def tartanair_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_tartanair_fixture(tmp_path_factory.mktemp("tartanair") / "root", size=32)
+
+
+def test_the_synthetic_preset_and_tartanair_in_one_run(tartanair_root: Path, tmp_path: Path) -> None:
+    """``data=tartanair data.root=<fixture> data.sources=[synthetic,tartanair]`` (the README's command): the
+    source named after the format reads data.root and data.format_options; the synthetic preset (tiny here) comes
+    from the cache."""
+    base = [o for o in tiny_run_overrides("seg", tartanair_root, size=32) if not o.startswith("data.root=")]
+    overrides = ["data=tartanair", f"data.root={tartanair_root}", "data.format_options.split_period=3"]
+    sources = [
+        "data.sources=[synthetic,tartanair]",
+        "data.source_options={synthetic:{preset:tiny}}",
+    ]  # tiny data
+    cfg = compose_train([*base, *overrides, *sources, "logger=csv"])
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(tmp_path)
+    train(cfg)
+    record = json.loads((tmp_path / "results.json").read_text())
+    tiny, tartanair = record["sources"]["synthetic"], record["sources"]["tartanair"]
+    assert tartanair["dataset"]["format"] == "tartanair" and tartanair["dataset"]["root"] == str(
+        tartanair_root
+    )
+    assert tartanair["dataset"]["format_options"]["split_period"] == 3
+    assert tiny["dataset"]["format"] == "airfisheye" and tiny["dataset"]["preset"] == "tiny"
+    assert tiny["dataset"]["name"] != tartanair["dataset"]["name"]
+    assert tartanair["dataset"]["camera"]["width"] == tiny["dataset"]["camera"]["width"] == 32
+    for part in (tiny, tartanair):
+        assert 0.0 <= part["metrics"]["pixel_acc"] <= 1.0 and part["dataset"]["frames"] > 0
