@@ -48,7 +48,7 @@ from airfisheye_bench.runs import (
 )
 from airfisheye_bench.specs import UnknownTaskError, get_task
 from airfisheye_bench.tracking import log_run_outputs, start_tracking
-from datamodules.multi_source import mixture_identity, resolve_sources
+from datamodules.sources import mixture_identity, resolve_sources
 from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
 
@@ -143,7 +143,7 @@ def check_config(cfg: DictConfig) -> None:
             f"write optimized_metric=val/{cfg.task.get('primary_metric')} (callbacks.model_checkpoint.monitor), "
             "or null for the test primary metric"
         )
-    if cfg.data.get("sources"):  # each source's location is checked, none read (datamodules.multi_source)
+    if cfg.data.get("sources"):  # each source's location is checked, none read (datamodules.sources)
         resolve_sources(cfg.data.sources, cfg.data.get("source_options"), _source_defaults(cfg.data))
     elif cfg.data.get("root") is None and cfg.data.get("preset") is None:
         raise ConfigError(

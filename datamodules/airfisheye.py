@@ -27,13 +27,7 @@ from airfisheye_bench.io.lidar_spec import load_lidar_spec
 from airfisheye_bench.synth.cache import ensure_dataset
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
-from datamodules.multi_source import (
-    MultiSourceDataset,
-    check_location,
-    open_split,
-    resolve_sources,
-    training_sampler,
-)
+from datamodules.multi_source import MultiSourceDataset, open_split, training_sampler
 from datamodules.sampling import (
     EpochSeededSampler,
     EvaluationLoader,
@@ -41,6 +35,7 @@ from datamodules.sampling import (
     evaluation_sampler,
     training_position,
 )
+from datamodules.sources import check_location, resolve_sources
 
 log = logging.getLogger(__name__)
 
@@ -82,7 +77,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             dataset's own layout (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`; ``docs/design.md``,
             "Dataset formats"). Any format but ``airfisheye`` needs ``root``.
         format_options: That format's options (for example which camera of a rig); unset ones take their defaults.
-        sources: Several datasets in one run: source names (``datamodules.multi_source``; ``docs/design.md``, "More
+        sources: Several datasets in one run: source names (``datamodules.sources``; ``docs/design.md``, "More
             than one source"). The top-level ``root``, ``format``, ``preset`` are then what names inherit.
         source_options: Each source's settings by name (``format``, ``root``, ``format_options``, ``preset``,
             ``dataset_seed``, ``splits``, ``source``, ``class_map``, ``weight``).

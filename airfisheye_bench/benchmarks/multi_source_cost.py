@@ -24,7 +24,8 @@ from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.specs import get_task
 from datamodules import AirFisheyeDataset, CameraConfig, FisheyeAugment
-from datamodules.multi_source import CommonClasses, MultiSourceDataset, SourceConfig, class_lut
+from datamodules.multi_source import MultiSourceDataset
+from datamodules.sources import CommonClasses, SourceConfig, class_lut
 
 
 def loop_ms(dataset, n: int) -> float:

@@ -12,8 +12,9 @@ from airfisheye_bench.benchmarks import multi_source_cost
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.synth.cache import cached_dataset_path
 from datamodules import AirFisheyeDataModule
-from datamodules.multi_source import SourceMixtureSampler, resolve_sources
+from datamodules.multi_source import SourceMixtureSampler
 from datamodules.sampling import EpochSeededSampler, draw_seed
+from datamodules.sources import resolve_sources
 
 
 def _datamodule(sources: list[str], options: dict, **kwargs) -> AirFisheyeDataModule:
