@@ -11,8 +11,10 @@ from omegaconf import open_dict
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation import command
+from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.evaluation.leaderboard import collect_results
 from airfisheye_bench.training import check_config, train
+from tests.evaluation.test_evaluate import compose_eval
 from tests.io.datasets.tartanair_fixture import write_tartanair_fixture
 from tests.test_user_errors import TRAIN, assert_one_line_error, run_command
 from tests.training.test_configs import compose_train
@@ -97,6 +99,17 @@ def test_a_two_source_run_records_each_source(
         rows[2].metrics["mIoU"] == pytest.approx(other["metrics"]["mIoU"])
         and "its other frames" in rows[2].evaluated
     )
+    # A source's numbers are what evaluate.py measures on that source alone (same checkpoint, same frames).
+    alone = compose_eval([f"ckpt_path={tmp_path}", "num_panels=0"], tmp_path / "eval")
+    evaluate(
+        alone, data_overrides=["data.sources=null", f"data.root={tiny_dataset_seed1}"]
+    )  # the command line's
+    evaluated = json.loads((tmp_path / "eval" / "results.json").read_text())
+    assert evaluated["dataset"]["content_sha256"] == other["dataset"]["content_sha256"]
+    for key in ("mIoU", "pixel_acc"):
+        assert evaluated["metrics"][key] == pytest.approx(other["metrics"][key], rel=1e-6), key
+    rim = "ring_80-95/mIoU"
+    assert evaluated["breakdown"][rim] == pytest.approx(other["breakdown"][rim], rel=1e-6)
 
 
 def test_train_py_stops_on_an_unknown_source_with_one_line_before_writing(tmp_path: Path) -> None:
