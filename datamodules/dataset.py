@@ -242,11 +242,21 @@ class AirFisheyeDataset(Dataset):
         if not self.sample_ids:
             raise ValueError(f"split {split!r} of {root} is empty")
         if source == "cubemap" and not self.spec.has("cubemap"):
-            raise ValueError(f"{self.reader.missing_reason('cubemap')}; use data.source=fisheye")
+            raise ConfigError(f"{self.reader.missing_reason('cubemap')}; use data.source=fisheye")
         for content in task_spec.requires:
             if not self.spec.has(content):
-                raise ValueError(f"{self.reader.missing_reason(content)}; task={task} needs it")
+                raise ConfigError(f"{self.reader.missing_reason(content)}; task={task} needs it")
         needed = {task_spec.target, *task_spec.inputs} - {"image"}
+        # A source without dense depth images may give its depth target as LiDAR points (``depth_points``).
+        self._depth_from_points = callable(getattr(self.reader, "depth_points", None))
+        modalities = getattr(self.reader, "modalities", ("rgb", "seg", "depth"))
+        for key, modality in (("label", "seg"), ("depth", "depth")):
+            if (
+                key in needed
+                and modality not in modalities
+                and not (key == "depth" and self._depth_from_points)
+            ):
+                raise ConfigError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
         if needed - set(SAMPLE_KEYS):
             raise ValueError(
                 f"task={task} needs sample keys {sorted(needed - set(SAMPLE_KEYS))} that the dataset cannot serve "
@@ -307,7 +317,9 @@ class AirFisheyeDataset(Dataset):
         out: dict = {"sample_id": sample_id}
         if "label" in self.sample_keys:
             out["label"] = self._label(sample_id)
-        if "depth" in self.sample_keys:
+        if "depth" in self.sample_keys and self._depth_from_points:
+            out["depth"] = self._point_depth(sample_id, params)  # projected at the served, augmented camera
+        elif "depth" in self.sample_keys:
             out["depth"] = self._clip_depth(self._dense(sample_id, "depth"))  # float32 [1, H, W]
         if "sparse_depth" in self.sample_keys:
             out["sparse_depth"] = self._sparse_depth(sample_id, params)
@@ -322,9 +334,10 @@ class AirFisheyeDataset(Dataset):
             rgb, valid, out = self._augment(rgb, valid, out, params)
         if "label" in out:
             out["label"] = out["label"].long()
-        if "sparse_depth" in out:
-            # A point just inside FOV/2 can round to a border pixel whose centre is just outside the circle.
-            out["sparse_depth"].mul_(valid)
+        for key in ("sparse_depth", "depth") if self._depth_from_points else ("sparse_depth",):
+            if key in out:
+                # A point just inside FOV/2 can round to a border pixel whose centre is just outside the circle.
+                out[key].mul_(valid)
         if rgb.dtype == torch.uint8:
             rgb = rgb.float().div_(255.0)
         out["image"] = rgb.sub_(self._mean).div_(self._std)  # rgb is this sample's own buffer: in place
@@ -337,16 +350,23 @@ class AirFisheyeDataset(Dataset):
         if "label" in out:
             maps.append(out["label"][None].float())
             fills.append(float(self.spec.ignore_index))
-        if "depth" in out:
+        dense_depth = "depth" in out and not self._depth_from_points  # point depth is projected already moved
+        if dense_depth:
             maps.append(out["depth"])
             fills.append(0.0)
-        # Every task's target is a label or a depth map.
+        h, w = valid.shape
         rgb, valid, moved = augment_sample(
-            rgb, valid, torch.cat(maps), fills, params, self.camera.cx, self.camera.cy
+            rgb,
+            valid,
+            torch.cat(maps) if maps else torch.zeros(0, h, w),
+            fills,
+            params,
+            self.camera.cx,
+            self.camera.cy,
         )
         if "label" in out:
             out["label"] = moved[0].to(out["label"].dtype)
-        if "depth" in out:
+        if dense_depth:
             out["depth"] = moved[-1:]
         return rgb, valid, out
 
@@ -435,18 +455,18 @@ class AirFisheyeDataset(Dataset):
                 scan.no_returns,
                 counts["returns"],
             )
-        return scan.points[kept.keep], rings[kept.keep], spec
+        points = scan.points[kept.keep]
+        deskew = getattr(self.reader, "deskew", None)
+        if self.motion_compensation and deskew is not None:  # the sweep's points at its reference time
+            points = deskew(sample_id, points)
+        return points, rings[kept.keep], spec
 
     def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:
         points, rings, spec = self.lidar_points(sample_id)
-        T = torch.from_numpy(self.T_cam_lidar(sample_id))
-        if params is not None and params.angle_rad != 0.0:
-            # Dense maps are mirrored, then rotated; the points are rotated, then mirrored (in lidar_depth_map).
-            # mirror . rot(a) == rot(-a) . mirror, so the points turn the other way when the frame is mirrored.
-            T = rotation_about_optical_axis(-params.angle_rad if params.flip else params.angle_rad) @ T
+        T = _augmented(self.T_cam_lidar(sample_id), params)
         depth = lidar_depth_map(
             points,
-            T.numpy(),
+            T,
             self.camera,
             spec,
             method=self.occlusion,
@@ -454,6 +474,24 @@ class AirFisheyeDataset(Dataset):
             mirror=params is not None and params.flip,
             rings=rings,
             **self.occlusion_options,
+        )
+        return torch.from_numpy(depth)[None]
+
+    def _point_depth(self, sample_id: str, params) -> torch.Tensor:
+        """The depth target of a source that gives it as LiDAR points (``depth_points``), ``[1, H, W]``: projected
+        at the served camera with the sample's augmentation, as ``sparse_depth`` (no resampling of a sparse map),
+        its own occlusion removed, always motion-compensated (it is the ground truth)."""
+        target = self.reader.depth_points(sample_id, self.lidar_min_range)
+        spec = self.lidar_spec or self.reader.calib(sample_id).lidar_spec()
+        depth = lidar_depth_map(
+            target.points,
+            _augmented(np.asarray(self.reader.T_cam_lidar(sample_id), np.float64), params),
+            self.camera,
+            spec,
+            method=target.occlusion,
+            max_depth=self.max_depth,
+            mirror=params is not None and params.flip,
+            **check_occlusion_options(target.occlusion, dict(target.occlusion_options)),
         )
         return torch.from_numpy(depth)[None]
 
@@ -479,6 +517,16 @@ class AirFisheyeDataset(Dataset):
 
     def _path(self, sample_id: str, modality: str) -> Path:
         return self.reader.path_of(sample_id, modality, self.source)
+
+
+def _augmented(T_cam_lidar: np.ndarray, params) -> np.ndarray:
+    """``T_cam_lidar`` turned with the sample's rotation about the optical axis (``params``: its draw or None)."""
+    if params is None or params.angle_rad == 0.0:
+        return T_cam_lidar
+    # Dense maps are mirrored, then rotated; the points are rotated, then mirrored (in lidar_depth_map).
+    # mirror . rot(a) == rot(-a) . mirror, so the points turn the other way when the frame is mirrored.
+    R = rotation_about_optical_axis(-params.angle_rad if params.flip else params.angle_rad)
+    return R.numpy() @ T_cam_lidar
 
 
 def collate(samples: list[dict | None]) -> dict:

@@ -12,13 +12,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.io.datasets.base import DatasetSource, check_options
+from airfisheye_bench.io.datasets.base import DatasetSource, DepthPoints, check_options
+from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.io.reader import DatasetReader
 
 #: ``data.format`` -> the class reading that format: ``cls(root, **options)``, its options and their defaults in
 #: ``cls.OPTIONS`` (``data.format_options``).
 DATASET_FORMATS: dict[str, type] = {
     "airfisheye": DatasetReader,
+    "kitti360": Kitti360Source,
 }
 
 
@@ -32,4 +34,4 @@ def open_dataset(
     return cls(root, **check_options(format, dict(options or {}), cls.OPTIONS))
 
 
-__all__ = ["DATASET_FORMATS", "DatasetSource", "check_options", "open_dataset"]
+__all__ = ["DATASET_FORMATS", "DatasetSource", "DepthPoints", "check_options", "open_dataset"]
