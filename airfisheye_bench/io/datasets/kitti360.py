@@ -231,7 +231,10 @@ class Kitti360Source:
     # ------------------------------------------------------------------------------------------- sensors
     def calib(self, sample_id: str) -> Calibration:
         def load() -> Calibration:
-            cam = load_camera(self.root / "calibration" / f"{self.camera}.yaml")
+            yaml_path = self.root / "calibration" / f"{self.camera}.yaml"
+            if not yaml_path.is_file():
+                raise DatasetFormatError(yaml_path, "no such file (the fisheye's MEI calibration)")
+            cam = load_camera(yaml_path)  # its errors are DatasetFormatErrors naming the file and the key
             to_pose = read_cam_to_pose(self.root / "calibration" / "calib_cam_to_pose.txt")
             T_velo_cam0 = read_rigid(self.root / "calibration" / "calib_cam_to_velo.txt")
             T_pose_velo = to_pose["image_00"] @ invert_rigid(T_velo_cam0)  # TrVeloToPose
