@@ -371,7 +371,7 @@ def test_seg_is_refused_in_one_line(root: Path, tmp_path: Path) -> None:
 @pytest.mark.parametrize("task", ["depth", "completion"])
 def test_training_end_to_end(root: Path, tmp_path: Path, task: str) -> None:
     overrides = [
-        *tiny_run_overrides(task, root, size=48),
+        *tiny_run_overrides(task, root, size=64),
         "data=kitti360",
         "logger=csv",
         "data.format_options.accumulate=1",
