@@ -196,15 +196,22 @@ class Kitti360Source:
 
     @cached_property
     def _all_sequences(self) -> list[str]:
+        """Sequences with the camera's images, poses and scans (the test sequences have no poses: skipped)."""
         folder = self.root / "data_2d_raw"
         if not folder.is_dir():
-            raise DatasetFormatError(
-                folder, "no such folder: expected data_2d_raw/<sequence>/image_0X/data_rgb/"
-            )
+            raise DatasetFormatError(folder, "no such folder: expected data_2d_raw/<seq>/image_0X/data_rgb/")
         seqs = sorted(p.name for p in folder.iterdir() if (p / self.camera / "data_rgb").is_dir())
-        if not seqs:
-            raise DatasetFormatError(folder, f"no sequence with {self.camera}/data_rgb/")
-        return seqs
+        usable = [s for s in seqs if self._poses_path(s).is_file() and self._scan_path(s, 0).parent.is_dir()]
+        if not usable:
+            raise DatasetFormatError(
+                folder,
+                f"no sequence with {self.camera}/data_rgb/, data_poses/<seq>/poses.txt and velodyne scans",
+            )
+        if len(usable) < len(seqs):
+            log.info(
+                "KITTI-360: without poses or scans, not used: %s", ", ".join(sorted(set(seqs) - set(usable)))
+            )
+        return usable
 
     def _split_sequences(self) -> dict[str, list[str]]:
         if self._sequences is not None:
@@ -277,11 +284,13 @@ class Kitti360Source:
         static = self.calib(sample_id).T_cam_lidar_static
         cam_times = self._timestamps(seq, self._image_path(seq, 0).parent.parent / "timestamps.txt")
         motion = self._motion(seq, frame)
-        if cam_times is None or motion is None or frame >= len(cam_times):
-            return static
-        D, period = motion
         scan_times = self._scan_times(seq)
-        s = (scan_times[frame] - cam_times[frame]) / period  # the camera's time as a fraction of D
+        if cam_times is None or scan_times is None or motion is None or motion[1] is None:
+            return static
+        if frame >= min(len(cam_times), len(scan_times)):
+            return static
+        D, dt = motion
+        s = (scan_times[frame] - cam_times[frame]) / dt  # the camera's time as a fraction of D
         return static @ invert_rigid(fraction_transform(D, s))
 
     def deskew(self, sample_id: str, points: np.ndarray) -> np.ndarray:
@@ -290,14 +299,16 @@ class Kitti360Source:
         Point ``i`` was recorded ``a_i / (2 pi) * T`` before that instant (``a_i`` its azimuth, ``T`` the scan
         period: the median step of ``velodyne_points/timestamps.txt``); it moves by the fraction
         ``(a_i / 2 pi) T / dt`` of the motion ``D`` between the previous scan and this one, ``dt`` apart. With
-        ``T = dt`` (no dropped scan) this is the devkit's curl exactly.
+        ``T = dt`` (no dropped scan) this is the devkit's curl exactly, and so it is without ``timestamps.txt`` (a
+        separate download, ``data_3d_timestamps.zip``: logged).
         """
         seq, frame = _parse(sample_id)
         motion = self._motion(seq, frame)
         if motion is None:
             return np.asarray(points, np.float64)
         D, dt = motion
-        return curl_points(points, D, scan_fraction(points) * (self._scan_period(seq) / dt))
+        ratio = 1.0 if dt is None else self._scan_period(seq) / dt
+        return curl_points(points, D, scan_fraction(points) * ratio)
 
     def depth_points(self, sample_id: str, min_range: float = 0.0) -> DepthPoints:
         """The depth target's points in the frame's LiDAR frame: its deskewed scan, and with ``accumulate = N``
@@ -325,10 +336,10 @@ class Kitti360Source:
             clouds.append(points)
         return DepthPoints(np.concatenate(clouds), self.target_occlusion)
 
-    def _motion(self, seq: str, frame: int) -> tuple[np.ndarray, float] | None:
-        """``(D, dt)``: the Velodyne's motion from the previous frame into ``frame`` and their time apart (the
-        devkit's ``CurlParametersFromPoses``: frame 0 uses the next frame's motion; a frame whose neighbour has
-        no pose, the vehicle standing, none)."""
+    def _motion(self, seq: str, frame: int) -> tuple[np.ndarray, float | None] | None:
+        """``(D, dt)``: the Velodyne's motion from the previous frame into ``frame``, and their time apart
+        (``None`` without time stamps). As the devkit's ``CurlParametersFromPoses``: frame 0 uses the next frame's
+        motion; a frame whose neighbour has no pose (the vehicle standing) has none."""
         frames, poses = self._poses(seq)
         i = int(np.searchsorted(frames, frame))
         if i >= len(frames) or frames[i] != frame:
@@ -341,7 +352,9 @@ class Kitti360Source:
         T_a, T_b = poses[ia] @ T_pose_velo, poses[ib] @ T_pose_velo
         D = invert_rigid(T_b) @ T_a  # Tr_velo_pose^-1 (pose_b^-1 pose_a) Tr_velo_pose
         times = self._scan_times(seq)
-        dt = float(times[b] - times[a]) if b < len(times) else self._scan_period(seq)
+        if times is None or b >= len(times):
+            return D, None
+        dt = float(times[b] - times[a])
         if not dt > 0:
             raise DatasetFormatError(
                 self._scan_times_path(seq), f"time stamps of frames {a}, {b} do not increase"
@@ -349,14 +362,17 @@ class Kitti360Source:
         return D, dt
 
     def _scan_period(self, seq: str) -> float:
-        times = self._scan_times(seq)
-        steps = np.diff(times)
-        return float(np.median(steps)) if len(steps) else 0.1
+        """The median step of the scans' time stamps (the Velodyne's revolution, 0.1 s)."""
+        return float(np.median(np.diff(self._scan_times(seq))))
 
-    def _scan_times(self, seq: str) -> np.ndarray:
-        times = self._timestamps(seq, self._scan_times_path(seq))
-        if times is None:
-            raise DatasetFormatError(self._scan_times_path(seq), "no such file (the scans' time stamps)")
+    def _scan_times(self, seq: str) -> np.ndarray | None:
+        path = self._scan_times_path(seq)
+        times = self._timestamps(seq, path)
+        if times is None and ("warned", seq) not in self._cache:
+            self._cache[("warned", seq)] = True
+            log.warning(
+                "KITTI-360: no %s: the scans are curled as the devkit does (a revolution per frame)", path
+            )
         return times
 
     # ------------------------------------------------------------------------------------------- files

@@ -201,6 +201,19 @@ def test_deskew_is_the_devkits_curl(root: Path, frame: int) -> None:
     assert (np.abs(moved - pcd).max() > 0.1) == (frame != 3)
 
 
+def test_without_scan_time_stamps_the_curl_is_still_the_devkits(root: Path, tmp_path: Path) -> None:
+    local = tmp_path / "k360"
+    shutil.copytree(root, local, ignore=shutil.ignore_patterns("*.png"))
+    (local / "data_3d_raw" / SEQ / "velodyne_points" / "timestamps.txt").unlink()
+    src = open_dataset(local, "kitti360", {})
+    pcd = load_bin(local, 1)[::997]
+    np.testing.assert_allclose(
+        src.deskew(f"{SEQ}/0000000001", pcd), devkit_curl(local, SEQ, 1, pcd), atol=1e-9
+    )
+    T = src.T_cam_lidar(f"{SEQ}/0000000001")  # no scan time: the camera is taken as simultaneous
+    np.testing.assert_allclose(T, src.calib(f"{SEQ}/0000000001").T_cam_lidar_static)
+
+
 def test_the_camera_time_stamp_moves_the_lidar_frame(tmp_path: Path) -> None:
     """A camera 20 ms after the scan, the car at ~10 m/s: a point 10 m ahead is ~0.2 m closer to it."""
     late = write_kitti360(
@@ -287,6 +300,11 @@ def test_default_splits_by_sequence(root: Path, tmp_path: Path) -> None:
     names = [f"2013_05_28_drive_{i:04d}_sync" for i in (10, 0, 3, 2)]
     for name in names:
         (many / "data_2d_raw" / name / "image_02" / "data_rgb").mkdir(parents=True)
+        (many / "data_3d_raw" / name / "velodyne_points" / "data").mkdir(parents=True)
+        (many / "data_poses" / name).mkdir(parents=True)
+        (many / "data_poses" / name / "poses.txt").write_text("0 1 0 0 0 0 1 0 0 0 0 1 0\n")
+    test_only = "2013_05_28_drive_0018_sync"  # images but no poses (a held-out sequence): not used
+    (many / "data_2d_raw" / test_only / "image_02" / "data_rgb").mkdir(parents=True)
     locations = open_dataset(many, "kitti360", {}).spec.splits.locations
     assert locations == {names[1]: "train", names[3]: "train", names[2]: "val", names[0]: "test"}
 
