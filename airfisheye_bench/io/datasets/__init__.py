@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io.datasets.base import DatasetSource, DepthPoints, check_options
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.io.reader import DatasetReader
@@ -29,7 +30,7 @@ def open_dataset(
 ) -> DatasetSource:
     """The :class:`DatasetSource` of ``root`` in ``format`` (its ``data.format_options`` in ``options``)."""
     if format not in DATASET_FORMATS:
-        raise ValueError(f"data.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
+        raise ConfigError(f"data.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
     cls = DATASET_FORMATS[format]
     return cls(root, **check_options(format, dict(options or {}), cls.OPTIONS))
 

@@ -27,6 +27,7 @@ from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io.calib import Calibration
 from airfisheye_bench.io.scan import Scan
 from airfisheye_bench.io.spec import DatasetSpec
@@ -103,7 +104,7 @@ def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> 
     """
     unknown = sorted(set(given) - set(allowed))
     if unknown:
-        raise ValueError(
+        raise ConfigError(
             f"data.format_options: unknown keys {unknown} for data.format={format_name}; expected some of "
             f"{sorted(allowed)}"
         )
