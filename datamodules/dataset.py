@@ -13,6 +13,9 @@ key                shape, dtype                  meaning
 ``sample_id``      str                           ``<env>/<trajectory>/<frame>``
 =================  ============================  ==========================================================
 
+A source that has no dense depth images but gives its depth target as LiDAR points (``depth_points``: KITTI-360)
+gets ``depth`` by projecting them at the served camera with the sample's augmentation, as ``sparse_depth``.
+
 ``image``, ``valid_mask`` and ``sample_id`` are always served; of the others, the keys the task's spec names
 (its ``target`` and its model ``inputs``, :data:`SAMPLE_KEYS`): ``seg`` gets ``label``, ``depth`` gets ``depth``,
 ``completion`` gets ``depth`` and ``sparse_depth``.

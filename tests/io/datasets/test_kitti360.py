@@ -29,7 +29,7 @@ from omegaconf import open_dict
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io import DatasetFormatError
-from airfisheye_bench.io.datasets import open_dataset
+from airfisheye_bench.io.datasets import DepthPoints, open_dataset
 from airfisheye_bench.training import train
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 from tests.io.datasets.kitti360_fixture import SEQUENCES, write_kitti360
@@ -286,6 +286,38 @@ def test_augmented_point_depth_is_the_flipped_projection(root: Path) -> None:
     assert inside.sum() > 100
     hit = flipped[v[inside], mirrored[inside]] > 0
     assert hit.float().mean() > 0.95  # a few pixels hold two points and keep the nearer one
+
+
+@pytest.mark.parametrize(("flip", "angle"), [(False, 0.3), (True, 0.3), (True, -0.5)])
+def test_augmented_point_depth_is_the_moved_projection(root: Path, flip: bool, angle: float) -> None:
+    """Rotated (and mirrored) targets are the points projected through the turned camera: where the moved plain
+    map (nearest resampling, which shifts some points by a pixel) has a point, the projection mostly has the same
+    one; turned the wrong way round, almost none."""
+    from datamodules.augment import AugmentParams, apply_geometry
+
+    ds = AirFisheyeDataset(
+        root, "train", "depth", source="fisheye", camera=CameraConfig(size=96), dataset_format="kitti360",
+        format_options={"target_occlusion": "none"},
+    )  # fmt: skip
+    sid = ds.sample_ids[0]
+    full = ds.reader.depth_points(sid, 1.0).points
+    few = full[
+        np.random.default_rng(0).choice(len(full), 300, replace=False)
+    ]  # few points: few share a pixel
+    ds.reader.depth_points = lambda sample_id, min_range: DepthPoints(few, "none")
+    plain = ds._point_depth(sid, None)
+    turned = ds._point_depth(sid, AugmentParams(flip, angle, None))[0]
+    n = int((turned > 0).sum())
+    for sign in (1.0, -1.0):
+        moved = apply_geometry(
+            plain, AugmentParams(flip, sign * angle, None), ds.camera.cx, ds.camera.cy, "nearest"
+        )
+        both = (turned > 0) & (moved[0] > 0)
+        if sign > 0:
+            assert both.sum() > 0.4 * n
+            assert ((turned - moved[0]).abs()[both] < 1e-4).float().mean() > 0.8
+        else:
+            assert both.sum() < 0.1 * n
 
 
 # ------------------------------------------------------------------------------------------------- splits
