@@ -13,7 +13,7 @@ github:autonomousvision/kitti360Scripts (commit 40ee015) reads it. Files (``<seq
     data_3d_raw/<seq>/velodyne_points/timestamps.txt   scan time stamps (accumuLaser/src/accumulation.cpp)
     data_poses/<seq>/poses.txt                         frame + 3x4 pose -> world, posed frames only
 
-Transforms, as ``viewer/kitti360Viewer3DRaw.py`` ``loadExtrinsics`` builds them (lines 83-97 at 40ee015):
+Transforms, as ``viewer/kitti360Viewer3DRaw.py`` ``loadExtrinsics`` builds them (lines 78-96 at 40ee015):
 ``T_pose_velo = T_pose_cam0 @ inv(T_velo_cam0)`` (``TrVeloToPose``), and for camera X
 ``T_camX_velo = inv(T_velo_cam0 @ inv(T_pose_cam0) @ T_pose_camX)`` (``TrVeloToCam``); a fisheye camera has no
 rectification (``projectVeloToImage``: ``TrVeloToRect = TrVeloToCam`` for cameras 2, 3). Here the "body" of the

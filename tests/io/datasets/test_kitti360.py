@@ -29,7 +29,7 @@ from omegaconf import open_dict
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io import DatasetFormatError
-from airfisheye_bench.io.datasets import DepthPoints, open_dataset
+from airfisheye_bench.io.datasets import DatasetSource, DepthPoints, open_dataset
 from airfisheye_bench.training import train
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 from tests.io.datasets.kitti360_fixture import SEQUENCES, write_kitti360
@@ -267,6 +267,7 @@ def test_images_and_completion_samples(root: Path) -> None:
 
     np.testing.assert_array_equal(rgb, image(10))
     assert ds.lidar_counts["rings from firing_order"] == 1
+    assert isinstance(ds.reader, DatasetSource)
 
 
 def test_augmented_point_depth_is_the_flipped_projection(root: Path) -> None:
