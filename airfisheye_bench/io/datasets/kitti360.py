@@ -38,6 +38,7 @@ Example:
 from __future__ import annotations
 
 import logging
+from collections import OrderedDict
 from functools import cached_property
 from pathlib import Path
 from typing import ClassVar
@@ -58,13 +59,19 @@ from airfisheye_bench.io.datasets.kitti360_files import (
     read_rigid,
     read_timestamps,
 )
+from airfisheye_bench.io.datasets.kitti360_splits import (
+    SPLITS,
+    check_sequences,
+    frame_numbers,
+    split_by_sequence,
+    usable_sequences,
+)
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan, load_scan
 from airfisheye_bench.io.spec import ClassDef, DatasetSpec, SplitsSpec
 
 log = logging.getLogger(__name__)
 
-SPLITS = ("train", "val", "test")
 TARGET_OCCLUSION = ("zbuffer", "hpr", "none")
 _NO_LABELS = (
     "KITTI-360 has no semantic labels for its fisheye images (only the perspective cameras image_00/01 are "
@@ -123,15 +130,18 @@ class Kitti360Source:
         self.accumulate = accumulate
         self.target_occlusion = target_occlusion
         self.frame_step = frame_step
-        self._sequences = self._check_sequences(sequences)
+        self._sequences = check_sequences(self.root, sequences)
         self._cache: dict[tuple[str, str], object] = {}
+        self._recent: OrderedDict[tuple[str, int, float], np.ndarray] = OrderedDict()
 
     def __getstate__(self) -> dict:  # caches are per process
-        return {k: v for k, v in self.__dict__.items() if k not in ("_cache", "spec", "_all_sequences")}
+        skip = ("_cache", "_recent", "spec", "_all_sequences")
+        return {k: v for k, v in self.__dict__.items() if k not in skip}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self._cache = {}
+        self._recent = OrderedDict()
 
     # ------------------------------------------------------------------------------------------- contents
     @cached_property
@@ -181,56 +191,20 @@ class Kitti360Source:
             out += [f"{seq}/{frame:010d}" for frame in self._frames(seq)[:: self.frame_step]]
         return out
 
-    def _check_sequences(self, sequences) -> dict[str, list[str]] | None:
-        if sequences is None:
-            return None
-        key = "data.format_options.sequences"
-        if not hasattr(sequences, "items") or set(sequences) - set(SPLITS):
-            raise ConfigError(f"{key}: expected a mapping of {', '.join(SPLITS)} to lists of sequence names")
-        out = {name: [str(s) for s in sequences.get(name) or []] for name in SPLITS}
-        for name, seqs in out.items():
-            for seq in seqs:
-                if not (self.root / "data_2d_raw" / seq).is_dir():
-                    raise ConfigError(f"{key}.{name}: {self.root / 'data_2d_raw' / seq} is not a folder")
-        return out
-
     @cached_property
     def _all_sequences(self) -> list[str]:
-        """Sequences with the camera's images, poses and scans (the test sequences have no poses: skipped)."""
-        folder = self.root / "data_2d_raw"
-        if not folder.is_dir():
-            raise DatasetFormatError(folder, "no such folder: expected data_2d_raw/<seq>/image_0X/data_rgb/")
-        seqs = sorted(p.name for p in folder.iterdir() if (p / self.camera / "data_rgb").is_dir())
-        usable = [s for s in seqs if self._poses_path(s).is_file() and self._scan_path(s, 0).parent.is_dir()]
-        if not usable:
-            raise DatasetFormatError(
-                folder,
-                f"no sequence with {self.camera}/data_rgb/, data_poses/<seq>/poses.txt and velodyne scans",
-            )
-        if len(usable) < len(seqs):
-            log.info(
-                "KITTI-360: without poses or scans, not used: %s", ", ".join(sorted(set(seqs) - set(usable)))
-            )
-        return usable
+        return usable_sequences(self.root, self.camera)
 
     def _split_sequences(self) -> dict[str, list[str]]:
-        if self._sequences is not None:
-            return self._sequences
-        seqs = self._all_sequences
-        if len(seqs) == 1:
-            log.warning("KITTI-360: one sequence (%s): train, val and test are the same frames", seqs[0])
-            return {name: seqs for name in SPLITS}
-        if len(seqs) == 2:
-            return {"train": seqs[:1], "val": seqs[1:], "test": seqs[1:]}
-        return {"train": seqs[:-2], "val": seqs[-2:-1], "test": seqs[-1:]}
+        return self._sequences if self._sequences is not None else split_by_sequence(self._all_sequences)
 
     def _frames(self, seq: str) -> np.ndarray:
         """Posed frames of ``seq`` that have an image and a scan."""
 
         def load() -> np.ndarray:
             frames = self._poses(seq)[0]
-            images = _frame_numbers(self._image_path(seq, 0).parent, ".png")
-            scans = _frame_numbers(self._scan_path(seq, 0).parent, ".bin")
+            images = frame_numbers(self._image_path(seq, 0).parent, ".png")
+            scans = frame_numbers(self._scan_path(seq, 0).parent, ".bin")
             return frames[np.isin(frames, images) & np.isin(frames, scans)]
 
         return self._cached("frames", seq, load)
@@ -327,14 +301,27 @@ class Kitti360Source:
             g = int(frames[j])
             if g != frame and g not in have:
                 continue  # a posed frame without its scan
-            points = load_scan(self._scan_path(seq, g)).points
-            points = points[np.linalg.norm(points, axis=1) >= min_range]
-            points = self.deskew(f"{seq}/{g:010d}", points)
+            points = self._curled(seq, g, min_range)
             if g != frame:
                 T = invert_rigid(T_world_velo) @ poses[j] @ T_pose_velo
                 points = points @ T[:3, :3].T + T[:3, 3]
             clouds.append(points)
         return DepthPoints(np.concatenate(clouds), self.target_occlusion)
+
+    def _curled(self, seq: str, frame: int, min_range: float) -> np.ndarray:
+        """A frame's scan without self-hits, curled; the last ``2 accumulate + 1`` are kept (the targets of
+        neighbouring frames share them)."""
+        key = (seq, frame, float(min_range))
+        if key in self._recent:
+            self._recent.move_to_end(key)
+            return self._recent[key]
+        points = load_scan(self._scan_path(seq, frame)).points
+        points = self.deskew(f"{seq}/{frame:010d}", points[np.linalg.norm(points, axis=1) >= min_range])
+        points.setflags(write=False)  # shared by several targets
+        self._recent[key] = points
+        while len(self._recent) > 2 * self.accumulate + 1:
+            self._recent.popitem(last=False)
+        return points
 
     def _motion(self, seq: str, frame: int) -> tuple[np.ndarray, float | None] | None:
         """``(D, dt)``: the Velodyne's motion from the previous frame into ``frame``, and their time apart
@@ -405,13 +392,6 @@ def _parse(sample_id: str) -> tuple[str, int]:
     if not seq or not frame.isdigit():
         raise ValueError(f"a KITTI-360 sample id is '<sequence>/<frame:010d>', got {sample_id!r}")
     return seq, int(frame)
-
-
-def _frame_numbers(folder: Path, suffix: str) -> np.ndarray:
-    if not folder.is_dir():
-        raise DatasetFormatError(folder, "no such folder")
-    names = (p.name[: -len(suffix)] for p in folder.iterdir() if p.name.endswith(suffix))
-    return np.asarray(sorted(int(n) for n in names if n.isdigit()), np.int64)
 
 
 __all__ = ["Kitti360Source"]
