@@ -5,7 +5,8 @@ A root in the real layout is written first (``tests/io/datasets/kitti360_fixture
 scans of ~125k returns in KITTI's firing order), or ``--root`` points at a real one. Rows, each over the training
 frames (one thread, CPU time, min and median of ``--repeats``):
 
-* ``depth`` and ``completion`` at ``--size`` (default 512) with ``accumulate`` 0 and 2 (five scans in the target);
+* ``depth`` and ``completion`` at ``--size`` (default 512) with ``accumulate`` 0 and 2 (up to five scans in the
+  target), the latter in frame order with the source's reuse of the neighbours' curled scans and without it;
 * the curl of one scan: :func:`~airfisheye_bench.geometry.deskew.curl_points` against a line-by-line port of the
   devkit's ``curl_velodyne_data`` loop (the test's reference), on the same points.
 
@@ -62,7 +63,9 @@ def main() -> None:
         print(f"root {root}, served at {args.size}^2, one thread, CPU ms per sample (min / median)")
         print("| task | accumulate | ms / sample | points in the target |")
         print("|---|---|---|---|")
-        for task, accumulate in (("depth", 0), ("completion", 0), ("depth", 2), ("completion", 2)):
+        rows = [("depth", 0, True), ("completion", 0, True)]
+        rows += [(task, 2, reuse) for task in ("depth", "completion") for reuse in (False, True)]
+        for task, accumulate, reuse in rows:
             ds = AirFisheyeDataset(
                 root,
                 "train",
@@ -74,9 +77,19 @@ def main() -> None:
             )
             ds[0]  # compile the numba kernels and fill the caches first
             n = len(ds)
-            best, median = cpu_ms(lambda ds=ds, n=n: [ds[i] for i in range(n)], args.repeats)
+
+            def one_pass(ds=ds, n=n, reuse=reuse) -> None:
+                for i in range(n):
+                    if not reuse:  # every sample reads and curls its neighbours' scans itself
+                        ds.reader._recent.clear()
+                    ds[i]
+
+            best, median = cpu_ms(one_pass, args.repeats)
             points = len(ds.reader.depth_points(ds.sample_ids[0], ds.lidar_min_range).points)
-            print(f"| {task} | {accumulate} | {best / n:.1f} / {median / n:.1f} | {points} |")
+            label = f"{accumulate}" + (
+                "" if accumulate == 0 else (" (scans reused)" if reuse else " (no reuse)")
+            )
+            print(f"| {task} | {label} | {best / n:.1f} / {median / n:.1f} | {points} |")
 
         sid = ds.sample_ids[min(1, len(ds) - 1)]
         seq, frame = sid.rsplit("/", 1)
