@@ -15,6 +15,7 @@ from typing import Any
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io.datasets.base import DatasetSource, DepthPoints, check_options
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
+from airfisheye_bench.io.datasets.tartanair import TartanAirSource
 from airfisheye_bench.io.reader import DatasetReader
 
 #: ``data.format`` -> the class reading that format: ``cls(root, **options)``, its options and their defaults in
@@ -22,6 +23,7 @@ from airfisheye_bench.io.reader import DatasetReader
 DATASET_FORMATS: dict[str, type] = {
     "airfisheye": DatasetReader,
     "kitti360": Kitti360Source,
+    "tartanair": TartanAirSource,
 }
 
 

@@ -30,6 +30,7 @@ from omegaconf import open_dict
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io import DatasetFormatError
 from airfisheye_bench.io.datasets import DatasetSource, DepthPoints, open_dataset
+from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.training import train
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 from tests.io.datasets.kitti360_fixture import SEQUENCES, write_kitti360
@@ -407,6 +408,12 @@ def test_a_missing_scan_names_the_file(root: Path) -> None:
 def test_bad_options_are_config_errors(root: Path, options: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=re.escape(message)):
         open_dataset(root, "kitti360", options)
+
+
+def test_the_config_lists_every_option_with_its_default() -> None:
+    cfg = compose_train(["task=depth", "data=kitti360"])
+    assert cfg.data.format == "kitti360" and cfg.data.root is None and cfg.data.source == "fisheye"
+    assert dict(cfg.data.format_options) == Kitti360Source.OPTIONS
 
 
 # --------------------------------------------------------------------------------------------- end to end
