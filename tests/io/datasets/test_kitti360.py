@@ -410,6 +410,17 @@ def test_bad_options_are_config_errors(root: Path, options: dict, message: str) 
         open_dataset(root, "kitti360", options)
 
 
+def test_cube_faces_and_labels_are_refused_with_the_reason(root: Path) -> None:
+    with pytest.raises(
+        ConfigError, match=r"KITTI-360 has recorded fisheye images, no cube faces; use data\.source"
+    ):
+        AirFisheyeDataset(root, "train", "depth", source="cubemap", dataset_format="kitti360")
+    with pytest.raises(
+        ConfigError, match=r"no semantic labels for its fisheye images .*issue #1\); task=seg"
+    ):
+        AirFisheyeDataset(root, "train", "seg", source="fisheye", dataset_format="kitti360")
+
+
 def test_the_config_lists_every_option_with_its_default() -> None:
     cfg = compose_train(["task=depth", "data=kitti360"])
     assert cfg.data.format == "kitti360" and cfg.data.root is None and cfg.data.source == "fisheye"
