@@ -35,8 +35,7 @@ from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
-from airfisheye_bench.evaluation.evaluator import format_results_table
-from airfisheye_bench.evaluation.results import dataset_identity, write_results
+from airfisheye_bench.io.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.runs import (
     check_resume,
@@ -460,7 +459,9 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
 def summarise_test(cfg: DictConfig, results: dict[str, Any]) -> str:
     """The test metrics as a compact table (as ``evaluate.py`` prints them); with ``print_breakdown=true`` also
     every metric per incidence-angle ring (and depth range), per class. ``results.json`` holds them all."""
-    table = format_results_table(cfg.task.name, results, cfg.task.primary_metric)
+    table = format_results_table(
+        cfg.task.name, results["metrics"], results["breakdown"], cfg.task.primary_metric
+    )
     lines = [f"test results ({cfg.task.name}, best checkpoint)", table]
     if cfg.get("print_breakdown"):
         lines += ["", "per ring and range, per class", "-" * 36]

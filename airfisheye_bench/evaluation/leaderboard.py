@@ -7,7 +7,7 @@ design contract plus the outermost incidence-angle ring (the fisheye rim, ``ring
 where fisheye distortion hurts most.
 
 Each row says what was evaluated (``evaluated``: a checkpoint, ``ONNX fp32`` / ``ONNX int8``, a prediction
-folder, with ``flip TTA`` when used; :func:`~airfisheye_bench.evaluation.results.evaluated_label`) and the run it
+folder, with ``flip TTA`` when used; :func:`~airfisheye_bench.io.results.evaluated_label`) and the run it
 comes from (``run``: the training run of the weights, or the ``name=`` given to the evaluation), so an ONNX export
 and its checkpoint are two rows of one run. Rows share a rank when their primary metric prints the same
 (competition ranking: 1, 2, 2, 4; :func:`competition_ranks`), the markdown, CSV and HTML alike.
@@ -43,8 +43,8 @@ from typing import Any
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.errors import MissingFileError, UserError
-from airfisheye_bench.evaluation.results import RESULTS_VERSION, evaluated_label, load_results
 from airfisheye_bench.io.calibration_files import camera_label
+from airfisheye_bench.io.results import RESULTS_VERSION, evaluated_label, load_results
 from airfisheye_bench.runs import checkpoint_run_name
 from airfisheye_bench.specs import MetricColumn, UnknownTaskError, all_tasks, get_task
 
@@ -124,7 +124,7 @@ class LeaderboardEntry:
         predictor: What produced the predictions: ``checkpoint``, ``onnx`` or ``predictions`` (``model.source``
             of the results; empty when unknown or for the paper's rows).
         evaluated: The row's label of what was evaluated, e.g. ``checkpoint epoch_003``, ``ONNX int8, flip TTA``
-            or ``predictions`` (:func:`~airfisheye_bench.evaluation.results.evaluated_label`; empty when unknown).
+            or ``predictions`` (:func:`~airfisheye_bench.io.results.evaluated_label`; empty when unknown).
         camera: The served camera, ``<model> <W>x<H>`` (``config.camera`` of the results; empty when unknown or
             for the paper's rows).
     """

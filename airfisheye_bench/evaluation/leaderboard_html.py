@@ -47,7 +47,7 @@ from airfisheye_bench.evaluation.leaderboard import (
     rim_label,
 )
 from airfisheye_bench.evaluation.leaderboard_charts import bar_chart, binned_chart
-from airfisheye_bench.evaluation.results import load_results
+from airfisheye_bench.io.results import load_results
 
 __all__ = ["render_html", "write_html"]
 
