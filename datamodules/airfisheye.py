@@ -23,6 +23,7 @@ from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import Occlusion
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
+from airfisheye_bench.io.datasets import DATASET_FORMATS
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
 from airfisheye_bench.synth.presets import PRESETS
 from airfisheye_bench.synth.writer import ensure_dataset
@@ -72,6 +73,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
             YAML / JSON / Ouster metadata file): with ``root`` it replaces ``calib.yaml``'s spec (a real release
             whose calibration has none); without, the synthetic ``preset`` is generated with that sensor (cached
             apart). ``min_range``: returns closer than this many metres are self-hits, removed and counted.
+        format: How ``root`` is laid out: ``airfisheye`` (the release's layout, and the synthetic data) or a public
+            dataset's own layout (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`; ``docs/design.md``,
+            "Dataset formats"). Any format but ``airfisheye`` needs ``root``.
+        format_options: That format's options (for example which camera of a rig); unset ones take their defaults.
 
     Example:
         >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
@@ -104,10 +109,19 @@ class AirFisheyeDataModule(L.LightningDataModule):
         seed: int = 0,
         dataset_seed: int = 0,
         lidar: dict[str, Any] | None = None,
+        format: str = "airfisheye",
+        format_options: dict[str, Any] | None = None,
     ) -> None:
         super().__init__()
         if batch_size < 1:
             raise ConfigError(f"batch_size must be >= 1, got {batch_size}")
+        if format not in DATASET_FORMATS:
+            raise ConfigError(f"data.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
+        if root is None and format != "airfisheye":
+            raise ConfigError(
+                f"data.format={format} reads that dataset from disk: give data.root=/path/to/it (see the README's "
+                "dataset table)"
+            )
         if root is None and preset is None:
             raise ConfigError(
                 "give data.root (a dataset folder) or data.preset (a synthetic preset such as quickstart)"
@@ -117,10 +131,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
                 f"data.preset={preset!r}: expected one of {', '.join(PRESETS)} (or give data.root)"
             )
         if root is not None and not Path(root).is_dir():
-            raise ConfigError(
-                f"data.root={str(root)!r} is not a folder; point it at a dataset in the AirFisheye layout (holding "
-                "dataset.yaml) or leave it unset to use the synthetic dataset"
+            expected = (
+                "a dataset in the AirFisheye layout (holding dataset.yaml) or leave it unset to use the synthetic "
+                "dataset"
+                if format == "airfisheye"
+                else f"the root of the {format} dataset"
             )
+            raise ConfigError(f"data.root={str(root)!r} is not a folder; point it at {expected}")
         self.task = task
         self.root = Path(root) if root is not None else None
         self.preset = preset
@@ -158,6 +175,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
             skip_bad_frames=skip_bad_frames,
             lidar_spec=lidar_spec,
             lidar_min_range=float(min_range),
+            dataset_format=format,
+            format_options=dict(format_options or {}),
         )
         self.batch_size = batch_size
         self.eval_batch_size = eval_batch_size or batch_size

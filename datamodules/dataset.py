@@ -49,8 +49,9 @@ from airfisheye_bench.geometry.occlusion import Occlusion, lidar_depth_map
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
-from airfisheye_bench.io import DatasetFormatError, DatasetReader
+from airfisheye_bench.io import DatasetFormatError
 from airfisheye_bench.io.calibration_files import load_camera
+from airfisheye_bench.io.datasets import open_dataset
 from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
@@ -183,6 +184,9 @@ class AirFisheyeDataset(Dataset):
             :func:`collate` drops it and counts it.
         lidar_spec: The LiDAR that recorded the scans; ``None``: each trajectory's ``calib.yaml``.
         lidar_min_range: Returns closer than this (metres) are self-hits: removed and counted.
+        dataset_format: How ``root`` is laid out (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`:
+            ``airfisheye``, or a public dataset's own layout).
+        format_options: That format's options (``data.format_options``; unset ones take their defaults).
 
     Example:
         >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
@@ -206,13 +210,15 @@ class AirFisheyeDataset(Dataset):
         seed: int = 0,
         lidar_spec: LidarSpec | None = None,
         lidar_min_range: float = DEFAULT_MIN_RANGE,
+        dataset_format: str = "airfisheye",
+        format_options: Mapping | None = None,
     ) -> None:
         task_spec = get_task(task)
         if source not in IMAGE_SOURCES:
             raise ValueError(f"source must be one of {IMAGE_SOURCES}, got {source!r}")
         if not max_depth > 0:
             raise ValueError(f"max_depth must be positive, got {max_depth}")
-        self.reader = DatasetReader(root)
+        self.reader = open_dataset(root, dataset_format, dict(format_options or {}))
         self.spec = self.reader.spec
         self.split = split
         self.task = task
@@ -236,12 +242,10 @@ class AirFisheyeDataset(Dataset):
         if not self.sample_ids:
             raise ValueError(f"split {split!r} of {root} is empty")
         if source == "cubemap" and not self.spec.has("cubemap"):
-            raise ValueError(f"{root} has no cube faces; use data.source=fisheye")
+            raise ValueError(f"{self.reader.missing_reason('cubemap')}; use data.source=fisheye")
         for content in task_spec.requires:
             if not self.spec.has(content):
-                raise ValueError(
-                    f"{root} has no {content} data (dataset.yaml contents); task={task} needs it"
-                )
+                raise ValueError(f"{self.reader.missing_reason(content)}; task={task} needs it")
         needed = {task_spec.target, *task_spec.inputs} - {"image"}
         if needed - set(SAMPLE_KEYS):
             raise ValueError(
@@ -473,9 +477,7 @@ class AirFisheyeDataset(Dataset):
             )
 
     def _path(self, sample_id: str, modality: str) -> Path:
-        if self.source == "cubemap":
-            return self.reader.layout.cubemap(sample_id, "front", modality).parent.parent
-        return self.reader.layout.fisheye(sample_id, modality)
+        return self.reader.path_of(sample_id, modality, self.source)
 
 
 def collate(samples: list[dict | None]) -> dict:

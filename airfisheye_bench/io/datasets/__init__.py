@@ -1,0 +1,35 @@
+"""The dataset formats the benchmark reads, one :class:`~airfisheye_bench.io.datasets.base.DatasetSource` each.
+
+``data.format`` picks one (``docs/design.md``, "Dataset formats"); :func:`open_dataset` builds it.
+
+Example:
+    >>> sorted(DATASET_FORMATS)[:1]
+    ['airfisheye']
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.io.datasets.base import DatasetSource, check_options
+from airfisheye_bench.io.reader import DatasetReader
+
+#: ``data.format`` -> the class reading that format: ``cls(root, **options)``, its options and their defaults in
+#: ``cls.OPTIONS`` (``data.format_options``).
+DATASET_FORMATS: dict[str, type] = {
+    "airfisheye": DatasetReader,
+}
+
+
+def open_dataset(
+    root: str | Path, format: str = "airfisheye", options: dict[str, Any] | None = None
+) -> DatasetSource:
+    """The :class:`DatasetSource` of ``root`` in ``format`` (its ``data.format_options`` in ``options``)."""
+    if format not in DATASET_FORMATS:
+        raise ValueError(f"data.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
+    cls = DATASET_FORMATS[format]
+    return cls(root, **check_options(format, dict(options or {}), cls.OPTIONS))
+
+
+__all__ = ["DATASET_FORMATS", "DatasetSource", "check_options", "open_dataset"]
