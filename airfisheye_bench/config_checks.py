@@ -169,6 +169,28 @@ def _occlusion_options_problem(value: Any, method: Any) -> str | None:
     return None
 
 
+def _dataset_formats() -> tuple[str, ...]:
+    from airfisheye_bench.io.datasets import DATASET_FORMATS  # imports torch: only when checked
+
+    return tuple(DATASET_FORMATS)
+
+
+def _format_options_problem(value: Any, format_name: Any) -> str | None:
+    """``data.format_options``: the options of ``data.format``'s reader (the format's own check)."""
+    from airfisheye_bench.io.datasets import (  # imports torch: only when checked
+        DATASET_FORMATS,
+        check_options,
+    )
+
+    if not isinstance(value, Mapping):
+        return "expected a mapping of option: value"
+    try:
+        check_options(format_name, dict(value), DATASET_FORMATS[format_name].OPTIONS)
+    except ValueError as err:
+        return str(err).removeprefix("data.format_options: ")
+    return None
+
+
 def _lidar_preset_problem(value: Any, root: Any) -> str | None:
     """``data.lidar.preset``: a named sensor, or (with ``data.root``) a spec file, whose contents the datamodule
     reads, once."""
@@ -378,6 +400,14 @@ RULES: dict[str, ValueRule] = {
         uses=("data.occlusion",),
         nullable=True,
         hint="see docs/design.md, LiDAR and occlusion",
+    ),
+    "data.format": ValueRule("choice", choices=_dataset_formats, hint="how data.root is laid out"),
+    "data.format_options": ValueRule(
+        "custom",
+        check=_format_options_problem,
+        uses=("data.format",),
+        nullable=True,
+        hint="that format's options",
     ),
     "data.lidar.preset": ValueRule(
         "custom",

@@ -480,6 +480,12 @@ SCHEMA_TABLE = [
         ["data.occlusion=hpr", "data.occlusion_options={radius:0.5}"],
         "data.occlusion_options={'radius': 0.5}: radius must be a number > 1",
     ),
+    ("train", ["data.format=kitti"], "data.format='kitti': expected one of airfisheye"),
+    (
+        "train",
+        ["data.format_options={camera:image_03}"],
+        "data.format_options={'camera': 'image_03'}: unknown keys ['camera'] for data.format=airfisheye",
+    ),
     ("train", ["data.lidar.min_range=-1"], "data.lidar.min_range=-1: expected a number >= 0"),
     ("train", ["data.lidar.preset=hdl65e"], "data.lidar.preset='hdl65e': expected one of hdl32e, hdl64e"),
     ("train", ["data.lidar.preset=/"], "data.lidar.preset='/': expected one of"),
