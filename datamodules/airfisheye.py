@@ -167,9 +167,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
             task=task,
             source=source,
             camera=self.camera_config,
-            occlusion=Occlusion(
-                occlusion, occlusion_options or {}
-            ),  # checked once; the datasets take it as it is
+            # Checked once, here; the datasets and every frame's projection take it as it is.
+            occlusion=Occlusion(occlusion, occlusion_options or {}),
             motion_compensation=motion_compensation,
             max_depth=max_depth,
             skip_bad_frames=skip_bad_frames,
