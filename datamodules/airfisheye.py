@@ -1,7 +1,7 @@
 """``AirFisheyeDataModule``: every task of the benchmark from one dataset root, composed from Hydra configs.
 
 ``root=None`` means the synthetic dataset of ``preset``, generated on first use and cached
-(:func:`airfisheye_bench.synth.writer.ensure_dataset`); a path reads the real release (or any dataset in the layout).
+(:func:`airfisheye_bench.synth.cache.ensure_dataset`); a path reads the real release (or any dataset in the layout).
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from airfisheye_bench.geometry.occlusion import Occlusion
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.io.datasets import DATASET_FORMATS
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
+from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.synth.presets import PRESETS
-from airfisheye_bench.synth.writer import ensure_dataset
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 from datamodules.sampling import (

@@ -209,7 +209,7 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
     board = build_leaderboard(entries, paper=opts.paper, invalid=problems)
     written = list(board.write(opts.out))
     if opts.html is not None:
-        from airfisheye_bench.evaluation.leaderboard_html import write_html  # matplotlib, only for html=
+        from airfisheye_bench.evaluation.leaderboard.html import write_html  # matplotlib, only for html=
 
         folders = [Path(r.strip()).expanduser().resolve() for r in runs]
         folders = [f if f.is_dir() else f.parent for f in folders]
@@ -265,14 +265,14 @@ def export(argv: Sequence[str] | None = None) -> int:
     from airfisheye_bench.export.deploy import (  # at run time: see the module docstring
         ExportError,
         export_deployment,
-        log,
         log_export,
     )
     from airfisheye_bench.export.onnx import OnnxParityError  # at run time: see the module docstring
 
-    # Progress of this command only: the exporter and the quantiser log pages of INFO lines.
+    # Progress of this command only (export.deploy, export.quantize): the exporter and the quantiser log pages of
+    # INFO lines.
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
-    log.setLevel(logging.INFO)
+    logging.getLogger("airfisheye_bench.export").setLevel(logging.INFO)
     kwargs = dict(parsed.options)
     mlflow_run, mlflow_uri = kwargs.pop("mlflow_run"), kwargs.pop("mlflow_tracking_uri")
     if mlflow_run:

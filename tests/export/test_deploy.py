@@ -19,6 +19,7 @@ import torch
 from omegaconf import OmegaConf, open_dict
 
 import airfisheye_bench.export.deploy as deploy
+import airfisheye_bench.export.quantize as quantize
 from airfisheye_bench.cli import export as export_command
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import OutputError
@@ -307,18 +308,18 @@ def test_failed_quantization_keeps_the_fp32_model(
     def unsupported(*args, **kwargs):
         raise RuntimeError("no int8 kernel for DeformConv")
 
-    monkeypatch.setattr(deploy, "_run_quantizer", unsupported)
+    monkeypatch.setattr(quantize, "_run_quantizer", unsupported)
     task = load_task(seg_run)
     data = apply_data_overrides(deploy._run_data(resolve_checkpoint(seg_run)), task="seg")
     datamodule = instantiate_datamodule(data, "validate")
     workdir = tmp_path / "work"
     workdir.mkdir()
     image = torch.zeros(2, 3, SIZE, SIZE)
-    report = deploy._quantize(fp32, "static", task, datamodule, {"image": image}, workdir, 2, 0, 1)
+    report = quantize.quantize_model(fp32, "static", task, datamodule, {"image": image}, workdir, 2, 0, 1)
     assert not report.ok and report.path is None
     assert "static int8 quantisation of deeplabv3plus failed" in report.error and "DeformConv" in report.error
     assert fp32.is_file() and not stale.exists()
-    assert "FAILED" in "\n".join(deploy._quantization_lines(report, "seg"))
+    assert "FAILED" in "\n".join(quantize.quantization_lines(report, "seg"))
 
 
 def test_failed_quantization_exits_with_code_3(monkeypatch, capsys) -> None:

@@ -14,7 +14,8 @@ import torch
 from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.cameras import CameraModel
-from airfisheye_bench.geometry.lidar import LidarSpec, as_points64, check_rings, layout_from_angles, like
+from airfisheye_bench.geometry.lidar import LidarSpec, as_points64, like
+from airfisheye_bench.geometry.lidar_layout import check_rings, layout_from_angles
 from airfisheye_bench.geometry.occlusion.hpr import hpr_mask
 from airfisheye_bench.geometry.occlusion.options import Occlusion, check_occlusion_options
 from airfisheye_bench.geometry.occlusion.ordering import (
