@@ -48,7 +48,7 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
+from airfisheye_bench.geometry.occlusion import Occlusion, lidar_depth_map
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
@@ -174,9 +174,10 @@ class AirFisheyeDataset(Dataset):
         source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
         camera: The served camera (see :class:`CameraConfig`).
         occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``
-            or ``none``.
+            or ``none``, or an :class:`~airfisheye_bench.geometry.occlusion.Occlusion` (checked already: the
+            datamodule's).
         occlusion_options: That method's options (see :func:`~airfisheye_bench.geometry.occlusion_mask`);
-            unset options take their defaults.
+            unset options take their defaults. Not with an ``Occlusion``, which holds its options.
         motion_compensation: Use ``T_cam_lidar`` from both sensors' poses at their own timestamps; ``False`` uses
             the static extrinsics (for comparison).
         max_depth: Ground truth and sparse depth beyond this range are invalid (paper: 120 m).
@@ -203,7 +204,7 @@ class AirFisheyeDataset(Dataset):
         task: str,
         source: str = "cubemap",
         camera: CameraConfig | None = None,
-        occlusion: str = "ordering",
+        occlusion: str | Occlusion = "ordering",
         occlusion_options: dict | None = None,
         motion_compensation: bool = True,
         max_depth: float = 120.0,
@@ -216,12 +217,8 @@ class AirFisheyeDataset(Dataset):
         format_options: Mapping | None = None,
     ) -> None:
         task_spec = get_task(task)
-        for name, value, allowed in (
-            ("source", source, IMAGE_SOURCES),
-            ("occlusion", occlusion, OCCLUSION_METHODS),
-        ):
-            if value not in allowed:
-                raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
+        if source not in IMAGE_SOURCES:
+            raise ValueError(f"source must be one of {IMAGE_SOURCES}, got {source!r}")
         if not max_depth > 0:
             raise ValueError(f"max_depth must be positive, got {max_depth}")
         self.reader = open_dataset(root, dataset_format, dict(format_options or {}))
@@ -229,8 +226,11 @@ class AirFisheyeDataset(Dataset):
         self.split = split
         self.task = task
         self.source = source
+        if not isinstance(
+            occlusion, Occlusion
+        ):  # checked once here; every frame is projected with it as it is
+            occlusion = Occlusion(occlusion, occlusion_options or {})
         self.occlusion = occlusion
-        self.occlusion_options = check_occlusion_options(occlusion, dict(occlusion_options or {}))
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -476,7 +476,6 @@ class AirFisheyeDataset(Dataset):
             max_depth=self.max_depth,
             mirror=params is not None and params.flip,
             rings=rings,
-            **self.occlusion_options,
         )
         return torch.from_numpy(depth)[None]
 
