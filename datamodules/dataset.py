@@ -253,6 +253,10 @@ class AirFisheyeDataset(Dataset):
                 f"(it serves image, {', '.join(SAMPLE_KEYS)})"
             )
         self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
+        # A dense map the source lacks (WoodScape has no depth, KITTI-360 no fisheye labels).
+        for key, modality in (("label", "seg"), ("depth", "depth")):
+            if key in self.sample_keys and modality not in self.reader.modalities:
+                raise ValueError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()

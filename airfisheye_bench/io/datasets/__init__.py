@@ -13,12 +13,14 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.io.datasets.base import DatasetSource, check_options
+from airfisheye_bench.io.datasets.woodscape import WoodScapeSource
 from airfisheye_bench.io.reader import DatasetReader
 
 #: ``data.format`` -> the class reading that format: ``cls(root, **options)``, its options and their defaults in
 #: ``cls.OPTIONS`` (``data.format_options``).
 DATASET_FORMATS: dict[str, type] = {
     "airfisheye": DatasetReader,
+    "woodscape": WoodScapeSource,
 }
 
 

@@ -31,10 +31,13 @@ class DatasetSource(Protocol):
         root: The dataset root.
         spec: Classes (raw ids and the training classes they map to), the contents present
             (:data:`~airfisheye_bench.io.spec.KNOWN_CONTENTS`), the ignore index.
+        modalities: The dense maps its images come with, of ``rgb``, ``seg``, ``depth`` (WoodScape has no depth,
+            KITTI-360 no fisheye labels); a task needing another is refused with :meth:`missing_reason`.
     """
 
     format: ClassVar[str]
     OPTIONS: ClassVar[dict[str, object]]
+    modalities: ClassVar[tuple[str, ...]]
     root: Path
     spec: DatasetSpec
 
