@@ -232,7 +232,11 @@ class WoodScapeSource:
 
     def _check_cameras(self, name: str, ids: list[str]) -> None:
         """Refuse a split whose cameras differ from its first image's by more than ``calib_tolerance``."""
-        first = self.calib(ids[0]).camera
+        # A calibration file that cannot be read is named when its image is loaded (the first one's by the dataset).
+        try:
+            first = self.calib(ids[0]).camera
+        except DatasetFormatError:
+            return
         served = camera_from_dict(first)
         step = max(1, served.width // 32)
         v, u = torch.meshgrid(
@@ -245,7 +249,10 @@ class WoodScapeSource:
         inside = torch.isfinite(rays).all(-1)
         worst, seen = 0.0, {}
         for sid in ids:
-            camera = self.calib(sid).camera
+            try:
+                camera = self.calib(sid).camera
+            except DatasetFormatError:
+                continue
             key = json.dumps(camera, sort_keys=True)
             if key in seen:
                 continue
