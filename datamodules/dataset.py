@@ -245,7 +245,7 @@ class AirFisheyeDataset(Dataset):
             raise ValueError(f"{self.reader.missing_reason('cubemap')}; use data.source=fisheye")
         for content in task_spec.requires:
             if not self.spec.has(content):
-                raise ValueError(f"{self.reader.missing_reason(content)}; task={task} needs it")
+                raise ConfigError(f"{self.reader.missing_reason(content)}; task={task} needs it")
         needed = {task_spec.target, *task_spec.inputs} - {"image"}
         if needed - set(SAMPLE_KEYS):
             raise ValueError(
@@ -256,7 +256,7 @@ class AirFisheyeDataset(Dataset):
         # A dense map the source lacks (WoodScape has no depth, KITTI-360 no fisheye labels).
         for key, modality in (("label", "seg"), ("depth", "depth")):
             if key in self.sample_keys and modality not in self.reader.modalities:
-                raise ValueError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
+                raise ConfigError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
