@@ -24,7 +24,7 @@ from PIL import Image
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.cubemap import FACE_NAMES
-from airfisheye_bench.io.datasets import DATASET_FORMATS, open_dataset
+from airfisheye_bench.io.datasets import DATASET_FORMATS, modalities_of, open_dataset
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.inspect import InspectReport
 
@@ -78,7 +78,7 @@ def _check_sample(source, sid: str, deep: bool, report: InspectReport) -> None:
         return
     kinds = [k for k in ("fisheye", "cubemap") if spec.has(k)]
     for kind in kinds:
-        for modality in source.modalities:
+        for modality in modalities_of(source):
             report.files += 1
             path = source.path_of(sid, modality, kind)
             if not deep:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.io.datasets.base import DatasetSource, check_options
+from airfisheye_bench.io.datasets.base import DatasetSource, check_options, modalities_of
 from airfisheye_bench.io.datasets.woodscape import WoodScapeSource
 from airfisheye_bench.io.reader import DatasetReader
 
@@ -34,4 +34,4 @@ def open_dataset(
     return cls(root, **check_options(format, dict(options or {}), cls.OPTIONS))
 
 
-__all__ = ["DATASET_FORMATS", "DatasetSource", "check_options", "open_dataset"]
+__all__ = ["DATASET_FORMATS", "DatasetSource", "check_options", "modalities_of", "open_dataset"]

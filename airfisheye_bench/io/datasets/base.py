@@ -32,7 +32,8 @@ class DatasetSource(Protocol):
         spec: Classes (raw ids and the training classes they map to), the contents present
             (:data:`~airfisheye_bench.io.spec.KNOWN_CONTENTS`), the ignore index.
         modalities: The dense maps its images come with, of ``rgb``, ``seg``, ``depth`` (WoodScape has no depth,
-            KITTI-360 no fisheye labels); a task needing another is refused with :meth:`missing_reason`.
+            KITTI-360 no fisheye labels); a task needing another is refused with :meth:`missing_reason`. Read it
+            with :func:`modalities_of` (a source that leaves it out has all three).
     """
 
     format: ClassVar[str]
@@ -69,6 +70,20 @@ class DatasetSource(Protocol):
         """One sentence on why the dataset has no ``content`` (asked only when ``spec.has(content)`` is false)."""
 
 
+#: The dense maps a dataset may have; a source without ``modalities`` has all three.
+DENSE_MODALITIES = ("rgb", "seg", "depth")
+
+
+def modalities_of(source: object) -> tuple[str, ...]:
+    """The dense maps ``source`` has (its ``modalities``; all of :data:`DENSE_MODALITIES` when it does not say).
+
+    Example:
+        >>> modalities_of(object())
+        ('rgb', 'seg', 'depth')
+    """
+    return tuple(getattr(source, "modalities", DENSE_MODALITIES))
+
+
 def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> dict:
     """``data.format_options`` of a source: unknown keys refused, unset ones from ``allowed``'s defaults.
 
@@ -85,4 +100,4 @@ def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> 
     return {key: default if given.get(key) is None else given[key] for key, default in allowed.items()}
 
 
-__all__ = ["DatasetSource", "check_options"]
+__all__ = ["DENSE_MODALITIES", "DatasetSource", "check_options", "modalities_of"]
