@@ -18,32 +18,15 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from tests.io import calibration_fixtures as fx
+
 #: Ids of ``omnidet/data/train.txt`` and ``val.txt`` (github:valeoai/WoodScape).
 TRAIN_IDS = ("00000_FV", "00001_FV", "00028_RV", "00044_MVR", "00140_MVL", "00141_MVL")
 VAL_IDS = ("00020_FV", "00102_MVR", "00165_MVL", "00175_RV")
 WIDTH, HEIGHT = 128, 98
 
 #: ``scripts/calibration/front.json`` (github:valeoai/WoodScape).
-FRONT_JSON = {
-    "extrinsic": {
-        "quaternion": [0.5941767906169857, -0.5878843193897473, 0.3873184109007999, -0.3890121040340926],
-        "translation": [3.7484, 0.0, 0.6601699999999999],
-    },
-    "intrinsic": {
-        "aspect_ratio": 1.0,
-        "cx_offset": 3.942,
-        "cy_offset": -3.093,
-        "height": 966.0,
-        "k1": 339.749,
-        "k2": -31.988,
-        "k3": 48.275,
-        "k4": -7.201,
-        "model": "radial_poly",
-        "poly_order": 4,
-        "width": 1280.0,
-    },
-    "name": "FV",
-}
+FRONT_JSON = fx.WOODSCAPE_FRONT
 #: ``semantic_mapping_9_classes.json``'s BGR colours by class index (void 0 is black).
 BGR = [(0, 0, 0), (255, 0, 255), (255, 0, 0), (0, 255, 0), (0, 0, 255), (255, 255, 255), (255, 255, 0),
        (0, 255, 255), (128, 128, 255), (0, 128, 128)]  # fmt: skip
