@@ -54,7 +54,7 @@ from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.io import DatasetFormatError
 from airfisheye_bench.io.calibration_files import load_camera
-from airfisheye_bench.io.datasets import open_dataset
+from airfisheye_bench.io.datasets import modalities_of, open_dataset
 from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
@@ -266,6 +266,10 @@ class AirFisheyeDataset(Dataset):
                 f"(it serves image, {', '.join(SAMPLE_KEYS)})"
             )
         self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
+        # A dense map the source lacks (WoodScape has no depth, KITTI-360 no fisheye labels).
+        for key, modality in (("label", "seg"), ("depth", "depth")):
+            if key in self.sample_keys and modality not in modalities_of(self.reader):
+                raise ConfigError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
@@ -490,10 +494,9 @@ class AirFisheyeDataset(Dataset):
             _augmented(np.asarray(self.reader.T_cam_lidar(sample_id), np.float64), params),
             self.camera,
             spec,
-            method=target.occlusion,
+            method=Occlusion(target.occlusion, target.occlusion_options),
             max_depth=self.max_depth,
             mirror=params is not None and params.flip,
-            **check_occlusion_options(target.occlusion, dict(target.occlusion_options)),
         )
         return torch.from_numpy(depth)[None]
 

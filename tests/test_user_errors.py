@@ -31,6 +31,7 @@ from torch.utils.data import DataLoader, Dataset
 from airfisheye_bench.config_checks import RULES, check_common_values
 from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError, UserError, report_user_errors, user_message
 from airfisheye_bench.io.errors import DatasetFormatError
+from tests.io.datasets.woodscape_fixture import write_woodscape
 from tests.training.test_train import tiny_run_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -104,6 +105,7 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
     bad_scan.write_bytes(b"\0" * 20)  # not a whole number of float32 x 4 records
     bad_spec = tmp / "sensor.yaml"
     bad_spec.write_text("channels: 64\nelevations_deg: [2, 1]\n")
+    woodscape = write_woodscape(tmp / "woodscape")
     train = [*tiny_run_overrides("seg", dataset)]
     # On the synthetic preset with an empty cache: a row refused before any work leaves the cache without a dataset.
     fresh = [*train, "data.root=null", "data.preset=tiny", f"paths.data_dir={tmp}/cache"]
@@ -290,6 +292,17 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             [*fresh, "logger=tensorboard", f"hydra.run.dir={tmp}/r18"],
             ("logger.tensorboard", "airfisheye-bench[tensorboard]"),
         ),
+        "woodscape_depth": (  # a dataset without the content a task needs
+            TRAIN,
+            [
+                "task=depth",
+                "data=woodscape",
+                f"data.root={woodscape}",
+                "trainer=debug",
+                f"hydra.run.dir={tmp}/r20",
+            ],
+            ("WoodScape released no LiDAR and no depth", "#82", "task=depth needs it"),
+        ),
         "offline_weights": (
             TRAIN,
             [*train, "experiment=paper/seg", "data.camera.size=64", f"hydra.run.dir={tmp}/r19"],
@@ -374,6 +387,7 @@ DEFAULT_ROWS = (
     "lidar_preset",
     "scan_file",
     "occlusion_options",
+    "woodscape_depth",
 )
 """Rows of the default suite; the other schema rows are ``slow`` (test_schema_table covers them in-process)."""
 SLOW_ROWS = (

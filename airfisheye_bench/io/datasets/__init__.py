@@ -13,9 +13,10 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.io.datasets.base import DatasetSource, DepthPoints, check_options
+from airfisheye_bench.io.datasets.base import DatasetSource, DepthPoints, check_options, modalities_of
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.io.datasets.tartanair import TartanAirSource
+from airfisheye_bench.io.datasets.woodscape import WoodScapeSource
 from airfisheye_bench.io.reader import DatasetReader
 
 #: ``data.format`` -> the class reading that format: ``cls(root, **options)``, its options and their defaults in
@@ -24,6 +25,7 @@ DATASET_FORMATS: dict[str, type] = {
     "airfisheye": DatasetReader,
     "kitti360": Kitti360Source,
     "tartanair": TartanAirSource,
+    "woodscape": WoodScapeSource,
 }
 
 
@@ -37,4 +39,11 @@ def open_dataset(
     return cls(root, **check_options(format, dict(options or {}), cls.OPTIONS))
 
 
-__all__ = ["DATASET_FORMATS", "DatasetSource", "DepthPoints", "check_options", "open_dataset"]
+__all__ = [
+    "DATASET_FORMATS",
+    "DatasetSource",
+    "DepthPoints",
+    "check_options",
+    "modalities_of",
+    "open_dataset",
+]

@@ -43,10 +43,14 @@ class DatasetSource(Protocol):
         root: The dataset root.
         spec: Classes (raw ids and the training classes they map to), the contents present
             (:data:`~airfisheye_bench.io.spec.KNOWN_CONTENTS`), the ignore index.
+        modalities: The dense maps its images come with, of ``rgb``, ``seg``, ``depth`` (WoodScape has no depth,
+            KITTI-360 no fisheye labels); a task needing another is refused with :meth:`missing_reason`. Read it
+            with :func:`modalities_of` (a source that leaves it out has all three).
     """
 
     format: ClassVar[str]
     OPTIONS: ClassVar[dict[str, object]]
+    modalities: ClassVar[tuple[str, ...]]
     root: Path
     spec: DatasetSpec
 
@@ -95,6 +99,20 @@ class DepthPoints:
     occlusion_options: dict = field(default_factory=dict)
 
 
+#: The dense maps a dataset may have; a source without ``modalities`` has all three.
+DENSE_MODALITIES = ("rgb", "seg", "depth")
+
+
+def modalities_of(source: object) -> tuple[str, ...]:
+    """The dense maps ``source`` has (its ``modalities``; all of :data:`DENSE_MODALITIES` when it does not say).
+
+    Example:
+        >>> modalities_of(object())
+        ('rgb', 'seg', 'depth')
+    """
+    return tuple(getattr(source, "modalities", DENSE_MODALITIES))
+
+
 def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> dict:
     """``data.format_options`` of a source: unknown keys refused, unset ones from ``allowed``'s defaults.
 
@@ -111,4 +129,4 @@ def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> 
     return {key: default if given.get(key) is None else given[key] for key, default in allowed.items()}
 
 
-__all__ = ["DatasetSource", "DepthPoints", "check_options"]
+__all__ = ["DENSE_MODALITIES", "DatasetSource", "DepthPoints", "check_options", "modalities_of"]
