@@ -252,7 +252,9 @@ class AirFisheyeDataset(Dataset):
         needed = {task_spec.target, *task_spec.inputs} - {"image"}
         # A source without dense depth images may give its depth target as LiDAR points (``depth_points``).
         self._depth_from_points = callable(getattr(self.reader, "depth_points", None))
-        modalities = getattr(self.reader, "modalities", ("rgb", "seg", "depth"))
+        # A dense map the source lacks (WoodScape has no depth, KITTI-360 no fisheye labels; its depth target comes
+        # from points instead).
+        modalities = modalities_of(self.reader)
         for key, modality in (("label", "seg"), ("depth", "depth")):
             if (
                 key in needed
@@ -266,10 +268,6 @@ class AirFisheyeDataset(Dataset):
                 f"(it serves image, {', '.join(SAMPLE_KEYS)})"
             )
         self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
-        # A dense map the source lacks (WoodScape has no depth, KITTI-360 no fisheye labels).
-        for key, modality in (("label", "seg"), ("depth", "depth")):
-            if key in self.sample_keys and modality not in modalities_of(self.reader):
-                raise ConfigError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
