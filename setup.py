@@ -17,5 +17,6 @@ setup(
     package_data={
         "airfisheye_bench.configs": ["*.yaml", "**/*.yaml"],
         "airfisheye_bench.evaluation.leaderboard": ["assets/*.css", "assets/*.js"],
+        "airfisheye_bench.io.datasets": ["woodscape_splits/*.txt"],
     },
 )

@@ -21,7 +21,7 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
-from airfisheye_bench.geometry.occlusion import check_occlusion_options
+from airfisheye_bench.geometry.occlusion import Occlusion
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
 from airfisheye_bench.synth.cache import ensure_dataset
@@ -158,8 +158,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
             task=task,
             source=source,
             camera=self.camera_config,
-            occlusion=occlusion,
-            occlusion_options=_occlusion_options(occlusion, occlusion_options),
+            # Checked once, here; the datasets and every frame's projection take it as it is.
+            occlusion=Occlusion(occlusion, occlusion_options or {}),
             motion_compensation=motion_compensation,
             max_depth=max_depth,
             skip_bad_frames=skip_bad_frames,
@@ -360,16 +360,6 @@ class AirFisheyeDataModule(L.LightningDataModule):
         if not self.datasets:
             self.setup(None)
         return next(iter(self.datasets.values()))
-
-
-def _occlusion_options(method: str, given: dict[str, Any] | None) -> dict[str, Any]:
-    """``data.occlusion_options`` checked against ``data.occlusion`` (naming both keys on error)."""
-    given = dict(given or {})
-    try:
-        check_occlusion_options(method, given)
-    except ValueError as err:
-        raise ValueError(f"data.occlusion_options (data.occlusion={method}): {err}") from None
-    return given
 
 
 def _lidar_spec(value: Any, root: str | Path | None) -> tuple[str | None, LidarSpec | None]:

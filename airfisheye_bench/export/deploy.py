@@ -283,9 +283,6 @@ def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[
         raise ValueError(f"task={spec.name} lists metadata {missing} that the task module does not provide")
     return deployment_metadata(
         task=task.task,
-        inputs=spec.inputs,
-        output=spec.output,
-        task_keys=spec.export.metadata,
         model=model_config["name"],
         model_config=model_config,
         normalization=datamodule.normalization,

@@ -37,6 +37,7 @@ class DatasetReader:
 
     format: ClassVar[str] = "airfisheye"
     OPTIONS: ClassVar[dict[str, object]] = {}
+    modalities: ClassVar[tuple[str, ...]] = ("rgb", "seg", "depth")
 
     def __init__(self, root: str | Path, spec: DatasetSpec | None = None) -> None:
         self.root = Path(root)

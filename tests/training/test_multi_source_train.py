@@ -9,11 +9,12 @@ from pathlib import Path
 import pytest
 from omegaconf import open_dict
 
+from airfisheye_bench.config_checks import check_train_config
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation import command
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.evaluation.leaderboard import collect_results
-from airfisheye_bench.training import check_config, train
+from airfisheye_bench.training import check_sources, train
 from tests.evaluation.test_evaluate import compose_eval
 from tests.io.datasets.tartanair_fixture import write_tartanair_fixture
 from tests.test_user_errors import TRAIN, assert_one_line_error, run_command
@@ -27,17 +28,23 @@ def _overrides(root: Path, other: Path, *extra: str) -> list[str]:
     return [*base, "data.sources=[tiny,other]", f"data.source_options={{other:{{root:'{other}'}}}}", *extra]
 
 
+def _check(cfg) -> None:
+    """What the training command checks before it writes anything."""
+    check_train_config(cfg)
+    check_sources(cfg.data)
+
+
 def test_sources_compose_from_the_command_line(tiny_dataset: Path, tmp_path: Path) -> None:
     cfg = compose_train(_overrides(tiny_dataset, tiny_dataset, "data.preset=quickstart"))
     assert list(cfg.data.sources) == ["tiny", "other"] and cfg.data.source_options.other.root == str(
         tiny_dataset
     )
-    check_config(cfg)
+    _check(cfg)
     cfg = compose_train(
         ["task=seg", "data.sources=[tiny,quickstart]", "data.source_options={quickstart:{weight:2}}"]
     )
     with pytest.raises(ConfigError, match=r"data\.source_options\.tiny\.weight is unset"):
-        check_config(cfg)
+        _check(cfg)
     # A real-data config with no root of its own: its sources carry the locations.
     cfg = compose_train(
         [
@@ -47,10 +54,10 @@ def test_sources_compose_from_the_command_line(tiny_dataset: Path, tmp_path: Pat
             f"data.source_options={{mine:{{root:'{tmp_path}'}}}}",
         ]
     )
-    check_config(cfg)
+    _check(cfg)
     cfg = compose_train(["task=seg", "data=airfisheye", "data.sources=[tiny,airfisheye]"])
     with pytest.raises(ConfigError, match=r"give data\.source_options\.airfisheye\.root"):
-        check_config(cfg)
+        _check(cfg)
 
 
 def test_a_two_source_run_records_each_source(

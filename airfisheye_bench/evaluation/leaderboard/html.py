@@ -47,7 +47,7 @@ from airfisheye_bench.evaluation.leaderboard.columns import (
     rim_label,
 )
 from airfisheye_bench.evaluation.leaderboard.rank import TaskTable
-from airfisheye_bench.evaluation.results import load_results
+from airfisheye_bench.io.results import load_results
 
 __all__ = ["render_html", "write_html"]
 

@@ -9,7 +9,8 @@ implementations of ``ordering``; one concept per module:
 ==========================  ===========================================================================
 ``api``                     :func:`occlusion_mask`, :func:`project_lidar`, :func:`lidar_depth_map`,
                             :func:`ordering_mask` / :func:`ordering_reference` and the implementations
-``options``                 :data:`OCCLUSION_METHODS`, :data:`OCCLUSION_OPTIONS`, :func:`check_occlusion_options`
+``options``                 :data:`OCCLUSION_METHODS`, :data:`OCCLUSION_OPTIONS`, :func:`check_occlusion_options`,
+                            :class:`Occlusion` (a method with its checked options)
 ``projection``              the transform's check, the projection of the points and their pixel
 ``zbuffer``                 the z-buffer baseline
 ``hpr``                     Hidden Point Removal (Katz, Tal, Basri 2007)
@@ -30,6 +31,7 @@ from airfisheye_bench.geometry.occlusion.api import (
 from airfisheye_bench.geometry.occlusion.options import (
     OCCLUSION_METHODS,
     OCCLUSION_OPTIONS,
+    Occlusion,
     check_occlusion_options,
 )
 
@@ -38,6 +40,7 @@ __all__ = [
     "OCCLUSION_OPTIONS",
     "ORDERING_IMPLEMENTATIONS",
     "LidarProjection",
+    "Occlusion",
     "check_occlusion_options",
     "lidar_depth_map",
     "occlusion_mask",

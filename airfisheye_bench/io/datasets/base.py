@@ -7,15 +7,27 @@ A source turns its dataset's files into the project's conventions (``docs/design
 raw label ids that ``spec.raw_to_train`` maps to training classes, LiDAR points in the LiDAR's FLU frame, and a
 :class:`~airfisheye_bench.io.calib.Calibration` per frame (the camera model, ``T_body_cam``, ``T_body_lidar``, the
 LiDAR spec). The datamodule never looks at file names; the error messages of a source name the file.
+
+Optional members (looked up with ``getattr``; a source without them is served as before):
+
+- ``modalities``: the fisheye image modalities the source has (``rgb``, ``seg``, ``depth``; default all three). A
+  task whose target needs a missing one is refused with ``missing_reason(<modality>)``.
+- ``deskew(sample_id, points) -> points``: the scan's points (``[M, 3]``, any subset of ``lidar_scan``'s, in its
+  order) moved to where they were at the scan's reference time, the time ``T_cam_lidar`` refers to (a spinning
+  LiDAR's raw scan is recorded over a revolution). Applied with ``data.motion_compensation``.
+- ``depth_points(sample_id, min_range) -> DepthPoints``: the depth target is LiDAR points (a sparse-ground-truth
+  dataset such as KITTI-360), projected at the served camera by the datamodule instead of a dense depth image.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io.calib import Calibration
 from airfisheye_bench.io.scan import Scan
 from airfisheye_bench.io.spec import DatasetSpec
@@ -31,10 +43,14 @@ class DatasetSource(Protocol):
         root: The dataset root.
         spec: Classes (raw ids and the training classes they map to), the contents present
             (:data:`~airfisheye_bench.io.spec.KNOWN_CONTENTS`), the ignore index.
+        modalities: The dense maps its images come with, of ``rgb``, ``seg``, ``depth`` (WoodScape has no depth,
+            KITTI-360 no fisheye labels); a task needing another is refused with :meth:`missing_reason`. Read it
+            with :func:`modalities_of` (a source that leaves it out has all three).
     """
 
     format: ClassVar[str]
     OPTIONS: ClassVar[dict[str, object]]
+    modalities: ClassVar[tuple[str, ...]]
     root: Path
     spec: DatasetSpec
 
@@ -66,6 +82,37 @@ class DatasetSource(Protocol):
         """One sentence on why the dataset has no ``content`` (asked only when ``spec.has(content)`` is false)."""
 
 
+@dataclass(frozen=True)
+class DepthPoints:
+    """The points whose projection at the served camera is a sample's depth target (``depth_points``).
+
+    Attributes:
+        points: ``float64 [M, 3]`` in the sample's LiDAR frame (the frame ``T_cam_lidar`` maps to the camera).
+        occlusion: How the points the camera cannot see are removed: a method of
+            :data:`~airfisheye_bench.geometry.occlusion.OCCLUSION_METHODS` that needs no rings (``zbuffer``,
+            ``hpr``, ``none``): accumulated points have no ring structure.
+        occlusion_options: That method's options (unset ones take their defaults).
+    """
+
+    points: np.ndarray
+    occlusion: str = "zbuffer"
+    occlusion_options: dict = field(default_factory=dict)
+
+
+#: The dense maps a dataset may have; a source without ``modalities`` has all three.
+DENSE_MODALITIES = ("rgb", "seg", "depth")
+
+
+def modalities_of(source: object) -> tuple[str, ...]:
+    """The dense maps ``source`` has (its ``modalities``; all of :data:`DENSE_MODALITIES` when it does not say).
+
+    Example:
+        >>> modalities_of(object())
+        ('rgb', 'seg', 'depth')
+    """
+    return tuple(getattr(source, "modalities", DENSE_MODALITIES))
+
+
 def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> dict:
     """``data.format_options`` of a source: unknown keys refused, unset ones from ``allowed``'s defaults.
 
@@ -75,11 +122,11 @@ def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> 
     """
     unknown = sorted(set(given) - set(allowed))
     if unknown:
-        raise ValueError(
+        raise ConfigError(
             f"data.format_options: unknown keys {unknown} for data.format={format_name}; expected some of "
             f"{sorted(allowed)}"
         )
     return {key: default if given.get(key) is None else given[key] for key, default in allowed.items()}
 
 
-__all__ = ["DatasetSource", "check_options"]
+__all__ = ["DENSE_MODALITIES", "DatasetSource", "DepthPoints", "check_options", "modalities_of"]
