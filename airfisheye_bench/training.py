@@ -450,7 +450,7 @@ def source_results(
     for src in datamodule.sources:
         part = test.datasets[src.name]
         identity = {**src.record(), **dataset_identity(roots[src.name], part.spec.name)}
-        identity |= {"frames": len(part), "camera": part.camera.to_dict()}
+        identity |= {"frames": len(part), "camera": test.source_camera(src.name).to_dict()}
         scores = results.get("sources", {}).get(src.name, {})
         sources[src.name] = {
             "dataset": identity,

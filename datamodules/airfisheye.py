@@ -319,7 +319,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
     def camera_of(self, source: str | None = None) -> FisheyeCamera:
         """The served camera of one source (``None``: the run's camera, the first source's)."""
         dataset = self._any_dataset()
-        return dataset.datasets[source].camera if source is not None else dataset.camera
+        return dataset.source_camera(source) if source is not None else dataset.camera
 
     @property
     def camera(self) -> FisheyeCamera:

@@ -18,9 +18,12 @@ from typing import Any
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch.utils.data import Dataset
 
+from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError, UserError
+from airfisheye_bench.geometry.serving import serve_camera
 from airfisheye_bench.specs import get_task
 from datamodules.dataset import AirFisheyeDataset
 from datamodules.sampling import EpochSeededSampler, draw_seed
@@ -40,6 +43,8 @@ class MultiSourceDataset(Dataset):
         datasets: The split of each source, by source name.
         common: The run's classes.
         luts: Per source, its training id -> common id table (``None``: the same classes).
+        served: Per source, its camera as served here and the rows padded above and below its frames (``None``:
+            each dataset's own camera, no padding).
     """
 
     def __init__(
@@ -47,6 +52,7 @@ class MultiSourceDataset(Dataset):
         datasets: Mapping[str, AirFisheyeDataset],
         common: CommonClasses,
         luts: Mapping[str, torch.Tensor | None] | None = None,
+        served: Mapping[str, tuple[Any, int]] | None = None,
     ) -> None:
         self.datasets = dict(datasets)
         self.names = list(self.datasets)
@@ -57,8 +63,9 @@ class MultiSourceDataset(Dataset):
         self.offsets = [int(x) for x in np.cumsum([0, *sizes[:-1]])]
         self.sizes = sizes
         self.sample_ids = [f"{n}/{s}" for n, d in self.datasets.items() for s in d.sample_ids]
+        self.served = dict(served or {n: (d.camera, 0) for n, d in self.datasets.items()})
+        self.camera = self.served[self.names[0]][0]
         first = next(iter(self.datasets.values()))
-        self.camera = first.camera
         self.task = first.task
 
     def __len__(self) -> int:
@@ -76,6 +83,9 @@ class MultiSourceDataset(Dataset):
         sample = self.datasets[name][local]
         if sample is None:  # skip_bad_frames: collate drops and counts it
             return None
+        top = self.served[name][1]
+        if top:
+            _pad_rows(sample, top, self.datasets[name].spec.ignore_index)
         sample["sample_id"] = f"{name}/{sample['sample_id']}"
         sample["source"] = name
         lut = self.luts.get(name)
@@ -91,9 +101,23 @@ class MultiSourceDataset(Dataset):
         for dataset in self.datasets.values():
             dataset.warm_up()
 
-    def cameras(self) -> dict[str, Any]:
-        """The served camera of each source."""
-        return {n: d.camera for n, d in self.datasets.items()}
+    def source_camera(self, name: str) -> Any:
+        """The camera a source's frames are served with here (padded to the common size where needed)."""
+        return self.served[name][0]
+
+
+def _pad_rows(sample: dict, rows: int, ignore_index: int) -> None:
+    """Pad every map of a sample with ``rows`` rows above and below: no data there (invalid, ignored, no depth);
+    the image gets black, as a padded calibration's bands (``AirFisheyeDataset``), normalised."""
+    black = -torch.tensor(IMAGENET_MEAN).view(3, 1, 1) / torch.tensor(IMAGENET_STD).view(3, 1, 1)
+    band = black.expand(3, rows, sample["image"].shape[-1])
+    sample["image"] = torch.cat([band, sample["image"], band], dim=1)
+    sample["valid_mask"] = F.pad(sample["valid_mask"], (0, 0, rows, rows), value=False)
+    if "label" in sample:
+        sample["label"] = F.pad(sample["label"], (0, 0, rows, rows), value=ignore_index)
+    for key in ("depth", "sparse_depth"):
+        if key in sample:
+            sample[key] = F.pad(sample[key], (0, 0, rows, rows), value=0.0)
 
 
 def open_split(
@@ -139,8 +163,7 @@ def open_split(
             if uses_classes
             else None
         )
-    _check_same_size(datasets)
-    return MultiSourceDataset(datasets, common, luts)
+    return MultiSourceDataset(datasets, common, luts, _common_size(datasets))
 
 
 def _task_keys(task: str) -> set[str]:
@@ -148,24 +171,48 @@ def _task_keys(task: str) -> set[str]:
     return {spec.target, *spec.inputs}
 
 
-def _check_same_size(datasets: Mapping[str, AirFisheyeDataset]) -> None:
-    """Frames of all sources are batched together: they must have one size. Lenses may differ (logged)."""
-    sizes = {n: (d.camera.width, d.camera.height) for n, d in datasets.items()}
-    first = next(iter(sizes))
-    for name, size in sizes.items():
-        if size != sizes[first]:
+def _common_size(datasets: Mapping[str, AirFisheyeDataset]) -> dict[str, tuple[Any, int]]:
+    """Frames of all sources are batched together, so they are served at one size: the largest side ``S`` squared.
+
+    A source served narrower (a 4:3 recording kept at its aspect, ``S x 3S/4``) is padded above and below to
+    ``S x S``, as ``data.camera.fit=pad`` serves a calibration: its camera is that padded one
+    (:func:`~airfisheye_bench.geometry.serving.serve_camera`), the bands are invalid. Lenses may differ (logged).
+
+    Returns:
+        Per source, its served camera at ``S x S`` and the rows of padding above (0: none).
+
+    Raises:
+        ConfigError: a source that cannot be padded to ``S x S`` that way, naming it.
+    """
+    size = max(max(d.camera.width, d.camera.height) for d in datasets.values())
+    out: dict[str, tuple[Any, int]] = {}
+    for name, d in datasets.items():
+        if (d.camera.width, d.camera.height) == (size, size):
+            out[name] = (d.camera, 0)
+            continue
+        padded = serve_camera(d.served.source, size, "pad")
+        top = padded.offset[1]
+        fits = d.camera.width == size and padded.offset[0] == 0 and top == int(top)
+        if not fits or abs(padded.scale - d.served.scale) > 1e-12 or 2 * int(top) + d.camera.height != size:
             raise ConfigError(
-                f"data.sources: source {name} is served at {size[0]}x{size[1]}, source {first} at "
-                f"{sizes[first][0]}x{sizes[first][1]}: give data.camera.size (one square size for all; a non-square "
-                "calibration is padded or cropped by data.camera.fit)"
+                f"data.sources: source {name} is served at {d.camera.width}x{d.camera.height}, which does not pad "
+                f"to the other sources' {size}x{size}: give data.camera.size (a size at which its frame height "
+                "differs from the width by an even number of rows)"
             )
-    lenses = {n: d.camera.to_dict() for n, d in datasets.items()}
-    if any(lens != lenses[first] for lens in lenses.values()):
+        out[name] = (padded.camera, int(top))
+    lenses = {n: camera.to_dict() for n, (camera, _) in out.items()}
+    if len({str(lens) for lens in lenses.values()}) > 1:
         log.info(
             "sources served with their own lenses at %dx%d: %s",
-            *sizes[first],
-            "; ".join(f"{n}: {d.camera.model} {d.camera.coverage_deg:.0f} deg" for n, d in datasets.items()),
+            size,
+            size,
+            "; ".join(
+                f"{n}: {c.model} {c.coverage_deg:.0f} deg"
+                + (f", padded {t} rows above and below" if t else "")
+                for n, (c, t) in out.items()
+            ),
         )
+    return out
 
 
 # ------------------------------------------------------------------------------------------------- sampling

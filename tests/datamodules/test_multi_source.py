@@ -15,6 +15,7 @@ from datamodules import AirFisheyeDataModule
 from datamodules.multi_source import SourceMixtureSampler
 from datamodules.sampling import EpochSeededSampler, draw_seed
 from datamodules.sources import resolve_sources
+from tests.io.datasets.woodscape_fixture import write_woodscape
 
 
 def _datamodule(sources: list[str], options: dict, **kwargs) -> AirFisheyeDataModule:
@@ -206,3 +207,38 @@ def test_the_benchmark_script_compares_one_source_with_two(tiny_dataset: Path, c
     )
     rows = capsys.readouterr().out.splitlines()[1:]
     assert len(rows) == 5 and sum("two sources" in r for r in rows) == 2 and "pool: add" in rows[-1]
+
+
+def test_a_4x3_fisheye_source_is_padded_to_the_common_square(tiny_dataset: Path, tmp_path: Path) -> None:
+    """WoodScape (recorded 4:3 fisheye frames, its own lens and classes) beside the synthetic data at 32^2."""
+    ws = write_woodscape(tmp_path / "woodscape")
+    woodscape = {"root": str(ws), "source": "fisheye", "splits": ["train", "val", "val"]}
+    options = {"a": {"root": str(tiny_dataset)}, "woodscape": woodscape}
+    with pytest.raises(ConfigError, match=r"data\.source_options\.woodscape\.class_map is needed"):
+        _datamodule(["a", "woodscape"], options).setup("test")  # its own 10 classes
+    woodscape["format_options"] = {"classes": "benchmark"}  # the source maps them onto the benchmark's
+    dm = _datamodule(["a", "woodscape"], options)
+    alone = AirFisheyeDataModule(
+        "seg",
+        root=ws,
+        format="woodscape",
+        source="fisheye",
+        camera={"size": 32},
+        format_options={"classes": "benchmark"},
+    ).split_dataset("val")
+    assert (alone.camera.width, alone.camera.height) == (32, 24)
+    test = dm.split_dataset("test")
+    mixed, own = test[test.sizes[0]], alone[0]  # the first WoodScape frame, both ways
+    assert mixed["image"].shape == (3, 32, 32) and mixed["label"].shape == (32, 32)
+    assert torch.equal(mixed["image"][:, 4:28], own["image"]) and torch.equal(
+        mixed["label"][4:28], own["label"]
+    )
+    assert torch.equal(mixed["valid_mask"][4:28], own["valid_mask"]) and not mixed["valid_mask"][:4].any()
+    assert (mixed["label"][:4] == 255).all() and not mixed["valid_mask"][28:].any()
+    # The padded camera sees through row r + 4 what the source's own camera sees through row r.
+    padded = dm.camera_of("woodscape")
+    assert (padded.width, padded.height) == (32, 32) and padded.cy == pytest.approx(alone.camera.cy + 4)
+    theta, theta_own = padded.theta_grid(), alone.camera.theta_grid()
+    assert torch.allclose(theta[4:28], theta_own, atol=1e-6, equal_nan=True)
+    batch = next(iter(dm.test_dataloader()))
+    assert batch["image"].shape[-2:] == (32, 32) and batch["source"][-1] == "woodscape"
