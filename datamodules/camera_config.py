@@ -1,0 +1,117 @@
+"""``CameraConfig``: the fisheye a dataset serves (``data.camera``), resolved against the dataset's calibrated camera
+(docs/design.md, "Serving a sample" and "Calibration files")."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
+from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
+from airfisheye_bench.io.calibration_files import load_camera
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The fisheye the models see. ``None`` fields take the release's calibrated camera.
+
+    Args:
+        size: Output width and height in pixels (the paper trains at 512); ``None``: the camera's own size.
+        model: Lens model (``equidistant``, ``equisolid``, ``stereographic``, ``orthographic``, ``kannala_brandt``).
+        fov_deg: Field of view in degrees.
+        k: Kannala-Brandt coefficients.
+        calibration: A calibration file (any format of :mod:`airfisheye_bench.io.calibration_files`) whose lens
+            is served instead of the release's (``source=cubemap``), or that camera's flat dict (what an ONNX
+            model's data config carries in its place).
+        camera: Which camera of a calibration file with several (a name or a 0-based index).
+        fit: ``pad`` or ``crop``: how a non-square camera becomes the ``size x size`` image
+            (:mod:`airfisheye_bench.geometry.serving`).
+    """
+
+    size: int | None = None
+    model: str | None = None
+    fov_deg: float | None = None
+    k: tuple[float, float, float, float] | None = None
+    calibration: str | dict | None = None
+    camera: str | int | None = None
+    fit: str = "pad"
+
+    def calibrated_lens(self) -> CameraModel | None:
+        """The camera of ``calibration`` at its own size (``None`` without one).
+
+        Raises:
+            ConfigError: naming ``data.camera.calibration``, the file, its key and what is supported.
+        """
+        if self.calibration is None:
+            return None
+        try:
+            if isinstance(self.calibration, Mapping):
+                return camera_from_dict(dict(self.calibration))
+            return load_camera(self.calibration, self.camera, option="data.camera.camera")
+        except (ValueError, OSError) as err:
+            raise ConfigError(f"data.camera.calibration: {err}") from None
+
+    def resolve(self, calibrated: CameraModel, source: str) -> ServedCamera:
+        """The camera to serve (and how it maps onto the calibrated sensor), given the release's calibrated
+        fisheye."""
+        lens_changed = any(v is not None for v in (self.model, self.fov_deg, self.k))
+        lens = self.calibrated_lens()
+        if lens is not None:
+            if lens_changed:
+                raise ConfigError(
+                    "data.camera.calibration gives the lens: drop data.camera.model / fov_deg / k (they describe "
+                    "an ideal lens instead)"
+                )
+            if source == "fisheye":
+                raise ConfigError(
+                    "data.camera.calibration needs data.source=cubemap (the pre-rendered fisheye files have the "
+                    "release's lens)"
+                )
+            served = serve_camera(lens, self.size, self.fit)
+            log.info(
+                "camera from %s: %s",
+                self.calibration if isinstance(self.calibration, str) else "the model's metadata",
+                served.describe(),
+            )
+            return served
+        size = self.size or calibrated.width
+        if not lens_changed:
+            square = calibrated.width == calibrated.height
+            exact = (size * calibrated.height) % calibrated.width == 0
+            if source == "fisheye" and not exact:
+                raise ConfigError(
+                    f"data.camera.size={size}: the pre-rendered {calibrated.width}x{calibrated.height} fisheye files "
+                    "keep their aspect ratio only at a width whose height is a whole number; pick such a size or "
+                    "use data.source=cubemap (a square image, padded or cropped by data.camera.fit)"
+                )
+            if square or exact:
+                # The aspect ratio is kept exactly (the pre-rendered files are resampled to it).
+                resized = calibrated.resized(size, size * calibrated.height // calibrated.width)
+                return ServedCamera(resized, calibrated, size / calibrated.width, (0.0, 0.0), None)
+            served = serve_camera(calibrated, size, self.fit)
+            log.info("camera: %s", served.describe())
+            return served
+        if source == "fisheye":
+            raise ValueError(
+                "camera.model/fov_deg/k can only change with source=cubemap (the pre-rendered fisheye files have a "
+                "fixed lens); drop them or set data.source=cubemap"
+            )
+        model = self.model or calibrated.model
+        fov_deg = self.fov_deg if self.fov_deg is not None else calibrated.fov_deg
+        k = (
+            self.k
+            if self.k is not None
+            else (getattr(calibrated, "k", None) if model == "kannala_brandt" else None)
+        )
+        camera = FisheyeCamera(
+            size, size, fov_deg=fov_deg if fov_deg is not None else 190.0, model=model, k=k
+        )
+        return ServedCamera(camera, camera, 1.0, (0.0, 0.0), None)
+
+
+__all__ = ["CameraConfig"]
