@@ -21,7 +21,7 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
-from airfisheye_bench.geometry.occlusion import check_occlusion_options
+from airfisheye_bench.geometry.occlusion import check_sparse_input_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
 from airfisheye_bench.synth.presets import PRESETS
@@ -51,7 +51,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
         camera: Served camera: ``{"size": 512, "model": ..., "fov_deg": ..., "k": ...}``, or a calibrated lens
             ``{"size": 512, "calibration": <file>, "camera": <name or index>, "fit": "pad" | "crop"}``; unset keys
             follow the release (``datamodules.dataset.CameraConfig``).
-        occlusion: LiDAR occlusion correction for completion: ``ordering`` | ``zbuffer`` | ``hpr`` | ``none``.
+        occlusion: LiDAR occlusion correction for completion: ``ordering`` | ``zbuffer`` | ``hpr`` | ``none`` |
+            ``oracle`` (the generator's exact visibility: synthetic releases only).
         occlusion_options: Options of that method, e.g. ``{"elevation_tolerance": -0.25}`` for ``ordering``,
             ``{"kernel": 5, "threshold": 1.0, "relative": False}`` for ``zbuffer``, ``{"radius": 100}`` for
             ``hpr`` (all in :data:`~airfisheye_bench.geometry.occlusion.OCCLUSION_OPTIONS`); unset ones take
@@ -304,7 +305,7 @@ def _occlusion_options(method: str, given: dict[str, Any] | None) -> dict[str, A
     """``data.occlusion_options`` checked against ``data.occlusion`` (naming both keys on error)."""
     given = dict(given or {})
     try:
-        check_occlusion_options(method, given)
+        check_sparse_input_options(method, given)
     except ValueError as err:
         raise ValueError(f"data.occlusion_options (data.occlusion={method}): {err}") from None
     return given

@@ -45,7 +45,12 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, check_occlusion_options, lidar_depth_map
+from airfisheye_bench.geometry.occlusion import (
+    ORACLE,
+    SPARSE_INPUTS,
+    check_sparse_input_options,
+    lidar_depth_map,
+)
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
@@ -54,6 +59,7 @@ from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
+from datamodules.oracle import oracle_visible, require_visibility
 from datamodules.sampling import SharedEpoch, draw_seed
 
 log = logging.getLogger(__name__)
@@ -169,8 +175,9 @@ class AirFisheyeDataset(Dataset):
         task: A registered task (``seg``, ``depth``, ``completion``, see :mod:`airfisheye_bench.specs`).
         source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
         camera: The served camera (see :class:`CameraConfig`).
-        occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``
-            or ``none``.
+        occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``,
+            ``none``, or ``oracle`` (the generator's exact visibility; synthetic releases only, see
+            :mod:`datamodules.oracle`).
         occlusion_options: That method's options (see :func:`~airfisheye_bench.geometry.occlusion_mask`);
             unset options take their defaults.
         motion_compensation: Use ``T_cam_lidar`` from both sensors' poses at their own timestamps; ``False`` uses
@@ -209,7 +216,7 @@ class AirFisheyeDataset(Dataset):
         task_spec = get_task(task)
         for name, value, allowed in (
             ("source", source, IMAGE_SOURCES),
-            ("occlusion", occlusion, OCCLUSION_METHODS),
+            ("occlusion", occlusion, SPARSE_INPUTS),
         ):
             if value not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
@@ -221,7 +228,7 @@ class AirFisheyeDataset(Dataset):
         self.task = task
         self.source = source
         self.occlusion = occlusion
-        self.occlusion_options = check_occlusion_options(occlusion, dict(occlusion_options or {}))
+        self.occlusion_options = check_sparse_input_options(occlusion, dict(occlusion_options or {}))
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -249,6 +256,8 @@ class AirFisheyeDataset(Dataset):
                 f"(it serves image, {', '.join(SAMPLE_KEYS)})"
             )
         self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
+        if occlusion == ORACLE and "sparse_depth" in self.sample_keys:
+            require_visibility(self.reader, root)
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
@@ -398,6 +407,10 @@ class AirFisheyeDataset(Dataset):
 
     def lidar_points(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec]:
         """``(points float64 [M, 3], rings int64 [M], spec)`` of a frame after the counted filtering."""
+        return self.filtered_scan(sample_id)[:3]
+
+    def filtered_scan(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec, np.ndarray]:
+        """:meth:`lidar_points` and the ``bool [N]`` mask of the scan's points it keeps (for per-point data)."""
         scan = self.reader.lidar_scan(sample_id)
         if len(scan.points) == 0:
             raise DatasetFormatError(scan.path, "the LiDAR scan is empty")
@@ -431,10 +444,14 @@ class AirFisheyeDataset(Dataset):
                 scan.no_returns,
                 counts["returns"],
             )
-        return scan.points[kept.keep], rings[kept.keep], spec
+        return scan.points[kept.keep], rings[kept.keep], spec, kept.keep
 
     def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:
-        points, rings, spec = self.lidar_points(sample_id)
+        points, rings, spec, keep = self.filtered_scan(sample_id)
+        method = self.occlusion
+        if method == ORACLE:  # the truly visible points, projected without a test
+            visible = oracle_visible(self.reader, sample_id, keep)
+            points, rings, method = points[visible], rings[visible], "none"
         T = torch.from_numpy(self.T_cam_lidar(sample_id))
         if params is not None and params.angle_rad != 0.0:
             # Dense maps are mirrored, then rotated; the points are rotated, then mirrored (in lidar_depth_map).
@@ -445,7 +462,7 @@ class AirFisheyeDataset(Dataset):
             T.numpy(),
             self.camera,
             spec,
-            method=self.occlusion,
+            method=method,
             max_depth=self.max_depth,
             mirror=params is not None and params.flip,
             rings=rings,

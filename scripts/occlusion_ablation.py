@@ -1,7 +1,7 @@
 """Completion ablation of the occlusion correction: train and test NLSPN per (method, seed), report mean ± std.
 
-For every occlusion method (default: every one of ``airfisheye_bench.geometry.occlusion.OCCLUSION_METHODS``, read
-when the script runs) and every seed, one run of
+For every sparse input (default: every one of ``airfisheye_bench.geometry.occlusion.SPARSE_INPUTS``, read when the
+script runs: the occlusion methods and ``oracle``, the generator's exact visibility) and every seed, one run of
 
     python train.py task=completion data.occlusion=<method> seed=<seed> hydra.run.dir=<out>/<method>/seed<seed> \\
         <overrides...>
@@ -67,9 +67,9 @@ class Run:
 def plan(out: Path, methods: Sequence[str], seeds: Sequence[int]) -> list[Run]:
     """Every (method, seed) run, each in ``<out>/<method>/seed<seed>``, seed-major: an ablation stopped early
     has the same seeds for every method, so what it has is comparable."""
-    unknown = [m for m in methods if m not in occlusion.OCCLUSION_METHODS]
+    unknown = [m for m in methods if m not in occlusion.SPARSE_INPUTS]
     if unknown:
-        raise ValueError(f"--methods: unknown {unknown}; available: {', '.join(occlusion.OCCLUSION_METHODS)}")
+        raise ValueError(f"--methods: unknown {unknown}; available: {', '.join(occlusion.SPARSE_INPUTS)}")
     return [Run(m, int(s), out / m / f"seed{int(s)}") for s in seeds for m in methods]
 
 
@@ -157,7 +157,7 @@ def parse_args(argv: Sequence[str] | None) -> tuple[argparse.Namespace, list[str
     parser.add_argument(
         "--methods",
         type=lambda v: [m for m in v.split(",") if m],
-        help="comma-separated occlusion methods (default: every one of OCCLUSION_METHODS)",
+        help="comma-separated sparse inputs (default: every one of SPARSE_INPUTS, the oracle included)",
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--collect-only", action="store_true", help="train nothing, summarise what is there")
@@ -169,7 +169,7 @@ def main(
     argv: Sequence[str] | None = None, runner: Callable[[list[str]], None] = run_subprocess
 ) -> dict[str, Any]:
     args, overrides = parse_args(argv)
-    methods = args.methods or list(occlusion.OCCLUSION_METHODS)
+    methods = args.methods or list(occlusion.SPARSE_INPUTS)
     runs = plan(args.out, methods, args.seeds)
     if not args.collect_only:
         execute(runs, overrides, runner)
