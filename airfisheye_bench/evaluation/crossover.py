@@ -23,6 +23,8 @@ from omegaconf import DictConfig
 from torch import Tensor
 from torch.utils.data import DataLoader, Dataset, Subset
 
+from airfisheye_bench.errors import MissingFileError
+from airfisheye_bench.evaluation.predictors import CheckpointPredictor
 from airfisheye_bench.geometry.occlusion import ORACLE, SPARSE_INPUTS
 from airfisheye_bench.geometry.occlusion.zbuffer import derived_window_radius
 from airfisheye_bench.metrics.regions import (
@@ -33,6 +35,8 @@ from airfisheye_bench.metrics.regions import (
     affected_pixels,
     input_difference,
 )
+from airfisheye_bench.runs import resolve_checkpoint, run_config
+from airfisheye_bench.tasks.checkpoint import load_task
 from datamodules.config import apply_data_overrides, instantiate_datamodule
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 
@@ -45,6 +49,7 @@ __all__ = [
     "crossover_table",
     "difference_table",
     "input_differences",
+    "run_region_scores",
     "spread_frames",
     "window_radius_share",
 ]
@@ -123,10 +128,13 @@ def arm_datasets_from_config(
     size: int | None = None,
 ) -> dict[str, AirFisheyeDataset]:
     """As :func:`arm_datasets`, from a run's ``data`` config (its release, source, camera, LiDAR and bounds); only
-    ``data.occlusion`` (its options reset to the defaults) and, if given, ``data.camera.size`` change."""
+    ``data.occlusion`` and, if given, ``data.camera.size`` change. The run's ``occlusion_options`` stay with its own
+    method; every other arm takes its defaults."""
     out = {}
     for arm in arms:
-        overrides: dict[str, Any] = {"occlusion": arm, "occlusion_options": None}
+        overrides: dict[str, Any] = {"occlusion": arm}
+        if arm != data.get("occlusion"):
+            overrides["occlusion_options"] = None
         if size is not None:
             overrides["camera.size"] = size
         out[arm] = instantiate_datamodule(
@@ -174,6 +182,7 @@ def crossover(
     max_depth: float = 120.0,
     batch_size: int = 4,
     frames: int | None = None,
+    score: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Score one model on every arm's sparse input of the same frames, by region.
 
@@ -187,6 +196,7 @@ def crossover(
         max_depth: Evaluation bound in metres.
         batch_size: Frames per batch.
         frames: At most this many frames, spread over the split.
+        score: The arms to predict on (default: all; ``none`` and ``oracle`` are always served, for the regions).
 
     Returns:
         ``{"frames", "arms": {arm: {region: {metric: value, "pixels", "images"}}}, "input_difference":
@@ -195,7 +205,8 @@ def crossover(
     """
     _check_arms(datasets)
     start = time.perf_counter()
-    metrics = {arm: RegionCompletionMetrics(radius, near_m, max_depth) for arm in datasets} if predict else {}
+    scored = [a for a in datasets if score is None or a in score] if predict is not None else []
+    metrics = {arm: RegionCompletionMetrics(radius, near_m, max_depth) for arm in scored}
     diffs = {arm: {"differing": 0, "sparse": 0, "valid": 0} for arm in datasets}
     affected = {"differing_px": 0, "dilated_px": 0, "valid_px": 0}
     n = 0
@@ -210,7 +221,7 @@ def crossover(
         for arm, batch in batches.items():
             for key, value in input_difference(batch["sparse_depth"], none, valid).items():
                 diffs[arm][key] += value
-            if predict is not None:
+            if arm in metrics:
                 if not torch.equal(batch["depth"], target):
                     raise ValueError(
                         f"arm {arm!r} serves other ground truth than none for {batch['sample_id']}"
@@ -226,6 +237,38 @@ def crossover(
         "input_difference": {arm: _difference_row(c) for arm, c in diffs.items()},
         "affected": affected,
         "seconds": time.perf_counter() - start,
+    }
+
+
+def run_region_scores(
+    run_dir: str | Path,
+    split: str = "test",
+    radius: int = DEFAULT_RADIUS_PX,
+    near_m: float = DEFAULT_NEAR_M,
+    batch_size: int = 4,
+) -> dict[str, Any]:
+    """A trained run's own arm (its ``data.occlusion``) scored by region on ``split``: the ablation's per-run numbers.
+
+    Returns:
+        ``{"arm", "checkpoint", "radius_px", "near_m", "frames", "regions": {region: {metric: value, ...}}}``.
+    """
+    checkpoint = resolve_checkpoint(run_dir)
+    run = run_config(checkpoint)
+    if run is None:
+        raise MissingFileError(f"{checkpoint}: no config.yaml of its run next to it (its data is unknown)")
+    module = load_task(checkpoint)
+    arm = str(run.data.occlusion)
+    datasets = arm_datasets_from_config(run.data, split, list(dict.fromkeys(("none", ORACLE, arm))))
+    max_depth = float(run.data.get("max_depth", 120.0))
+    predictor = CheckpointPredictor(module, checkpoint)
+    result = crossover(predictor, datasets, radius, near_m, max_depth, batch_size, score=[arm])
+    return {
+        "arm": arm,
+        "checkpoint": str(checkpoint),
+        "radius_px": radius,
+        "near_m": near_m,
+        "frames": result["frames"],
+        "regions": result["arms"][arm],
     }
 
 

@@ -93,8 +93,9 @@ def test_datasets_from_a_run_config_change_only_the_input(tiny_dataset: Path) ->
             "data.camera.size=48",
         ]
     )
-    built = arm_datasets_from_config(cfg.data, "val", ("none", "zbuffer", ORACLE), size=SIZE)
-    assert {arm: ds.occlusion for arm, ds in built.items()} == {a: a for a in ("none", "zbuffer", ORACLE)}
+    arms = ("none", "zbuffer", ORACLE)
+    built = arm_datasets_from_config(cfg.data, "val", arms, size=SIZE)
+    assert {arm: ds.occlusion for arm, ds in built.items()} == {a: a for a in arms}
     assert all(ds.camera.width == SIZE for ds in built.values())
     assert (
         built["zbuffer"].occlusion_options["kernel"] is None
