@@ -50,6 +50,12 @@ def test_main_tiny(
         assert rows[name]["kept"] <= none["kept"] and rows[name]["hidden_kept"] <= none["hidden_kept"]
         assert rows[name]["truth"] == none["truth"]
     assert rows[study.ORACLE]["precision"] == rows[study.ORACLE]["recall"] == 1.0
+    # The per-location breakdown partitions the split: its counts add up to the pooled ones.
+    per_location = summary["per_location"]
+    assert set(per_location) == {sid.split("/")[0] for sid in summary["sample_ids"]}
+    for name, row in rows.items():
+        for key in ("kept", "tp", "hidden_kept", "sparse_wrong", "sparse_gt"):
+            assert sum(loc[name][key] for loc in per_location.values()) == row[key], (name, key)
 
     assert "| 32² | ordering |" in capsys.readouterr().out
     size = payload["figure"]["size"]
