@@ -32,6 +32,7 @@ from airfisheye_bench.evaluation.crossover import (
     crossover,
     crossover_table,
     difference_table,
+    paired_frames_table,
     window_radius_share,
 )
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor
@@ -129,6 +130,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         if result["arms"]:
             print()
             print(crossover_table(result))
+            print(
+                "\nPer frame, against `none` (the same model and frame), mean [95 % t-interval over frames]:\n"
+            )
+            print(paired_frames_table(result))
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)  # NaN -> null

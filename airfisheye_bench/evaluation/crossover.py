@@ -24,9 +24,11 @@ from torch import Tensor
 from torch.utils.data import DataLoader, Dataset, Subset
 
 from airfisheye_bench.errors import MissingFileError
+from airfisheye_bench.evaluation.paired import paired_differences
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor
 from airfisheye_bench.geometry.occlusion import ORACLE, SPARSE_INPUTS
 from airfisheye_bench.geometry.occlusion.zbuffer import derived_window_radius
+from airfisheye_bench.metrics.functional import completion_errors
 from airfisheye_bench.metrics.regions import (
     DEFAULT_NEAR_M,
     DEFAULT_RADIUS_PX,
@@ -49,11 +51,14 @@ __all__ = [
     "crossover_table",
     "difference_table",
     "input_differences",
+    "paired_frames_table",
     "run_region_scores",
     "spread_frames",
     "window_radius_share",
 ]
 
+#: Per-frame metrics of the paired comparison of the inputs (``region/metric``).
+FRAME_METRICS = ("rmse", "mae", "abs_rel")
 #: The inputs a cross-over tests, ``none`` first (the reference of every difference).
 CROSSOVER_ARMS = ("none", *(m for m in SPARSE_INPUTS if m != "none"))
 _REQUIRED = ("none", ORACLE)  # the affected pixels are where these two differ
@@ -199,9 +204,13 @@ def crossover(
         score: The arms to predict on (default: all; ``none`` and ``oracle`` are always served, for the regions).
 
     Returns:
-        ``{"frames", "arms": {arm: {region: {metric: value, "pixels", "images"}}}, "input_difference":
-        {arm: counts and fractions against none}, "affected": pixel counts of the undilated and dilated
-        affected region, "seconds"}`` (``arms`` empty without ``predict``).
+        ``{"frames", "arms": {arm: {region: {metric: value, "pixels", "images"}}}, "paired_frames": {arm:
+        {"region/metric": paired difference against none over the frames}}, "input_difference": {arm: counts
+        and fractions against none}, "affected": pixel counts of the undilated and dilated affected region,
+        "seconds"}`` (``arms`` and ``paired_frames`` empty without ``predict``). ``paired_frames`` pairs the
+        frames: one model and one frame under two inputs, the per-frame difference of a region's metric, with its
+        95 % t-interval over the frames that have pixels of that region (the frames as the sample; what it says
+        about other places depends on how well these four test locations stand for them).
     """
     _check_arms(datasets)
     start = time.perf_counter()
@@ -210,6 +219,7 @@ def crossover(
     diffs = {arm: {"differing": 0, "sparse": 0, "valid": 0} for arm in datasets}
     affected = {"differing_px": 0, "dilated_px": 0, "valid_px": 0}
     n = 0
+    per_frame: dict[str, dict[int, dict[str, float]]] = {arm: {} for arm in metrics}
     for batches in aligned_batches(datasets, batch_size, frames):
         none, oracle = batches["none"]["sparse_depth"], batches[ORACLE]["sparse_depth"]
         valid = batches["none"]["valid_mask"]
@@ -229,11 +239,17 @@ def crossover(
                 with torch.no_grad():
                     prediction = predict(batch)
                 metrics[arm].update(prediction, target, none, oracle, valid)
+                for region, mask in metrics[arm].masks(target, none, oracle, valid).items():
+                    errors, num_valid = completion_errors(prediction, target, max_depth, mask=mask)
+                    for b in torch.nonzero(num_valid > 0).flatten().tolist():
+                        row = per_frame[arm].setdefault(n - len(target) + b, {})
+                        row.update({f"{region}/{m}": float(errors[m][b]) for m in FRAME_METRICS})
     return {
         "frames": n,
         "radius_px": radius,
         "near_m": near_m,
         "arms": {arm: m.compute() for arm, m in metrics.items()},
+        "paired_frames": paired_differences(per_frame, "none") if "none" in per_frame else {},
         "input_difference": {arm: _difference_row(c) for arm, c in diffs.items()},
         "affected": affected,
         "seconds": time.perf_counter() - start,
@@ -294,6 +310,25 @@ def crossover_table(result: Mapping[str, Any], metrics: Sequence[str] = ("rmse",
                 if ref is not None and arm != "none":
                     cell += f" ({value - ref[region][m]:+.4f})"
                 cells.append(cell)
+        lines.append(f"| `{arm}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def paired_frames_table(
+    result: Mapping[str, Any],
+    metrics: Sequence[str] = ("all/rmse", "affected/rmse", "affected/abs_rel", "near/rmse"),
+) -> str:
+    """Markdown: per arm, the mean per-frame difference to ``none`` with its 95 % t-interval over the frames."""
+    lines = ["| input − none (per frame) | " + " | ".join(metrics) + " |", "|---|" + "---:|" * len(metrics)]
+    for arm, by_metric in result.get("paired_frames", {}).items():
+        cells = []
+        for m in metrics:
+            d = by_metric.get(m)
+            if d is None:
+                cells.append("-")
+            else:
+                lo, hi = d["ci95"]
+                cells.append(f"{d['mean']:+.4f} [{lo:+.4f}, {hi:+.4f}] (n={d['n']})")
         lines.append(f"| `{arm}` | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

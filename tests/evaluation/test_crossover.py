@@ -16,6 +16,7 @@ from airfisheye_bench.evaluation.crossover import (
     crossover_table,
     difference_table,
     input_differences,
+    paired_frames_table,
     spread_frames,
     window_radius_share,
 )
@@ -68,6 +69,19 @@ def test_every_input_scores_the_same_model_on_the_same_frames(datasets, predicto
     # (a convolution's reach), but the difference of the inputs there is 0 by construction.
     assert not math.isnan(result["arms"][ORACLE]["affected"]["rmse"])
 
+    # Per-frame pairs: one pair per frame that has pixels of the region; their mean difference is the difference
+    # of the two arms' per-image averages over the same frames.
+    paired = result["paired_frames"]
+    assert "none" not in paired and set(paired) == set(CROSSOVER_ARMS) - {"none"}
+    for arm in paired:
+        for region in ("all", "affected"):
+            d = paired[arm][f"{region}/rmse"]
+            assert d["n"] == result["arms"]["none"][region]["images"]
+            expected = result["arms"][arm][region]["rmse"] - result["arms"]["none"][region]["rmse"]
+            assert d["mean"] == pytest.approx(expected, abs=1e-9)
+            assert d["n"] < 2 or d["ci95"][0] <= d["mean"] <= d["ci95"][1]
+    assert "| `oracle` |" in paired_frames_table(result)
+
     table = crossover_table(result)
     assert table.splitlines()[2].startswith("| `none` |") and "(+0.0000)" not in table.splitlines()[2]
     assert "| `oracle` |" in difference_table(result)
@@ -97,9 +111,8 @@ def test_datasets_from_a_run_config_change_only_the_input(tiny_dataset: Path) ->
     built = arm_datasets_from_config(cfg.data, "val", arms, size=SIZE)
     assert {arm: ds.occlusion for arm, ds in built.items()} == {a: a for a in arms}
     assert all(ds.camera.width == SIZE for ds in built.values())
-    assert (
-        built["zbuffer"].occlusion_options["kernel"] is None
-    )  # the run's options are not carried to the arms
+    assert built["zbuffer"].occlusion_options["kernel"] == 3  # the run's options stay with its own method
+    assert built["none"].occlusion_options == {} and built[ORACLE].occlusion_options == {}
 
 
 def test_spread_frames() -> None:
