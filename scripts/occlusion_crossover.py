@@ -4,8 +4,9 @@ The logic is :mod:`airfisheye_bench.evaluation.crossover`; this script builds th
 
     # one model, every input, on the test split of the data it was trained on, served at 256²
     python scripts/occlusion_crossover.py --ckpt runs/xover --size 256 --json docs/figures/occlusion_crossover_256.json
-    # without a model: how much each input differs from `none`, at several sizes
+    # without a model: how much each input differs from `none`, at several sizes (and with a real sensor's layout)
     python scripts/occlusion_crossover.py --preset occlusion --size 128 256 512 --json docs/figures/occlusion_inputs.json
+    python scripts/occlusion_crossover.py --preset occlusion --lidar-preset hdl64e --size 256
 
 With ``--ckpt`` the release, source, LiDAR and bounds are the run's (its ``config.yaml``); ``--size`` overrides the
 served size (default: the run's). Without it, ``--preset`` (generated if missing) or ``--root`` is served with
@@ -51,6 +52,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     where.add_argument("--root", help="dataset root (without --ckpt)")
     where.add_argument("--preset", default="occlusion", help="synthetic preset (without --ckpt)")
     parser.add_argument("--source", default="fisheye", choices=("fisheye", "cubemap"), help="without --ckpt")
+    parser.add_argument(
+        "--lidar-preset",
+        help="with --preset: the rig flown with this real sensor (e.g. hdl64e), as data.lidar.preset",
+    )
     parser.add_argument("--size", type=int, nargs="+", help="served sizes (with --ckpt: one)")
     parser.add_argument("--split", default="test")
     parser.add_argument(
@@ -105,8 +110,12 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         max_depth = float(run.data.get("max_depth", 120.0))
         plan = [datasets]
     else:
-        root = Path(args.root) if args.root else ensure_dataset(args.preset, progress=False)
-        payload.update(dataset=str(root), source=args.source)
+        root = (
+            Path(args.root)
+            if args.root
+            else ensure_dataset(args.preset, progress=False, lidar_preset=args.lidar_preset)
+        )
+        payload.update(dataset=str(root), source=args.source, lidar_preset=args.lidar_preset)
         predictor, max_depth = None, 120.0
         plan = [arm_datasets(root, args.split, args.arms, args.source, size) for size in args.size or [None]]
     for datasets in plan:
