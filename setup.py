@@ -16,6 +16,7 @@ setup(
     package_dir={"airfisheye_bench.configs": "configs"},
     package_data={
         "airfisheye_bench.configs": ["*.yaml", "**/*.yaml"],
-        "airfisheye_bench.evaluation": ["leaderboard_assets/*.css", "leaderboard_assets/*.js"],
+        "airfisheye_bench.evaluation.leaderboard": ["assets/*.css", "assets/*.js"],
+        "airfisheye_bench.io.datasets": ["woodscape_splits/*.txt"],
     },
 )

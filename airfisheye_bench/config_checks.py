@@ -9,11 +9,18 @@ as a message that names neither the key nor the fix. :data:`RULES` is one table,
 absent from the config are skipped, so the same table serves ``train.yaml``, ``evaluate.yaml`` and a run's
 ``data`` group.
 
-The choices come from where each is defined (the lens models of :mod:`airfisheye_bench.geometry.camera`, the
-occlusion methods of :mod:`airfisheye_bench.geometry.occlusion`, the image sources of :mod:`airfisheye_bench.io.spec`,
-the model registry, Lightning's accelerators and precisions), read only when their key is checked: the costly
-imports (the model zoo, Lightning) come last, after every cheap key passed. Options that only ``evaluate`` has
-take their choices from the evaluation modules, above this one: their rules sit there
+This is the one check of each value a config sets: the commands run it before anything else, and the
+constructors below (the datamodule, the dataset, the occlusion and camera code) check only the arguments a library
+caller hands them directly, once, in their constructor (docs/design.md, "Layers").
+
+Every choice list is read the same way: from the module that defines it (the lens models of
+:mod:`airfisheye_bench.geometry.camera`, the fits of :mod:`airfisheye_bench.geometry.serving`, the occlusion methods
+and options of :mod:`airfisheye_bench.geometry.occlusion`, the LiDAR presets, the image sources of
+:mod:`airfisheye_bench.io.spec`, the task and model registries, Lightning's accelerators and precisions), imported
+inside the function that reads it, when its key is checked. Importing this module costs a fifth of a second; its
+owners import torch (2 s), the model zoo (8 s) or Lightning: a mistyped ``trainer.max_epochs`` is answered before
+any of them, and the rules are ordered so that the costly imports come last, after every cheap key passed. Options
+that only ``evaluate`` has take their choices from the evaluation modules, above this one: their rules sit there
 (:data:`airfisheye_bench.evaluation.command.EVALUATE_RULES`), checked with the same function.
 
 :data:`EXTRAS` is the second table: keys that need an optional package when set (``logger.mlflow`` needs
@@ -24,6 +31,7 @@ take their choices from the evaluation modules, above this one: their rules sit 
 from __future__ import annotations
 
 import importlib.util
+import math
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -33,7 +41,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import InterpolationResolutionError
 
-from airfisheye_bench.constants import CAMERA_FITS, LENS_MODELS
+from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError, MissingFileError
 
 _ABSENT = object()
@@ -52,7 +60,10 @@ class ValueRule:
         choices: The accepted values of a ``choice``; a callable defers a costly import until the key is checked.
         nullable: Whether ``null`` is accepted.
         keywords: Values a ``file`` / ``folder`` / ``path`` also accepts as they are (``ckpt_path=last``).
-        check: For ``custom``: the reason a value is refused, or ``None``.
+        check: For ``custom``: the reason a value is refused, or ``None``; called with the value and the values of
+            ``uses``.
+        uses: Other keys whose values ``check`` needs (``data.occlusion_options`` is read with
+            ``data.occlusion``); an absent key reads as ``None``.
         when: Checked only when this returns true for the whole config (e.g. not when resuming).
         hint: What the value means, appended to the message.
 
@@ -71,7 +82,8 @@ class ValueRule:
     choices: Sequence[Any] | Callable[[], Sequence[Any]] = ()
     nullable: bool = False
     keywords: Sequence[str] = ()
-    check: Callable[[Any], str | None] | None = None
+    check: Callable[..., str | None] | None = None
+    uses: Sequence[str] = ()
     when: Callable[[DictConfig], bool] | None = None
     hint: str = ""
 
@@ -79,8 +91,8 @@ class ValueRule:
         if self.kind not in _KINDS:
             raise ValueError(f"kind must be one of {_KINDS}, got {self.kind!r}")
 
-    def problem(self, value: Any) -> str | None:
-        """Why ``value`` is refused, or ``None`` when it is accepted."""
+    def problem(self, value: Any, *used: Any) -> str | None:
+        """Why ``value`` is refused, or ``None`` when it is accepted (``used``: the values of :attr:`uses`)."""
         if value is None:
             return None if self.nullable else "must be set"
         if self.kind == "choice":
@@ -91,7 +103,7 @@ class ValueRule:
         if self.kind in ("file", "folder", "path"):
             return self._path_problem(value)
         if self.kind == "custom":
-            return self.check(value) if self.check is not None else None
+            return self.check(value, *used) if self.check is not None else None
         return self._number_problem(value)
 
     def _number_problem(self, value: Any) -> str | None:
@@ -124,10 +136,77 @@ class ValueRule:
         return None
 
 
+# The choice lists, each read from the module that defines it when its key is checked (see the module docstring).
+def _lens_models() -> tuple[str, ...]:
+    from airfisheye_bench.geometry.camera import LENS_MODELS  # imports torch: only when checked
+
+    return LENS_MODELS
+
+
+def _camera_fits() -> tuple[str, ...]:
+    from airfisheye_bench.geometry.serving import FITS  # imports torch: only when checked
+
+    return FITS
+
+
 def _occlusion_methods() -> tuple[str, ...]:
     from airfisheye_bench.geometry.occlusion import SPARSE_INPUTS  # imports torch: only when checked
 
     return SPARSE_INPUTS
+
+
+def _occlusion_options_problem(value: Any, method: Any) -> str | None:
+    """``data.occlusion_options``: the options of ``data.occlusion``'s method (the method's own check)."""
+    # imports torch: only when checked
+    from airfisheye_bench.geometry.occlusion import check_occlusion_options
+
+    if not isinstance(value, Mapping):
+        return "expected a mapping of option: value"
+    try:
+        check_occlusion_options(method, dict(value))
+    except ValueError as err:
+        return f"{err} (data.occlusion={method})"
+    return None
+
+
+def _dataset_formats() -> tuple[str, ...]:
+    from airfisheye_bench.io.datasets import DATASET_FORMATS  # imports torch: only when checked
+
+    return tuple(DATASET_FORMATS)
+
+
+def _format_options_problem(value: Any, format_name: Any) -> str | None:
+    """``data.format_options``: the options of ``data.format``'s reader (the format's own check)."""
+    from airfisheye_bench.io.datasets import (  # imports torch: only when checked
+        DATASET_FORMATS,
+        check_options,
+    )
+
+    if not isinstance(value, Mapping):
+        return "expected a mapping of option: value"
+    try:
+        check_options(format_name, dict(value), DATASET_FORMATS[format_name].OPTIONS)
+    except ValueError as err:
+        return str(err).removeprefix("data.format_options: ")
+    return None
+
+
+def _lidar_preset_problem(value: Any, root: Any) -> str | None:
+    """``data.lidar.preset``: a named sensor, or (with ``data.root``) a spec file, whose contents the datamodule
+    reads, once."""
+    from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS  # imports torch: only when checked
+
+    if value in LIDAR_PRESETS:
+        return None
+    names = ", ".join(sorted(LIDAR_PRESETS))
+    if not Path(str(value)).expanduser().is_file():
+        return f"expected one of {names}, or a LiDAR spec file (YAML, JSON or Ouster metadata)"
+    if root is None:
+        return (
+            f"the synthetic data simulates a named sensor only; expected one of {names} (a spec file describes "
+            "the LiDAR of a data.root release)"
+        )
+    return None
 
 
 def _image_sources() -> tuple[str, ...]:
@@ -206,6 +285,27 @@ def _calibration_problem(value: Any) -> str | None:
     return "is a folder, expected a calibration file" if path.is_dir() else "no such file"
 
 
+def _lens_coefficients_problem(value: Any) -> str | None:
+    """``data.camera.k``: the four Kannala-Brandt coefficients."""
+    if (
+        isinstance(value, Sequence)
+        and not isinstance(value, str)
+        and len(value) == 4
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    ):
+        return None
+    return "expected four numbers [k1, k2, k3, k4]"
+
+
+def _camera_name_problem(value: Any) -> str | None:
+    """``data.camera.camera``: which camera of a calibration file, by name or 0-based index."""
+    if (isinstance(value, str) and value) or (
+        isinstance(value, int) and not isinstance(value, bool) and value >= 0
+    ):
+        return None
+    return "expected a camera name or a 0-based index"
+
+
 def _not_resuming(cfg: DictConfig) -> bool:
     # A resume restores every weight from the checkpoint and never reads the initial weights (which may be gone).
     return cfg.get("ckpt_path") is None
@@ -253,11 +353,10 @@ RULES: dict[str, ValueRule] = {
         nullable=True,
         hint="a dataset in the AirFisheye layout, holding dataset.yaml; null: the synthetic data.preset",
     ),
-    "data.source": ValueRule("choice", choices=_image_sources),
     "data.camera.size": ValueRule("int", minimum=8, nullable=True, hint="pixels, the served image side"),
     "data.camera.fov_deg": ValueRule("number", minimum=1, nullable=True, hint="degrees; null: the release's"),
-    "data.camera.model": ValueRule(
-        "choice", choices=LENS_MODELS, nullable=True, hint="null: the release's lens"
+    "data.camera.k": ValueRule(
+        "custom", check=_lens_coefficients_problem, nullable=True, hint="kannala_brandt; null: the release's"
     ),
     "data.camera.calibration": ValueRule(
         "custom",
@@ -266,10 +365,12 @@ RULES: dict[str, ValueRule] = {
         hint="a calibration file: OpenCV, ROS camera_info, Kalibr camchain, basalt, COLMAP cameras.txt, KITTI-360, "
         "WoodScape, OCamCalib or calib.yaml",
     ),
-    "data.camera.fit": ValueRule(
-        "choice", choices=CAMERA_FITS, hint="a non-square calibration at size x size"
+    "data.camera.camera": ValueRule(
+        "custom", check=_camera_name_problem, nullable=True, hint="of a calibration file with several"
     ),
-    "data.occlusion": ValueRule("choice", choices=_occlusion_methods, hint="the LiDAR occlusion correction"),
+    "data.lidar.min_range": ValueRule(
+        "number", minimum=0, nullable=True, hint="metres: closer returns are self-hits; null: the default"
+    ),
     "data.motion_compensation": ValueRule("bool"),
     "data.max_depth": ValueRule("number", minimum=0, hint="metres"),
     "data.augment.hflip": ValueRule("number", minimum=0, maximum=1, hint="a probability"),
@@ -284,7 +385,37 @@ RULES: dict[str, ValueRule] = {
     "data.dataset_seed": ValueRule("int", minimum=0, hint="0: the canonical synthetic dataset"),
     "batch_size": ValueRule("int", minimum=1),  # evaluate.yaml's own loader
     "num_workers": ValueRule("int", minimum=0),
-    # Costly choices last: they import the model zoo, then Lightning.
+    # Costly choices last: they import torch, then the task specs, the model zoo and Lightning.
+    "data.source": ValueRule("choice", choices=_image_sources),
+    "data.camera.model": ValueRule(
+        "choice", choices=_lens_models, nullable=True, hint="null: the release's lens"
+    ),
+    "data.camera.fit": ValueRule(
+        "choice", choices=_camera_fits, hint="a non-square calibration at size x size"
+    ),
+    "data.occlusion": ValueRule("choice", choices=_occlusion_methods, hint="the LiDAR occlusion correction"),
+    "data.occlusion_options": ValueRule(
+        "custom",
+        check=_occlusion_options_problem,
+        uses=("data.occlusion",),
+        nullable=True,
+        hint="see docs/design.md, LiDAR and occlusion",
+    ),
+    "data.format": ValueRule("choice", choices=_dataset_formats, hint="how data.root is laid out"),
+    "data.format_options": ValueRule(
+        "custom",
+        check=_format_options_problem,
+        uses=("data.format",),
+        nullable=True,
+        hint="that format's options",
+    ),
+    "data.lidar.preset": ValueRule(
+        "custom",
+        check=_lidar_preset_problem,
+        uses=("data.root",),
+        nullable=True,
+        hint="null: the release's LiDAR",
+    ),
     "task.name": ValueRule("choice", choices=_tasks),
     "data.task": ValueRule("choice", choices=_tasks),
     "model.name": ValueRule("choice", choices=_model_names, hint="a registered model"),
@@ -334,12 +465,16 @@ def check_extras(cfg: DictConfig, extras: Mapping[str, tuple[tuple[str, ...], st
             )
 
 
-def check_common_values(cfg: DictConfig, rules: Mapping[str, ValueRule] | None = None) -> None:
+def check_common_values(
+    cfg: DictConfig, rules: Mapping[str, ValueRule] | None = None, skip: Sequence[str] = ()
+) -> None:
     """Raise for the first key of ``rules`` whose value has the wrong type or range, or names a missing file.
 
     Args:
         cfg: A composed config (``train.yaml``, ``evaluate.yaml``, or ``{"data": <a run's data group>}``).
         rules: The keys to check; :data:`RULES` by default.
+        skip: Groups whose keys are checked elsewhere, once (``evaluate`` checks ``data`` when it knows which data
+            config it serves).
 
     Raises:
         ConfigError: ``<key>=<value>: expected ...`` (a ``ValueError``).
@@ -360,16 +495,85 @@ def check_common_values(cfg: DictConfig, rules: Mapping[str, ValueRule] | None =
     if rules is None:
         check_extras(cfg)
     for key, rule in (RULES if rules is None else rules).items():
+        if any(key.startswith(f"{group}.") for group in skip):
+            continue
         try:
             value = OmegaConf.select(cfg, key, default=_ABSENT, throw_on_missing=False)
         except InterpolationResolutionError:  # e.g. data.task=${task.name} before evaluate knows the task
             continue
         if value is _ABSENT or (rule.when is not None and not rule.when(cfg)):
             continue
-        if not isinstance(value, (str, int, float, bool, type(None))):
-            value = OmegaConf.to_container(value)  # a list (trainer.devices=[0,1]) checked as plain data
-        problem = rule.problem(value)
+        value = _plain(value)
+        problem = rule.problem(value, *(_plain(_select(cfg, other)) for other in rule.uses))
         if problem is not None:
             hint = f" ({rule.hint})" if rule.hint else ""
             error = MissingFileError if problem.startswith("no such") else ConfigError
             raise error(f"{key}={value!r}: {problem}{hint}")
+
+
+def _select(cfg: DictConfig, key: str) -> Any:
+    try:
+        return OmegaConf.select(cfg, key, default=None, throw_on_missing=False)
+    except InterpolationResolutionError:
+        return None
+
+
+def _plain(value: Any) -> Any:
+    """A list or mapping (``trainer.devices=[0,1]``, ``data.occlusion_options``) as plain data."""
+    if isinstance(value, (str, int, float, bool, type(None))):
+        return value
+    return OmegaConf.to_container(value)
+
+
+def check_train_config(cfg: DictConfig) -> None:
+    """Everything a ``train.yaml`` config must satisfy, before any work: :func:`check_common_values` (optional
+    packages, types, ranges, choices, files), then the rules across keys, each saying what to write instead.
+
+    Raises:
+        ConfigError: the key, the value given and what to write instead (a ``ValueError``).
+    """
+    check_common_values(cfg)  # task.name and model.name among the choices: registered names from here on
+    from airfisheye_bench.specs import get_task  # imports torchmetrics: once the values passed
+    from models import list_models, model_task  # imports the model zoo: once the values passed
+
+    task = cfg.task.name
+    monitored = get_task(task).column(cfg.task.get("primary_metric"))
+    if monitored is not None and cfg.task.get("mode") != ("max" if monitored.higher_is_better else "min"):
+        raise ConfigError(
+            f"task.mode={cfg.task.get('mode')} but a higher {monitored.key} is "
+            f"{'better' if monitored.higher_is_better else 'worse'}; write task.mode="
+            f"{'max' if monitored.higher_is_better else 'min'}"
+        )
+    name = cfg.model.name
+    if model_task(name) != task:
+        folder = config_dir() / "model"
+        configs = [p.stem for p in sorted(folder.glob("*.yaml"))]
+        fitting = [
+            n for n in configs if OmegaConf.load(folder / f"{n}.yaml").get("name") in list_models(task)
+        ]
+        raise ConfigError(
+            f"model={name} solves task={model_task(name)}, not task={task}; use one of "
+            f"{', '.join('model=' + m for m in fitting)} or task={model_task(name)}"
+        )
+    model_checkpoint = (cfg.get("callbacks") or {}).get("model_checkpoint") or {}
+    if model_checkpoint.get("save_last"):
+        raise ConfigError(
+            "callbacks.model_checkpoint.save_last=true is unsupported: last.ckpt belongs to callbacks.last_checkpoint, "
+            "which rewrites it at every epoch end (ModelCheckpoint's would be another state)"
+        )
+    if model_checkpoint.get("every_n_train_steps"):
+        raise ConfigError(
+            "callbacks.model_checkpoint.every_n_train_steps is unsupported (that callback keeps the best checkpoints "
+            "by a validation metric); use callbacks.last_checkpoint.every_n_train_steps to save last.ckpt every N steps"
+        )
+    optimized = cfg.get("optimized_metric")
+    if optimized is not None and optimized != model_checkpoint.get("monitor"):
+        raise ConfigError(
+            f"optimized_metric={optimized}: a sweep optimises the best value of the monitored validation metric; "
+            f"write optimized_metric=val/{cfg.task.get('primary_metric')} (callbacks.model_checkpoint.monitor), "
+            "or null for the test primary metric"
+        )
+    if cfg.data.get("root") is None and cfg.data.get("preset") is None:
+        raise ConfigError(
+            "data.root is unset and data.preset is null: give data.root=/path or data.preset=quickstart"
+        )

@@ -14,7 +14,7 @@ from __future__ import annotations
 from functools import cache
 from pathlib import Path
 
-__all__ = ["CAMERA_FITS", "IMAGENET_MEAN", "IMAGENET_STD", "LENS_MODELS", "config_dir"]
+__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "config_dir"]
 
 #: Per-channel RGB mean and standard deviation of ImageNet, in ``[0, 1]`` units: every encoder of the zoo was
 #: pretrained on images normalised as ``(rgb / 255 - mean) / std``, so the datamodules feed them the same.
@@ -36,11 +36,3 @@ def config_dir() -> Path:
     package = Path(__file__).resolve().parent
     checkout = package.parent / "configs"
     return checkout if (checkout / "train.yaml").is_file() else package / "configs"
-
-
-#: Fisheye projection models of :class:`~airfisheye_bench.geometry.FisheyeCamera` (the config checks list them
-#: without importing the geometry, and with it torch).
-LENS_MODELS = ("equidistant", "equisolid", "stereographic", "orthographic", "kannala_brandt")
-
-#: How a non-square calibration is served as a square image (``data.camera.fit``; airfisheye_bench/geometry/serving.py).
-CAMERA_FITS = ("pad", "crop")

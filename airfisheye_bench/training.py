@@ -32,11 +32,9 @@ from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.atomic import atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
-from airfisheye_bench.config_checks import check_common_values
-from airfisheye_bench.constants import config_dir
+from airfisheye_bench.config_checks import check_train_config
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
-from airfisheye_bench.evaluation.evaluator import format_results_table
-from airfisheye_bench.evaluation.results import dataset_identity, write_results
+from airfisheye_bench.io.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.runs import (
     check_resume,
@@ -46,9 +44,8 @@ from airfisheye_bench.runs import (
     resolve_checkpoint,
     run_label,
 )
-from airfisheye_bench.specs import UnknownTaskError, get_task
+from airfisheye_bench.specs import get_task
 from airfisheye_bench.tracking import log_run_outputs, start_tracking
-from models import list_models, model_task
 from models.weights import pretrained_weights_disabled
 
 log = logging.getLogger(__name__)
@@ -95,63 +92,6 @@ def log_lightning_once() -> None:
             if type(handler) is logging.StreamHandler:  # Lightning's console handler, not a file or capture
                 logger.removeHandler(handler)
                 logger.propagate = True  # lightning.pytorch and .fabric stop propagating when they add one
-
-
-def check_config(cfg: DictConfig) -> None:
-    """Stop before any work on an inconsistent configuration, saying what to write instead.
-
-    Raises:
-        ConfigError: the key, the value given and what to write instead (a ``ValueError``).
-    """
-    check_common_values(cfg)  # optional packages, types, ranges, choices (model.name among them), files
-    task = cfg.task.name
-    try:
-        spec = get_task(task)
-    except UnknownTaskError as err:
-        raise ConfigError(f"task.name: {err}") from None
-    monitored = spec.column(cfg.task.get("primary_metric"))
-    if monitored is not None and cfg.task.get("mode") != ("max" if monitored.higher_is_better else "min"):
-        raise ConfigError(
-            f"task.mode={cfg.task.get('mode')} but a higher {monitored.key} is "
-            f"{'better' if monitored.higher_is_better else 'worse'}; write task.mode="
-            f"{'max' if monitored.higher_is_better else 'min'}"
-        )
-    name = cfg.model.get("name")
-    if name not in list_models():
-        raise ConfigError(f"model.name={name!r} is not a registered model; choose one of {list_models()}")
-    if model_task(name) != task:
-        raise ConfigError(
-            f"model={name} solves task={model_task(name)}, not task={task}; use one of "
-            f"{', '.join('model=' + m for m in _model_configs(task))} or task={model_task(name)}"
-        )
-    model_checkpoint = (cfg.get("callbacks") or {}).get("model_checkpoint") or {}
-    if model_checkpoint.get("save_last"):
-        raise ConfigError(
-            "callbacks.model_checkpoint.save_last=true is unsupported: last.ckpt belongs to callbacks.last_checkpoint, "
-            "which rewrites it at every epoch end (ModelCheckpoint's would be another state)"
-        )
-    if model_checkpoint.get("every_n_train_steps"):
-        raise ConfigError(
-            "callbacks.model_checkpoint.every_n_train_steps is unsupported (that callback keeps the best checkpoints "
-            "by a validation metric); use callbacks.last_checkpoint.every_n_train_steps to save last.ckpt every N steps"
-        )
-    optimized = cfg.get("optimized_metric")
-    if optimized is not None and optimized != model_checkpoint.get("monitor"):
-        raise ConfigError(
-            f"optimized_metric={optimized}: a sweep optimises the best value of the monitored validation metric; "
-            f"write optimized_metric=val/{cfg.task.get('primary_metric')} (callbacks.model_checkpoint.monitor), "
-            "or null for the test primary metric"
-        )
-    if cfg.data.get("root") is None and cfg.data.get("preset") is None:
-        raise ConfigError(
-            "data.root is unset and data.preset is null: give data.root=/path or data.preset=quickstart"
-        )
-
-
-def _model_configs(task: str) -> list[str]:
-    folder = config_dir() / "model"
-    names = [p.stem for p in sorted(folder.glob("*.yaml"))]
-    return [n for n in names if (OmegaConf.load(folder / f"{n}.yaml").get("name") in list_models(task))]
 
 
 def build(cfg: DictConfig, resume_from: str | None = None) -> tuple[L.LightningDataModule, L.LightningModule]:
@@ -368,9 +308,22 @@ def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule
 
 
 def train(cfg: DictConfig) -> dict[str, Any]:
-    """Train, validate and test as configured.
+    """Check the configuration (:func:`~airfisheye_bench.config_checks.check_train_config`), then
+    :func:`train_checked`: what a library caller runs.
 
-    Everything that can refuse the command is checked before anything is written into the run directory. A resume
+    Returns:
+        See :func:`train_checked`.
+    """
+    check_train_config(cfg)
+    return train_checked(cfg)
+
+
+def train_checked(cfg: DictConfig) -> dict[str, Any]:
+    """Train, validate and test as configured, on a configuration that
+    :func:`~airfisheye_bench.config_checks.check_train_config` passed (``airfisheye-train`` checks it before it
+    imports this module, so a mistyped value is answered at once, and checked once).
+
+    Everything else that can refuse the command is checked before anything is written into the run directory. A resume
     of a finished run (:func:`finished_run`) says so and stops, unless ``retest=true``: then it tests the run's
     best checkpoint again and rewrites ``results.json``.
 
@@ -379,7 +332,6 @@ def train(cfg: DictConfig) -> dict[str, Any]:
         and ``best_val``: the best value of the monitored validation metric, ``{"val/<metric>": value}``, what a
         sweep optimises.
     """
-    check_config(cfg)
     output_dir = Path(cfg.paths.output_dir)
     resume_from = check_run_dir(cfg, output_dir)
     finished = finished_run(cfg, output_dir, resume_from) if resume_from is not None else None
@@ -460,7 +412,9 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
 def summarise_test(cfg: DictConfig, results: dict[str, Any]) -> str:
     """The test metrics as a compact table (as ``evaluate.py`` prints them); with ``print_breakdown=true`` also
     every metric per incidence-angle ring (and depth range), per class. ``results.json`` holds them all."""
-    table = format_results_table(cfg.task.name, results, cfg.task.primary_metric)
+    table = format_results_table(
+        cfg.task.name, results["metrics"], results["breakdown"], cfg.task.primary_metric
+    )
     lines = [f"test results ({cfg.task.name}, best checkpoint)", table]
     if cfg.get("print_breakdown"):
         lines += ["", "per ring and range, per class", "-" * 36]

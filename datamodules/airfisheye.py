@@ -1,7 +1,7 @@
 """``AirFisheyeDataModule``: every task of the benchmark from one dataset root, composed from Hydra configs.
 
 ``root=None`` means the synthetic dataset of ``preset``, generated on first use and cached
-(:func:`airfisheye_bench.synth.writer.ensure_dataset`); a path reads the real release (or any dataset in the layout).
+(:func:`airfisheye_bench.synth.cache.ensure_dataset`); a path reads the real release (or any dataset in the layout).
 """
 
 from __future__ import annotations
@@ -21,11 +21,12 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
-from airfisheye_bench.geometry.occlusion import check_sparse_input_options
+from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
+from airfisheye_bench.io.datasets import DATASET_FORMATS
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
+from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.synth.presets import PRESETS
-from airfisheye_bench.synth.writer import ensure_dataset
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 from datamodules.sampling import (
@@ -73,6 +74,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
             YAML / JSON / Ouster metadata file): with ``root`` it replaces ``calib.yaml``'s spec (a real release
             whose calibration has none); without, the synthetic ``preset`` is generated with that sensor (cached
             apart). ``min_range``: returns closer than this many metres are self-hits, removed and counted.
+        format: How ``root`` is laid out: ``airfisheye`` (the release's layout, and the synthetic data) or a public
+            dataset's own layout (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`; ``docs/design.md``,
+            "Dataset formats"). Any format but ``airfisheye`` needs ``root``.
+        format_options: That format's options (for example which camera of a rig); unset ones take their defaults.
 
     Example:
         >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
@@ -105,10 +110,19 @@ class AirFisheyeDataModule(L.LightningDataModule):
         seed: int = 0,
         dataset_seed: int = 0,
         lidar: dict[str, Any] | None = None,
+        format: str = "airfisheye",
+        format_options: dict[str, Any] | None = None,
     ) -> None:
         super().__init__()
         if batch_size < 1:
             raise ConfigError(f"batch_size must be >= 1, got {batch_size}")
+        if format not in DATASET_FORMATS:
+            raise ConfigError(f"data.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
+        if root is None and format != "airfisheye":
+            raise ConfigError(
+                f"data.format={format} reads that dataset from disk: give data.root=/path/to/it (see the README's "
+                "dataset table)"
+            )
         if root is None and preset is None:
             raise ConfigError(
                 "give data.root (a dataset folder) or data.preset (a synthetic preset such as quickstart)"
@@ -118,10 +132,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
                 f"data.preset={preset!r}: expected one of {', '.join(PRESETS)} (or give data.root)"
             )
         if root is not None and not Path(root).is_dir():
-            raise ConfigError(
-                f"data.root={str(root)!r} is not a folder; point it at a dataset in the AirFisheye layout (holding "
-                "dataset.yaml) or leave it unset to use the synthetic dataset"
+            expected = (
+                "a dataset in the AirFisheye layout (holding dataset.yaml) or leave it unset to use the synthetic "
+                "dataset"
+                if format == "airfisheye"
+                else f"the root of the {format} dataset"
             )
+            raise ConfigError(f"data.root={str(root)!r} is not a folder; point it at {expected}")
         self.task = task
         self.root = Path(root) if root is not None else None
         self.preset = preset
@@ -151,13 +168,15 @@ class AirFisheyeDataModule(L.LightningDataModule):
             task=task,
             source=source,
             camera=self.camera_config,
-            occlusion=occlusion,
-            occlusion_options=_occlusion_options(occlusion, occlusion_options),
+            # Checked once, here; the datasets and every frame's projection take it as it is.
+            occlusion=_occlusion(occlusion, occlusion_options),
             motion_compensation=motion_compensation,
             max_depth=max_depth,
             skip_bad_frames=skip_bad_frames,
             lidar_spec=lidar_spec,
             lidar_min_range=float(min_range),
+            dataset_format=format,
+            format_options=dict(format_options or {}),
         )
         self.batch_size = batch_size
         self.eval_batch_size = eval_batch_size or batch_size
@@ -301,14 +320,15 @@ class AirFisheyeDataModule(L.LightningDataModule):
         return next(iter(self.datasets.values()))
 
 
-def _occlusion_options(method: str, given: dict[str, Any] | None) -> dict[str, Any]:
-    """``data.occlusion_options`` checked against ``data.occlusion`` (naming both keys on error)."""
-    given = dict(given or {})
+def _occlusion(method: str, options: dict[str, Any] | None) -> Occlusion | str:
+    """``data.occlusion`` with its options: a checked :class:`Occlusion`, or the oracle (which takes none)."""
+    if method != ORACLE:
+        return Occlusion(method, options or {})
     try:
-        check_sparse_input_options(method, given)
+        check_sparse_input_options(ORACLE, dict(options or {}))
     except ValueError as err:
-        raise ValueError(f"data.occlusion_options (data.occlusion={method}): {err}") from None
-    return given
+        raise ConfigError(f"data.occlusion_options (data.occlusion={ORACLE}): {err}") from None
+    return ORACLE
 
 
 def _lidar_spec(value: Any, root: str | Path | None) -> tuple[str | None, LidarSpec | None]:

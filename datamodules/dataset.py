@@ -13,6 +13,9 @@ key                shape, dtype                  meaning
 ``sample_id``      str                           ``<env>/<trajectory>/<frame>``
 =================  ============================  ==========================================================
 
+A source that has no dense depth images but gives its depth target as LiDAR points (``depth_points``: KITTI-360)
+gets ``depth`` by projecting them at the served camera with the sample's augmentation, as ``sparse_depth``.
+
 ``image``, ``valid_mask`` and ``sample_id`` are always served; of the others, the keys the task's spec names
 (its ``target`` and its model ``inputs``, :data:`SAMPLE_KEYS`): ``seg`` gets ``label``, ``depth`` gets ``depth``,
 ``completion`` gets ``depth`` and ``sparse_depth``.
@@ -45,17 +48,13 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.occlusion import (
-    ORACLE,
-    SPARSE_INPUTS,
-    check_sparse_input_options,
-    lidar_depth_map,
-)
+from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options, lidar_depth_map
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
-from airfisheye_bench.io import DatasetFormatError, DatasetReader
+from airfisheye_bench.io import DatasetFormatError
 from airfisheye_bench.io.calibration_files import load_camera
+from airfisheye_bench.io.datasets import modalities_of, open_dataset
 from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
@@ -175,11 +174,12 @@ class AirFisheyeDataset(Dataset):
         task: A registered task (``seg``, ``depth``, ``completion``, see :mod:`airfisheye_bench.specs`).
         source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
         camera: The served camera (see :class:`CameraConfig`).
-        occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``,
-            ``none``, or ``oracle`` (the generator's exact visibility; synthetic releases only, see
+        occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``
+            or ``none``, or an :class:`~airfisheye_bench.geometry.occlusion.Occlusion` (checked already: the
+            datamodule's); or ``oracle``, the generator's exact visibility (synthetic releases only, see
             :mod:`datamodules.oracle`).
         occlusion_options: That method's options (see :func:`~airfisheye_bench.geometry.occlusion_mask`);
-            unset options take their defaults.
+            unset options take their defaults. Not with an ``Occlusion``, which holds its options.
         motion_compensation: Use ``T_cam_lidar`` from both sensors' poses at their own timestamps; ``False`` uses
             the static extrinsics (for comparison).
         max_depth: Ground truth and sparse depth beyond this range are invalid (paper: 120 m).
@@ -189,6 +189,9 @@ class AirFisheyeDataset(Dataset):
             :func:`collate` drops it and counts it.
         lidar_spec: The LiDAR that recorded the scans; ``None``: each trajectory's ``calib.yaml``.
         lidar_min_range: Returns closer than this (metres) are self-hits: removed and counted.
+        dataset_format: How ``root`` is laid out (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`:
+            ``airfisheye``, or a public dataset's own layout).
+        format_options: That format's options (``data.format_options``; unset ones take their defaults).
 
     Example:
         >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
@@ -203,7 +206,7 @@ class AirFisheyeDataset(Dataset):
         task: str,
         source: str = "cubemap",
         camera: CameraConfig | None = None,
-        occlusion: str = "ordering",
+        occlusion: str | Occlusion = "ordering",
         occlusion_options: dict | None = None,
         motion_compensation: bool = True,
         max_depth: float = 120.0,
@@ -212,23 +215,26 @@ class AirFisheyeDataset(Dataset):
         seed: int = 0,
         lidar_spec: LidarSpec | None = None,
         lidar_min_range: float = DEFAULT_MIN_RANGE,
+        dataset_format: str = "airfisheye",
+        format_options: Mapping | None = None,
     ) -> None:
         task_spec = get_task(task)
-        for name, value, allowed in (
-            ("source", source, IMAGE_SOURCES),
-            ("occlusion", occlusion, SPARSE_INPUTS),
-        ):
-            if value not in allowed:
-                raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
+        if source not in IMAGE_SOURCES:
+            raise ValueError(f"source must be one of {IMAGE_SOURCES}, got {source!r}")
         if not max_depth > 0:
             raise ValueError(f"max_depth must be positive, got {max_depth}")
-        self.reader = DatasetReader(root)
+        self.reader = open_dataset(root, dataset_format, dict(format_options or {}))
         self.spec = self.reader.spec
         self.split = split
         self.task = task
         self.source = source
+        if isinstance(occlusion, str) and occlusion == ORACLE:  # no method: the visibility ground truth
+            check_sparse_input_options(ORACLE, dict(occlusion_options or {}))
+        elif not isinstance(
+            occlusion, Occlusion
+        ):  # checked once here; every frame is projected with it as it is
+            occlusion = Occlusion(occlusion, occlusion_options or {})
         self.occlusion = occlusion
-        self.occlusion_options = check_sparse_input_options(occlusion, dict(occlusion_options or {}))
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -243,13 +249,23 @@ class AirFisheyeDataset(Dataset):
         if not self.sample_ids:
             raise ValueError(f"split {split!r} of {root} is empty")
         if source == "cubemap" and not self.spec.has("cubemap"):
-            raise ValueError(f"{root} has no cube faces; use data.source=fisheye")
+            raise ConfigError(f"{self.reader.missing_reason('cubemap')}; use data.source=fisheye")
         for content in task_spec.requires:
             if not self.spec.has(content):
-                raise ValueError(
-                    f"{root} has no {content} data (dataset.yaml contents); task={task} needs it"
-                )
+                raise ConfigError(f"{self.reader.missing_reason(content)}; task={task} needs it")
         needed = {task_spec.target, *task_spec.inputs} - {"image"}
+        # A source without dense depth images may give its depth target as LiDAR points (``depth_points``).
+        self._depth_from_points = callable(getattr(self.reader, "depth_points", None))
+        # A dense map the source lacks (WoodScape has no depth, KITTI-360 no fisheye labels; its depth target comes
+        # from points instead).
+        modalities = modalities_of(self.reader)
+        for key, modality in (("label", "seg"), ("depth", "depth")):
+            if (
+                key in needed
+                and modality not in modalities
+                and not (key == "depth" and self._depth_from_points)
+            ):
+                raise ConfigError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
         if needed - set(SAMPLE_KEYS):
             raise ValueError(
                 f"task={task} needs sample keys {sorted(needed - set(SAMPLE_KEYS))} that the dataset cannot serve "
@@ -312,7 +328,9 @@ class AirFisheyeDataset(Dataset):
         out: dict = {"sample_id": sample_id}
         if "label" in self.sample_keys:
             out["label"] = self._label(sample_id)
-        if "depth" in self.sample_keys:
+        if "depth" in self.sample_keys and self._depth_from_points:
+            out["depth"] = self._point_depth(sample_id, params)  # projected at the served, augmented camera
+        elif "depth" in self.sample_keys:
             out["depth"] = self._clip_depth(self._dense(sample_id, "depth"))  # float32 [1, H, W]
         if "sparse_depth" in self.sample_keys:
             out["sparse_depth"] = self._sparse_depth(sample_id, params)
@@ -327,9 +345,10 @@ class AirFisheyeDataset(Dataset):
             rgb, valid, out = self._augment(rgb, valid, out, params)
         if "label" in out:
             out["label"] = out["label"].long()
-        if "sparse_depth" in out:
-            # A point just inside FOV/2 can round to a border pixel whose centre is just outside the circle.
-            out["sparse_depth"].mul_(valid)
+        for key in ("sparse_depth", "depth") if self._depth_from_points else ("sparse_depth",):
+            if key in out:
+                # A point just inside FOV/2 can round to a border pixel whose centre is just outside the circle.
+                out[key].mul_(valid)
         if rgb.dtype == torch.uint8:
             rgb = rgb.float().div_(255.0)
         out["image"] = rgb.sub_(self._mean).div_(self._std)  # rgb is this sample's own buffer: in place
@@ -342,16 +361,23 @@ class AirFisheyeDataset(Dataset):
         if "label" in out:
             maps.append(out["label"][None].float())
             fills.append(float(self.spec.ignore_index))
-        if "depth" in out:
+        dense_depth = "depth" in out and not self._depth_from_points  # point depth is projected already moved
+        if dense_depth:
             maps.append(out["depth"])
             fills.append(0.0)
-        # Every task's target is a label or a depth map.
+        h, w = valid.shape
         rgb, valid, moved = augment_sample(
-            rgb, valid, torch.cat(maps), fills, params, self.camera.cx, self.camera.cy
+            rgb,
+            valid,
+            torch.cat(maps) if maps else torch.zeros(0, h, w),
+            fills,
+            params,
+            self.camera.cx,
+            self.camera.cy,
         )
         if "label" in out:
             out["label"] = moved[0].to(out["label"].dtype)
-        if "depth" in out:
+        if dense_depth:
             out["depth"] = moved[-1:]
         return rgb, valid, out
 
@@ -444,29 +470,45 @@ class AirFisheyeDataset(Dataset):
                 scan.no_returns,
                 counts["returns"],
             )
-        return scan.points[kept.keep], rings[kept.keep], spec, kept.keep
+        points = scan.points[kept.keep]
+        deskew = getattr(self.reader, "deskew", None)
+        if self.motion_compensation and deskew is not None:  # the sweep's points at its reference time
+            points = deskew(sample_id, points)
+        return points, rings[kept.keep], spec, kept.keep
 
     def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:
         points, rings, spec, keep = self.filtered_scan(sample_id)
         method = self.occlusion
-        if method == ORACLE:  # the truly visible points, projected without a test
+        if isinstance(method, str) and method == ORACLE:  # the truly visible points, projected without a test
             visible = oracle_visible(self.reader, sample_id, keep)
-            points, rings, method = points[visible], rings[visible], "none"
-        T = torch.from_numpy(self.T_cam_lidar(sample_id))
-        if params is not None and params.angle_rad != 0.0:
-            # Dense maps are mirrored, then rotated; the points are rotated, then mirrored (in lidar_depth_map).
-            # mirror . rot(a) == rot(-a) . mirror, so the points turn the other way when the frame is mirrored.
-            T = rotation_about_optical_axis(-params.angle_rad if params.flip else params.angle_rad) @ T
+            points, rings, method = points[visible], rings[visible], Occlusion("none")
+        T = _augmented(self.T_cam_lidar(sample_id), params)
         depth = lidar_depth_map(
             points,
-            T.numpy(),
+            T,
             self.camera,
             spec,
             method=method,
             max_depth=self.max_depth,
             mirror=params is not None and params.flip,
             rings=rings,
-            **self.occlusion_options,
+        )
+        return torch.from_numpy(depth)[None]
+
+    def _point_depth(self, sample_id: str, params) -> torch.Tensor:
+        """The depth target of a source that gives it as LiDAR points (``depth_points``), ``[1, H, W]``: projected
+        at the served camera with the sample's augmentation, as ``sparse_depth`` (no resampling of a sparse map),
+        its own occlusion removed, always motion-compensated (it is the ground truth)."""
+        target = self.reader.depth_points(sample_id, self.lidar_min_range)
+        spec = self.lidar_spec or self.reader.calib(sample_id).lidar_spec()
+        depth = lidar_depth_map(
+            target.points,
+            _augmented(np.asarray(self.reader.T_cam_lidar(sample_id), np.float64), params),
+            self.camera,
+            spec,
+            method=Occlusion(target.occlusion, target.occlusion_options),
+            max_depth=self.max_depth,
+            mirror=params is not None and params.flip,
         )
         return torch.from_numpy(depth)[None]
 
@@ -491,9 +533,17 @@ class AirFisheyeDataset(Dataset):
             )
 
     def _path(self, sample_id: str, modality: str) -> Path:
-        if self.source == "cubemap":
-            return self.reader.layout.cubemap(sample_id, "front", modality).parent.parent
-        return self.reader.layout.fisheye(sample_id, modality)
+        return self.reader.path_of(sample_id, modality, self.source)
+
+
+def _augmented(T_cam_lidar: np.ndarray, params) -> np.ndarray:
+    """``T_cam_lidar`` turned with the sample's rotation about the optical axis (``params``: its draw or None)."""
+    if params is None or params.angle_rad == 0.0:
+        return T_cam_lidar
+    # Dense maps are mirrored, then rotated; the points are rotated, then mirrored (in lidar_depth_map).
+    # mirror . rot(a) == rot(-a) . mirror, so the points turn the other way when the frame is mirrored.
+    R = rotation_about_optical_axis(-params.angle_rad if params.flip else params.angle_rad)
+    return R.numpy() @ T_cam_lidar
 
 
 def collate(samples: list[dict | None]) -> dict:

@@ -27,19 +27,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from airfisheye_bench.benchmarks.lidar_scene import camera_rig, ray_box_entry, scan, structured_scene
+from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import organize_scan, rings_from_elevation
+from airfisheye_bench.geometry.occlusion import occlusion_mask
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "scripts"))
-
-from bench_lidar import camera_rig, ray_box_entry, scan, structured_scene  # noqa: E402
-
-from airfisheye_bench.geometry import FisheyeCamera  # noqa: E402
-from airfisheye_bench.geometry.lidar import (  # noqa: E402
-    LidarSpec,
-    organize_scan,
-    rings_from_elevation,
-    spherical_coordinates,
-)
-from airfisheye_bench.geometry.occlusion import occlusion_mask  # noqa: E402
 
 OLD_FILES = ("_arrays.py", "_kernels.py", "lidar.py", "occlusion.py")
 

@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from airfisheye_bench.geometry import CameraModel, CubemapToFisheye, FisheyeCamera, camera_from_dict
-from airfisheye_bench.geometry.cubemap import _TABLES, direction_to_face
+from airfisheye_bench.geometry.cubemap import clear_table_cache, direction_to_face
 
 CALIBRATIONS = Path(__file__).resolve().parents[1] / "tests" / "geometry" / "golden" / "calibrations.json"
 
@@ -75,7 +75,7 @@ def bench(face: int, out: int, repeat: int) -> dict[str, float]:
     depth = rng.uniform(1, 120, (5, face, face, 1)).astype(np.float32)
     camera = FisheyeCamera(out, out)
 
-    _TABLES.clear()
+    clear_table_cache()
     t0 = time.perf_counter()
     remap = CubemapToFisheye(camera, face)
     remap.table("bilinear")  # includes the camera's ray grid, built on first use
@@ -152,7 +152,7 @@ def bench_models(face: int, out: int, repeat: int) -> None:
         grid, table = [], []
         for _ in range(repeat):
             fresh = camera_from_dict(cam.to_dict())  # new instance: nothing cached
-            _TABLES.clear()
+            clear_table_cache()
             t0 = time.perf_counter()
             fresh.valid_mask()
             t1 = time.perf_counter()

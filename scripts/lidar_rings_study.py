@@ -21,12 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from airfisheye_bench.geometry.lidar import LidarSpec, rings_from_elevation, spherical_coordinates
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
 from airfisheye_bench.geometry.occlusion import occlusion_mask
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import filter_scan
 from airfisheye_bench.io import DatasetReader
-from airfisheye_bench.synth.writer import ensure_dataset
+from airfisheye_bench.synth.cache import ensure_dataset
 
 
 def sources(points: np.ndarray, truth: np.ndarray, spec: LidarSpec) -> dict[str, np.ndarray]:

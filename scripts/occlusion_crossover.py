@@ -39,7 +39,7 @@ from airfisheye_bench.evaluation.crossover import (
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor
 from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
 from airfisheye_bench.runs import resolve_checkpoint, run_config
-from airfisheye_bench.synth.writer import ensure_dataset
+from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.tasks.checkpoint import load_task
 
 

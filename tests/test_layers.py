@@ -10,8 +10,8 @@ importing module's *unit* (a row entry of :data:`LAYERS`) to the imported one's.
   edges this test now forbids, and nothing of the project is an optional dependency. Two units may defer, with
   a comment, and their edges still must go down: ``cli``, whose console entry points each import their own
   command when called, so that one command does not load every other's dependencies; and ``config_checks``,
-  which answers a mistyped value before the heavy work and so imports a choice list that lives in a
-  torch-importing module (occlusion methods, tasks, model names) only when its key is checked;
+  which reads every choice list one way, from the module that defines it, when its key is checked (so a mistyped
+  value is answered before torch or the model zoo is imported; docs/design.md, "Layers");
 - a third-party (or standard-library) import inside a function carries a comment, on its line or the line above,
   saying why it is deferred (an optional or slow-to-import dependency used by one path: ``onnxruntime``,
   ``matplotlib``, ``scipy``, ...); an import right below such a commented one shares its reason.
@@ -36,9 +36,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),
     ("constants", "atomic"),
     ("geometry",),
-    ("io",),
     ("metrics",),
     ("specs",),
+    ("io",),
     ("models",),
     ("config_checks",),
     ("synth",),
@@ -47,9 +47,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("runs", "checkpointing", "sweeps", "progress"),
     ("tracking",),
     ("tasks",),
-    ("evaluation",),
-    ("training",),
+    ("evaluation", "training"),
     ("export",),
+    ("benchmarks",),
     ("cli",),
 )
 RANK = {unit: rank for rank, row in enumerate(LAYERS) for unit in row}

@@ -39,7 +39,6 @@ from airfisheye_bench.specs import (
     MetricOptions,
     TaskSpec,
     UnknownTaskError,
-    deployment_keys,
     get_task,
     register_task,
     task_names,
@@ -162,9 +161,6 @@ def test_export_contract(height: TaskSpec) -> None:
     assert parity_tolerance("height") == (1e-3, 1e-2)
     meta = deployment_metadata(
         task="height",
-        inputs=height.inputs,
-        output=height.output,
-        task_keys=height.export.metadata,
         model="tiny_height",
         model_config={"name": "tiny_height"},
         normalization={"mean": [0.5] * 3, "std": [0.25] * 3},
@@ -174,7 +170,7 @@ def test_export_contract(height: TaskSpec) -> None:
         source_checkpoint="run/last.ckpt",
         max_depth=60.0,
     )
-    decoded = parse_deployment_metadata(meta, deployment_keys)
+    decoded = parse_deployment_metadata(meta)
     assert (decoded["task"], decoded["output"], decoded["max_depth"]) == ("height", "height", 60.0)
     assert "min_depth" not in decoded
 

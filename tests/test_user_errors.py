@@ -31,6 +31,7 @@ from torch.utils.data import DataLoader, Dataset
 from airfisheye_bench.config_checks import RULES, check_common_values
 from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError, UserError, report_user_errors, user_message
 from airfisheye_bench.io.errors import DatasetFormatError
+from tests.io.datasets.woodscape_fixture import write_woodscape
 from tests.training.test_train import tiny_run_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -104,6 +105,7 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
     bad_scan.write_bytes(b"\0" * 20)  # not a whole number of float32 x 4 records
     bad_spec = tmp / "sensor.yaml"
     bad_spec.write_text("channels: 64\nelevations_deg: [2, 1]\n")
+    woodscape = write_woodscape(tmp / "woodscape")
     train = [*tiny_run_overrides("seg", dataset)]
     # On the synthetic preset with an empty cache: a row refused before any work leaves the cache without a dataset.
     fresh = [*train, "data.root=null", "data.preset=tiny", f"paths.data_dir={tmp}/cache"]
@@ -198,6 +200,16 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             [*fresh, "data.preset=null", f"hydra.run.dir={tmp}/r13"],
             ("data.root", "data.preset"),
         ),
+        "occlusion_options": (
+            TRAIN,
+            [*fresh, "data.occlusion=hpr", "data.occlusion_options={radius:0.5}", f"hydra.run.dir={tmp}/r20"],
+            ("data.occlusion_options", "radius must be a number > 1"),
+        ),
+        "lidar_min_range": (
+            TRAIN,
+            [*fresh, "data.lidar.min_range=-1", f"hydra.run.dir={tmp}/r21"],
+            ("data.lidar.min_range=-1", ">= 0"),
+        ),
         "lidar_preset": (
             TRAIN,
             [*fresh, "data.lidar.preset=hdl65e", f"hydra.run.dir={tmp}/r16"],
@@ -280,6 +292,17 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             [*fresh, "logger=tensorboard", f"hydra.run.dir={tmp}/r18"],
             ("logger.tensorboard", "airfisheye-bench[tensorboard]"),
         ),
+        "woodscape_depth": (  # a dataset without the content a task needs
+            TRAIN,
+            [
+                "task=depth",
+                "data=woodscape",
+                f"data.root={woodscape}",
+                "trainer=debug",
+                f"hydra.run.dir={tmp}/r20",
+            ],
+            ("WoodScape released no LiDAR and no depth", "#82", "task=depth needs it"),
+        ),
         "offline_weights": (
             TRAIN,
             [*train, "experiment=paper/seg", "data.camera.size=64", f"hydra.run.dir={tmp}/r19"],
@@ -336,6 +359,8 @@ FAIL_FAST = (
     "calibration_missing",
     "calibration_model",
     "lidar_preset",
+    "occlusion_options",
+    "lidar_min_range",
 )
 """Rows on the synthetic preset with an empty cache, refused before the dataset is generated."""
 
@@ -361,6 +386,8 @@ DEFAULT_ROWS = (
     "offline_weights",
     "lidar_preset",
     "scan_file",
+    "occlusion_options",
+    "woodscape_depth",
 )
 """Rows of the default suite; the other schema rows are ``slow`` (test_schema_table covers them in-process)."""
 SLOW_ROWS = (
@@ -379,6 +406,7 @@ SLOW_ROWS = (
     "onnx_missing",
     "lidar_spec_file",
     "inspect_lidar",
+    "lidar_min_range",
 )
 
 
@@ -456,6 +484,27 @@ SCHEMA_TABLE = [
     ("train", ["data.camera.fit=stretch"], "data.camera.fit='stretch': expected one of pad, crop"),
     ("evaluate", ["allow_camera_mismatch=sure"], "allow_camera_mismatch='sure': expected true or false"),
     ("train", ["data.occlusion=zbufer"], "data.occlusion='zbufer': expected one of ordering"),
+    (
+        "train",
+        ["data.occlusion=zbuffer", "data.occlusion_options={size:3}"],
+        "data.occlusion_options={'size': 3}: unknown option(s) ['size'] for method 'zbuffer'",
+    ),
+    (
+        "train",
+        ["data.occlusion=hpr", "data.occlusion_options={radius:0.5}"],
+        "data.occlusion_options={'radius': 0.5}: radius must be a number > 1",
+    ),
+    ("train", ["data.format=kitti"], "data.format='kitti': expected one of airfisheye"),
+    (
+        "train",
+        ["data.format_options={camera:image_03}"],
+        "data.format_options={'camera': 'image_03'}: unknown keys ['camera'] for data.format=airfisheye",
+    ),
+    ("train", ["data.lidar.min_range=-1"], "data.lidar.min_range=-1: expected a number >= 0"),
+    ("train", ["data.lidar.preset=hdl65e"], "data.lidar.preset='hdl65e': expected one of hdl32e, hdl64e"),
+    ("train", ["data.lidar.preset=/"], "data.lidar.preset='/': expected one of"),
+    ("train", ["+data.camera.k=[0.1,0.2]"], "data.camera.k=[0.1, 0.2]: expected four numbers"),
+    ("train", ["data.camera.camera=-1"], "data.camera.camera=-1: expected a camera name or a 0-based index"),
     ("train", ["data.source=pinhole"], "data.source='pinhole': expected one of cubemap, fisheye"),
     ("train", ["data.augment.hflip=2"], "data.augment.hflip=2: expected a number in [0, 1]"),
     ("train", ["data.batch_size=0"], "data.batch_size=0: expected an integer >= 1"),

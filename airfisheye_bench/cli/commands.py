@@ -19,11 +19,13 @@ Example:
     usage: airfisheye-inspect root=DIR [key=value ...]
     <BLANKLINE>
     options (key=value; defaults from configs/inspect.yaml):
-      root       str       (required)  the dataset root folder (it holds dataset.yaml), or a folder / file of LiDAR scans
-      deep       bool      false       also decode every image and array (slower)
-      limit      int       20          problems listed in the summary
-      lidar      str|null  null        LiDAR scans: the sensor (a preset such as hdl64e, or a spec file) to estimate rings
-      min_range  float     1.0         LiDAR scans: returns closer than this (m) count as self-hits
+      root            str        (required)  the dataset root folder (it holds dataset.yaml), or a folder / file of LiDAR scans
+      format          str        airfisheye  how root is laid out: airfisheye | woodscape | ... (data.format of training)
+      format_options  dict|null  null        that format's options, e.g. format_options={views:[FV]}
+      deep            bool       false       also decode every image and array (slower)
+      limit           int        20          problems listed in the summary
+      lidar           str|null   null        LiDAR scans: the sensor (a preset such as hdl64e, or a spec file) to estimate rings
+      min_range       float      1.0         LiDAR scans: returns closer than this (m) count as self-hits
     <BLANKLINE>
     Booleans: true/false, yes/no, on/off, 1/0. Lists: key=[a,b].
 """
@@ -39,6 +41,8 @@ from concurrent.futures import BrokenExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from omegaconf import OmegaConf
 
 from airfisheye_bench.cli.options import Command, Parsed, option, parse, render_help, wants_help
 from airfisheye_bench.errors import ConfigError, debug_requested, report_user_errors
@@ -57,6 +61,8 @@ def _run(command: Command, argv: Sequence[str] | None) -> Parsed | None:
 @dataclass
 class InspectOptions:
     root: str = option("the dataset root folder (it holds dataset.yaml), or a folder / file of LiDAR scans")
+    format: str = option("how root is laid out: airfisheye | woodscape | ... (data.format of training)")
+    format_options: Any = option("that format's options, e.g. format_options={views:[FV]}", "dict|null")
     deep: bool = option("also decode every image and array (slower)")
     limit: int = option("problems listed in the summary")
     lidar: str | None = option(
@@ -76,7 +82,8 @@ INSPECT = Command(
 
 @report_user_errors
 def inspect(argv: Sequence[str] | None = None) -> int:
-    """``airfisheye-inspect root=DIR [deep=true] [limit=20]``; exit status 1 when problems are found."""
+    """``airfisheye-inspect root=DIR [format=woodscape] [deep=true] [limit=20]``; exit status 1 when problems are
+    found."""
     parsed = _run(INSPECT, argv)
     if parsed is None:
         return 0
@@ -87,7 +94,17 @@ def inspect(argv: Sequence[str] | None = None) -> int:
 
     opts = parsed.options
     root = Path(opts.root)
-    if (root / "dataset.yaml").is_file() or not root.exists():
+    if opts.format != "airfisheye":
+        from airfisheye_bench.io.inspect_source import inspect_source  # at run time: see the module docstring
+
+        options = opts.format_options
+        options = OmegaConf.to_container(options) if OmegaConf.is_config(options) else options
+        if options is not None and not isinstance(options, dict):
+            raise ConfigError(
+                f"format_options={options!r}: expected a mapping, e.g. format_options={{views:[FV]}}"
+            )
+        report = inspect_source(root, opts.format, options, deep=opts.deep)
+    elif (root / "dataset.yaml").is_file() or not root.exists():
         report = inspect_dataset(opts.root, deep=opts.deep)
     else:  # a folder (or a file) of LiDAR scans
         try:
@@ -209,7 +226,7 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
     board = build_leaderboard(entries, paper=opts.paper, invalid=problems)
     written = list(board.write(opts.out))
     if opts.html is not None:
-        from airfisheye_bench.evaluation.leaderboard_html import write_html  # matplotlib, only for html=
+        from airfisheye_bench.evaluation.leaderboard.html import write_html  # matplotlib, only for html=
 
         folders = [Path(r.strip()).expanduser().resolve() for r in runs]
         folders = [f if f.is_dir() else f.parent for f in folders]
@@ -265,14 +282,14 @@ def export(argv: Sequence[str] | None = None) -> int:
     from airfisheye_bench.export.deploy import (  # at run time: see the module docstring
         ExportError,
         export_deployment,
-        log,
         log_export,
     )
     from airfisheye_bench.export.onnx import OnnxParityError  # at run time: see the module docstring
 
-    # Progress of this command only: the exporter and the quantiser log pages of INFO lines.
+    # Progress of this command only (export.deploy, export.quantize): the exporter and the quantiser log pages of
+    # INFO lines.
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
-    log.setLevel(logging.INFO)
+    logging.getLogger("airfisheye_bench.export").setLevel(logging.INFO)
     kwargs = dict(parsed.options)
     mlflow_run, mlflow_uri = kwargs.pop("mlflow_run"), kwargs.pop("mlflow_tracking_uri")
     if mlflow_run:

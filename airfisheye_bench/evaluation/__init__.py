@@ -1,4 +1,5 @@
-"""Evaluation: prediction sources, submissions, ``results.json`` and the leaderboard.
+"""Evaluation: prediction sources, submissions and the leaderboard; ``results.json`` is
+:mod:`airfisheye_bench.io.results` (training writes it too), re-exported here with the leaderboard that reads it.
 
 The evaluation command itself is :func:`airfisheye_bench.evaluation.command.evaluate` (``scripts/evaluate.py``).
 """
@@ -14,12 +15,6 @@ from airfisheye_bench.evaluation.leaderboard import (
     load_entry,
     paper_baselines,
 )
-from airfisheye_bench.evaluation.results import (
-    RESULTS_VERSION,
-    dataset_identity,
-    load_results,
-    write_results,
-)
 from airfisheye_bench.evaluation.submission import (
     SubmissionError,
     SubmissionWriter,
@@ -27,6 +22,12 @@ from airfisheye_bench.evaluation.submission import (
     validate_submission,
     write_prediction,
     write_submission,
+)
+from airfisheye_bench.io.results import (
+    RESULTS_VERSION,
+    dataset_identity,
+    load_results,
+    write_results,
 )
 
 __all__ = [

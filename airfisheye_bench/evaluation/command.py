@@ -31,7 +31,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 
 from airfisheye_bench.config_checks import ValueRule, check_common_values
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.evaluation.evaluator import EvaluationResult, evaluate_predictions, format_results_table
+from airfisheye_bench.evaluation.evaluator import EvaluationResult, evaluate_predictions
 from airfisheye_bench.evaluation.predictors import (
     TTA_MODES,
     CheckpointPredictor,
@@ -39,14 +39,14 @@ from airfisheye_bench.evaluation.predictors import (
     OnnxPredictor,
     Predictor,
 )
-from airfisheye_bench.evaluation.results import dataset_identity, write_results
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
 from airfisheye_bench.io.calibration_files import camera_mismatch
 from airfisheye_bench.io.deployment import read_deployment_metadata
+from airfisheye_bench.io.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.runs import checkpoint_run_name, resolve_checkpoint, run_config, run_directory
-from airfisheye_bench.specs import UnknownTaskError, deployment_keys, get_task, task_names
+from airfisheye_bench.specs import UnknownTaskError, get_task, task_names
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.tracking import log_to_run, resolve_run
 from airfisheye_bench.viz import save_png, task_panel
@@ -100,7 +100,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
         source_data = run.data if run is not None else None
         task = _agree(task, module.task, f"checkpoint {checkpoint}")
     elif source == "onnx_path":
-        metadata = read_deployment_metadata(cfg.onnx_path, deployment_keys)
+        metadata = read_deployment_metadata(cfg.onnx_path)
         source_data = OmegaConf.create(metadata["data_config"]) if metadata.get("data_config") else None
         task = _agree(task, metadata["task"], f"ONNX model {cfg.onnx_path}")
     elif task is None:
@@ -153,7 +153,7 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
     record = _write(cfg, output_dir, task, datamodule, data_config, predictor, result)
     summary = "\n".join(
         [
-            format_results_table(task, result, spec.primary_metric),
+            format_results_table(task, result.metrics, result.breakdown, spec.primary_metric),
             f"\n{result.num_frames} frames in {result.seconds:.1f} s; results: {output_dir / 'results.json'}",
         ]
     )

@@ -13,7 +13,6 @@ import pickle
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import torch
@@ -27,7 +26,7 @@ from airfisheye_bench.specs import get_task
 from airfisheye_bench.viz import panel_row, spread_indices
 from datamodules.dataset import collate
 
-__all__ = ["EvaluationResult", "evaluate_predictions", "format_results_table"]
+__all__ = ["EvaluationResult", "evaluate_predictions"]
 
 
 @dataclass
@@ -208,29 +207,3 @@ def _main_process_threads(num_workers: int) -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(previous)
-
-
-def format_results_table(task: str, result: EvaluationResult | dict[str, Any], primary: str) -> str:
-    """A plain-text table of the metrics and of the primary metric per ring and range (for the terminal)."""
-    metrics = result.metrics if isinstance(result, EvaluationResult) else result["metrics"]
-    breakdown = result.breakdown if isinstance(result, EvaluationResult) else result["breakdown"]
-    lines = [f"{task} metrics", "-" * 36]
-    lines += [f"{key:<28}{_fmt(value)}" for key, value in metrics.items() if not key.startswith("IoU/")]
-    per_class = {k[4:]: v for k, v in metrics.items() if k.startswith("IoU/")}
-    if per_class:
-        lines += ["", "IoU per class", "-" * 36]
-        lines += [f"{name:<28}{_fmt(value)}" for name, value in per_class.items()]
-    bins = {k.split("/")[0]: v for k, v in breakdown.items() if k.endswith(f"/{primary}")}
-    if bins:
-        kinds = "incidence-angle ring (deg)" + (
-            " and depth range (m)" if any(k.startswith("range_") for k in bins) else ""
-        )
-        lines += ["", f"{primary} by {kinds}", "-" * 36]
-        lines += [f"{name:<28}{_fmt(value)}" for name, value in bins.items()]
-    return "\n".join(lines)
-
-
-def _fmt(value: float | None) -> str:
-    if value is None or value != value:
-        return "-"
-    return f"{value:.4f}"

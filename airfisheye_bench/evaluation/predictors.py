@@ -20,7 +20,7 @@ from airfisheye_bench.errors import MissingFileError
 from airfisheye_bench.evaluation.submission import read_prediction, validate_submission
 from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.io.manifest import sha256_file
-from airfisheye_bench.specs import deployment_keys, get_task
+from airfisheye_bench.specs import get_task
 
 __all__ = [
     "TTA_MODES",
@@ -159,7 +159,7 @@ class OnnxPredictor:
         self.tta = check_tta(tta)
         if not self.path.is_file():
             raise MissingFileError(f"ONNX model {self.path} does not exist")
-        self.metadata = read_deployment_metadata(self.path, deployment_keys)
+        self.metadata = read_deployment_metadata(self.path)
         self.task = self.metadata["task"]
         options = ort.SessionOptions()
         if threads:

@@ -10,8 +10,9 @@
 3. check ONNX Runtime (CPU) against PyTorch on real validation frames (no augmentation): segmentation logits
    within 1e-4 absolute, depth within 1e-3 relative (+ 1e-4 m). The file is written under a temporary name and
    only renamed to ``out`` once it passes, so a failed export never leaves a bad model behind;
-4. optionally quantise to int8 (``quantize=dynamic|static``, ``<out stem>.int8.onnx``) and report the change of
-   the task's metrics on the validation split (fp32 ONNX vs int8 ONNX against ground truth) with the speed-up.
+4. optionally quantise to int8 (:mod:`~airfisheye_bench.export.quantize`: ``quantize=dynamic|static``,
+   ``<out stem>.int8.onnx``) and report the change of the task's metrics on the validation split (fp32 ONNX vs
+   int8 ONNX against ground truth) with the speed-up.
 
 Exit codes of the command (:func:`airfisheye_bench.cli.commands.export`; ``--help`` lists the options): 0
 success, 1 export or parity failure (nothing written at ``out``), 2 bad arguments or inputs (checkpoint, run
@@ -20,29 +21,31 @@ config, overrides), 3 the fp32 model was exported and verified but the requested
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import os
 import shutil
 import tempfile
-import warnings
-from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import onnx
-import onnxruntime as ort
 import torch
 from omegaconf import DictConfig, OmegaConf
 from torch import Tensor
 
 from airfisheye_bench.atomic import check_writable
 from airfisheye_bench.config_checks import check_common_values
-from airfisheye_bench.export.onnx import ParityReport, _median_ms, export_onnx, verify_onnx
-from airfisheye_bench.io.deployment import deployment_metadata, read_onnx_metadata
+from airfisheye_bench.export.onnx import ParityReport, export_onnx, first_line, size_mb, verify_onnx
+from airfisheye_bench.export.quantize import (
+    QUANTIZE_MODES,
+    QuantizationReport,
+    quantization_lines,
+    quantize_model,
+)
+from airfisheye_bench.export.validation import validation_frames
+from airfisheye_bench.io.deployment import deployment_metadata
 from airfisheye_bench.io.manifest import sha256_file
 from airfisheye_bench.runs import resolve_checkpoint, run_config, run_directory
 from airfisheye_bench.specs import get_task
@@ -62,8 +65,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-QUANTIZE_MODES = ("none", "dynamic", "static")
-
 
 def parity_tolerance(task: str) -> tuple[float, float]:
     """``(atol, rtol)`` of the task's parity check: ``|ort - torch| <= atol + rtol * |torch|`` element-wise.
@@ -78,56 +79,6 @@ def parity_tolerance(task: str) -> tuple[float, float]:
 
 class ExportError(RuntimeError):
     """The model could not be exported (the exporter's message is kept)."""
-
-
-@dataclass(frozen=True)
-class QuantizationReport:
-    """Outcome of the int8 quantisation: accuracy change on the validation split and ORT speed-up.
-
-    Attributes:
-        mode: ``dynamic`` or ``static``.
-        path: the int8 file, or ``None`` when quantisation failed.
-        error: why quantisation failed (``None`` on success).
-        frames: validation frames the metrics were computed on.
-        metrics_fp32: the task's metrics of the fp32 ONNX model against ground truth.
-        metrics_int8: the same for the int8 model.
-        fp32_ms: median ONNX Runtime latency of the fp32 model (same batch and threads as ``int8_ms``).
-        int8_ms: median ONNX Runtime latency of the int8 model.
-        fp32_bytes: size of the fp32 file.
-        int8_bytes: size of the int8 file.
-        threads: ONNX Runtime intra-op threads of both timings.
-        batch: batch size of both timings.
-        notes: remarks worth reading (pre-processing skipped, calibration frames, ...).
-    """
-
-    mode: str
-    path: Path | None = None
-    error: str | None = None
-    frames: int = 0
-    metrics_fp32: dict[str, float] = field(default_factory=dict)
-    metrics_int8: dict[str, float] = field(default_factory=dict)
-    fp32_ms: float = float("nan")
-    int8_ms: float = float("nan")
-    fp32_bytes: int = 0
-    int8_bytes: int = 0
-    threads: int = 0
-    batch: int = 0
-    notes: tuple[str, ...] = ()
-
-    @property
-    def ok(self) -> bool:
-        """Whether the int8 model was written and evaluated."""
-        return self.error is None and self.path is not None
-
-    @property
-    def speedup(self) -> float:
-        """fp32 latency / int8 latency (> 1 means int8 is faster)."""
-        return self.fp32_ms / self.int8_ms if self.int8_ms > 0 else float("nan")
-
-    @property
-    def metric_deltas(self) -> dict[str, float]:
-        """``int8 - fp32`` per metric."""
-        return {k: self.metrics_int8[k] - v for k, v in self.metrics_fp32.items() if k in self.metrics_int8}
 
 
 @dataclass(frozen=True)
@@ -169,13 +120,13 @@ class DeploymentReport:
         lines = [  # the verdict and the rule that decided it, then what was written
             f"parity on {self.parity_frames} validation frame(s), onnxruntime CPU vs PyTorch: "
             f"{p.verdict(self.atol, self.rtol)}",
-            f"wrote {self.path} ({_mb(self.path)}): task={self.task} model={self.model}, "
+            f"wrote {self.path} ({size_mb(self.path)}): task={self.task} model={self.model}, "
             f"inputs {list(get_task(self.task).inputs)} -> {get_task(self.task).output}, dynamic batch, {spatial}",
             f"latency (batch {self.parity_frames}, {torch.get_num_threads()} threads): onnxruntime "
             f"{p.ort_ms:.1f} ms, PyTorch {p.torch_ms:.1f} ms, ratio ort/torch {p.latency_ratio:.2f}",
         ]
         if self.quantization is not None:
-            lines.extend(_quantization_lines(self.quantization, self.task))
+            lines.extend(quantization_lines(self.quantization, self.task))
         return "\n".join(lines)
 
 
@@ -235,7 +186,7 @@ def export_deployment(
     datamodule = instantiate_datamodule(data_cfg, "validate")  # a few frames: main-process loading
     metadata = _metadata(task, datamodule, data_cfg, checkpoint)
     names = task.spec.inputs
-    frames = _val_frames(datamodule, max(parity_samples, batch), names)
+    frames = validation_frames(datamodule, max(parity_samples, batch), names)
     available = int(frames["image"].shape[0])
     if available < parity_samples:
         log.info(
@@ -255,7 +206,7 @@ def export_deployment(
         os.replace(candidate, out)  # the report says "wrote", after the parity verdict
         quantization = None
         if quantize != "none":
-            quantization = _quantize(
+            quantization = quantize_model(
                 out, quantize, task, datamodule, parity_inputs, workdir, calib_samples, eval_samples, repeats
             )
     finally:
@@ -304,33 +255,6 @@ def _run_data(checkpoint: Path) -> DictConfig:
     return cfg.data
 
 
-def _val_batches(datamodule, limit: int = 0) -> Iterator[dict]:
-    """Validation batches (no augmentation), stopping after ``limit`` frames (0: all)."""
-    seen = 0
-    for batch in datamodule.val_dataloader():
-        if "image" not in batch:  # every frame of the batch was skipped (skip_bad_frames)
-            continue
-        if limit:
-            batch = {k: v[: limit - seen] for k, v in batch.items() if isinstance(v, Tensor | list)}
-        yield batch
-        seen += int(batch["image"].shape[0])
-        if limit and seen >= limit:
-            return
-
-
-def _val_frames(datamodule, count: int, names: Sequence[str]) -> dict[str, Tensor]:
-    """The first ``count`` validation frames (fewer if the split is smaller) as one batch."""
-    parts: dict[str, list[Tensor]] = {}
-    for batch in _val_batches(datamodule, count):
-        for key, value in batch.items():
-            if isinstance(value, Tensor):
-                parts.setdefault(key, []).append(value)
-    missing = [n for n in names if n not in parts]
-    if missing:
-        raise ValueError(f"the validation split gave no {missing} (data.task={datamodule.task})")
-    return {k: torch.cat(v) for k, v in parts.items()}
-
-
 def _repeat_to(x: Tensor, n: int) -> Tensor:
     reps = math.ceil(n / x.shape[0])
     return x.repeat(reps, *([1] * (x.ndim - 1)))[:n]
@@ -359,9 +283,6 @@ def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[
         raise ValueError(f"task={spec.name} lists metadata {missing} that the task module does not provide")
     return deployment_metadata(
         task=task.task,
-        inputs=spec.inputs,
-        output=spec.output,
-        task_keys=spec.export.metadata,
         model=model_config["name"],
         model_config=model_config,
         normalization=datamodule.normalization,
@@ -414,215 +335,11 @@ def _export(
         hint = " (retry with dynamic_spatial=false)" if dynamic_spatial else ""
         raise ExportError(
             f"torch.onnx.export failed for {task.hparams['model']['name']}{hint}: "
-            f"{type(err).__name__}: {_first_line(err)}"
+            f"{type(err).__name__}: {first_line(err)}"
         ) from err
 
 
-# ------------------------------------------------------------------------------------------ quantisation
-def _quantize(
-    fp32: Path,
-    mode: str,
-    task,
-    datamodule,
-    timing_inputs: dict[str, Tensor],
-    workdir: Path,
-    calib_samples: int,
-    eval_samples: int,
-    repeats: int,
-) -> QuantizationReport:
-    """Write ``<stem>.int8.onnx`` next to ``fp32`` and compare both on the validation split.
-
-    Failures (an op the quantiser or the CPU provider cannot handle, e.g. NLSPN's DeformConv) are caught and
-    returned as ``error``: the fp32 model is verified already and stays.
-    """
-    target = fp32.with_name(f"{fp32.stem}.int8.onnx")
-    notes: list[str] = []
-    threads = torch.get_num_threads()
-    batch = int(timing_inputs["image"].shape[0])
-    try:
-        candidate = workdir / target.name
-        source = _preprocess(fp32, workdir, notes)
-        log.info("quantising (%s int8)", mode)
-        _run_quantizer(source, candidate, mode, datamodule, task.task, calib_samples, notes)
-        _copy_metadata(fp32, candidate)
-        int8_session = _session(candidate)
-        fp32_session = _session(fp32)
-        feed = {k: v.numpy() for k, v in timing_inputs.items()}
-        fp32_ms = _median_ms(lambda: fp32_session.run(None, feed), repeats)
-        int8_ms = _median_ms(lambda: int8_session.run(None, feed), repeats)
-        log.info("evaluating fp32 vs int8 on the validation split")
-        frames, metrics_fp32, metrics_int8 = _compare_metrics(
-            task, datamodule, fp32_session, int8_session, eval_samples
-        )
-        os.replace(candidate, target)
-        notes.extend(_accuracy_notes(task.task, metrics_fp32, metrics_int8))
-        if int8_ms > fp32_ms:
-            notes.append(
-                "int8 is slower than fp32 here: onnxruntime's CPU int8 convolution kernels (ConvInteger for "
-                "dynamic, QLinearConv for static) often lose to its fp32 ones on small conv nets"
-                + ("; static quantisation usually does better" if mode == "dynamic" else "")
-            )
-    except Exception as err:  # the quantiser raises anything from KeyError to onnxruntime's Fail
-        with contextlib.suppress(FileNotFoundError):
-            target.unlink()  # an int8 file from an earlier export would no longer match the new fp32 model
-        return QuantizationReport(
-            mode=mode,
-            error=f"{mode} int8 quantisation of {task.hparams['model']['name']} failed "
-            f"({type(err).__name__}: {_first_line(err)}); the fp32 model {fp32} is unaffected",
-            notes=tuple(notes),
-        )
-    return QuantizationReport(
-        mode=mode,
-        path=target,
-        frames=frames,
-        metrics_fp32=metrics_fp32,
-        metrics_int8=metrics_int8,
-        fp32_ms=fp32_ms,
-        int8_ms=int8_ms,
-        fp32_bytes=fp32.stat().st_size,
-        int8_bytes=target.stat().st_size,
-        threads=threads,
-        batch=batch,
-        notes=tuple(notes),
-    )
-
-
-def _preprocess(fp32: Path, workdir: Path, notes: list[str]) -> Path:
-    """ORT's recommended pre-processing (graph optimisation, shape inference) of a copy without ``value_info``.
-
-    The quantisers re-run ONNX shape inference, which rejects some of the exporter's intermediate shape
-    annotations (AdaBins: "Inferred shape and existing shape differ") although ONNX Runtime runs the graph
-    correctly (parity passed); the annotations are optional, so they are dropped and inferred afresh.
-    """
-    from onnxruntime.quantization import quant_pre_process  # loaded on use: only quantize= needs it
-
-    model = onnx.load(str(fp32))
-    del model.graph.value_info[:]
-    stripped = workdir / "stripped.onnx"
-    onnx.save(model, str(stripped))
-    out = workdir / "preprocessed.onnx"
-    try:
-        # Symbolic shape inference targets transformers and gives up on these graphs; ONNX inference suffices.
-        quant_pre_process(str(stripped), str(out), skip_symbolic_shape=True)
-        return out
-    except Exception as err:
-        notes.append(f"pre-processing skipped ({type(err).__name__}: {_first_line(err)})")
-        return stripped
-
-
-def _run_quantizer(
-    source: Path, target: Path, mode: str, datamodule, task: str, calib_samples: int, notes: list[str]
-) -> None:
-    # loaded on use: only quantize= needs the quantisers
-    from onnxruntime.quantization import QuantType, quantize_dynamic, quantize_static
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        if mode == "dynamic":
-            quantize_dynamic(str(source), str(target), weight_type=QuantType.QInt8)
-            return
-        reader = _calibration_reader(datamodule, get_task(task).inputs, calib_samples)
-        quantize_static(str(source), str(target), reader)
-        notes.append(
-            f"static calibration on {reader.frames} validation frame(s), the split the accuracy is measured on"
-        )
-
-
-def _calibration_reader(datamodule, names: Sequence[str], limit: int):
-    """A ``CalibrationDataReader`` of validation frames, one frame per call (calibration needs no batching)."""
-    from onnxruntime.quantization import CalibrationDataReader  # loaded on use: only quantize=static needs it
-
-    class ValidationReader(CalibrationDataReader):
-        def __init__(self) -> None:
-            frames = _val_frames(datamodule, limit, names)
-            self.frames = int(frames["image"].shape[0])
-            self._feeds = iter([{k: frames[k][i : i + 1].numpy() for k in names} for i in range(self.frames)])
-
-        def get_next(self) -> dict[str, np.ndarray] | None:
-            return next(self._feeds, None)
-
-    return ValidationReader()
-
-
-def _copy_metadata(source: Path, target: Path) -> None:
-    """The quantisers drop ``metadata_props``; the int8 model carries the same deployment metadata."""
-    model = onnx.load(str(target))
-    del model.metadata_props[:]
-    for key, value in read_onnx_metadata(source).items():
-        model.metadata_props.add(key=key, value=value)
-    onnx.save(model, str(target))
-
-
-def _session(path: Path):
-    options = ort.SessionOptions()
-    options.intra_op_num_threads = torch.get_num_threads()
-    options.inter_op_num_threads = 1
-    return ort.InferenceSession(str(path), sess_options=options, providers=["CPUExecutionProvider"])
-
-
-def _compare_metrics(task, datamodule, fp32_session, int8_session, limit: int):
-    """The task's metrics of both ONNX models against ground truth on the validation split."""
-    names = task.spec.inputs
-    metric_fp32, metric_int8 = task.make_metric(), task.make_metric()
-    frames = 0
-    for batch in _val_batches(datamodule, limit):
-        feed = {k: batch[k].numpy() for k in names}
-        target, mask = task.target(batch), batch["valid_mask"]
-        metric_fp32.update(torch.from_numpy(fp32_session.run(None, feed)[0]), target, mask=mask)
-        metric_int8.update(torch.from_numpy(int8_session.run(None, feed)[0]), target, mask=mask)
-        frames += int(batch["image"].shape[0])
-    return frames, _scalars(metric_fp32.compute()), _scalars(metric_int8.compute())
-
-
-def _accuracy_notes(task: str, fp32: Mapping[str, float], int8: Mapping[str, float]) -> list[str]:
-    """Flag headline metrics that int8 moves by more than 5 % (relative): worth a look before deploying."""
-    notes = []
-    for key in get_task(task).export.headline:
-        before, after = fp32.get(key, math.nan), int8.get(key, math.nan)
-        if (
-            math.isfinite(before)
-            and math.isfinite(after)
-            and abs(after - before) > 0.05 * max(abs(before), 1e-6)
-        ):
-            notes.append(
-                f"int8 moves {key} by {100 * (after - before) / max(abs(before), 1e-6):+.0f}% "
-                f"({before:.4g} -> {after:.4g}): check the int8 model before deploying it"
-            )
-    return notes
-
-
-def _scalars(values: Mapping[str, Tensor]) -> dict[str, float]:
-    return {k: float(v) for k, v in values.items()}
-
-
 # ------------------------------------------------------------------------------------------------- report
-def _quantization_lines(q: QuantizationReport, task: str) -> list[str]:
-    if not q.ok:
-        return [f"int8: FAILED: {q.error}", *(f"  note: {n}" for n in q.notes)]
-    lines = [f"int8 ({q.mode}) {q.path} ({_mb(q.path)}), on {q.frames} validation frame(s), fp32 -> int8:"]
-    parts = [
-        f"{k} {q.metrics_fp32[k]:.4f} -> {q.metrics_int8[k]:.4f} ({q.metric_deltas[k]:+.4f})"
-        for k in get_task(task).export.headline
-        if k in q.metrics_fp32
-    ]
-    lines.append("  " + ", ".join(parts))
-    lines.append(
-        f"  latency (batch {q.batch}, {q.threads} threads, median): fp32 {q.fp32_ms:.1f} ms, int8 "
-        f"{q.int8_ms:.1f} ms, speed-up x{q.speedup:.2f}"
-    )
-    lines.extend(f"  note: {n}" for n in q.notes)
-    return lines
-
-
-def _first_line(err: BaseException) -> str:
-    text = str(err).strip()
-    return text.splitlines()[0] if text else ""
-
-
-def _mb(path: Path | None) -> str:
-    return f"{path.stat().st_size / 1e6:.1f} MB" if path is not None and path.exists() else "?"
-
-
 def log_export(report: DeploymentReport, mlflow_run: str, tracking_uri: str | None = None) -> None:
     """Log the exported ONNX file(s) (artifacts under ``export/``), the parity and latency numbers (metrics
     ``export/...``) and the file's path (tag ``onnx_path``) to an MLflow run: ``auto``, the run the checkpoint was

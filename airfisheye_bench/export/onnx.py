@@ -254,13 +254,11 @@ def verify_onnx(
     try:
         with torch.no_grad():
             expected = model(**inputs)
-            torch_ms = _median_ms(lambda: model(**inputs), repeats) if measure_latency else float("nan")
+            torch_ms = median_ms(lambda: model(**inputs), repeats) if measure_latency else float("nan")
     finally:
         model.train(was_training)
     actual = session.run([output_name], feed)[0]
-    ort_ms = (
-        _median_ms(lambda: session.run([output_name], feed), repeats) if measure_latency else float("nan")
-    )
+    ort_ms = median_ms(lambda: session.run([output_name], feed), repeats) if measure_latency else float("nan")
 
     expected_np = expected.detach().cpu().float().numpy()
     if actual.shape != expected_np.shape:
@@ -329,7 +327,8 @@ def _dynamic_shapes(
     return shapes
 
 
-def _median_ms(fn, repeats: int) -> float:
+def median_ms(fn, repeats: int) -> float:
+    """Median wall time of ``fn()`` in milliseconds over ``repeats`` calls, after one warm-up call."""
     fn()  # warm-up: first calls allocate and pick kernels
     times = []
     for _ in range(repeats):
@@ -337,3 +336,14 @@ def _median_ms(fn, repeats: int) -> float:
         fn()
         times.append((time.perf_counter() - start) * 1e3)
     return float(np.median(times))
+
+
+def first_line(err: BaseException) -> str:
+    """The first line of an exception's message (exporters and quantisers raise pages of text)."""
+    text = str(err).strip()
+    return text.splitlines()[0] if text else ""
+
+
+def size_mb(path: Path | None) -> str:
+    """A file's size for a report, ``"?"`` when there is none."""
+    return f"{path.stat().st_size / 1e6:.1f} MB" if path is not None and path.exists() else "?"

@@ -1,9 +1,10 @@
 """Geometry: camera models, cubemap-to-fisheye remapping, rigid transforms, LiDAR projection and occlusion."""
 
-from airfisheye_bench.geometry.camera import MODELS, FisheyeCamera, incidence_angle
+from airfisheye_bench.geometry.camera import LENS_MODELS, FisheyeCamera, incidence_angle
 from airfisheye_bench.geometry.cameras import CAMERA_MODELS, CameraModel, camera_from_dict
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, CubemapToFisheye, face_rays, face_rotation
-from airfisheye_bench.geometry.lidar import LidarSpec, organize_scan, spherical_coordinates
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import organize_scan
 from airfisheye_bench.geometry.occlusion import (
     OCCLUSION_METHODS,
     LidarProjection,
@@ -28,7 +29,7 @@ __all__ = [
     "CAMERA_MODELS",
     "CAM_FROM_FLU",
     "FACE_NAMES",
-    "MODELS",
+    "LENS_MODELS",
     "OCCLUSION_METHODS",
     "CameraModel",
     "CubemapToFisheye",

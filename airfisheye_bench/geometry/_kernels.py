@@ -94,7 +94,7 @@ def lidar_layout(
 ):  # pragma: no cover - compiled
     """Step 1 of III-C: ring, rank in azimuth within the ring and azimuth sector of every point.
 
-    Exactly ``lidar.layout_from_angles``: the same float64 operations (no fastmath), and the same order
+    Exactly ``lidar_layout.layout_from_angles``: the same float64 operations (no fastmath), and the same order
     (ring, azimuth, point index) found in O(N) instead of a lexsort: a counting sort into (ring, sector)
     buckets, stable in the point index, then an insertion sort by azimuth inside each bucket (a sector holds
     one or two points of a ring; the sector grows with the azimuth, so the bucket order is the azimuth order).
@@ -105,7 +105,7 @@ def lidar_layout(
         edge, h_res: Azimuth where sector 0 starts and the sector width (radians).
         n_c: Channels.
         wrap_last: Clamp the sector to ``wrap_last`` (a 360 deg sensor: azimuth +pi is the last sector); -1: no.
-        first_col, n_cols: Sectors span ``[first_col, first_col + n_cols)`` (``lidar.column_range``).
+        first_col, n_cols: Sectors span ``[first_col, first_col + n_cols)`` (``lidar_layout.column_range``).
         ring_given: ``ring`` holds every point's ring already (-1: none; a ring field or an estimate from a
             channel table); otherwise it is the nearest of the evenly spaced channels.
         ring, position, column: ``int64 [N]`` outputs (``ring`` an input too with ``ring_given``).
@@ -171,7 +171,7 @@ def _search_left(sorted_values, x):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True)
 def nearest_channel(z, rho, tan_mids, table, radial, vertical, ring, residual):  # pragma: no cover - compiled
-    """The channel whose beam, from its own origin, points nearest each point (``lidar._nearest_from_origins``).
+    """The channel whose beam, from its own origin, points nearest each point (``lidar_layout._nearest_from_origins``).
 
     The table's nearest channel seen from the mean origin, then three rounds seen from the origin of the channel
     found, then the best of it and its two neighbours by the elevation residual (``residual``, radians; only

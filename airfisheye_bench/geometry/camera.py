@@ -15,12 +15,12 @@ from typing import Any
 
 import torch
 
-from airfisheye_bench.constants import LENS_MODELS
 from airfisheye_bench.geometry._arrays import ArrayLike, as_tensor, back, check_last_dim
 from airfisheye_bench.geometry.cameras import CameraModel, KannalaBrandt, camera_from_dict
 from airfisheye_bench.geometry.cameras.radial import RADIAL_MODELS
 
-MODELS = LENS_MODELS  # the lens models FisheyeCamera builds (defined in constants for the config checks)
+#: The lens models :func:`FisheyeCamera` builds (``data.camera.model``).
+LENS_MODELS = ("equidistant", "equisolid", "stereographic", "orthographic", "kannala_brandt")
 
 
 def FisheyeCamera(  # the historical class name; it now builds a CameraModel
@@ -55,8 +55,8 @@ def FisheyeCamera(  # the historical class name; it now builds a CameraModel
         >>> np.allclose(cam.unproject(uv[:1]), [[0.0, 0.0, 1.0]])
         True
     """
-    if model not in MODELS:
-        raise ValueError(f"model must be one of {MODELS}, got {model!r}")
+    if model not in LENS_MODELS:
+        raise ValueError(f"model must be one of {LENS_MODELS}, got {model!r}")
     if model == "kannala_brandt":
         return KannalaBrandt.from_focal(width, height, fov_deg, cx, cy, focal, k)
     if k is not None and any(float(x) != 0.0 for x in k):
@@ -80,4 +80,4 @@ def incidence_angle(points: ArrayLike) -> ArrayLike:
     return back(torch.atan2(torch.hypot(p[..., 0], p[..., 1]), p[..., 2]), was_numpy)
 
 
-__all__ = ["MODELS", "FisheyeCamera", "incidence_angle"]
+__all__ = ["LENS_MODELS", "FisheyeCamera", "incidence_angle"]

@@ -403,11 +403,23 @@ class _LRU:
 
 _TABLES = _LRU(maxsize=16)
 
+
+def clear_table_cache() -> None:
+    """Forget the lookup tables held in memory (files in the disk cache stay): the next ``table()`` call of any
+    :class:`CubemapToFisheye` loads or builds its table again, as in a fresh process (benchmarks, tests).
+
+    Example:
+        >>> clear_table_cache()
+    """
+    _TABLES.clear()
+
+
 __all__ = [
     "FACE_NAMES",
     "MODES",
     "CubemapToFisheye",
     "RemapTable",
+    "clear_table_cache",
     "direction_to_face",
     "face_rays",
     "face_rotation",

@@ -3,14 +3,14 @@
 Three sources, best first (docs/design.md, "Rings", says which file format gives which):
 
 ``field``         The sensor's own ring (nuScenes ``.pcd.bin``, ROS drivers' ``ring`` in PCD / PLY): passed through
-                  (:func:`~airfisheye_bench.geometry.lidar.check_rings`).
+                  (:func:`~airfisheye_bench.geometry.lidar_layout.check_rings`).
 ``firing_order``  The order of the points (KITTI ``.bin`` stores each laser's revolution contiguously, top laser
                   first, starting near azimuth 0 and wrapping once at +-180 deg): the scan is cut into one block
                   per revolution of a laser, and the blocks are matched to the channel table in order
                   (:func:`rings_from_firing_order`). Near returns keep their laser's ring whatever their
                   elevation, and a laser with no return at all does not shift the others.
 ``channel_table`` Each point's elevation against the channel table, measured from where each channel's beam
-                  starts (:func:`~airfisheye_bench.geometry.lidar.rings_from_elevation`): exact beyond a few metres; near returns of a sensor whose
+                  starts (:func:`~airfisheye_bench.geometry.lidar_layout.rings_from_elevation`): exact beyond a few metres; near returns of a sensor whose
                   beam origins are not described can land in a neighbouring ring.
 """
 
@@ -20,13 +20,8 @@ import math
 
 import numpy as np
 
-from airfisheye_bench.geometry.lidar import (
-    LidarSpec,
-    channel_residuals,
-    check_rings,
-    rings_from_elevation,
-    spherical_coordinates,
-)
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import channel_residuals, check_rings, rings_from_elevation
 
 RING_SOURCES = ("field", "firing_order", "channel_table")
 

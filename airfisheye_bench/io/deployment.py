@@ -52,18 +52,18 @@ Outputs: ``logits`` ``[B, C, H, W]`` (argmax over ``C`` gives the class id), ``d
 metres. The keys of one task are exactly the common keys plus that task's keys plus the optional keys given
 (``OPTIONAL_KEYS``): :func:`deployment_metadata` writes them, :func:`parse_deployment_metadata` checks and decodes
 them. Which keys a task has, and its input and output names, are facts of its spec (``TaskSpec.export.metadata``,
-``inputs``, ``output``); this module sits below the specs, so callers pass them in (``task_keys``:
-:func:`airfisheye_bench.specs.deployment_keys`).
+``inputs``, ``output``), looked up here by the task's name (:func:`airfisheye_bench.specs.get_task`).
 """
 
 from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from airfisheye_bench.errors import InputFileError, MissingFileError
+from airfisheye_bench.specs import UnknownTaskError, get_task
 
 __all__ = [
     "COMMON_KEYS",
@@ -152,9 +152,6 @@ _STRING_KEYS = frozenset(
 def deployment_metadata(
     *,
     task: str,
-    inputs: Sequence[str],
-    output: str,
-    task_keys: Sequence[str],
     model: str,
     model_config: Mapping[str, Any],
     normalization: Mapping[str, Sequence[float]],
@@ -167,14 +164,12 @@ def deployment_metadata(
 ) -> dict[str, str]:
     """Encode the deployment metadata of one model as ``metadata_props`` strings (see the module docstring).
 
-    ``image_size`` follows from ``camera``. The task's own values (``task_values``) must be exactly the keys of
-    ``task_keys``, so the key set is always the common keys plus the task's.
+    ``image_size`` follows from ``camera``; the graph's input and output names from the task's spec. The task's own
+    values (``task_values``) must be exactly the keys of its spec (``TaskSpec.export.metadata``), so the key set is
+    always the common keys plus the task's.
 
     Args:
-        task: The task name.
-        inputs: Graph input names (the spec's ``inputs``).
-        output: Graph output name (the spec's ``output``).
-        task_keys: The task's own keys without the prefix (``TaskSpec.export.metadata``).
+        task: A registered task name.
         model: registry name of the zoo model.
         model_config: the checkpoint's model hyperparameters (``{"name": ..., **kwargs}``).
         normalization: ``{"mean": [3 floats], "std": [3 floats]}`` applied to ``rgb / 255``.
@@ -191,23 +186,23 @@ def deployment_metadata(
         ``{key: str}`` with exactly the common and the task's keys, plus ``airfisheye.weights`` when given.
 
     Raises:
-        ValueError: a missing or superfluous task-specific value, or a malformed value.
+        ValueError: an unknown task, a missing or superfluous task-specific value, or a malformed value.
 
     Example:
         >>> meta = deployment_metadata(
-        ...     task="depth", inputs=["image"], output="depth", task_keys=["min_depth", "max_depth"],
-        ...     model="adabins", model_config={"name": "adabins"},
+        ...     task="depth", model="adabins", model_config={"name": "adabins"},
         ...     normalization={"mean": [0.485, 0.456, 0.406], "std": [0.229, 0.224, 0.225]},
         ...     camera={"model": "equidistant", "width": 64, "height": 48, "fov_deg": 190.0},
         ...     data_config={"task": "depth"}, checkpoint_sha256="0" * 64, source_checkpoint="run/last.ckpt",
         ...     min_depth=1e-3, max_depth=120.0)
         >>> meta["airfisheye.image_size"], meta["airfisheye.inputs"], meta["airfisheye.output"]
         ('[48, 64]', '["image"]', 'depth')
-        >>> parse_deployment_metadata(meta, lambda task: ["min_depth", "max_depth"])["max_depth"]
+        >>> parse_deployment_metadata(meta)["max_depth"]
         120.0
     """
+    spec = get_task(task)
     specific = {PREFIX + k: v for k, v in task_values.items() if v is not None}
-    wanted = [PREFIX + k for k in task_keys]
+    wanted = [PREFIX + k for k in spec.export.metadata]
     missing = [k for k in wanted if k not in specific]
     extra = [k for k in specific if k not in wanted]
     if missing or extra:
@@ -223,8 +218,8 @@ def deployment_metadata(
         KEY_TASK: task,
         KEY_MODEL: model,
         KEY_MODEL_CONFIG: dict(model_config),
-        KEY_INPUTS: list(inputs),
-        KEY_OUTPUT: output,
+        KEY_INPUTS: list(spec.inputs),
+        KEY_OUTPUT: spec.output,
         KEY_NORMALIZATION: {
             "mean": [float(v) for v in normalization["mean"]],
             "std": [float(v) for v in normalization["std"]],
@@ -240,19 +235,15 @@ def deployment_metadata(
     if weights is not None:
         out[KEY_WEIGHTS] = _encode(KEY_WEIGHTS, dict(weights))
     # The writer never produces what the reader would reject.
-    parse_deployment_metadata(out, lambda name: task_keys if name == task else ())
+    parse_deployment_metadata(out)
     return out
 
 
-def parse_deployment_metadata(
-    props: Mapping[str, str], task_keys: Callable[[str], Sequence[str]]
-) -> dict[str, Any]:
+def parse_deployment_metadata(props: Mapping[str, str]) -> dict[str, Any]:
     """Check and decode deployment metadata (``metadata_props`` as a dict); other keys are ignored.
 
     Args:
-        props: The model's ``metadata_props``.
-        task_keys: The own keys (short names) of a task name; raises ``ValueError`` (or ``KeyError``) for an
-            unknown task (:func:`airfisheye_bench.specs.deployment_keys`).
+        props: The model's ``metadata_props``; its task's own keys are those of the task's spec.
 
     Returns:
         The decoded values keyed by the name without the ``airfisheye.`` prefix, e.g. ``"task"`` (str),
@@ -265,7 +256,7 @@ def parse_deployment_metadata(
             task, or a value that is not valid JSON (the message names the key).
 
     Example:
-        >>> parse_deployment_metadata({"airfisheye.format_version": "2"}, lambda task: ())
+        >>> parse_deployment_metadata({"airfisheye.format_version": "2"})
         Traceback (most recent call last):
         ...
         ValueError: airfisheye.format_version is '2'; this reader understands '1' (re-export the model ...)
@@ -282,8 +273,8 @@ def parse_deployment_metadata(
         )
     task = props.get(KEY_TASK)
     try:
-        keys = (*COMMON_KEYS, *(PREFIX + k for k in task_keys(str(task))))
-    except (KeyError, ValueError) as err:
+        keys = (*COMMON_KEYS, *(PREFIX + k for k in get_task(str(task)).export.metadata))
+    except UnknownTaskError as err:
         raise ValueError(f"{KEY_TASK}: {err}") from None
     missing = [k for k in keys if k not in props]
     if missing:
@@ -318,9 +309,7 @@ def read_onnx_metadata(path: str | os.PathLike) -> dict[str, str]:
     return {prop.key: prop.value for prop in model.metadata_props}
 
 
-def read_deployment_metadata(
-    path: str | os.PathLike, task_keys: Callable[[str], Sequence[str]]
-) -> dict[str, Any]:
+def read_deployment_metadata(path: str | os.PathLike) -> dict[str, Any]:
     """:func:`parse_deployment_metadata` of an ``.onnx`` file (the weights are not loaded).
 
     Raises:
@@ -337,7 +326,7 @@ def read_deployment_metadata(
             "scripts/export_onnx.py"
         ) from err
     try:
-        return parse_deployment_metadata(props, task_keys)
+        return parse_deployment_metadata(props)
     except ValueError as err:
         raise InputFileError(f"{path}: {err}; give a file written by scripts/export_onnx.py") from None
 

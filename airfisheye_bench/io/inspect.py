@@ -8,6 +8,9 @@ Command line (:func:`airfisheye_bench.cli.commands.inspect`; ``--help`` lists th
 
     airfisheye-inspect root=/path/to/AirFisheye [deep=true] [limit=20]
 
+A dataset in another layout (``format=woodscape``, ...) is inspected through its source:
+:func:`airfisheye_bench.io.inspect_source.inspect_source`.
+
 Example:
     >>> report = inspect_dataset("/path/to/AirFisheye")   # doctest: +SKIP
     >>> report.ok, report.samples, report.problems[:1]      # doctest: +SKIP
@@ -41,12 +44,14 @@ class InspectReport:
         samples: Samples listed in the split files.
         files: Files checked.
         problems: ``(path, what is wrong)`` for every problem, in scan order.
+        splits: Samples per split (of the splits that could be read).
     """
 
     root: Path
     samples: int = 0
     files: int = 0
     problems: list[tuple[str, str]] = field(default_factory=list)
+    splits: dict[str, int] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -59,7 +64,10 @@ class InspectReport:
         head = (
             f"{self.root}: {self.samples} samples, {self.files} files checked, {len(self.problems)} problems"
         )
-        lines = [head] + [f"  {p}: {m}" for p, m in self.problems[:limit]]
+        lines = [head]
+        if self.splits:
+            lines.append("  splits: " + ", ".join(f"{name} {n}" for name, n in self.splits.items()))
+        lines += [f"  {p}: {m}" for p, m in self.problems[:limit]]
         if len(self.problems) > limit:
             lines.append(f"  ... and {len(self.problems) - limit} more")
         return "\n".join(lines)
@@ -82,7 +90,9 @@ def inspect_dataset(root: str | Path, deep: bool = False) -> InspectReport:
     samples: list[str] = []
     for split in reader.split_names:
         try:
-            samples += reader.split(split)
+            ids = reader.split(split)
+            samples += ids
+            report.splits[split] = len(ids)
         except (DatasetFormatError, OSError, ValueError) as err:
             report.add(reader.layout.split_file(spec.splits.files[split]), str(err))
     report.samples = len(samples)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from airfisheye_bench.io.splits import parse_sample_id, read_split
 
 
 class DatasetReader:
-    """Reads samples, calibration and poses of a dataset root.
+    """Reads samples, calibration and poses of a dataset root in the AirFisheye layout (``data.format=airfisheye``).
 
     Per-trajectory files (calibration, poses, IMU) are parsed once and cached. The object is cheap to pickle
     (the caches are per process), so a DataLoader can hand it to its workers.
@@ -33,6 +34,10 @@ class DatasetReader:
         >>> rgb = reader.fisheye(sid, "rgb"); points = reader.lidar(sid)      # doctest: +SKIP
         >>> T_cam_lidar = reader.T_cam_lidar(sid)                             # doctest: +SKIP
     """
+
+    format: ClassVar[str] = "airfisheye"
+    OPTIONS: ClassVar[dict[str, object]] = {}
+    modalities: ClassVar[tuple[str, ...]] = ("rgb", "seg", "depth")
 
     def __init__(self, root: str | Path, spec: DatasetSpec | None = None) -> None:
         self.root = Path(root)
@@ -151,6 +156,15 @@ class DatasetReader:
         if frame not in phases:
             raise DatasetFormatError(self.layout.lidar_scan(traj), f"no phase for frame {frame}")
         return phases[frame]
+
+    def path_of(self, sample_id: str, modality: str, source: str) -> Path:
+        """The file of a fisheye ``modality`` (``source=fisheye``) or the folder of its cube faces (``cubemap``)."""
+        if source == "cubemap":
+            return self.layout.cubemap(sample_id, "front", modality).parent.parent
+        return self.layout.fisheye(sample_id, modality)
+
+    def missing_reason(self, content: str) -> str:
+        return f"{self.root} has no {content} data (dataset.yaml contents)"
 
     # ------------------------------------------------------------------------------- helpers
     def _require(self, modality: str) -> None:

@@ -13,6 +13,9 @@ Conventions (see ``docs/design.md``, "Metrics"):
 
 Per-image functions return one value per image; an image without a valid pixel gets ``NaN`` values and a
 valid-pixel count of 0, so callers can leave it out of an average over images.
+
+One module on purpose (a little over 500 lines): it is the one place of every metric formula, and the depth and
+completion errors (most of it) share its input checks, chunking and per-group reductions.
 """
 
 from __future__ import annotations

@@ -43,7 +43,6 @@ __all__ = [
     "TaskSpec",
     "UnknownTaskError",
     "all_tasks",
-    "deployment_keys",
     "get_task",
     "register_task",
     "task_names",
@@ -52,13 +51,3 @@ __all__ = [
 
 for _spec in (SEG, DEPTH, COMPLETION):
     register_task(_spec)
-
-
-def deployment_keys(task: str) -> tuple[str, ...]:
-    """The task's own deployment metadata keys (``TaskSpec.export.metadata``), for the ONNX metadata reader.
-
-    Example:
-        >>> deployment_keys("completion")
-        ('min_depth', 'max_depth', 'occlusion')
-    """
-    return get_task(task).export.metadata

@@ -21,6 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES
+
 __all__ = [
     "IGNORE_ID",
     "RAW_CLASSES",
@@ -70,21 +72,8 @@ RAW_CLASSES: list[ClassInfo] = [
     ClassInfo(22, "street_furniture", (250, 170, 30)),  # barrier
 ]
 
-TRAIN_CLASSES: list[ClassInfo] = [
-    ClassInfo(0, "sky", (70, 130, 180)),
-    ClassInfo(1, "road", (128, 64, 128)),
-    ClassInfo(2, "sidewalk", (244, 35, 232)),
-    ClassInfo(3, "grass", (152, 251, 152)),
-    ClassInfo(4, "ground", (150, 110, 70)),
-    ClassInfo(5, "water", (30, 60, 220)),
-    ClassInfo(6, "building", (70, 70, 70)),
-    ClassInfo(7, "roof", (180, 40, 40)),
-    ClassInfo(8, "tree", (107, 142, 35)),
-    ClassInfo(9, "bush", (60, 200, 60)),
-    ClassInfo(10, "vehicle", (0, 0, 142)),
-    ClassInfo(11, "pole", (153, 153, 153)),
-    ClassInfo(12, "barrier", (190, 153, 153)),
-]
+# The training classes are the benchmark's (io.benchmark_classes), which the public datasets map onto too.
+TRAIN_CLASSES: list[ClassInfo] = [ClassInfo(c.id, c.name, c.color) for c in BENCHMARK_CLASSES]
 
 RAW_ID: dict[str, int] = {c.name: c.id for c in RAW_CLASSES}
 _TRAIN_ID: dict[str, int] = {c.name: c.id for c in TRAIN_CLASSES}

@@ -31,10 +31,11 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.serving import FITS, serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.manifest import verify as verify_manifest
+from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.synth.contact_sheet import write_contact_sheet
 from airfisheye_bench.synth.presets import PRESETS, SynthConfig, get_preset, plan_trajectories
 from airfisheye_bench.synth.scene import ENVIRONMENTS
-from airfisheye_bench.synth.writer import _Job, _Worker, ensure_dataset, generate_dataset
+from airfisheye_bench.synth.writer import Job, Worker, generate_dataset
 
 log = logging.getLogger(__name__)
 
@@ -187,14 +188,14 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
     torch.set_num_threads(1)
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            worker = _Worker(cfg, 0, tmp, plans, device)
+            worker = Worker(cfg, 0, tmp, plans, device)
             start = time.perf_counter()
             worker.recording(0)
             build = time.perf_counter() - start
-            worker.run(_Job(0, 0))  # warm-up (lazy tables, allocator)
+            worker.run(Job(0, 0))  # warm-up (lazy tables, allocator)
             start = time.perf_counter()
             for i in range(1, frames + 1):
-                worker.run(_Job(0, i))
+                worker.run(Job(0, i))
             per_frame = (time.perf_counter() - start) / frames
     finally:
         torch.set_num_threads(previous)

@@ -16,19 +16,16 @@ each point's beam and each frame's scan phase), then writes the split files,
 * **Verifiable.** ``manifest.json`` lists every file's SHA-256; :func:`~airfisheye_bench.io.manifest.verify`
   checks a dataset against it.
 
-:func:`ensure_dataset` returns a cached preset (generating it on first use, safely against concurrent processes).
+What a trajectory is made of is :mod:`~airfisheye_bench.synth.recording`; its ``dataset.yaml`` is
+:mod:`~airfisheye_bench.synth.dataset_yaml`; the cache of presets the datamodules read is
+:mod:`~airfisheye_bench.synth.cache`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
 import logging
-import math
 import multiprocessing as mp
-import os
-import shutil
-import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,123 +42,30 @@ from airfisheye_bench.io.calib import Calibration
 from airfisheye_bench.io.layout import DatasetLayout
 from airfisheye_bench.io.manifest import FileEntry, sha256_bytes, sha256_file, write_manifest
 from airfisheye_bench.io.poses import ImuTable, PoseTable
-from airfisheye_bench.io.spec import DATASET_YAML, DatasetSpec, FileEncodings, SplitsSpec, classes_from
+from airfisheye_bench.io.spec import DATASET_YAML, DatasetSpec, FileEncodings
 from airfisheye_bench.io.splits import write_split
-from airfisheye_bench.synth.classes import IGNORE_ID, RAW_CLASSES, RAW_TO_TRAIN, TRAIN_CLASSES
+from airfisheye_bench.synth.dataset_yaml import dataset_spec, generator_identity
 from airfisheye_bench.synth.presets import (
-    GENERATOR_VERSION,
     SPLIT_NAMES,
     SynthConfig,
     TrajectoryPlan,
     get_preset,
     plan_trajectories,
 )
-from airfisheye_bench.synth.scene import ENVIRONMENTS, Lighting, Scene
-from airfisheye_bench.synth.sensors import VISIBILITY_DEFINITION, ScanModel, render_frame
-from airfisheye_bench.synth.trajectory import Flight
+from airfisheye_bench.synth.recording import (
+    TrajectoryRecording,
+    build_trajectory,
+    frame_name,
+    frame_phases,
+    scan_rng,
+)
+from airfisheye_bench.synth.scene import ENVIRONMENTS
+from airfisheye_bench.synth.sensors import ScanModel, render_frame
 
 log = logging.getLogger(__name__)
 
 STATE_NAME = ".airfisheye-generate.json"
 JOURNAL_NAME = ".airfisheye-journal.jsonl"
-DATA_ENV_VAR = "AIRFISHEYE_DATA"
-
-
-# =============================================================================================== planning
-@dataclass
-class TrajectoryRecording:
-    """A trajectory ready to render: its plan, scene, flight, lighting and per-frame sensor poses."""
-
-    plan: TrajectoryPlan
-    scene: Scene
-    flight: Flight
-    lighting: Lighting
-    T_world_body_cam: np.ndarray  # [N, 4, 4] at t_cam
-    T_world_body_lidar: np.ndarray  # [N, 4, 4] at t_lidar
-    scan_seed: int = 0  # seeds the LiDAR's per-frame phase, jitter and dropout (scan_rng)
-
-    def T_world_cam(self, i: int) -> np.ndarray:
-        return self.T_world_body_cam[i] @ self.flight.T_body_cam
-
-    def T_world_lidar(self, i: int) -> np.ndarray:
-        return self.T_world_body_lidar[i] @ self.flight.T_body_lidar
-
-
-def trajectory_seeds(seed: int, plan: TrajectoryPlan) -> tuple[int, int, int, int]:
-    """Scene, flight, lighting and stratum-jitter seeds of a trajectory, from ``(seed, environment, index)`` only."""
-    ss = np.random.SeedSequence([int(seed), zlib.crc32(plan.env.encode()), int(plan.index)])
-    scene_seed, flight_seed, light_seed, strata_seed = (int(v) for v in ss.generate_state(4))
-    return scene_seed, flight_seed, light_seed, strata_seed
-
-
-def scan_seed(seed: int, plan: TrajectoryPlan) -> int:
-    """Seed of a trajectory's LiDAR phase, jitter and dropout: a stream of its own, so that the seeds of
-    :func:`trajectory_seeds` (and the bytes of datasets with ideal scans) do not depend on the scan model."""
-    ss = np.random.SeedSequence([int(seed), zlib.crc32(plan.env.encode()), int(plan.index), 1])
-    return int(ss.generate_state(1)[0])
-
-
-def scan_rng(scan_seed: int, frame: int) -> np.random.Generator:
-    """The generator of frame ``frame``'s LiDAR phase, jitter and dropout (depends on the trajectory and frame only)."""
-    return np.random.default_rng([int(scan_seed), int(frame)])
-
-
-def stratified_value(index: int, count: int, low: float, high: float, phase: float, jitter: float) -> float:
-    """A value in ``[low, high]`` for trajectory ``index`` of ``count``, spread evenly over the trajectories.
-
-    Trajectory ``i`` takes the fraction ``(i * 0.618... + phase) mod 1`` (a golden-ratio sequence: any run of
-    consecutive indices, e.g. the validation or test trajectories, covers the range evenly), moved by
-    ``jitter`` (in ``[-0.5, 0.5]``) times the spacing ``1 / count``.
-
-    Example:
-        >>> sorted(round(stratified_value(i, 4, 0.0, 40.0, phase=0.0, jitter=0.0)) for i in range(4))
-        [0, 9, 25, 34]
-    """
-    golden = (math.sqrt(5.0) - 1.0) / 2.0
-    frac = (index * golden + phase + jitter / max(count, 1)) % 1.0
-    return low + (high - low) * frac
-
-
-def build_trajectory(
-    config: SynthConfig, seed: int, plan: TrajectoryPlan, device: str = "cpu"
-) -> TrajectoryRecording:
-    """Generate the scene, flight and lighting of one planned trajectory (deterministic)."""
-    scene_seed, flight_seed, light_seed, strata_seed = trajectory_seeds(seed, plan)
-    scene = Scene.generate(plan.env, scene_seed, size_m=config.scene_size_m, device=device)
-    # Gimbal pitch and starting altitude are stratified over the trajectories: with a dozen trajectories,
-    # independent draws often leave a split without steep or high views.
-    jitter = np.random.default_rng(strata_seed).uniform(-0.5, 0.5, size=2)
-    n, fc = config.num_trajectories, config.flight
-    flight = Flight.generate(
-        scene,
-        fc,
-        plan.num_frames,
-        np.random.default_rng(flight_seed),
-        gimbal_pitch_deg=stratified_value(plan.index, n, *fc.gimbal_pitch_deg, phase=0.1, jitter=jitter[0]),
-        start_altitude_m=stratified_value(plan.index, n, *fc.altitude_m, phase=0.45, jitter=jitter[1]),
-    )
-    lighting = Lighting.random(torch.Generator().manual_seed(light_seed))
-    return TrajectoryRecording(
-        plan,
-        scene,
-        flight,
-        lighting,
-        flight.body_pose(flight.t_cam),
-        flight.body_pose(flight.t_lidar),
-        scan_seed(seed, plan),
-    )
-
-
-def frame_phases(rec: TrajectoryRecording, config: SynthConfig) -> np.ndarray:
-    """The LiDAR azimuth phase of every frame of a trajectory (radians), as :func:`_write_frame` draws them."""
-    scan, spec = config.scan_model(), config.lidar_spec()
-    return np.array(
-        [scan.frame_phase(spec, t, scan_rng(rec.scan_seed, i)) for i, t in enumerate(rec.flight.t_lidar)]
-    )
-
-
-def frame_name(index: int) -> str:
-    return f"{index:06d}"
 
 
 def calib_camera(config: SynthConfig) -> FisheyeCamera:
@@ -169,89 +73,6 @@ def calib_camera(config: SynthConfig) -> FisheyeCamera:
     return config.fisheye_camera() or FisheyeCamera(
         2 * config.face_size, 2 * config.face_size, fov_deg=config.fisheye_fov_deg
     )
-
-
-def dataset_spec(config: SynthConfig, seed: int, plans: list[TrajectoryPlan]) -> DatasetSpec:
-    """The ``dataset.yaml`` of a generated dataset."""
-    lidar = config.lidar_spec()
-    sensors: dict = {
-        "frame_rate_hz": config.flight.frame_rate_hz,
-        "imu_rate_hz": config.flight.imu_rate_hz,
-        "depth": "range: Euclidean distance from the sensor origin along the ray, metres; 0 = invalid / sky",
-    }
-    contents = []
-    if config.face_size > 0:
-        contents.append("cubemap")
-        sensors["cubemap"] = {
-            "face_size": config.face_size,
-            "faces": list(FACE_NAMES),
-            "model": "90-deg OpenCV pinhole per face, f = S/2, c = (S-1)/2; orientations as in docs/design.md",
-        }
-    if config.fisheye_size > 0:
-        contents.append("fisheye")
-        sensors["fisheye"] = {**config.fisheye_camera().to_dict(), "source": config.fisheye_source}
-    contents += ["lidar", "lidar_visible", "poses", "imu"]
-    sensors["lidar"] = {**lidar.to_dict(), "frame": "x forward, y left, z up", "captured_at": "t_lidar"}
-    scan = config.scan_model()
-    if not scan.ideal or not lidar.is_uniform:  # a channel table: the true ring of every point is recorded
-        contents.append("lidar_beam")
-    if not scan.ideal:  # ideal scans are described by the LiDAR spec alone (and keep earlier datasets' bytes)
-        contents.append("lidar_scan")
-        sensors["lidar"]["scan"] = {
-            "phase": scan.phase,
-            **({"rotation_hz": scan.rotation_hz} if scan.phase == "spin" else {}),
-            "jitter_cells": list(scan.jitter_cells),
-            "dropout": scan.dropout,
-            "model": (
-                "beam (channel i, column j) fires at elevation channel_elevations[i] + e and azimuth "
-                "column_azimuths[j] + phase + a, with phase per frame (lidar_scan.csv, radians, in [-1/2, 1/2) "
-                "cell), a ~ N(0, (jitter_cells[0] * hres)^2), e ~ N(0, (jitter_cells[1] * vres)^2) per beam and "
-                "frame, and each beam lost with probability dropout; lidar_beam/<frame>.npy holds i * N_PC + j "
-                "of every point (its true cell of I_LiDAR)"
-            ),
-        }
-    sensors["imu"] = {
-        "frame": "body (FLU: x forward, y left, z up)",
-        "columns": "t [s], ax ay az: specific force = R_world_body^T (a - g) [m/s^2], wx wy wz: angular rate [rad/s]",
-    }
-    sensors["poses"] = (
-        "poses.csv: T_world_body at t_cam and at t_lidar (quaternions w, x, y, z). Camera frame OpenCV, LiDAR and "
-        "body FLU, world z up. Motion-compensated T_cam_lidar = (T_world_body(t_cam) T_body_cam)^-1 "
-        "T_world_body(t_lidar) T_body_lidar (airfisheye_bench.io.camera_from_lidar)."
-    )
-    sensors["visibility"] = VISIBILITY_DEFINITION
-    total = sum(p.num_frames for p in plans)
-    return DatasetSpec(
-        name=f"airfisheye-synthetic-{config.name}",
-        description=(
-            f"Procedural synthetic AirFisheye-style data ({total} frames, {len(plans)} trajectories) generated by "
-            "airfisheye_bench.synth; ground truth is exact."
-        ),
-        raw_classes=classes_from(RAW_CLASSES),
-        train_classes=classes_from(TRAIN_CLASSES),
-        raw_to_train=dict(RAW_TO_TRAIN),
-        ignore_index=IGNORE_ID,
-        sensors=sensors,
-        files=FileEncodings(rgb=config.rgb_format, seg="png", depth=config.depth_format),
-        contents=tuple(contents),
-        splits=SplitsSpec(
-            files={name: f"splits/{name}.txt" for name in SPLIT_NAMES},
-            by="location",
-            ratios=dict(zip(SPLIT_NAMES, config.split_ratios, strict=True)),
-            locations={p.key: p.split for p in plans},
-        ),
-        generator=generator_identity(config, seed),
-    )
-
-
-def generator_identity(config: SynthConfig, seed: int) -> dict:
-    """What determines the bytes of a generated dataset (recorded in ``dataset.yaml`` and checked on resume)."""
-    return {
-        "name": "airfisheye_bench.synth",
-        "version": GENERATOR_VERSION,
-        "seed": int(seed),
-        "config": config.to_dict(),
-    }
 
 
 # =============================================================================================== units of work
@@ -368,7 +189,9 @@ class _Sensors:
 
 
 @dataclass(frozen=True)
-class _Job:
+class Job:
+    """One unit of work of :func:`generate_dataset`: a trajectory's metadata (``frame=-1``) or one frame."""
+
     traj: int  # index into the plans
     frame: int  # -1: trajectory metadata
 
@@ -377,8 +200,9 @@ class _Job:
         return f"{self.traj}:{self.frame}"
 
 
-class _Worker:
-    """Per-process state: the configuration and a small cache of built trajectories."""
+class Worker:
+    """Per-process state: the configuration and a small cache of built trajectories; :meth:`run` does one
+    :class:`Job` (the frame-writer benchmark of ``airfisheye-generate bench`` times it)."""
 
     def __init__(
         self, config: SynthConfig, seed: int, root: str, plans: list[TrajectoryPlan], device: str
@@ -395,23 +219,23 @@ class _Worker:
             self._cache[traj] = build_trajectory(self.config, self.seed, self.plans[traj], self.device)
         return self._cache[traj]
 
-    def run(self, job: _Job) -> tuple[str, dict]:
+    def run(self, job: Job) -> tuple[str, dict]:
         rec = self.recording(job.traj)
         if job.frame < 0:
             return job.key, _write_trajectory_meta(rec, self.config, self.layout)
         return job.key, _write_frame(rec, job.frame, self.config, self.sensors, self.layout)
 
 
-_WORKER: _Worker | None = None
+_WORKER: Worker | None = None
 
 
 def _init_worker(args: tuple, threads: int) -> None:
     global _WORKER
     torch.set_num_threads(threads)
-    _WORKER = _Worker(*args)
+    _WORKER = Worker(*args)
 
 
-def _run_in_worker(job: _Job) -> tuple[str, dict]:
+def _run_in_worker(job: Job) -> tuple[str, dict]:
     assert _WORKER is not None
     return _WORKER.run(job)
 
@@ -465,10 +289,10 @@ def generate_dataset(
     journal = root / JOURNAL_NAME
     done = _read_journal(journal, root)
     jobs = [
-        _Job(t, f)
+        Job(t, f)
         for t, plan in enumerate(plans)
         for f in range(-1, plan.num_frames)
-        if _Job(t, f).key not in done
+        if Job(t, f).key not in done
     ]
     total_frames = sum(p.num_frames for p in plans)
     bar = _progress_bar(
@@ -488,7 +312,7 @@ def generate_dataset(
     return root
 
 
-def _execute(jobs: list[_Job], args: tuple, workers: int) -> Iterator[tuple[str, dict]]:
+def _execute(jobs: list[Job], args: tuple, workers: int) -> Iterator[tuple[str, dict]]:
     if not jobs:
         return
     # One torch thread per process: the ray caster's many small ops scale badly with intra-op threads (4x slower
@@ -498,7 +322,7 @@ def _execute(jobs: list[_Job], args: tuple, workers: int) -> Iterator[tuple[str,
         previous = torch.get_num_threads()
         torch.set_num_threads(1)
         try:
-            worker = _Worker(*args)
+            worker = Worker(*args)
             for job in jobs:
                 yield worker.run(job)
         finally:
@@ -591,93 +415,3 @@ def _progress_bar(enabled: bool, total: int, initial: int, name: str):
         return _NoBar()
 
     return tqdm(total=total, initial=initial, desc=f"generate {name}", unit="frame", dynamic_ncols=True)
-
-
-# =============================================================================================== cache
-def default_data_root() -> Path:
-    """``$AIRFISHEYE_DATA`` if set, else ``~/.cache/airfisheye-bench``."""
-    env = os.environ.get(DATA_ENV_VAR)
-    return Path(env).expanduser() if env else Path.home() / ".cache" / "airfisheye-bench"
-
-
-def cached_dataset_path(
-    preset: str, root: str | Path | None = None, seed: int = 0, lidar_preset: str | None = None
-) -> Path:
-    """Where :func:`ensure_dataset` keeps ``preset``: ``<root>/<preset>[-<lidar_preset>]-v<version>[-seed<seed>]``."""
-    base = Path(root).expanduser() if root is not None else default_data_root()
-    suffix = f"-seed{seed}" if seed else ""
-    lidar = f"-{lidar_preset}" if lidar_preset else ""
-    return base / f"{preset}{lidar}-v{GENERATOR_VERSION}{suffix}"
-
-
-def ensure_dataset(
-    preset: str = "quickstart",
-    root: str | Path | None = None,
-    seed: int = 0,
-    workers: int | None = None,
-    device: str = "cpu",
-    progress: bool = True,
-    lidar_preset: str | None = None,
-) -> Path:
-    """Path of a complete generated ``preset``, generating it on first use.
-
-    The dataset is generated into ``<path>.partial`` and renamed when complete, under an exclusive lock file
-    (``<path>.lock``), so two processes asking at once generate it once; an interrupted generation resumes.
-
-    Args:
-        preset: Preset name.
-        root: Cache folder (default :func:`default_data_root`).
-        seed: Base seed.
-        workers: Rendering processes (default: the number of CPUs, at most 8).
-        device: Torch device for ray casting.
-        progress: Show a progress bar.
-        lidar_preset: Simulate this real sensor (``SynthConfig.lidar_preset``) instead of the preset's LiDAR;
-            cached apart from the preset itself.
-
-    Example:
-        >>> path = ensure_dataset("tiny")          # doctest: +SKIP
-        >>> (path / "dataset.yaml").exists()       # doctest: +SKIP
-        True
-    """
-    config = get_preset(preset)
-    if lidar_preset is not None:
-        config = config.replace(lidar_preset=lidar_preset)
-    target = cached_dataset_path(preset, root, seed, lidar_preset)
-    if (target / "manifest.json").is_file():
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with _exclusive_lock(target.with_name(target.name + ".lock")):
-        if (target / "manifest.json").is_file():  # another process finished while we waited
-            return target
-        partial = target.with_name(target.name + ".partial")
-        if workers is None:
-            workers = max(1, min(8, os.cpu_count() or 1))
-        log.info("generating the %r synthetic dataset into %s (first use)", preset, target)
-        generate_dataset(
-            preset if lidar_preset is None else config,
-            partial,
-            seed=seed,
-            workers=workers,
-            device=device,
-            progress=progress,
-        )
-        if target.exists():  # a stale, incomplete folder (e.g. removed manifest): replace it
-            shutil.rmtree(target)
-        os.replace(partial, target)
-    return target
-
-
-@contextlib.contextmanager
-def _exclusive_lock(path: Path):
-    """Blocking inter-process lock on ``path`` (``fcntl`` on POSIX; best effort elsewhere)."""
-    with open(path, "a+") as f:
-        try:
-            import fcntl  # POSIX only
-        except ImportError:  # Windows: rely on the atomic rename of the finished dataset
-            yield
-            return
-        fcntl.flock(f.fileno(), fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(f.fileno(), fcntl.LOCK_UN)

@@ -1,4 +1,4 @@
-"""``scripts/bench_loader.py`` runs end to end on the tiny dataset (structure only, no timing thresholds)."""
+"""``scripts/bench_loader.py`` (:mod:`airfisheye_bench.benchmarks.loader_speed`) runs end to end on the tiny dataset (structure only, no timing thresholds)."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from tests.scripts import load_script
+from airfisheye_bench.benchmarks import loader_speed
 
 
 def test_main_tiny(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    bench = load_script("bench_loader")
+    bench = loader_speed
     argv = ["--root", str(tiny_dataset), "--size", "32", "--samples", "3", "--repeats", "2"]
     results = bench.main([*argv, "--tasks", "seg", "completion"])
     assert [(r["task"], r["source"]) for r in results] == [

@@ -8,8 +8,17 @@ import hydra
 import numpy as np
 import pytest
 import torch
+from omegaconf import OmegaConf
 
-from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS, OCCLUSION_OPTIONS, lidar_depth_map
+from airfisheye_bench.config_checks import check_common_values
+from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.geometry.occlusion import (
+    OCCLUSION_METHODS,
+    OCCLUSION_OPTIONS,
+    Occlusion,
+    lidar_depth_map,
+)
+from datamodules import AirFisheyeDataModule
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 from tests.training.test_configs import compose_train
 
@@ -25,25 +34,42 @@ from tests.training.test_configs import compose_train
 )
 def test_every_method_and_its_options_are_selectable_from_the_config(method: str, options: str) -> None:
     cfg = compose_train(["task=completion", f"data.occlusion={method}", f"data.occlusion_options={options}"])
+    check_common_values(cfg)
     datamodule = hydra.utils.instantiate(cfg.data, _convert_="partial")  # builds no dataset yet
-    kwargs = datamodule.dataset_kwargs
-    assert kwargs["occlusion"] == method
-    assert set(kwargs["occlusion_options"]) <= set(OCCLUSION_OPTIONS[method])
-    assert len(kwargs["occlusion_options"]) == options.count(":")
+    occlusion = datamodule.dataset_kwargs["occlusion"]
+    assert isinstance(occlusion, Occlusion) and occlusion.method == method
+    assert set(occlusion.options) == set(OCCLUSION_OPTIONS[method])  # the defaults fill in the rest
+    given = OmegaConf.to_container(cfg.data.occlusion_options)
+    assert {k: occlusion.options[k] for k in given} == given
 
 
-def test_unknown_or_bad_options_name_the_key() -> None:
-    # Hydra wraps the datamodule's ValueError; the message is the datamodule's
-    cfg = compose_train(["task=completion", "data.occlusion=zbuffer", "data.occlusion_options={size:3}"])
-    with pytest.raises(Exception, match=r"data.occlusion_options \(data.occlusion=zbuffer\).*\['size'\]"):
-        hydra.utils.instantiate(cfg.data, _convert_="partial")
-    cfg = compose_train(["task=completion", "data.occlusion=hpr", "data.occlusion_options={radius:0.5}"])
-    with pytest.raises(Exception, match=r"data\.occlusion_options.*radius"):
-        hydra.utils.instantiate(cfg.data, _convert_="partial")
-    # options of another method are unknown here
-    cfg = compose_train(["task=completion", "data.occlusion=ordering", "data.occlusion_options={radius:100}"])
-    with pytest.raises(Exception, match="unknown option"):
-        hydra.utils.instantiate(cfg.data, _convert_="partial")
+@pytest.mark.parametrize(
+    ("method", "options", "message"),
+    [
+        (
+            "zbuffer",
+            "{size:3}",
+            r"data\.occlusion_options=\{'size': 3\}: unknown option\(s\) \['size'\].*zbuffer",
+        ),
+        ("hpr", "{radius:0.5}", r"data\.occlusion_options=\{'radius': 0\.5\}: radius must be a number > 1"),
+        ("ordering", "{radius:100}", r"data\.occlusion_options=.*unknown option.*data\.occlusion=ordering"),
+    ],
+)
+def test_bad_options_are_refused_by_the_schema_naming_the_key(
+    method: str, options: str, message: str
+) -> None:
+    """The config's one check (``config_checks.RULES``); the datamodule does not repeat it."""
+    cfg = compose_train(["task=completion", f"data.occlusion={method}", f"data.occlusion_options={options}"])
+    with pytest.raises(ConfigError, match=message):
+        check_common_values(cfg)
+
+
+def test_a_library_caller_gets_the_constructor_check() -> None:
+    """Built directly, the datamodule checks its arguments once (building the ``Occlusion`` its datasets take)."""
+    with pytest.raises(ValueError, match=r"unknown option\(s\) \['size'\] for method 'zbuffer'"):
+        AirFisheyeDataModule("completion", preset="tiny", occlusion="zbuffer", occlusion_options={"size": 3})
+    with pytest.raises(ValueError, match=r"occlusion method must be one of .*'zbufer'"):
+        AirFisheyeDataModule("completion", preset="tiny", occlusion="zbufer")
 
 
 @pytest.mark.parametrize("method", OCCLUSION_METHODS)

@@ -31,8 +31,7 @@ def test_oracle_is_a_sparse_input_beside_the_methods() -> None:
     assert SPARSE_INPUTS[-1] == ORACLE and ORACLE not in SPARSE_INPUTS[:-1]
     cfg = compose_train(["task=completion", "data.occlusion=oracle"])
     datamodule = hydra.utils.instantiate(cfg.data, _convert_="partial")  # builds no dataset yet
-    assert datamodule.dataset_kwargs["occlusion"] == ORACLE
-    assert datamodule.dataset_kwargs["occlusion_options"] == {}
+    assert datamodule.dataset_kwargs["occlusion"] == ORACLE  # no Occlusion: the oracle is no method
     cfg = compose_train(["task=completion", "data.occlusion=oracle", "data.occlusion_options={kernel:3}"])
     with pytest.raises(Exception, match=r"data.occlusion_options \(data.occlusion=oracle\).*no options"):
         hydra.utils.instantiate(cfg.data, _convert_="partial")

@@ -1,4 +1,4 @@
-"""``scripts/bench_evaluate.py`` runs end to end on the tiny dataset (structure only, no timing thresholds)."""
+"""``scripts/bench_evaluate.py`` (:mod:`airfisheye_bench.benchmarks.evaluation_speed`) runs end to end on the tiny dataset (structure only, no timing thresholds)."""
 
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ from types import ModuleType
 
 import pytest
 
-from tests.scripts import load_script
+from airfisheye_bench.benchmarks import evaluation_speed
 
 
 @pytest.fixture(scope="module")
 def bench() -> ModuleType:
-    return load_script("bench_evaluate")
+    return evaluation_speed
 
 
 def test_main_tiny(

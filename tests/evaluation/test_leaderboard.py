@@ -70,7 +70,7 @@ def test_rows_that_print_the_same_share_a_rank_in_every_rendering(tmp_path: Path
     assert ranks == {"a": "2", "b": "1", "c": "2", "d": "4"}
     printed = [line for line in board.to_markdown().splitlines() if "| 4.200 |" in line]
     assert len(printed) == 2 and all(line.startswith("| 2 |") for line in printed)
-    from airfisheye_bench.evaluation.leaderboard_html import render_html
+    from airfisheye_bench.evaluation.leaderboard.html import render_html
 
     html_ranks = re.findall(
         r'<td class="num" data-value="(\d)">\d</td><td>\w</td><td>(?:<a [^>]*>)?deeplab', render_html(board)

@@ -16,11 +16,11 @@ import pytest
 from PIL import Image
 
 import airfisheye_bench.evaluation.leaderboard as lb
-import airfisheye_bench.evaluation.leaderboard_charts as charts
+import airfisheye_bench.evaluation.leaderboard.charts as charts
 from airfisheye_bench.cli import leaderboard
 from airfisheye_bench.evaluation import build_leaderboard, load_entries, write_results
 from airfisheye_bench.evaluation.leaderboard import find_results
-from airfisheye_bench.evaluation.leaderboard_html import render_html, write_html
+from airfisheye_bench.evaluation.leaderboard.html import render_html, write_html
 from airfisheye_bench.viz import save_png
 from tests.commands import exit_status
 from tests.evaluation.chromium import Page, find_chromium

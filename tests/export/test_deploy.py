@@ -19,6 +19,7 @@ import torch
 from omegaconf import OmegaConf, open_dict
 
 import airfisheye_bench.export.deploy as deploy
+import airfisheye_bench.export.quantize as quantize
 from airfisheye_bench.cli import export as export_command
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import OutputError
@@ -33,7 +34,7 @@ from airfisheye_bench.io.deployment import (
     read_onnx_metadata,
 )
 from airfisheye_bench.runs import resolve_checkpoint
-from airfisheye_bench.specs import deployment_keys
+from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.training import build, train
 from datamodules.config import apply_data_overrides, instantiate_datamodule
@@ -46,7 +47,7 @@ SIZE = 64
 
 def task_keys(task: str) -> set[str]:
     """Every metadata key of a ``task`` model: the common keys and its spec's own."""
-    return {*COMMON_KEYS, *(PREFIX + k for k in deployment_keys(task))}
+    return {*COMMON_KEYS, *(PREFIX + k for k in get_task(task).export.metadata)}
 
 
 def _overrides(task: str, tiny_dataset: Path) -> list[str]:
@@ -150,7 +151,7 @@ def test_seg_metadata_round_trip(seg_export, seg_run: Path) -> None:
     props = read_onnx_metadata(out)
     assert set(props) == {*task_keys("seg"), KEY_WEIGHTS}
     assert all(isinstance(v, str) for v in props.values())
-    meta = read_deployment_metadata(out, deployment_keys)
+    meta = read_deployment_metadata(out)
     task = load_task(seg_run)
     assert meta["format_version"] == "1" and meta["task"] == "seg" and meta["model"] == "deeplabv3plus"
     assert meta["model_config"] == dict(task.hparams["model"])
@@ -231,7 +232,7 @@ def test_depth_tasks_export_through_the_cli(task: str, tiny_dataset: Path, tmp_p
         if task == "completion":
             feed["sparse_depth"] = np.zeros((batch, 1, SIZE, SIZE), np.float32)
         assert session.run(["depth"], feed)[0].shape == (batch, 1, SIZE, SIZE)
-    meta = read_deployment_metadata(out, deployment_keys)
+    meta = read_deployment_metadata(out)
     assert set(read_onnx_metadata(out)) == {*task_keys(task), KEY_WEIGHTS}
     assert meta["output"] == "depth" and meta["inputs"] == names and meta["max_depth"] == 120.0
     assert meta["min_depth"] == (1e-3 if task == "depth" else 1e-4)
@@ -307,18 +308,18 @@ def test_failed_quantization_keeps_the_fp32_model(
     def unsupported(*args, **kwargs):
         raise RuntimeError("no int8 kernel for DeformConv")
 
-    monkeypatch.setattr(deploy, "_run_quantizer", unsupported)
+    monkeypatch.setattr(quantize, "_run_quantizer", unsupported)
     task = load_task(seg_run)
     data = apply_data_overrides(deploy._run_data(resolve_checkpoint(seg_run)), task="seg")
     datamodule = instantiate_datamodule(data, "validate")
     workdir = tmp_path / "work"
     workdir.mkdir()
     image = torch.zeros(2, 3, SIZE, SIZE)
-    report = deploy._quantize(fp32, "static", task, datamodule, {"image": image}, workdir, 2, 0, 1)
+    report = quantize.quantize_model(fp32, "static", task, datamodule, {"image": image}, workdir, 2, 0, 1)
     assert not report.ok and report.path is None
     assert "static int8 quantisation of deeplabv3plus failed" in report.error and "DeformConv" in report.error
     assert fp32.is_file() and not stale.exists()
-    assert "FAILED" in "\n".join(deploy._quantization_lines(report, "seg"))
+    assert "FAILED" in "\n".join(quantize.quantization_lines(report, "seg"))
 
 
 def test_failed_quantization_exits_with_code_3(monkeypatch, capsys) -> None:
@@ -342,9 +343,6 @@ def _depth_meta(**changes):
     task = changes.pop("task", "depth")
     kwargs = dict(
         task=task,
-        inputs=["image"],
-        output="depth",
-        task_keys=deployment_keys(task),
         model="adabins",
         model_config={"name": "adabins"},
         normalization={"mean": IMAGENET_MEAN, "std": IMAGENET_STD},
@@ -363,7 +361,7 @@ def test_metadata_encodes_exactly_the_task_keys() -> None:
     meta = _depth_meta()
     assert set(meta) == task_keys("depth")
     assert json.loads(meta["airfisheye.image_size"]) == [24, 32]
-    decoded = parse_deployment_metadata({**meta, "other.key": "ignored"}, deployment_keys)
+    decoded = parse_deployment_metadata({**meta, "other.key": "ignored"})
     assert decoded["camera"]["fov_deg"] == 190.0 and decoded["min_depth"] == 1e-3
     assert "other.key" not in decoded and "key" not in decoded
 
@@ -380,17 +378,17 @@ def test_metadata_rejects_wrong_task_fields() -> None:
 def test_parse_names_the_bad_key() -> None:
     meta = _depth_meta()
     with pytest.raises(ValueError, match=r"no airfisheye\.format_version"):
-        parse_deployment_metadata({}, deployment_keys)
+        parse_deployment_metadata({})
     with pytest.raises(ValueError, match=r"airfisheye\.max_depth is not valid JSON"):
-        parse_deployment_metadata({**meta, "airfisheye.max_depth": "12 m"}, deployment_keys)
+        parse_deployment_metadata({**meta, "airfisheye.max_depth": "12 m"})
     del meta["airfisheye.camera"]
     with pytest.raises(ValueError, match=r"lacks \['airfisheye.camera'\]"):
-        parse_deployment_metadata(meta, deployment_keys)
+        parse_deployment_metadata(meta)
 
 
 def test_read_names_the_file(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match=r"missing\.onnx"):
-        read_deployment_metadata(tmp_path / "missing.onnx", deployment_keys)
+        read_deployment_metadata(tmp_path / "missing.onnx")
 
 
 # ---------------------------------------------------------------------------------------------- slow

@@ -1,4 +1,4 @@
-"""scripts/bench_occlusion_memory.py measures a real call of each method in a fresh process."""
+"""scripts/bench_occlusion_memory.py (:mod:`airfisheye_bench.benchmarks.occlusion_memory`) measures a real call of each method in a fresh process."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from airfisheye_bench.benchmarks import lidar_scene, occlusion_memory
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion import occlusion_mask
-from tests.scripts import load_script
 
 pytestmark = [
     pytest.mark.slow,  # a fresh interpreter that compiles the kernels: ~15 s
@@ -21,8 +21,8 @@ pytestmark = [
 
 
 def test_each_row_is_the_methods_own_call_in_a_fresh_process():
-    bench = load_script("bench_occlusion_memory")
-    lidar = load_script("bench_lidar")
+    bench = occlusion_memory
+    lidar = lidar_scene
     row = bench.run_child("zbuffer", 96, repeats=1, seed=0)
     # The child scored the same scan the benchmark scene gives here: its mask is the real method's.
     points = lidar.scan(LidarSpec(), lidar.structured_scene(0))

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye, FisheyeCamera, face_rays, face_rotation
-from airfisheye_bench.geometry.cubemap import _TABLES, _apply_torch, direction_to_face
+from airfisheye_bench.geometry.cubemap import _apply_torch, clear_table_cache, direction_to_face
 
 
 def direction_faces(face_size: int) -> torch.Tensor:
@@ -170,9 +170,9 @@ def test_tables_are_cached_in_memory_and_on_disk(tmp_path) -> None:
     b = CubemapToFisheye(FisheyeCamera(32, 32), 8)
     assert a.table("bilinear") is b.table("bilinear")
     assert len(list(tmp_path.glob("cubemap-lut-*.npz"))) == 1
-    _TABLES.clear()
+    clear_table_cache()
     loaded = CubemapToFisheye(camera, 8, cache_dir=tmp_path).table("bilinear")  # read back from disk
-    _TABLES.clear()
+    clear_table_cache()
     built = CubemapToFisheye(camera, 8).table("bilinear")  # built afresh
     assert loaded is not built
     torch.testing.assert_close(loaded.pixels, built.pixels)

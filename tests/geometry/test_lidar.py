@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from airfisheye_bench.geometry.lidar import LidarSpec, organize_scan, spherical_coordinates
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import organize_scan
 
 
 def beam_points(spec: LidarSpec, ranges: np.ndarray | float = 10.0) -> np.ndarray:

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from airfisheye_bench.geometry.lidar import LidarSpec, rings_from_elevation
+from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS, ouster_metadata_table
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.lidar_spec import load_lidar_spec

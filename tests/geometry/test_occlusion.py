@@ -9,7 +9,8 @@ import pytest
 import torch
 
 from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
-from airfisheye_bench.geometry.lidar import LidarSpec, layout_from_angles, spherical_coordinates
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import layout_from_angles
 from airfisheye_bench.geometry.occlusion import (
     lidar_depth_map,
     occlusion_mask,

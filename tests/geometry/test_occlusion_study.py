@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from airfisheye_bench.benchmarks import occlusion_ablation, occlusion_study
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS
-from tests.scripts import load_script
 
 
 @pytest.fixture(scope="module")
 def study() -> ModuleType:
-    return load_script("occlusion_study")
+    return occlusion_study
 
 
 def test_main_tiny(
@@ -101,7 +101,7 @@ def test_sparse_map_is_the_served_input(study: ModuleType, tiny_dataset: Path) -
 # ------------------------------------------------------------------------------------------------ ablation
 @pytest.fixture(scope="module")
 def ablation() -> ModuleType:
-    return load_script("occlusion_ablation")
+    return occlusion_ablation
 
 
 def _fake_train(metrics_of: dict[tuple[str, int], float], calls: list[list[str]]):

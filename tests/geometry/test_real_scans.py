@@ -16,13 +16,8 @@ import numpy as np
 import pytest
 
 from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
-from airfisheye_bench.geometry.lidar import (
-    LidarSpec,
-    channels_exhaustive,
-    organize_scan,
-    rings_from_elevation,
-    spherical_coordinates,
-)
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import channels_exhaustive, organize_scan, rings_from_elevation
 from airfisheye_bench.geometry.occlusion import occlusion_mask
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import filter_scan

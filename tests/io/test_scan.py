@@ -164,7 +164,8 @@ def test_a_release_whose_lidar_files_are_kitti_scans(tiny_dataset: Path, tmp_pat
 
     import yaml
 
-    from airfisheye_bench.geometry.lidar import rings_from_elevation, spherical_coordinates
+    from airfisheye_bench.geometry.lidar import spherical_coordinates
+    from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
     from airfisheye_bench.io import DatasetReader
     from datamodules.dataset import AirFisheyeDataset
 

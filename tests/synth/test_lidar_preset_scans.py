@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 
 from airfisheye_bench.geometry import make_transform, transform_points
-from airfisheye_bench.geometry.lidar import LidarSpec, rings_from_elevation, spherical_coordinates
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
 from airfisheye_bench.synth.builder import SceneBuilder
 from airfisheye_bench.synth.cli import build_config
-from airfisheye_bench.synth.presets import SynthConfig, get_preset
+from airfisheye_bench.synth.dataset_yaml import dataset_spec
+from airfisheye_bench.synth.presets import SynthConfig, get_preset, plan_trajectories
 from airfisheye_bench.synth.scene import Scene
 from airfisheye_bench.synth.sensors import lidar_visibility, scan_lidar
-from airfisheye_bench.synth.writer import dataset_spec, plan_trajectories
 
 HDL64E = LidarSpec.from_preset("hdl64e", points_per_channel=256)
 

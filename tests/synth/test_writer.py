@@ -17,7 +17,7 @@ from airfisheye_bench.geometry.transforms import make_transform, transform_point
 from airfisheye_bench.io import DatasetReader, DatasetSpec, trajectory_of
 from airfisheye_bench.io.content import CONTENT_CACHE_NAME
 from airfisheye_bench.io.manifest import read_manifest, verify
-from airfisheye_bench.synth import writer
+from airfisheye_bench.synth import cache, recording, writer
 from airfisheye_bench.synth.classes import RAW_CLASSES, RAW_ID, RAW_TO_TRAIN, TRAIN_CLASSES
 from airfisheye_bench.synth.presets import PRESETS, get_preset, plan_trajectories
 from airfisheye_bench.synth.scene import ENVIRONMENTS
@@ -131,7 +131,7 @@ def test_lidar_points_and_visibility_match_exact_ray_casts(tiny_dataset):
     reader = DatasetReader(tiny_dataset)
     cfg = get_preset("tiny")
     plan = next(p for p in plan_trajectories(cfg, ENVIRONMENTS) if p.split == "train")
-    scene = writer.build_trajectory(cfg, 0, plan).scene
+    scene = recording.build_trajectory(cfg, 0, plan).scene
     calib = reader.calib(plan.key)
     for i in (0, plan.num_frames - 1):
         sid = f"{plan.key}/{i:06d}"
@@ -271,7 +271,7 @@ def test_two_workers_give_identical_bytes(micro_reference, tmp_path):
 def test_resume_after_interruption_is_byte_identical(micro_reference, tmp_path, monkeypatch):
     out = tmp_path / "resumed"
     calls = {"n": 0}
-    original = writer._Worker.run
+    original = writer.Worker.run
 
     def flaky(self, job):
         calls["n"] += 1
@@ -279,7 +279,7 @@ def test_resume_after_interruption_is_byte_identical(micro_reference, tmp_path, 
             raise _Interrupted
         return original(self, job)
 
-    monkeypatch.setattr(writer._Worker, "run", flaky)
+    monkeypatch.setattr(writer.Worker, "run", flaky)
     with pytest.raises(_Interrupted):
         writer.generate_dataset(MICRO, out, seed=3, workers=1, progress=False)
     monkeypatch.undo()
@@ -331,12 +331,12 @@ def test_ensure_dataset_generates_once_for_concurrent_callers(tmp_path, monkeypa
         calls.append(args)
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(writer, "generate_dataset", counting)
+    monkeypatch.setattr(cache, "generate_dataset", counting)
     results: list[Path] = []
     threads = [
         threading.Thread(
             target=lambda: results.append(
-                writer.ensure_dataset("micro", root=tmp_path, workers=1, progress=False)
+                cache.ensure_dataset("micro", root=tmp_path, workers=1, progress=False)
             )
         )
         for _ in range(2)
@@ -346,7 +346,7 @@ def test_ensure_dataset_generates_once_for_concurrent_callers(tmp_path, monkeypa
     for t in threads:
         t.join()
     assert len(calls) == 1 and len(results) == 2 and results[0] == results[1]
-    assert results[0] == writer.cached_dataset_path("micro", tmp_path) and verify(results[0]).ok
+    assert results[0] == cache.cached_dataset_path("micro", tmp_path) and verify(results[0]).ok
     assert not results[0].with_name(results[0].name + ".partial").exists()
 
 
@@ -394,7 +394,7 @@ def test_gimbal_pitch_is_stratified_so_every_split_spans_the_range():
     lo, hi = cfg.flight.gimbal_pitch_deg
     for split in ("train", "val", "test"):
         values = [
-            writer.stratified_value(p.index, cfg.num_trajectories, lo, hi, phase=0.1, jitter=j)
+            recording.stratified_value(p.index, cfg.num_trajectories, lo, hi, phase=0.1, jitter=j)
             for p in plans
             if p.split == split
             for j in (-0.5, 0.5)

@@ -1,4 +1,4 @@
-"""``scripts/bench_lightning.py`` runs end to end on a tiny configuration (structure only, no timing thresholds)."""
+"""``scripts/bench_lightning.py`` (:mod:`airfisheye_bench.benchmarks.lightning_overhead`) runs end to end on a tiny configuration (structure only, no timing thresholds)."""
 
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ from types import ModuleType
 
 import pytest
 
-from tests.scripts import load_script
+from airfisheye_bench.benchmarks import lightning_overhead
 
 
 @pytest.fixture(scope="module")
 def bench() -> ModuleType:
-    return load_script("bench_lightning")
+    return lightning_overhead
 
 
 def test_main_tiny(bench: ModuleType, capsys: pytest.CaptureFixture[str]) -> None:

@@ -15,7 +15,6 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.deployment import read_deployment_metadata
-from airfisheye_bench.specs import deployment_keys
 from airfisheye_bench.training import train
 from tests.evaluation.test_evaluate import compose_eval
 from tests.io import calibration_fixtures as fx
@@ -55,7 +54,7 @@ def test_the_onnx_model_carries_the_camera_without_the_file(
     run, camchain = ds_run
     onnx_path = tmp_path / "completion.onnx"
     export_deployment(run, onnx_path, parity_samples=2, repeats=1)
-    meta = read_deployment_metadata(onnx_path, deployment_keys)
+    meta = read_deployment_metadata(onnx_path)
     lens = load_camera(camchain)
     assert meta["camera"] == lens.resized(64, 64).to_dict() and meta["image_size"] == [64, 64]
     assert meta["data_config"]["camera"]["calibration"] == lens.to_dict()

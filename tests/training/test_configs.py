@@ -9,8 +9,8 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from airfisheye_bench.config_checks import check_train_config
 from airfisheye_bench.constants import config_dir
-from airfisheye_bench.training import check_config
 from models.weights import pretrained_weights_disabled
 
 CONFIG_DIR = str(config_dir())
@@ -35,7 +35,7 @@ def test_each_task_picks_its_model(task: str, model: str) -> None:
     cfg = compose_train([f"task={task}"])
     assert cfg.task.name == task and cfg.model.name == model
     assert cfg.data.task == task
-    check_config(cfg)
+    check_train_config(cfg)
 
 
 @pytest.mark.parametrize("task", ["seg", "depth", "completion"])
@@ -55,7 +55,7 @@ def test_the_trainer_group_sets_the_epochs_over_the_task(task: str) -> None:
 @pytest.mark.parametrize("experiment", EXPERIMENTS)
 def test_every_experiment_composes_and_instantiates(experiment: str) -> None:
     cfg = compose_train([f"experiment={experiment}"])
-    check_config(cfg)
+    check_train_config(cfg)
     assert cfg.data.camera.size == 512 and cfg.trainer.max_epochs == 25  # the paper's recipe
     trainer = hydra.utils.instantiate(cfg.trainer, logger=False, enable_checkpointing=False)
     assert trainer.max_epochs == 25
@@ -111,7 +111,7 @@ def test_quick_start_downloads_nothing() -> None:
 def test_incompatible_task_and_model_stop_early_with_advice() -> None:
     cfg = compose_train(["task=seg", "model=adabins"])
     with pytest.raises(ValueError, match="model=deeplabv3plus"):
-        check_config(cfg)
+        check_train_config(cfg)
 
 
 def test_unknown_group_option_is_rejected() -> None:
@@ -122,6 +122,6 @@ def test_unknown_group_option_is_rejected() -> None:
 def test_real_data_needs_a_root() -> None:
     cfg = compose_train(["data=airfisheye"])
     with pytest.raises(ValueError, match=r"data\.root=/path"):
-        check_config(cfg)
+        check_train_config(cfg)
     with pytest.raises(Exception, match=r"data\.root"):  # Hydra wraps the datamodule's ValueError
         hydra.utils.instantiate(cfg.data)

@@ -17,6 +17,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf, open_dict
 
 from airfisheye_bench.checkpointing import AtomicCheckpointIO, RunCSVLogger
+from airfisheye_bench.config_checks import check_train_config
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.runs import (
     check_resume,
@@ -26,7 +27,7 @@ from airfisheye_bench.runs import (
     resume_config,
     run_name_for,
 )
-from airfisheye_bench.training import build, check_config, prepare_run_dir, train
+from airfisheye_bench.training import build, prepare_run_dir, train
 from tests.training.test_configs import CONFIG_DIR, compose_train
 from tests.training.test_train import tiny_run_overrides
 
@@ -302,7 +303,7 @@ def test_a_resume_from_a_checkpoint_without_its_rows_keeps_metrics_csv_aside(tmp
 def test_model_checkpoint_may_not_write_last_ckpt() -> None:
     cfg = compose_train(["callbacks.model_checkpoint.save_last=true"])
     with pytest.raises(ValueError, match=r"callbacks\.last_checkpoint"):
-        check_config(cfg)
+        check_train_config(cfg)
 
 
 def test_a_resume_reads_no_initial_weights(tiny_dataset: Path, tmp_path: Path) -> None:

@@ -11,6 +11,7 @@ implementations of ``ordering``; one concept per module:
                             :func:`ordering_mask` / :func:`ordering_reference` and the implementations
 ``options``                 :data:`OCCLUSION_METHODS`, :data:`OCCLUSION_OPTIONS`, :func:`check_occlusion_options`,
                             :data:`SPARSE_INPUTS` (the methods and the ground-truth ``oracle``)
+                            :class:`Occlusion` (a method with its checked options)
 ``projection``              the transform's check, the projection of the points and their pixel
 ``zbuffer``                 the z-buffer baseline
 ``hpr``                     Hidden Point Removal (Katz, Tal, Basri 2007)
@@ -33,6 +34,7 @@ from airfisheye_bench.geometry.occlusion.options import (
     OCCLUSION_OPTIONS,
     ORACLE,
     SPARSE_INPUTS,
+    Occlusion,
     check_occlusion_options,
     check_sparse_input_options,
 )
@@ -44,6 +46,7 @@ __all__ = [
     "ORDERING_IMPLEMENTATIONS",
     "SPARSE_INPUTS",
     "LidarProjection",
+    "Occlusion",
     "check_occlusion_options",
     "check_sparse_input_options",
     "lidar_depth_map",

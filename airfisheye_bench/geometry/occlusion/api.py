@@ -14,9 +14,10 @@ import torch
 from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.cameras import CameraModel
-from airfisheye_bench.geometry.lidar import LidarSpec, as_points64, check_rings, layout_from_angles, like
+from airfisheye_bench.geometry.lidar import LidarSpec, as_points64, like
+from airfisheye_bench.geometry.lidar_layout import check_rings, layout_from_angles
 from airfisheye_bench.geometry.occlusion.hpr import hpr_mask
-from airfisheye_bench.geometry.occlusion.options import check_occlusion_options
+from airfisheye_bench.geometry.occlusion.options import Occlusion, check_occlusion_options
 from airfisheye_bench.geometry.occlusion.ordering import (
     Layout,
     Solver,
@@ -55,7 +56,7 @@ def occlusion_mask(
     T_cam_lidar: ArrayLike,
     camera: CameraModel,
     spec: LidarSpec | None = None,
-    method: str = "ordering",
+    method: str | Occlusion = "ordering",
     rings: ArrayLike | None = None,
     **options: Any,
 ) -> ArrayLike:
@@ -68,7 +69,8 @@ def occlusion_mask(
         spec: The LiDAR that recorded the scan (used by ``ordering``); ``None`` means the paper's sensor,
             ``LidarSpec()``.
         method: ``"ordering"`` (paper, III-C), ``"zbuffer"``, ``"hpr"`` or ``"none"``; see docs/design.md
-            ("LiDAR and occlusion").
+            ("LiDAR and occlusion"). Or an :class:`Occlusion`, the method with its options checked when it was
+            built: taken as it is (no ``options`` then), so a caller projecting many scans checks them once.
         **options: Per method (:data:`OCCLUSION_OPTIONS` holds the defaults). ``ordering``:
             ``azimuth_window`` (places either side along the row, default ``None`` = whole row),
             ``elevation_window`` (rows either side, default ``None`` = whole column), ``elevation_tolerance``
@@ -105,7 +107,7 @@ def project_lidar(
     T_cam_lidar: ArrayLike,
     camera: CameraModel,
     spec: LidarSpec | None = None,
-    method: str = "ordering",
+    method: str | Occlusion = "ordering",
     rings: ArrayLike | None = None,
     **options: Any,
 ) -> LidarProjection:
@@ -130,7 +132,15 @@ def project_lidar(
         spec = LidarSpec()
     elif not isinstance(spec, LidarSpec):
         raise ValueError(f"spec must be a LidarSpec or None, got {type(spec).__name__}")
-    opts = check_occlusion_options(method, options)
+    if isinstance(method, Occlusion):
+        if options:
+            raise ValueError(
+                f"give the options inside the Occlusion, not also as keywords: {sorted(options)}"
+            )
+        occlusion = method
+    else:
+        occlusion = Occlusion(method, options)
+    method, opts = occlusion.method, occlusion.options
     ring = None if rings is None else check_rings(rings, len(points), spec)
 
     proj = project_points(points, T, camera)
@@ -156,7 +166,7 @@ def lidar_depth_map(
     T_cam_lidar: ArrayLike,
     camera: CameraModel,
     spec: LidarSpec | None = None,
-    method: str = "ordering",
+    method: str | Occlusion = "ordering",
     max_depth: float = 120.0,
     mirror: bool = False,
     rings: ArrayLike | None = None,

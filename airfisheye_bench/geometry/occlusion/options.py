@@ -1,4 +1,5 @@
-"""The occlusion methods, their options and defaults, and the one check of a method's options.
+"""The occlusion methods, their options and defaults, the one check of a method's options, and :class:`Occlusion`,
+a method with its checked options, which the projection takes as it is.
 
 What each method and option means: docs/design.md, "LiDAR and occlusion".
 """
@@ -6,6 +7,8 @@ What each method and option means: docs/design.md, "LiDAR and occlusion".
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -44,7 +47,7 @@ def check_occlusion_options(method: str, options: dict[str, Any]) -> dict[str, A
         ValueError: unknown option(s) ['size'] for method 'zbuffer'; allowed: ['kernel', ...]
     """
     if method not in OCCLUSION_METHODS:
-        raise ValueError(f"method must be one of {OCCLUSION_METHODS}, got {method!r}")
+        raise ValueError(f"occlusion method must be one of {OCCLUSION_METHODS}, got {method!r}")
     allowed = OCCLUSION_OPTIONS[method]
     unknown = set(options) - set(allowed)
     if unknown:
@@ -101,6 +104,33 @@ def check_sparse_input_options(name: str, options: dict[str, Any]) -> dict[str, 
     return check_occlusion_options(name, options)
 
 
+@dataclass(frozen=True)
+class Occlusion:
+    """An occlusion correction: the method and its options, checked once when built, unset options completed with
+    their defaults. :func:`~airfisheye_bench.geometry.occlusion.project_lidar` and the functions built on it take
+    one as their ``method`` without checking it again (a dataset builds one and projects every frame with it).
+
+    Raises:
+        ValueError: as :func:`check_occlusion_options`.
+
+    Example:
+        >>> Occlusion("hpr", {"radius": 100}).options
+        {'radius': 100}
+        >>> Occlusion("zbuffer").options["relative"], Occlusion().method
+        (True, 'ordering')
+        >>> Occlusion("zbufer")
+        Traceback (most recent call last):
+        ...
+        ValueError: occlusion method must be one of ('ordering', 'zbuffer', 'hpr', 'none'), got 'zbufer'
+    """
+
+    method: str = "ordering"
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "options", check_occlusion_options(self.method, dict(self.options)))
+
+
 def _is_int(x: Any) -> bool:
     return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
 
@@ -115,4 +145,4 @@ def _is_nonneg(x: Any) -> bool:
     return _is_real(x) and x >= 0
 
 
-__all__ = ["OCCLUSION_METHODS", "OCCLUSION_OPTIONS", "check_occlusion_options"]
+__all__ = ["OCCLUSION_METHODS", "OCCLUSION_OPTIONS", "Occlusion", "check_occlusion_options"]

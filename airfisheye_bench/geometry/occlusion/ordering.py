@@ -14,13 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from airfisheye_bench.geometry import _kernels
-from airfisheye_bench.geometry.lidar import (
-    LidarSpec,
-    ScanLayout,
-    column_range,
-    rings_from_elevation,
-    spherical_coordinates,
-)
+from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
+from airfisheye_bench.geometry.lidar_layout import ScanLayout, column_range, rings_from_elevation
 from airfisheye_bench.geometry.occlusion.projection import Projection
 
 
@@ -122,7 +117,7 @@ def turn(az: np.ndarray, cut: float) -> np.ndarray:
 def layout_numba(
     r: np.ndarray, az: np.ndarray, el: np.ndarray, spec: LidarSpec, rings: np.ndarray | None = None
 ) -> ScanLayout:
-    """:func:`~airfisheye_bench.geometry.lidar.layout_from_angles` in O(N), compiled (the same result)."""
+    """:func:`~airfisheye_bench.geometry.lidar_layout.layout_from_angles` in O(N), compiled (the same result)."""
     n = len(r)
     position, column = (np.empty(n, dtype=np.int64) for _ in range(2))
     if rings is None and not spec.is_uniform:

@@ -11,6 +11,9 @@ or folder), ``precision`` of an ONNX model (``fp32`` | ``int8``), ``tta`` (``nul
 come from (:func:`~airfisheye_bench.runs.checkpoint_run_name`) or the ``name=`` given. Files written before these
 keys existed stay readable: a missing key is inferred where it can be (an ``.int8.onnx`` file name, the run
 directory of the checkpoint) and left out of the label otherwise.
+
+Training (its test at the end of a run) and evaluation write and read the record through this module, and print it
+with :func:`format_results_table`; it sits in ``io``, below both, so neither depends on the other.
 """
 
 from __future__ import annotations
@@ -26,6 +29,15 @@ from typing import Any
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.io.content import content_identity
 from airfisheye_bench.specs import get_task
+
+__all__ = [
+    "RESULTS_VERSION",
+    "dataset_identity",
+    "evaluated_label",
+    "format_results_table",
+    "load_results",
+    "write_results",
+]
 
 RESULTS_VERSION = 1
 
@@ -130,3 +142,40 @@ def load_results(path: str | Path) -> dict[str, Any]:
     if missing:
         raise ValueError(f"{path}: results.json is missing {sorted(missing)}")
     return record
+
+
+def format_results_table(
+    task: str, metrics: Mapping[str, Any], breakdown: Mapping[str, Any], primary: str
+) -> str:
+    """A plain-text table of the metrics and of the primary metric per ring and range (for the terminal).
+
+    Example:
+        >>> print(format_results_table("depth", {"rmse": 2.5}, {"ring_0-30/rmse": 2.0, "ring_0-30/mae": 1.0}, "rmse"))
+        depth metrics
+        ------------------------------------
+        rmse                        2.5000
+        <BLANKLINE>
+        rmse by incidence-angle ring (deg)
+        ------------------------------------
+        ring_0-30                   2.0000
+    """
+    lines = [f"{task} metrics", "-" * 36]
+    lines += [f"{key:<28}{_fmt(value)}" for key, value in metrics.items() if not key.startswith("IoU/")]
+    per_class = {k[4:]: v for k, v in metrics.items() if k.startswith("IoU/")}
+    if per_class:
+        lines += ["", "IoU per class", "-" * 36]
+        lines += [f"{name:<28}{_fmt(value)}" for name, value in per_class.items()]
+    bins = {k.split("/")[0]: v for k, v in breakdown.items() if k.endswith(f"/{primary}")}
+    if bins:
+        kinds = "incidence-angle ring (deg)" + (
+            " and depth range (m)" if any(k.startswith("range_") for k in bins) else ""
+        )
+        lines += ["", f"{primary} by {kinds}", "-" * 36]
+        lines += [f"{name:<28}{_fmt(value)}" for name, value in bins.items()]
+    return "\n".join(lines)
+
+
+def _fmt(value: float | None) -> str:
+    if value is None or value != value:
+        return "-"
+    return f"{value:.4f}"

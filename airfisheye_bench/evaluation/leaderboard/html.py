@@ -34,11 +34,11 @@ from typing import Any
 from PIL import Image
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.evaluation.leaderboard import (
+from airfisheye_bench.evaluation.leaderboard.board import Leaderboard
+from airfisheye_bench.evaluation.leaderboard.charts import bar_chart, binned_chart
+from airfisheye_bench.evaluation.leaderboard.collect import LeaderboardEntry
+from airfisheye_bench.evaluation.leaderboard.columns import (
     MISSING,
-    Leaderboard,
-    LeaderboardEntry,
-    TaskTable,
     breakdown_bins,
     format_value,
     higher_is_better,
@@ -46,12 +46,12 @@ from airfisheye_bench.evaluation.leaderboard import (
     metric_label,
     rim_label,
 )
-from airfisheye_bench.evaluation.leaderboard_charts import bar_chart, binned_chart
-from airfisheye_bench.evaluation.results import load_results
+from airfisheye_bench.evaluation.leaderboard.rank import TaskTable
+from airfisheye_bench.io.results import load_results
 
 __all__ = ["render_html", "write_html"]
 
-_ASSETS = resources.files("airfisheye_bench.evaluation") / "leaderboard_assets"
+_ASSETS = resources.files("airfisheye_bench.evaluation.leaderboard") / "assets"
 #: ``model`` keys of ``results.json`` that say which file was evaluated (see the evaluation's predictors).
 _IDENTITY_KEYS = ("checkpoint", "onnx", "source_checkpoint", "predictions", "sha256")
 _RING_AXIS = "incidence angle ring (°)"

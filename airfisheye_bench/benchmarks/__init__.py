@@ -1,0 +1,10 @@
+"""What the benchmark and study scripts of ``scripts/`` run, under public names, so that tests import it.
+
+Each ``scripts/<name>.py`` is a thin entry point to one module here (``bench_evaluate`` ->
+:mod:`~.evaluation_speed`, ``bench_lightning`` -> :mod:`~.lightning_overhead`, ``bench_loader`` ->
+:mod:`~.loader_speed`, ``bench_occlusion_memory`` -> :mod:`~.occlusion_memory`, ``occlusion_study``,
+``occlusion_ablation``); :mod:`~.lidar_scene` is the analytic LiDAR scene the LiDAR benchmarks and tests share.
+They run from a checkout: the benchmarks write their tables into its ``docs/benchmarks.md`` and the ablation
+drives its ``train.py``. Nothing is imported here: ``occlusion_memory`` measures each method in a fresh
+``python -m`` process, which loads only its own module.
+"""

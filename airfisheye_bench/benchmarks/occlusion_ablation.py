@@ -1,0 +1,272 @@
+"""Completion ablation of the occlusion correction: train and test NLSPN per (method, seed), report mean ± std.
+
+For every sparse input (default: every one of ``airfisheye_bench.geometry.occlusion.SPARSE_INPUTS``, read when the
+script runs: the occlusion methods and ``oracle``, the generator's exact visibility) and every seed, one run of
+
+    python train.py task=completion data.occlusion=<method> seed=<seed> hydra.run.dir=<out>/<method>/seed<seed> \\
+        <overrides...>
+
+(``trainer.deterministic=true`` comes first, so seed ``s`` of every arm starts from the same weights and sees the
+same data order). ``train.py`` builds the sparse input of training *and* test with that method, tests the best
+checkpoint on the test split and writes ``results.json``; this script then scores that checkpoint with its own
+input on the regions where the methods differ (``regions.json``: the pixels whose input differs between ``none``
+and the oracle, dilated by ``--radius``, and the near range below ``--near`` m; see
+:mod:`airfisheye_bench.metrics.regions`), collects both and reports per method the mean ± sample standard
+deviation over the seeds, and per method the paired difference against ``none`` seed by seed with its 95 %
+t-interval (:mod:`airfisheye_bench.evaluation.paired`). Runs whose ``results.json`` / ``regions.json`` exist are
+skipped, so an interrupted ablation resumes; a failed run stops the script.
+
+    python scripts/occlusion_ablation.py --out runs/ablation_occlusion --seeds 0 1 2 3 4 -- \\
+        data.preset=occlusion data.source=fisheye data.camera.size=256 trainer.max_epochs=5
+    python scripts/occlusion_ablation.py --out runs/ablation_occlusion --collect-only --json ablation.json
+
+Everything after ``--`` is passed to ``train.py`` as is (Hydra overrides).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.evaluation.crossover import run_region_scores
+from airfisheye_bench.evaluation.paired import paired_differences, paired_table
+from airfisheye_bench.geometry import occlusion
+from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
+
+# The checkout this package sits in: the ablation drives its train.py (studies run from a checkout).
+REPO = Path(__file__).resolve().parents[2]
+#: Metrics of the table, in this order (others in results.json are kept in the JSON).
+TABLE_METRICS = ("rmse", "mae", "abs_rel", "delta1", "affected/rmse", "near/rmse")
+#: Metrics of the paired table (``region/metric`` from ``regions.json``).
+PAIRED_METRICS = (
+    "rmse",
+    "abs_rel",
+    "affected/rmse",
+    "affected/mae",
+    "affected/abs_rel",
+    "near/rmse",
+    "near/abs_rel",
+)
+REGION_METRICS = ("rmse", "mae", "abs_rel", "delta1")
+
+
+@dataclass(frozen=True)
+class Run:
+    """One training run of the ablation."""
+
+    method: str
+    seed: int
+    out: Path
+
+    @property
+    def results(self) -> Path:
+        return self.out / "results.json"
+
+    @property
+    def regions(self) -> Path:
+        return self.out / "regions.json"
+
+    def argv(self, overrides: Sequence[str]) -> list[str]:
+        """The ``train.py`` command line (Hydra overrides; ours first, so the caller's cannot move the run)."""
+        return [
+            sys.executable,
+            str(REPO / "train.py"),
+            "task=completion",
+            f"data.occlusion={self.method}",
+            f"seed={self.seed}",
+            "trainer.deterministic=true",
+            *overrides,
+            f"hydra.run.dir={self.out}",
+        ]
+
+
+def plan(out: Path, methods: Sequence[str], seeds: Sequence[int]) -> list[Run]:
+    """Every (method, seed) run, each in ``<out>/<method>/seed<seed>``, seed-major: an ablation stopped early
+    has the same seeds for every method, so what it has is comparable."""
+    unknown = [m for m in methods if m not in occlusion.SPARSE_INPUTS]
+    if unknown:
+        raise ValueError(f"--methods: unknown {unknown}; available: {', '.join(occlusion.SPARSE_INPUTS)}")
+    return [Run(m, int(s), out / m / f"seed{int(s)}") for s in seeds for m in methods]
+
+
+def execute(runs: Sequence[Run], overrides: Sequence[str], runner: Callable[[list[str]], None]) -> None:
+    """Train every run that has no ``results.json`` yet."""
+    for k, run in enumerate(runs, 1):
+        if run.results.is_file():
+            print(f"[{k}/{len(runs)}] {run.method} seed {run.seed}: done already", file=sys.stderr)
+            continue
+        print(f"[{k}/{len(runs)}] {run.method} seed {run.seed}", file=sys.stderr)
+        runner(run.argv(overrides))
+
+
+def run_subprocess(argv: list[str]) -> None:
+    subprocess.run(argv, check=True, cwd=REPO)
+
+
+def score_regions(runs: Sequence[Run], scorer: Callable[[Path], dict[str, Any]]) -> None:
+    """Write ``regions.json`` for every trained run that has none yet."""
+    for run in runs:
+        if run.results.is_file() and not run.regions.is_file():
+            print(f"regions: {run.method} seed {run.seed}", file=sys.stderr)
+            atomic_write_text(run.regions, json.dumps(scorer(run.out), indent=2) + "\n")
+
+
+def collect(runs: Sequence[Run]) -> dict[str, dict[str, Any]]:
+    """``method -> {"seeds": [...], "metrics": {name: {"values", "mean", "std", "n"}}}`` from the finished runs."""
+    out: dict[str, dict[str, Any]] = {
+        m: {"seeds": [], "values": {}} for m in dict.fromkeys(r.method for r in runs)
+    }
+    for run in runs:
+        if not run.results.is_file():
+            continue
+        record = json.loads(run.results.read_text(encoding="utf-8"))
+        entry = out[run.method]
+        entry["seeds"].append(run.seed)
+        for name, value in run_metrics(run, record).items():
+            entry["values"].setdefault(name, []).append(value)
+    return {
+        method: {
+            "seeds": entry["seeds"],
+            "metrics": {name: {"values": v, **mean_std(v)} for name, v in entry["values"].items()},
+        }
+        for method, entry in out.items()
+        if entry["seeds"]
+    }
+
+
+def run_metrics(run: Run, record: dict[str, Any] | None = None) -> dict[str, float]:
+    """A finished run's numeric test metrics, and ``region/metric`` from its ``regions.json`` where it has one."""
+    if record is None:
+        record = json.loads(run.results.read_text(encoding="utf-8"))
+    out = {
+        name: float(value)
+        for name, value in record["metrics"].items()
+        if isinstance(value, int | float) and not isinstance(value, bool)
+    }
+    if run.regions.is_file():
+        regions = json.loads(run.regions.read_text(encoding="utf-8"))["regions"]
+        for region, values in regions.items():
+            if region == "all":
+                continue  # the whole image: results.json's own metrics
+            for name in REGION_METRICS:
+                if values.get(name) is not None:
+                    out[f"{region}/{name}"] = float(values[name])
+    return out
+
+
+def paired(runs: Sequence[Run], reference: str = "none") -> dict[str, Any]:
+    """Paired differences against ``reference`` per seed (:func:`~airfisheye_bench.evaluation.paired.paired_differences`)."""
+    values: dict[str, dict[int, dict[str, float]]] = {}
+    for run in runs:
+        if run.results.is_file():
+            values.setdefault(run.method, {})[run.seed] = run_metrics(run)
+    if reference not in values:
+        return {}
+    return paired_differences(values, reference)
+
+
+def mean_std(values: Sequence[float]) -> dict[str, float]:
+    """Mean and sample standard deviation (``ddof = 1``; NaN for a single value).
+
+    Example:
+        >>> mean_std([1.0, 2.0, 3.0])
+        {'mean': 2.0, 'std': 1.0, 'n': 3}
+    """
+    n = len(values)
+    mean = sum(values) / n
+    std = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1)) if n > 1 else math.nan
+    return {"mean": mean, "std": std, "n": n}
+
+
+def markdown_table(summary: dict[str, dict[str, Any]], metrics: Sequence[str] = TABLE_METRICS) -> str:
+    """One row per method: ``mean ± std`` of each metric over its seeds."""
+    present = [m for m in metrics if any(m in s["metrics"] for s in summary.values())]
+    lines = [
+        "| sparse input | seeds | " + " | ".join(present) + " |",
+        "|---|---|" + "---:|" * len(present),
+    ]
+    for method, entry in summary.items():
+        cells = []
+        for name in present:
+            stat = entry["metrics"].get(name)
+            if stat is None:
+                cells.append("-")
+            elif math.isnan(stat["std"]):  # one seed: no spread to show
+                cells.append(f"{stat['mean']:.4f}")
+            else:
+                cells.append(f"{stat['mean']:.4f} ± {stat['std']:.4f}")
+        seeds = ",".join(str(s) for s in entry["seeds"])
+        lines.append(f"| `{method}` | {seeds} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def parse_args(argv: Sequence[str] | None) -> tuple[argparse.Namespace, list[str]]:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    overrides: list[str] = []
+    if "--" in argv:
+        cut = argv.index("--")
+        argv, overrides = argv[:cut], argv[cut + 1 :]
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, required=True, help="folder of the runs (<out>/<method>/seed<s>)")
+    parser.add_argument(
+        "--methods",
+        type=lambda v: [m for m in v.split(",") if m],
+        help="comma-separated sparse inputs (default: every one of SPARSE_INPUTS, the oracle included)",
+    )
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--collect-only", action="store_true", help="train nothing, summarise what is there")
+    parser.add_argument("--json", type=Path, help="write the summary here")
+    parser.add_argument(
+        "--no-regions", action="store_true", help="skip the per-region scoring (regions.json)"
+    )
+    parser.add_argument(
+        "--radius", type=int, default=DEFAULT_RADIUS_PX, help="dilation of the affected pixels"
+    )
+    parser.add_argument("--near", type=float, default=DEFAULT_NEAR_M, help="near-range bound in metres")
+    return parser.parse_args(argv), overrides
+
+
+def main(
+    argv: Sequence[str] | None = None,
+    runner: Callable[[list[str]], None] = run_subprocess,
+    scorer: Callable[[Path], dict[str, Any]] | None = None,
+) -> dict[str, Any]:
+    args, overrides = parse_args(argv)
+    methods = args.methods or list(occlusion.SPARSE_INPUTS)
+    runs = plan(args.out, methods, args.seeds)
+    if not args.collect_only:
+        execute(runs, overrides, runner)
+        if not args.no_regions:
+            score_regions(
+                runs, scorer or (lambda out: run_region_scores(out, radius=args.radius, near_m=args.near))
+            )
+    summary = collect(runs)
+    if not summary:
+        raise SystemExit(f"no results.json under {args.out}: nothing to summarise")
+    print(markdown_table(summary))
+    differences = paired(runs)
+    if differences:
+        print("\nPaired differences against `none` (same seed), mean [95 % t-interval]:\n")
+        print(paired_table(differences, PAIRED_METRICS))
+    payload = {
+        "out": str(args.out),
+        "methods": methods,
+        "seeds": args.seeds,
+        "overrides": overrides,
+        "command": "python scripts/occlusion_ablation.py " + " ".join(sys.argv[1:] if argv is None else argv),
+        "results": summary,
+        "paired_vs_none": differences,
+    }
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)  # NaN (one seed) -> null
+        atomic_write_text(args.json, json.dumps(clean, indent=2, allow_nan=False) + "\n")
+    return payload

@@ -1,0 +1,330 @@
+"""Leaderboard rows: ``results.json`` files found, read and validated into :class:`LeaderboardEntry`, and the
+paper's published baselines."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.errors import MissingFileError, UserError
+from airfisheye_bench.io.calibration_files import camera_label
+from airfisheye_bench.io.results import RESULTS_VERSION, evaluated_label, load_results
+from airfisheye_bench.runs import checkpoint_run_name
+from airfisheye_bench.specs import UnknownTaskError, all_tasks, get_task
+
+__all__ = [
+    "PAPER_DATASET",
+    "PAPER_SOURCE",
+    "LeaderboardEntry",
+    "LeaderboardError",
+    "collect_results",
+    "find_results",
+    "load_entries",
+    "load_entry",
+    "paper_baselines",
+]
+
+PAPER_SOURCE = "paper (real AirFisheye)"
+PAPER_DATASET = "AirFisheye (real)"
+
+
+class LeaderboardError(UserError, ValueError):
+    """Invalid ``results.json`` files; ``problems`` holds one ``"<path>: <what is wrong>"`` per file."""
+
+    def __init__(self, problems: Sequence[str]) -> None:
+        self.problems = list(problems)
+        lines = "\n".join(f"  {p}" for p in self.problems)
+        super().__init__(f"{len(self.problems)} invalid results.json file(s):\n{lines}")
+
+
+@dataclass(frozen=True)
+class LeaderboardEntry:
+    """One row: a model evaluated on one split of one dataset.
+
+    Attributes:
+        task: ``seg``, ``depth`` or ``completion``.
+        split: The evaluated split (``test``, ``val``, ...).
+        model: Model name with its encoder, e.g. ``deeplabv3plus / resnet18``.
+        run: The run's name: ``model.run_name`` of the results (the training run of the evaluated weights, or
+            the evaluation's ``name=``); for files written before it existed, the run of the evaluated
+            checkpoint, else the ``results.json`` folder name.
+        dataset_name: ``dataset.name`` of the results (``dataset.yaml`` name).
+        manifest_sha256: SHA-256 of the dataset's ``manifest.json``, when it had one.
+        content_sha256: The dataset's content identity (decoded arrays, the same on every installation), when
+            the results record it; it groups rows in place of the manifest.
+        metrics: Metric values (fractions or metres); ``None`` for missing or non-finite.
+        breakdown: Ring/range breakdown values, same rules.
+        paper: True for the paper's published baselines.
+        path: The ``results.json`` the row came from (``None`` for the paper's rows).
+        predictor: What produced the predictions: ``checkpoint``, ``onnx`` or ``predictions`` (``model.source``
+            of the results; empty when unknown or for the paper's rows).
+        evaluated: The row's label of what was evaluated, e.g. ``checkpoint epoch_003``, ``ONNX int8, flip TTA``
+            or ``predictions`` (:func:`~airfisheye_bench.io.results.evaluated_label`; empty when unknown).
+        camera: The served camera, ``<model> <W>x<H>`` (``config.camera`` of the results; empty when unknown or
+            for the paper's rows).
+    """
+
+    task: str
+    split: str
+    model: str
+    run: str
+    dataset_name: str
+    manifest_sha256: str | None = None
+    content_sha256: str | None = None
+    metrics: Mapping[str, float | None] = field(default_factory=dict)
+    breakdown: Mapping[str, float | None] = field(default_factory=dict)
+    paper: bool = False
+    path: str | None = None
+    predictor: str = ""
+    evaluated: str = ""
+    camera: str = ""
+
+    @property
+    def source(self) -> str:
+        """``paper (real AirFisheye)`` or ``ours (<dataset name>)``."""
+        return PAPER_SOURCE if self.paper else f"ours ({self.dataset_name})"
+
+    @property
+    def group_key(self) -> tuple[bool, str, str, str]:
+        """Rows with the same key were measured on the same data and may be ranked together."""
+        return (not self.paper, self.dataset_name, self._identity(), self.split)
+
+    def _identity(self) -> str:
+        """``content <8 hex>`` when known (it survives a re-encoding of the files), else ``manifest <8 hex>``."""
+        if self.content_sha256:
+            return f"content {self.content_sha256[:8]}"
+        return f"manifest {self.manifest_sha256[:8]}" if self.manifest_sha256 else ""
+
+    @property
+    def group_title(self) -> str:
+        """Human-readable dataset identity of :attr:`group_key`."""
+        if self.paper:
+            return f"{PAPER_DATASET}, {self.split} split — the paper's published baselines (not re-run here)"
+        label = self._identity() or "no manifest"
+        return f"{self.dataset_name} ({label}), {self.split} split"
+
+
+def paper_baselines() -> tuple[LeaderboardEntry, ...]:
+    """The paper's baselines of every registered task (``TaskSpec.baselines``, docs/design.md "Paper baselines").
+
+    They were measured on the real dataset's test split; metrics the paper does not report are absent ("–").
+
+    Example:
+        >>> [(e.task, e.run) for e in paper_baselines()][:2]
+        [('seg', 'paper IV-A'), ('depth', 'paper Table II')]
+    """
+    return tuple(
+        LeaderboardEntry(
+            spec.name, "test", b.model, b.source, PAPER_DATASET, metrics=dict(b.metrics), paper=True
+        )
+        for spec in all_tasks()
+        for b in spec.baselines
+    )
+
+
+def find_results(paths: Iterable[str | Path]) -> list[Path]:
+    """Expand files and directories (searched recursively for ``results.json``) into a sorted, unique list.
+
+    Args:
+        paths: ``results.json`` files (any name is accepted when given directly) or directories.
+
+    Returns:
+        The files found, each once.
+
+    Raises:
+        FileNotFoundError: A path does not exist, or nothing was found at all.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from airfisheye_bench.evaluation import write_results
+        >>> root = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = write_results(root / "run_a" / "results.json", "seg", "test", {"mIoU": 0.4})
+        >>> [p.parent.name for p in find_results([root])]
+        ['run_a']
+    """
+    found: dict[Path, Path] = {}  # resolved -> as given: a file reached through two paths counts once
+    searched = []
+    for raw in paths:
+        path = Path(raw).expanduser()
+        if path.is_file():
+            hits = [path]
+        elif path.is_dir():
+            searched.append(str(path))
+            hits = [hit for hit in path.rglob("results.json") if hit.is_file()]
+        else:
+            raise MissingFileError(f"{path}: no such file or directory")
+        for hit in hits:
+            found.setdefault(hit.resolve(), hit)
+    if not found:
+        raise MissingFileError(f"no results.json found under {', '.join(searched) or '(no paths given)'}")
+    return sorted(found.values())
+
+
+def _number(value: Any, where: str) -> float | None:
+    """A metric value as float, ``None`` for null/NaN/inf; anything else is invalid."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where} is {value!r}, not a number or null")
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _numbers(record: Mapping[str, Any], key: str) -> dict[str, float | None]:
+    values = record.get(key, {})
+    if not isinstance(values, Mapping):
+        raise ValueError(f"'{key}' is {type(values).__name__}, not an object")
+    return {str(k): _number(v, f"{key}.{k}") for k, v in values.items()}
+
+
+def _model_label(model: Mapping[str, Any]) -> str:
+    config = model.get("config") if isinstance(model.get("config"), Mapping) else {}
+    name = str(model.get("name") or config.get("name") or "unknown model")
+    if config.get("arch"):  # smp: the architecture is what distinguishes the rows
+        name = f"{name}-{config['arch']}"
+    encoder = config.get("encoder_name") or config.get("encoder")
+    return f"{name} / {encoder}" if encoder else name
+
+
+def load_entry(path: str | Path) -> LeaderboardEntry:
+    """Read and validate one ``results.json`` as a leaderboard row.
+
+    Args:
+        path: The file.
+
+    Returns:
+        The row; non-finite and null metric values become ``None``.
+
+    Raises:
+        ValueError: The file is unreadable or not a valid ``results.json``; the message starts with the path.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from airfisheye_bench.evaluation import write_results
+        >>> p = write_results(pathlib.Path(tempfile.mkdtemp()) / "r1" / "results.json", "depth", "test",
+        ...                   {"rmse": 4.2, "abs_rel": float("nan")}, dataset={"name": "tiny"},
+        ...                   model={"name": "adabins", "config": {"encoder_name": "resnet18"}})
+        >>> e = load_entry(p)
+        >>> e.model, e.run, e.source, e.metrics["rmse"], e.metrics["abs_rel"]
+        ('adabins / resnet18', 'r1', 'ours (tiny)', 4.2, None)
+        >>> p = write_results(p, "depth", "test", {"rmse": 4.2}, model={"source": "onnx", "precision": "int8",
+        ...                   "run_name": "adabins-r18"})
+        >>> load_entry(p).run, load_entry(p).evaluated
+        ('adabins-r18', 'ONNX int8')
+    """
+    path = Path(path)
+    try:
+        record = load_results(path)
+    except TypeError as err:  # load_results assumes a JSON object
+        raise ValueError(f"{path}: not a results.json object ({err})") from err
+    try:
+        return _entry(record, path)
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from err
+
+
+def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
+    version = record["version"]
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= RESULTS_VERSION:
+        raise ValueError(f"unsupported version {version!r} (this reader knows 1..{RESULTS_VERSION})")
+    task = record["task"]
+    try:
+        get_task(task)
+    except UnknownTaskError as err:
+        raise ValueError(str(err)) from None
+    if not isinstance(record["split"], str) or not record["split"]:
+        raise ValueError(f"split is {record['split']!r}, not a name")
+    dataset, model = record.get("dataset") or {}, record.get("model") or {}
+    if not isinstance(dataset, Mapping) or not isinstance(model, Mapping):
+        raise ValueError("'dataset' and 'model' must be objects")
+    manifest = dataset.get("manifest_sha256")
+    return LeaderboardEntry(
+        task=task,
+        split=record["split"],
+        model=_model_label(model),
+        run=_run_name(model, path),
+        dataset_name=str(dataset.get("name") or "unknown dataset"),
+        manifest_sha256=str(manifest) if manifest else None,
+        content_sha256=str(dataset["content_sha256"]) if dataset.get("content_sha256") else None,
+        metrics=_numbers(record, "metrics"),
+        breakdown=_numbers(record, "breakdown"),
+        path=str(path),
+        predictor=str(model.get("source") or ("checkpoint" if model.get("checkpoint") else "")),
+        evaluated=evaluated_label(model),
+        camera=_camera(record),
+    )
+
+
+def _camera(record: Mapping[str, Any]) -> str:
+    """The served camera's label from ``config.camera`` (written by training and evaluation), else empty."""
+    config = record.get("config")
+    camera = config.get("camera") if isinstance(config, Mapping) else None
+    return camera_label(camera) if isinstance(camera, Mapping) else ""
+
+
+def _run_name(model: Mapping[str, Any], path: Path) -> str:
+    """``model.run_name``; for files written before it, the run of the checkpoint, else the file's folder."""
+    if model.get("run_name"):
+        return str(model["run_name"])
+    checkpoint = model.get("checkpoint") or model.get("source_checkpoint")
+    return checkpoint_run_name(str(checkpoint)) if checkpoint else path.resolve().parent.name
+
+
+def load_entries(files: Iterable[str | Path]) -> tuple[list[LeaderboardEntry], list[str]]:
+    """Load every file, collecting problems instead of stopping at the first.
+
+    Args:
+        files: ``results.json`` paths.
+
+    Returns:
+        ``(entries, problems)``: the valid rows, and ``"<path>: <what is wrong>"`` for each invalid file.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> bad = pathlib.Path(tempfile.mkdtemp()) / "results.json"
+        >>> _ = bad.write_text("{")
+        >>> entries, problems = load_entries([bad])
+        >>> entries, problems[0].startswith(str(bad))
+        ([], True)
+    """
+    entries, problems = [], []
+    for path in files:
+        try:
+            entries.append(load_entry(path))
+        except ValueError as err:
+            problems.append(str(err))
+    return entries, problems
+
+
+def collect_results(paths: Iterable[str | Path], skip_invalid: bool = False) -> list[LeaderboardEntry]:
+    """Find, load and validate ``results.json`` files under ``paths``.
+
+    Args:
+        paths: Files or directories (searched recursively).
+        skip_invalid: Leave invalid files out with a warning instead of raising.
+
+    Returns:
+        The valid rows.
+
+    Raises:
+        FileNotFoundError: A path is missing or no ``results.json`` was found.
+        LeaderboardError: Some files are invalid (all of them listed) and ``skip_invalid`` is false.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from airfisheye_bench.evaluation import write_results
+        >>> root = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = write_results(root / "a" / "results.json", "seg", "test", {"mIoU": 0.3})
+        >>> [e.metrics["mIoU"] for e in collect_results([root])]
+        [0.3]
+    """
+    entries, problems = load_entries(find_results(paths))
+    if problems and not skip_invalid:
+        raise LeaderboardError(problems)
+    for problem in problems:
+        warnings.warn(f"skipped invalid results.json: {problem}", stacklevel=2)
+    return entries
