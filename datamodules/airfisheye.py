@@ -21,7 +21,7 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
-from airfisheye_bench.geometry.occlusion import Occlusion
+from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
 from airfisheye_bench.synth.cache import ensure_dataset
@@ -52,7 +52,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
         camera: Served camera: ``{"size": 512, "model": ..., "fov_deg": ..., "k": ...}``, or a calibrated lens
             ``{"size": 512, "calibration": <file>, "camera": <name or index>, "fit": "pad" | "crop"}``; unset keys
             follow the release (``datamodules.dataset.CameraConfig``).
-        occlusion: LiDAR occlusion correction for completion: ``ordering`` | ``zbuffer`` | ``hpr`` | ``none``.
+        occlusion: LiDAR occlusion correction for completion: ``ordering`` | ``zbuffer`` | ``hpr`` | ``none`` |
+            ``oracle`` (the generator's exact visibility: synthetic releases only).
         occlusion_options: Options of that method, e.g. ``{"elevation_tolerance": -0.25}`` for ``ordering``,
             ``{"kernel": 5, "threshold": 1.0, "relative": False}`` for ``zbuffer``, ``{"radius": 100}`` for
             ``hpr`` (all in :data:`~airfisheye_bench.geometry.occlusion.OCCLUSION_OPTIONS`); unset ones take
@@ -159,7 +160,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             source=source,
             camera=self.camera_config,
             # Checked once, here; the datasets and every frame's projection take it as it is.
-            occlusion=Occlusion(occlusion, occlusion_options or {}),
+            occlusion=_occlusion(occlusion, occlusion_options),
             motion_compensation=motion_compensation,
             max_depth=max_depth,
             skip_bad_frames=skip_bad_frames,
@@ -360,6 +361,17 @@ class AirFisheyeDataModule(L.LightningDataModule):
         if not self.datasets:
             self.setup(None)
         return next(iter(self.datasets.values()))
+
+
+def _occlusion(method: str, options: dict[str, Any] | None) -> Occlusion | str:
+    """``data.occlusion`` with its options: a checked :class:`Occlusion`, or the oracle (which takes none)."""
+    if method != ORACLE:
+        return Occlusion(method, options or {})
+    try:
+        check_sparse_input_options(ORACLE, dict(options or {}))
+    except ValueError as err:
+        raise ConfigError(f"data.occlusion_options (data.occlusion={ORACLE}): {err}") from None
+    return ORACLE
 
 
 def _lidar_spec(value: Any, root: str | Path | None) -> tuple[str | None, LidarSpec | None]:

@@ -46,7 +46,7 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.occlusion import Occlusion, lidar_depth_map
+from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options, lidar_depth_map
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.io import DatasetFormatError
@@ -55,6 +55,7 @@ from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
 from datamodules.camera_config import CameraConfig
+from datamodules.oracle import oracle_visible, require_visibility
 from datamodules.sampling import SharedEpoch, draw_seed
 
 log = logging.getLogger(__name__)
@@ -74,7 +75,8 @@ class AirFisheyeDataset(Dataset):
         camera: The served camera (see :class:`CameraConfig`).
         occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``
             or ``none``, or an :class:`~airfisheye_bench.geometry.occlusion.Occlusion` (checked already: the
-            datamodule's).
+            datamodule's); or ``oracle``, the generator's exact visibility (synthetic releases only, see
+            :mod:`datamodules.oracle`).
         occlusion_options: That method's options (see :func:`~airfisheye_bench.geometry.occlusion_mask`);
             unset options take their defaults. Not with an ``Occlusion``, which holds its options.
         motion_compensation: Use ``T_cam_lidar`` from both sensors' poses at their own timestamps; ``False`` uses
@@ -125,7 +127,9 @@ class AirFisheyeDataset(Dataset):
         self.split = split
         self.task = task
         self.source = source
-        if not isinstance(
+        if isinstance(occlusion, str) and occlusion == ORACLE:  # no method: the visibility ground truth
+            check_sparse_input_options(ORACLE, dict(occlusion_options or {}))
+        elif not isinstance(
             occlusion, Occlusion
         ):  # checked once here; every frame is projected with it as it is
             occlusion = Occlusion(occlusion, occlusion_options or {})
@@ -167,6 +171,8 @@ class AirFisheyeDataset(Dataset):
                 f"(it serves image, {', '.join(SAMPLE_KEYS)})"
             )
         self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
+        if occlusion == ORACLE and "sparse_depth" in self.sample_keys:
+            require_visibility(self.reader, root)
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
@@ -326,6 +332,10 @@ class AirFisheyeDataset(Dataset):
 
     def lidar_points(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec]:
         """``(points float64 [M, 3], rings int64 [M], spec)`` of a frame after the counted filtering."""
+        return self.filtered_scan(sample_id)[:3]
+
+    def filtered_scan(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec, np.ndarray]:
+        """:meth:`lidar_points` and the ``bool [N]`` mask of the scan's points it keeps (for per-point data)."""
         scan = self.reader.lidar_scan(sample_id)
         if len(scan.points) == 0:
             raise DatasetFormatError(scan.path, "the LiDAR scan is empty")
@@ -363,17 +373,21 @@ class AirFisheyeDataset(Dataset):
         deskew = getattr(self.reader, "deskew", None)
         if self.motion_compensation and deskew is not None:  # the sweep's points at its reference time
             points = deskew(sample_id, points)
-        return points, rings[kept.keep], spec
+        return points, rings[kept.keep], spec, kept.keep
 
     def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:
-        points, rings, spec = self.lidar_points(sample_id)
+        points, rings, spec, keep = self.filtered_scan(sample_id)
+        method = self.occlusion
+        if isinstance(method, str) and method == ORACLE:  # the truly visible points, projected without a test
+            visible = oracle_visible(self.reader, sample_id, keep)
+            points, rings, method = points[visible], rings[visible], Occlusion("none")
         T = _augmented(self.T_cam_lidar(sample_id), params)
         depth = lidar_depth_map(
             points,
             T,
             self.camera,
             spec,
-            method=self.occlusion,
+            method=method,
             max_depth=self.max_depth,
             mirror=params is not None and params.flip,
             rings=rings,

@@ -8,7 +8,7 @@
 #
 # Steps whose output already exists are skipped, so an interrupted run can simply be started again.
 # On a 2-core CPU the five trainings take about 50 minutes on an otherwise idle machine. The occlusion-rig ablation
-# (4 methods x 3 seeds) is sized by OCCLUSION_ABLATION (Hydra overrides for train.py; default: 128^2, 5 epochs);
+# (5 sparse inputs x 5 seeds) is sized by OCCLUSION_ABLATION (Hydra overrides for train.py; default: 128^2, 5 epochs);
 # at the paper's 512^2 it wants a GPU, e.g. OCCLUSION_ABLATION="data.camera.size=512 trainer=gpu trainer.max_epochs=25".
 set -euo pipefail
 OUT=${1:-runs/report}
@@ -61,7 +61,13 @@ python scripts/occlusion_study.py --preset quickstart --split test --json "$OUT/
 # flights): point level at the served 512^2, then the completion ablation with 3 seeds per method.
 python scripts/occlusion_study.py --preset occlusion --split test --size 512 \
   --json "$OUT/occlusion_study_occlusion.json" --figure "$OUT/occlusion_overlay_occlusion.png"
+# How much each sparse input differs from `none` at the sizes trained, then the ablation: 5 paired seeds per input
+# (the oracle included), paired differences against `none` with 95 % t-intervals, whole image and affected pixels;
+# then the test-time cross-over of one of its models (ordering, seed 0) with every input.
+python scripts/occlusion_crossover.py --preset occlusion --size 128 256 512 --json "$OUT/occlusion_inputs.json"
 # shellcheck disable=SC2086  # OCCLUSION_ABLATION is a list of overrides
-python scripts/occlusion_ablation.py --out "$OUT/ablation_occlusion" --seeds 0 1 2 \
+python scripts/occlusion_ablation.py --out "$OUT/ablation_occlusion" --seeds 0 1 2 3 4 \
   --json "$OUT/ablation_occlusion.json" -- data.preset=occlusion data.source=fisheye $OCCLUSION_ABLATION \
   callbacks.rich_progress_bar=null
+python scripts/occlusion_crossover.py --ckpt "$OUT/ablation_occlusion/ordering/seed0" \
+  --json "$OUT/occlusion_crossover.json"

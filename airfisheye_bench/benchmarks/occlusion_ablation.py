@@ -1,19 +1,23 @@
 """Completion ablation of the occlusion correction: train and test NLSPN per (method, seed), report mean ± std.
 
-For every occlusion method (default: every one of ``airfisheye_bench.geometry.occlusion.OCCLUSION_METHODS``, read
-when the script runs) and every seed, one run of
+For every sparse input (default: every one of ``airfisheye_bench.geometry.occlusion.SPARSE_INPUTS``, read when the
+script runs: the occlusion methods and ``oracle``, the generator's exact visibility) and every seed, one run of
 
     python train.py task=completion data.occlusion=<method> seed=<seed> hydra.run.dir=<out>/<method>/seed<seed> \\
         <overrides...>
 
-``train.py`` builds the sparse input of training *and* test with that method, tests the best checkpoint on the test
-split and writes ``results.json``; this script collects them and reports, per method, the mean ± sample standard
-deviation over the seeds of each metric (with 3 seeds a difference smaller than about two standard deviations is
-not told from noise). Runs whose ``results.json`` exists are skipped, so an interrupted ablation resumes; a failed
-run stops the script.
+(``trainer.deterministic=true`` comes first, so seed ``s`` of every arm starts from the same weights and sees the
+same data order). ``train.py`` builds the sparse input of training *and* test with that method, tests the best
+checkpoint on the test split and writes ``results.json``; this script then scores that checkpoint with its own
+input on the regions where the methods differ (``regions.json``: the pixels whose input differs between ``none``
+and the oracle, dilated by ``--radius``, and the near range below ``--near`` m; see
+:mod:`airfisheye_bench.metrics.regions`), collects both and reports per method the mean ± sample standard
+deviation over the seeds, and per method the paired difference against ``none`` seed by seed with its 95 %
+t-interval (:mod:`airfisheye_bench.evaluation.paired`). Runs whose ``results.json`` / ``regions.json`` exist are
+skipped, so an interrupted ablation resumes; a failed run stops the script.
 
-    python scripts/occlusion_ablation.py --out runs/ablation_occlusion --seeds 0 1 2 -- \\
-        data.preset=occlusion data.source=fisheye data.camera.size=512 trainer.max_epochs=1
+    python scripts/occlusion_ablation.py --out runs/ablation_occlusion --seeds 0 1 2 3 4 -- \\
+        data.preset=occlusion data.source=fisheye data.camera.size=256 trainer.max_epochs=5
     python scripts/occlusion_ablation.py --out runs/ablation_occlusion --collect-only --json ablation.json
 
 Everything after ``--`` is passed to ``train.py`` as is (Hydra overrides).
@@ -32,12 +36,26 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.evaluation.crossover import run_region_scores
+from airfisheye_bench.evaluation.paired import paired_differences, paired_table
 from airfisheye_bench.geometry import occlusion
+from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
 
 # The checkout this package sits in: the ablation drives its train.py (studies run from a checkout).
 REPO = Path(__file__).resolve().parents[2]
 #: Metrics of the table, in this order (others in results.json are kept in the JSON).
-TABLE_METRICS = ("rmse", "mae", "abs_rel", "delta1")
+TABLE_METRICS = ("rmse", "mae", "abs_rel", "delta1", "affected/rmse", "near/rmse")
+#: Metrics of the paired table (``region/metric`` from ``regions.json``).
+PAIRED_METRICS = (
+    "rmse",
+    "abs_rel",
+    "affected/rmse",
+    "affected/mae",
+    "affected/abs_rel",
+    "near/rmse",
+    "near/abs_rel",
+)
+REGION_METRICS = ("rmse", "mae", "abs_rel", "delta1")
 
 
 @dataclass(frozen=True)
@@ -52,6 +70,10 @@ class Run:
     def results(self) -> Path:
         return self.out / "results.json"
 
+    @property
+    def regions(self) -> Path:
+        return self.out / "regions.json"
+
     def argv(self, overrides: Sequence[str]) -> list[str]:
         """The ``train.py`` command line (Hydra overrides; ours first, so the caller's cannot move the run)."""
         return [
@@ -60,6 +82,7 @@ class Run:
             "task=completion",
             f"data.occlusion={self.method}",
             f"seed={self.seed}",
+            "trainer.deterministic=true",
             *overrides,
             f"hydra.run.dir={self.out}",
         ]
@@ -68,9 +91,9 @@ class Run:
 def plan(out: Path, methods: Sequence[str], seeds: Sequence[int]) -> list[Run]:
     """Every (method, seed) run, each in ``<out>/<method>/seed<seed>``, seed-major: an ablation stopped early
     has the same seeds for every method, so what it has is comparable."""
-    unknown = [m for m in methods if m not in occlusion.OCCLUSION_METHODS]
+    unknown = [m for m in methods if m not in occlusion.SPARSE_INPUTS]
     if unknown:
-        raise ValueError(f"--methods: unknown {unknown}; available: {', '.join(occlusion.OCCLUSION_METHODS)}")
+        raise ValueError(f"--methods: unknown {unknown}; available: {', '.join(occlusion.SPARSE_INPUTS)}")
     return [Run(m, int(s), out / m / f"seed{int(s)}") for s in seeds for m in methods]
 
 
@@ -88,6 +111,14 @@ def run_subprocess(argv: list[str]) -> None:
     subprocess.run(argv, check=True, cwd=REPO)
 
 
+def score_regions(runs: Sequence[Run], scorer: Callable[[Path], dict[str, Any]]) -> None:
+    """Write ``regions.json`` for every trained run that has none yet."""
+    for run in runs:
+        if run.results.is_file() and not run.regions.is_file():
+            print(f"regions: {run.method} seed {run.seed}", file=sys.stderr)
+            atomic_write_text(run.regions, json.dumps(scorer(run.out), indent=2) + "\n")
+
+
 def collect(runs: Sequence[Run]) -> dict[str, dict[str, Any]]:
     """``method -> {"seeds": [...], "metrics": {name: {"values", "mean", "std", "n"}}}`` from the finished runs."""
     out: dict[str, dict[str, Any]] = {
@@ -99,9 +130,8 @@ def collect(runs: Sequence[Run]) -> dict[str, dict[str, Any]]:
         record = json.loads(run.results.read_text(encoding="utf-8"))
         entry = out[run.method]
         entry["seeds"].append(run.seed)
-        for name, value in record["metrics"].items():
-            if isinstance(value, int | float) and not isinstance(value, bool):
-                entry["values"].setdefault(name, []).append(float(value))
+        for name, value in run_metrics(run, record).items():
+            entry["values"].setdefault(name, []).append(value)
     return {
         method: {
             "seeds": entry["seeds"],
@@ -110,6 +140,37 @@ def collect(runs: Sequence[Run]) -> dict[str, dict[str, Any]]:
         for method, entry in out.items()
         if entry["seeds"]
     }
+
+
+def run_metrics(run: Run, record: dict[str, Any] | None = None) -> dict[str, float]:
+    """A finished run's numeric test metrics, and ``region/metric`` from its ``regions.json`` where it has one."""
+    if record is None:
+        record = json.loads(run.results.read_text(encoding="utf-8"))
+    out = {
+        name: float(value)
+        for name, value in record["metrics"].items()
+        if isinstance(value, int | float) and not isinstance(value, bool)
+    }
+    if run.regions.is_file():
+        regions = json.loads(run.regions.read_text(encoding="utf-8"))["regions"]
+        for region, values in regions.items():
+            if region == "all":
+                continue  # the whole image: results.json's own metrics
+            for name in REGION_METRICS:
+                if values.get(name) is not None:
+                    out[f"{region}/{name}"] = float(values[name])
+    return out
+
+
+def paired(runs: Sequence[Run], reference: str = "none") -> dict[str, Any]:
+    """Paired differences against ``reference`` per seed (:func:`~airfisheye_bench.evaluation.paired.paired_differences`)."""
+    values: dict[str, dict[int, dict[str, float]]] = {}
+    for run in runs:
+        if run.results.is_file():
+            values.setdefault(run.method, {})[run.seed] = run_metrics(run)
+    if reference not in values:
+        return {}
+    return paired_differences(values, reference)
 
 
 def mean_std(values: Sequence[float]) -> dict[str, float]:
@@ -158,26 +219,43 @@ def parse_args(argv: Sequence[str] | None) -> tuple[argparse.Namespace, list[str
     parser.add_argument(
         "--methods",
         type=lambda v: [m for m in v.split(",") if m],
-        help="comma-separated occlusion methods (default: every one of OCCLUSION_METHODS)",
+        help="comma-separated sparse inputs (default: every one of SPARSE_INPUTS, the oracle included)",
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--collect-only", action="store_true", help="train nothing, summarise what is there")
     parser.add_argument("--json", type=Path, help="write the summary here")
+    parser.add_argument(
+        "--no-regions", action="store_true", help="skip the per-region scoring (regions.json)"
+    )
+    parser.add_argument(
+        "--radius", type=int, default=DEFAULT_RADIUS_PX, help="dilation of the affected pixels"
+    )
+    parser.add_argument("--near", type=float, default=DEFAULT_NEAR_M, help="near-range bound in metres")
     return parser.parse_args(argv), overrides
 
 
 def main(
-    argv: Sequence[str] | None = None, runner: Callable[[list[str]], None] = run_subprocess
+    argv: Sequence[str] | None = None,
+    runner: Callable[[list[str]], None] = run_subprocess,
+    scorer: Callable[[Path], dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     args, overrides = parse_args(argv)
-    methods = args.methods or list(occlusion.OCCLUSION_METHODS)
+    methods = args.methods or list(occlusion.SPARSE_INPUTS)
     runs = plan(args.out, methods, args.seeds)
     if not args.collect_only:
         execute(runs, overrides, runner)
+        if not args.no_regions:
+            score_regions(
+                runs, scorer or (lambda out: run_region_scores(out, radius=args.radius, near_m=args.near))
+            )
     summary = collect(runs)
     if not summary:
         raise SystemExit(f"no results.json under {args.out}: nothing to summarise")
     print(markdown_table(summary))
+    differences = paired(runs)
+    if differences:
+        print("\nPaired differences against `none` (same seed), mean [95 % t-interval]:\n")
+        print(paired_table(differences, PAIRED_METRICS))
     payload = {
         "out": str(args.out),
         "methods": methods,
@@ -185,6 +263,7 @@ def main(
         "overrides": overrides,
         "command": "python scripts/occlusion_ablation.py " + " ".join(sys.argv[1:] if argv is None else argv),
         "results": summary,
+        "paired_vs_none": differences,
     }
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)

@@ -293,6 +293,7 @@ def run_size(
         project_lidar(warm.points, warm.T[True], ds.camera, warm.spec, method, **options.get(method, {}))
     rows: dict[str, list[dict[str, float]]] = {}
     hidden: dict[str, int] = {}
+    by_location: dict[str, dict[str, list[dict[str, float]]]] = {}  # environment -> row -> frames
     projected = 0
     for k, index in enumerate(indices):
         frame = load_frame(datasets, index)
@@ -301,8 +302,10 @@ def run_size(
         counts = result.pop("_frame")
         hidden[frame.sample_id] = counts["hidden_projected"]
         projected += counts["projected"]
+        location = frame.sample_id.split("/", 1)[0]
         for name, counts in result.items():
             rows.setdefault(name, []).append(counts)
+            by_location.setdefault(location, {}).setdefault(name, []).append(counts)
         if (k + 1) % 25 == 0:
             print(f"  {ds.camera.width}px: {k + 1}/{len(indices)} frames", file=sys.stderr)
     summary = {
@@ -311,10 +314,33 @@ def run_size(
         "projected": projected,
         "hidden_projected": sum(hidden.values()),
         "hidden_fraction": ratio(sum(hidden.values()), projected),
+        "sample_ids": list(hidden),
         "options": options,
         "rows": {name: summarize(per_frame) for name, per_frame in rows.items()},
+        # Pooled per test location (the environment of the sample id): a pooled gap can come from one place.
+        "per_location": {
+            loc: {name: summarize(frames)["pooled"] for name, frames in loc_rows.items()}
+            for loc, loc_rows in by_location.items()
+        },
     }
     return summary, hidden
+
+
+def location_table(results: dict[str, dict[str, Any]]) -> str:
+    """Per size and location: each row's F1 and wrong sparse pixels (pooled over that location's frames)."""
+    lines = [
+        "| size | location | frames | method | F1 | hidden kept | sparse px wrong > 5 % |",
+        "|" + "---|" * 7,
+    ]
+    for size, summary in results.items():
+        for loc, loc_rows in summary.get("per_location", {}).items():
+            for name, p in loc_rows.items():
+                frames = len([1 for sid in summary.get("sample_ids", []) if sid.startswith(loc + "/")]) or "-"
+                lines.append(
+                    f"| {size}² | {loc} | {frames} | {name} | {p['f1']:.4f} | {p['hidden_kept']} "
+                    f"| {100 * p['sparse_wrong_frac']:.2f} % ({p['sparse_wrong']} / {p['sparse_gt']}) |"
+                )
+    return "\n".join(lines)
 
 
 # ------------------------------------------------------------------------------------------------ report
@@ -457,6 +483,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         f"({100 * first['hidden_fraction']:.2f} %) are not seen by the camera\n"
     )
     print(markdown_table(results))
+    print()
+    print(location_table(results))
     payload: dict[str, Any] = {
         "dataset": str(root),
         "split": args.split,

@@ -61,9 +61,9 @@ def _camera_fits() -> tuple[str, ...]:
 
 
 def _occlusion_methods() -> tuple[str, ...]:
-    from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS  # imports torch: only when checked
+    from airfisheye_bench.geometry.occlusion import SPARSE_INPUTS  # imports torch: only when checked
 
-    return OCCLUSION_METHODS
+    return SPARSE_INPUTS
 
 
 def _occlusion_options_problem(value: Any, method: Any) -> str | None:
@@ -401,7 +401,7 @@ def check_common_values(
         >>> check_common_values(OmegaConf.create({"data": {"occlusion": "zbufer"}}))
         Traceback (most recent call last):
         ...
-        airfisheye_bench.errors.ConfigError: data.occlusion='zbufer': expected one of ordering, zbuffer, hpr, none (the LiDAR occlusion correction)
+        airfisheye_bench.errors.ConfigError: data.occlusion='zbufer': expected one of ordering, zbuffer, hpr, none, oracle (the LiDAR occlusion correction)
     """
     if rules is None:
         check_extras(cfg)

@@ -50,6 +50,12 @@ def test_main_tiny(
         assert rows[name]["kept"] <= none["kept"] and rows[name]["hidden_kept"] <= none["hidden_kept"]
         assert rows[name]["truth"] == none["truth"]
     assert rows[study.ORACLE]["precision"] == rows[study.ORACLE]["recall"] == 1.0
+    # The per-location breakdown partitions the split: its counts add up to the pooled ones.
+    per_location = summary["per_location"]
+    assert set(per_location) == {sid.split("/")[0] for sid in summary["sample_ids"]}
+    for name, row in rows.items():
+        for key in ("kept", "tp", "hidden_kept", "sparse_wrong", "sparse_gt"):
+            assert sum(loc[name][key] for loc in per_location.values()) == row[key], (name, key)
 
     assert "| 32² | ordering |" in capsys.readouterr().out
     size = payload["figure"]["size"]
@@ -112,6 +118,21 @@ def _fake_train(metrics_of: dict[tuple[str, int], float], calls: list[list[str]]
     return run
 
 
+def _fake_regions(affected_of: dict[tuple[str, int], float], calls: list[Path]):
+    """A stand-in for ``run_region_scores``: a made-up affected-pixel RMSE per run."""
+
+    def score(out: Path) -> dict:
+        calls.append(out)
+        method, seed = out.parent.name, int(out.name.removeprefix("seed"))
+        rmse = affected_of[(method, seed)]
+        return {
+            "arm": method,
+            "regions": {"all": {"rmse": 0.0}, "affected": {"rmse": rmse}, "near": {"rmse": None}},
+        }
+
+    return score
+
+
 def test_ablation_trains_each_method_and_seed_once_and_summarises(
     ablation: ModuleType, tmp_path: Path
 ) -> None:
@@ -126,21 +147,39 @@ def test_ablation_trains_each_method_and_seed_once_and_summarises(
     argv = ["--out", str(tmp_path), "--methods", "none,ordering", "--seeds", "0", "1", "2"]
     values[("ordering", 2)] = 5.0
     out = tmp_path / "summary.json"
+    affected = {key: 2 * value for key, value in values.items()}
+    scored: list[Path] = []
     payload = ablation.main(
-        [*argv, "--json", str(out), "--", "trainer=debug"], runner=_fake_train(values, calls)
+        [*argv, "--json", str(out), "--", "trainer=debug"],
+        runner=_fake_train(values, calls),
+        scorer=_fake_regions(affected, scored),
     )
 
-    assert len(calls) == 6
+    assert len(calls) == 6 and len(scored) == 6
     for call in calls:
         assert "task=completion" in call and "trainer=debug" in call
+        assert call.index("trainer.deterministic=true") < call.index(
+            "trainer=debug"
+        )  # the caller's come last
     none = payload["results"]["none"]["metrics"]["rmse"]
     assert none["mean"] == pytest.approx(6.0) and none["std"] == pytest.approx(1.0) and none["n"] == 3
     assert payload["results"]["ordering"]["metrics"]["mae"]["mean"] == pytest.approx(13.5 / 6)
     assert json.loads(out.read_text())["results"].keys() == {"none", "ordering"}
 
-    calls.clear()  # a second call resumes: nothing left to train, same summary
-    again = ablation.main(argv, runner=_fake_train(values, calls))
-    assert calls == [] and again["results"] == payload["results"]
+    # Paired against none, seed by seed: ordering - none = -1, -1.5, -2 -> mean -1.5, s = 0.5,
+    # half-width t(0.975, 2) * 0.5 / sqrt(3) = 4.303 * 0.288675 = 1.242169.
+    rmse = payload["paired_vs_none"]["ordering"]["rmse"]
+    assert rmse["seeds"] == [0, 1, 2] and rmse["diffs"] == pytest.approx([-1.0, -1.5, -2.0])
+    assert rmse["mean"] == pytest.approx(-1.5) and rmse["std"] == pytest.approx(0.5)
+    assert rmse["ci95"] == pytest.approx([-1.5 - 1.242169, -1.5 + 1.242169], abs=1e-6)
+    assert payload["paired_vs_none"]["ordering"]["affected/rmse"]["mean"] == pytest.approx(-3.0)
+    assert "near/rmse" not in payload["paired_vs_none"]["ordering"]  # null values are left out
+    assert payload["results"]["none"]["metrics"]["affected/rmse"]["mean"] == pytest.approx(12.0)
+
+    calls.clear()  # a second call resumes: nothing left to train or score, same summary
+    scored.clear()
+    again = ablation.main(argv, runner=_fake_train(values, calls), scorer=_fake_regions(affected, scored))
+    assert calls == [] and scored == [] and again["results"] == payload["results"]
 
 
 def test_ablation_rejects_unknown_methods(ablation: ModuleType, tmp_path: Path) -> None:

@@ -10,6 +10,7 @@ implementations of ``ordering``; one concept per module:
 ``api``                     :func:`occlusion_mask`, :func:`project_lidar`, :func:`lidar_depth_map`,
                             :func:`ordering_mask` / :func:`ordering_reference` and the implementations
 ``options``                 :data:`OCCLUSION_METHODS`, :data:`OCCLUSION_OPTIONS`, :func:`check_occlusion_options`,
+                            :data:`SPARSE_INPUTS` (the methods and the ground-truth ``oracle``)
                             :class:`Occlusion` (a method with its checked options)
 ``projection``              the transform's check, the projection of the points and their pixel
 ``zbuffer``                 the z-buffer baseline
@@ -31,17 +32,23 @@ from airfisheye_bench.geometry.occlusion.api import (
 from airfisheye_bench.geometry.occlusion.options import (
     OCCLUSION_METHODS,
     OCCLUSION_OPTIONS,
+    ORACLE,
+    SPARSE_INPUTS,
     Occlusion,
     check_occlusion_options,
+    check_sparse_input_options,
 )
 
 __all__ = [
     "OCCLUSION_METHODS",
     "OCCLUSION_OPTIONS",
+    "ORACLE",
     "ORDERING_IMPLEMENTATIONS",
+    "SPARSE_INPUTS",
     "LidarProjection",
     "Occlusion",
     "check_occlusion_options",
+    "check_sparse_input_options",
     "lidar_depth_map",
     "occlusion_mask",
     "ordering_mask",

@@ -15,6 +15,13 @@ import numpy as np
 
 OCCLUSION_METHODS = ("ordering", "zbuffer", "hpr", "none")
 
+#: The sparse input built from the generator's exact per-point visibility (a synthetic release's
+#: ``lidar_visible``): the upper bound of every method. It is no method of :func:`occlusion_mask`, which sees
+#: only the points; the dataset serves it beside the methods (``data.occlusion=oracle``).
+ORACLE = "oracle"
+#: Every sparse input a dataset can serve: the methods, then the oracle.
+SPARSE_INPUTS = (*OCCLUSION_METHODS, ORACLE)
+
 #: Every method's options and their defaults (see :func:`occlusion_mask`).
 OCCLUSION_OPTIONS: dict[str, dict[str, Any]] = {
     "ordering": {"azimuth_window": None, "elevation_window": None, "elevation_tolerance": 0.0},
@@ -75,6 +82,26 @@ def check_occlusion_options(method: str, options: dict[str, Any]) -> dict[str, A
             "relative=False needs a threshold in metres (threshold=None derives a relative margin)"
         )
     return opts
+
+
+def check_sparse_input_options(name: str, options: dict[str, Any]) -> dict[str, Any]:
+    """:func:`check_occlusion_options` for any of :data:`SPARSE_INPUTS`: the oracle takes no options.
+
+    Example:
+        >>> check_sparse_input_options("oracle", {})
+        {}
+        >>> check_sparse_input_options("oracle", {"kernel": 3})
+        Traceback (most recent call last):
+        ...
+        ValueError: the oracle takes no options, got ['kernel']
+    """
+    if name == ORACLE:
+        if options:
+            raise ValueError(f"the oracle takes no options, got {sorted(options)}")
+        return {}
+    if name not in OCCLUSION_METHODS:
+        raise ValueError(f"sparse input must be one of {SPARSE_INPUTS}, got {name!r}")
+    return check_occlusion_options(name, options)
 
 
 @dataclass(frozen=True)

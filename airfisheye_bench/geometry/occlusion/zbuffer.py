@@ -22,6 +22,25 @@ def _pixels_per_radian(camera: CameraModel) -> np.ndarray:
     return camera.pixels_per_radian().reshape(-1).to(torch.float32).numpy()
 
 
+def _window_radius(spec: LidarSpec, scale: np.ndarray) -> np.ndarray:
+    """Half the LiDAR's angular spacing in pixels at an image scale (pixels per radian), rounded: the derived
+    window's radius."""
+    spacing = max(spec.vertical_resolution, spec.horizontal_resolution)
+    return np.rint(0.5 * spacing * scale).astype(np.int64)
+
+
+def derived_window_radius(camera: CameraModel, spec: LidarSpec) -> np.ndarray:
+    """``int64 [H, W]``: the radius of the z-buffer's derived window (``kernel=None``) at every pixel.
+
+    Example:
+        >>> from airfisheye_bench.geometry import FisheyeCamera
+        >>> r = derived_window_radius(FisheyeCamera(128, 128), LidarSpec())
+        >>> r.shape, int(r.min()) >= 0
+        ((128, 128), True)
+    """
+    return _window_radius(spec, _pixels_per_radian(camera)).reshape(camera.height, camera.width)
+
+
 def zbuffer_mask(
     proj: Projection,
     camera: CameraModel,
@@ -37,11 +56,8 @@ def zbuffer_mask(
     depth = np.full(camera.height * camera.width, np.inf, dtype=np.float32)
     _kernels.scatter_min(rng, pix, depth)  # per-pixel nearest
     scale = _pixels_per_radian(camera)[pix]
-    if kernel is None:  # half the LiDAR's angular spacing, in pixels at each point's pixel
-        spacing = max(spec.vertical_resolution, spec.horizontal_resolution)
-        radius = np.rint(0.5 * spacing * scale).astype(np.int64)
-    else:
-        radius = np.full(len(ids), kernel // 2, dtype=np.int64)
+    # kernel=None: half the LiDAR's angular spacing, in pixels at each point's pixel
+    radius = _window_radius(spec, scale) if kernel is None else np.full(len(ids), kernel // 2, dtype=np.int64)
     if threshold is None:  # a surface up to the grazing incidence, across the window's half-angle
         slope = math.tan(math.radians(max_incidence_deg))
         margin = (slope * (radius + 0.5) / scale).astype(np.float32)
@@ -54,4 +70,4 @@ def zbuffer_mask(
     return mask
 
 
-__all__ = ["zbuffer_mask"]
+__all__ = ["derived_window_radius", "zbuffer_mask"]
