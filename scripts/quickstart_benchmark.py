@@ -2,10 +2,11 @@
 
     python scripts/quickstart_benchmark.py --out logs/quickstart --seeds 0 1 2
     python scripts/quickstart_benchmark.py --out logs/quickstart --collect-only    # summarise what has finished
-    python scripts/quickstart_benchmark.py --readme                                # README table from the JSON
+    python scripts/quickstart_benchmark.py --readme      # README's and docs/results.md's tables from the JSON
 
 Each run is ``python train.py task=<task> seed=<seed> hydra.run.dir=<out>/<task>/seed<seed>`` (the README's
-command); finished runs are skipped, so an interrupted benchmark resumes. ``--tasks`` picks some of
+command); finished runs are skipped, so an interrupted benchmark resumes, and the seeds of the existing record
+whose runs are not in ``--out`` are kept (``--fresh`` drops them). ``--tasks`` picks some of
 ``seg depth completion``; everything after ``--`` goes to ``train.py`` (then the results are not the quick start's).
 The logic is :mod:`airfisheye_bench.evaluation.quickstart`.
 """
@@ -19,7 +20,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.evaluation import quickstart
+from airfisheye_bench.evaluation import quickstart, quickstart_report
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_JSON = REPO / "docs" / "quickstart_results.json"
@@ -43,6 +44,11 @@ def parse_args(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
     parser.add_argument(
         "--json", type=Path, default=DEFAULT_JSON, help="the record (the README cites the default)"
     )
+    parser.add_argument(
+        "--fresh",
+        action="store_true",
+        help="drop --json's seeds whose runs are not in --out (default: keep them)",
+    )
     parser.add_argument("--readme", action="store_true", help="only regenerate README.md's table from --json")
     return parser.parse_args(argv), overrides
 
@@ -55,7 +61,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         runs = quickstart.plan(args.out, args.tasks, args.seeds)
         if not args.collect_only:
             quickstart.train_missing(
-                runs, REPO, overrides, log=lambda m: print(m, file=sys.stderr, flush=True)
+                runs,
+                REPO,
+                overrides,
+                log=lambda m: print(m, file=sys.stderr, flush=True),
+                threads=args.threads,
             )
         if args.no_collect:
             return 0
@@ -72,7 +82,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                 baselines[task] = quickstart.evaluate_baseline(started[0].out)
                 atomic_write_text(saved, json.dumps(baselines[task], indent=2) + "\n")
         command = "python scripts/quickstart_benchmark.py " + " ".join(argv)
-        record = quickstart.summarize(runs, baselines, command, quickstart.git_commit(REPO))
+        # Seeds finished elsewhere (an earlier machine, another day) stay in the record when their run is not here.
+        previous = None
+        if args.json.is_file() and not args.fresh:
+            previous = json.loads(args.json.read_text(encoding="utf-8"))
+        try:
+            record = quickstart.summarize(runs, baselines, command, quickstart.git_commit(REPO), previous)
+        except ValueError as err:
+            print(f"error: {err} (or pass --fresh to drop {args.json}'s seeds)", file=sys.stderr)
+            return 2
         atomic_write_text(args.json, json.dumps(record, indent=2, ensure_ascii=False) + "\n")
         print(f"wrote {args.json}", file=sys.stderr)
     record = json.loads(args.json.read_text(encoding="utf-8"))
@@ -80,8 +98,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     table = quickstart.readme_table(
         record, source=DEFAULT_JSON.relative_to(REPO).as_posix() if committed else str(args.json)
     )
-    if committed:  # the README cites the committed file only
+    if committed:  # the README and the report cite the committed file only
         atomic_write_text(readme, quickstart.replace_table(readme.read_text(encoding="utf-8"), table))
+        report = REPO / "docs" / "results.md"
+        text = quickstart_report.regenerate(report.read_text(encoding="utf-8"), record, REPO / "docs")
+        atomic_write_text(report, text)
     print(table)
     return 0
 

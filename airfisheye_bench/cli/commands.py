@@ -33,6 +33,7 @@ Example:
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import os
 import sys
@@ -249,6 +250,9 @@ class ExportOptions:
     calib_samples: int = option("validation frames calibrating static quantisation")
     eval_samples: int = option("validation frames scoring the int8 model (0: the whole split)")
     repeats: int = option("timed runs of the latency comparison")
+    report_json: str | None = option(
+        "also write the report (parity, latency, int8 metrics) as JSON to this file"
+    )
     mlflow_run: str | None = option(
         "log the ONNX file(s) and parity numbers to an MLflow run: auto (the checkpoint's run) or a run id"
     )
@@ -292,6 +296,7 @@ def export(argv: Sequence[str] | None = None) -> int:
     logging.getLogger("airfisheye_bench.export").setLevel(logging.INFO)
     kwargs = dict(parsed.options)
     mlflow_run, mlflow_uri = kwargs.pop("mlflow_run"), kwargs.pop("mlflow_tracking_uri")
+    report_json = kwargs.pop("report_json")
     if mlflow_run:
         from omegaconf import OmegaConf  # with the checks below: nothing is imported for --help
 
@@ -313,6 +318,11 @@ def export(argv: Sequence[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(report.summary())
+    if report_json:
+        from airfisheye_bench.atomic import atomic_write_text
+
+        atomic_write_text(report_json, json.dumps(report.to_dict(), indent=2) + "\n")
+        print(f"wrote {report_json}")
     if mlflow_run:
         log_export(report, mlflow_run, mlflow_uri)
     if report.quantization is not None and not report.quantization.ok:

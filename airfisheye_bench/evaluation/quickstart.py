@@ -240,6 +240,7 @@ def summarize(
     baselines: dict[str, dict[str, Any]],
     command: str,
     commit: str,
+    previous: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The committed record: per task its seeds' metrics, mean ± std, the baseline; the dataset's identity.
 
@@ -248,6 +249,9 @@ def summarize(
         baselines: ``task -> evaluate_baseline(...)`` (tasks without one get none).
         command: The benchmark command line.
         commit: The commit the record is written at.
+        previous: An earlier record (the committed file): a planned seed that has no finished run here but has
+            one there is kept, with its own commit and command, so seeds trained on different machines or days
+            add up. Only when both were measured on the same data (content identity); otherwise ``ValueError``.
     """
     tasks: dict[str, Any] = {}
     identities: dict[str, dict[str, Any]] = {}
@@ -281,6 +285,13 @@ def summarize(
         root = base.get("dataset_root")
         if root and root not in identities and task in tasks:
             identities[root] = {"name": base.get("dataset_name"), **content_identity(root)}
+    if len(identities) > 1:
+        raise ValueError(f"the runs used different datasets: {sorted(identities)}")
+    dataset = next(iter(identities.values()), {})
+    if previous is not None:
+        _carry_over(tasks, previous, dataset)
+        if not dataset:
+            dataset = dict(previous.get("dataset", {}))
     for task, entry in tasks.items():
         seeds = entry["seeds"].values()
         keys = [k for k in QUICKSTART_TASKS[task] if all(k in s["metrics"] for s in seeds)] if seeds else []
@@ -289,9 +300,10 @@ def summarize(
             entry["summary"]["wall_s"] = mean_std([s["wall_s"] for s in seeds])
         if task in baselines:
             entry["baseline"] = {k: v for k, v in baselines[task].items() if not k.startswith("dataset_")}
-    if len(identities) > 1:
-        raise ValueError(f"the runs used different datasets: {sorted(identities)}")
-    dataset = next(iter(identities.values()), {})
+        elif previous is not None and "baseline" in previous.get("tasks", {}).get(task, {}):
+            entry["baseline"] = previous["tasks"][task][
+                "baseline"
+            ]  # no run here to fit it on: the data's own
     return {
         "format": RESULTS_FORMAT,
         "command": command,
@@ -300,6 +312,25 @@ def summarize(
         "dataset": {k: v for k, v in dataset.items() if k != "root"},
         "tasks": tasks,
     }
+
+
+def _carry_over(tasks: dict[str, Any], previous: dict[str, Any], dataset: dict[str, Any]) -> None:
+    """Fill the planned seeds that have no run here from ``previous``'s, in seed order (see :func:`summarize`)."""
+    before = previous.get("dataset", {}).get("content_sha256")
+    now = dataset.get("content_sha256")
+    for task, entry in tasks.items():
+        earlier = previous.get("tasks", {}).get(task, {}).get("seeds", {})
+        kept = [s for s in entry["missing_seeds"] if str(s) in earlier]
+        if not kept:
+            continue
+        if now is not None and before != now:
+            raise ValueError(
+                f"{task} seeds {kept} of the earlier record were measured on dataset content "
+                f"{str(before)[:8]}, the runs here on {now[:8]}: the data changed, so re-run every seed"
+            )
+        entry["seeds"].update({str(s): earlier[str(s)] for s in kept})
+        entry["seeds"] = dict(sorted(entry["seeds"].items(), key=lambda item: int(item[0])))
+        entry["missing_seeds"] = [s for s in entry["missing_seeds"] if s not in kept]
 
 
 def _cpu_count() -> int:
@@ -382,24 +413,24 @@ def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.
     return "\n".join(lines)
 
 
-def replace_table(text: str, table: str) -> str:
-    """``text`` with the part between :data:`TABLE_BEGIN` and :data:`TABLE_END` replaced by ``table``.
+def replace_table(text: str, table: str, begin: str = TABLE_BEGIN, end: str = TABLE_END) -> str:
+    """``text`` with the part between the markers ``begin`` and ``end`` replaced by ``table``.
 
     Example:
         >>> replace_table(f"a\\n{TABLE_BEGIN}\\nold\\n{TABLE_END}\\nb", "new").splitlines()[2]
         'new'
     """
     try:
-        head, rest = text.split(TABLE_BEGIN, 1)
-        _, tail = rest.split(TABLE_END, 1)
+        head, rest = text.split(begin, 1)
+        _, tail = rest.split(end, 1)
     except ValueError:
-        raise ValueError("the text has no quick-start table markers (TABLE_BEGIN ... TABLE_END)") from None
-    return f"{head}{TABLE_BEGIN}\n{table}\n{TABLE_END}{tail}"
+        raise ValueError(f"the text has no generated-table markers ({begin} ... {end})") from None
+    return f"{head}{begin}\n{table}\n{end}{tail}"
 
 
-def table_in(text: str) -> str:
-    """The generated table between the markers of ``text``."""
+def table_in(text: str, begin: str = TABLE_BEGIN, end: str = TABLE_END) -> str:
+    """The generated table between the markers ``begin`` and ``end`` of ``text``."""
     try:
-        return text.split(TABLE_BEGIN, 1)[1].split(TABLE_END, 1)[0].strip("\n")
+        return text.split(begin, 1)[1].split(end, 1)[0].strip("\n")
     except IndexError:
-        raise ValueError("the text has no quick-start table markers (TABLE_BEGIN ... TABLE_END)") from None
+        raise ValueError(f"the text has no generated-table markers ({begin} ... {end})") from None

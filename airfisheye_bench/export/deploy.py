@@ -66,6 +66,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
 def parity_tolerance(task: str) -> tuple[float, float]:
     """``(atol, rtol)`` of the task's parity check: ``|ort - torch| <= atol + rtol * |torch|`` element-wise.
 
@@ -110,6 +114,55 @@ class DeploymentReport:
     rtol: float
     dynamic_spatial: bool
     quantization: QuantizationReport | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as plain JSON values (paths as written, ``nan`` as ``None``), for a committed record."""
+        p = self.parity
+        record: dict[str, Any] = {
+            "onnx": str(self.path),
+            "onnx_bytes": self.path.stat().st_size,
+            "task": self.task,
+            "model": self.model,
+            "checkpoint": str(self.checkpoint),
+            "dynamic_spatial": self.dynamic_spatial,
+            "parity": {
+                "frames": self.parity_frames,
+                "atol": self.atol,
+                "rtol": self.rtol,
+                "max_abs_diff": p.max_abs_diff,
+                "max_rel_diff": p.max_rel_diff,
+                "max_allowance_used": _finite(p.max_allowance_used),
+                "verdict": p.verdict(self.atol, self.rtol),
+                "output_shape": list(p.output_shape),
+            },
+            "latency": {
+                "batch": self.parity_frames,
+                "threads": torch.get_num_threads(),
+                "onnxruntime_ms": _finite(p.ort_ms),
+                "pytorch_ms": _finite(p.torch_ms),
+                "ratio_ort_over_torch": _finite(p.latency_ratio),
+            },
+        }
+        q = self.quantization
+        if q is not None:
+            record["int8"] = {
+                "mode": q.mode,
+                "ok": q.ok,
+                "error": q.error,
+                "onnx": None if q.path is None else str(q.path),
+                "frames": q.frames,
+                "metrics_fp32": q.metrics_fp32,
+                "metrics_int8": q.metrics_int8,
+                "fp32_bytes": q.fp32_bytes,
+                "int8_bytes": q.int8_bytes,
+                "fp32_ms": _finite(q.fp32_ms),
+                "int8_ms": _finite(q.int8_ms),
+                "speedup": _finite(q.speedup) if q.ok else None,
+                "threads": q.threads,
+                "batch": q.batch,
+                "notes": list(q.notes),
+            }
+        return record
 
     def summary(self) -> str:
         """A short human-readable report (a few lines)."""

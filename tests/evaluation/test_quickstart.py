@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from airfisheye_bench.evaluation import quickstart
+from airfisheye_bench.evaluation import quickstart, quickstart_report
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMITTED = ROOT / "docs" / "quickstart_results.json"
@@ -121,3 +121,86 @@ def test_each_quick_start_beats_its_trivial_baseline_on_every_seed() -> None:
         )
     if unfinished:  # reported, not hidden: the record says which runs it still lacks
         pytest.skip(f"{COMMITTED.name} lacks {'; '.join(unfinished)}")
+
+
+def test_seeds_of_the_earlier_record_are_kept_when_their_runs_are_elsewhere(
+    record: dict, tmp_path: Path
+) -> None:
+    # The earlier record has depth seed 1; here only seed 0 has finished (in another output folder).
+    previous = json.loads(json.dumps(record))
+    previous["tasks"]["depth"]["seeds"]["1"] = {
+        "metrics": {"rmse": 17.0, "abs_rel": 0.32, "delta1": 0.45},
+        "wall_s": 700.0,
+        "commit": "def",
+        "command": "python train.py task=depth seed=1",
+    }
+    runs = [r for r in quickstart.plan(tmp_path / "runs", ["seg", "depth"], [0, 1])]
+    merged = quickstart.summarize(runs, {}, "collect", "0123", previous)
+    depth = merged["tasks"]["depth"]
+    assert list(depth["seeds"]) == ["0", "1"] and depth["missing_seeds"] == []
+    assert depth["seeds"]["1"]["commit"] == "def"  # it says which code trained it
+    assert depth["summary"]["rmse"]["mean"] == pytest.approx(16.0)
+    assert depth["baseline"] == record["tasks"]["depth"]["baseline"]  # nothing here to refit it on
+
+    previous["dataset"]["content_sha256"] = "f" * 64  # measured on other data: never mixed
+    with pytest.raises(ValueError, match="the data changed"):
+        quickstart.summarize(runs, {}, "collect", "0123", previous)
+
+
+def test_the_reports_generated_tables_are_the_ones_the_committed_files_give() -> None:
+    # docs/results.md sections 2, 3 and 6 print only what docs/quickstart_results.json and the export reports say.
+    report = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
+    assert quickstart_report.regenerate(report, _committed(), ROOT / "docs") == report, (
+        "regenerate: python scripts/quickstart_benchmark.py --readme"
+    )
+    for begin, end in (
+        (quickstart_report.RESULTS_BEGIN, quickstart_report.RESULTS_END),
+        (quickstart_report.CLAIM_BEGIN, quickstart_report.CLAIM_END),
+        (quickstart_report.DEPLOY_BEGIN, quickstart_report.DEPLOY_END),
+    ):
+        assert quickstart.table_in(report, begin, end).strip(), f"{begin[:40]}... is empty"
+
+
+def test_report_tables_show_the_paper_the_seeds_and_the_baseline(record: dict) -> None:
+    tables = quickstart_report.results_tables(record)
+    assert "| DeepLabV3+ / ResNet50 (paper IV-A) | real AirFisheye, test | 0.512 | – |" in tables
+    assert (
+        "mean ± std over 2 seeds (0, 1) | synthetic quickstart, test | 0.250 ± 0.071 | 0.500 ± 0.000 |"
+        in tables
+    )
+    assert "| seed 1 (commit `abc`) | synthetic quickstart, test | 0.300 | 0.500 |" in tables
+    assert "| trivial baseline: mean | synthetic quickstart, test | 0.400 | – | 20.00 |" in tables
+    assert "depth" in quickstart_report.claim_table(record)  # no completion runs: says so, no ratio
+    assert "no finished depth and completion runs" in quickstart_report.claim_table(record)
+
+
+def test_deployment_table_reads_the_export_report() -> None:
+    record = {
+        "model": "deeplabv3plus",
+        "onnx_bytes": 49_500_000,
+        "parity": {"verdict": "max |diff| 1.9e-05 ≤ atol 0.0001: OK", "frames": 4},
+        "latency": {
+            "ratio_ort_over_torch": 0.42,
+            "onnxruntime_ms": 67.6,
+            "pytorch_ms": 161.8,
+            "batch": 4,
+            "threads": 2,
+        },
+        "int8": {
+            "ok": True,
+            "mode": "static",
+            "frames": 64,
+            "fp32_bytes": 49_500_000,
+            "int8_bytes": 12_500_000,
+            "metrics_fp32": {"mIoU": 0.2377, "pixel_acc": 0.7173},
+            "metrics_int8": {"mIoU": 0.2382, "pixel_acc": 0.7171},
+            "speedup": 1.22,
+            "batch": 4,
+            "threads": 2,
+        },
+    }
+    table = quickstart_report.deployment_tables({"seg": record})
+    assert r"| deeplabv3plus (seg) | 49.5 MB | max \|diff\| 1.9e-05 ≤ atol 0.0001: OK (4 frames) |" in table
+    assert "0.42 (67.6 / 161.8 ms, batch 4, 2 threads)" in table
+    assert "49.5 → 12.5 MB | mIoU 0.238 → 0.238, pixel acc 0.717 → 0.717 | ×1.22" in table
+    assert "No export report" in quickstart_report.deployment_tables({})

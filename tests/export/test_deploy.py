@@ -106,11 +106,14 @@ def seg_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Pat
 def seg_export(seg_run: Path, tmp_path_factory: pytest.TempPathFactory):
     """``airfisheye-export ckpt_path=<run dir> out=... quantize=dynamic`` through the CLI main."""
     out = tmp_path_factory.mktemp("seg_export") / "seg.onnx"
+    record = tmp_path_factory.mktemp("seg_export_record") / "export.json"
     spy, stdout = _Spy(), io.StringIO()
     # capsys is function-scoped; this fixture is shared by the module.
     with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(stdout):
         mp.setattr(deploy, "export_deployment", spy)
-        code = export_command([f"ckpt_path={seg_run}", f"out={out}", "quantize=dynamic", "repeats=3"])
+        code = export_command(
+            [f"ckpt_path={seg_run}", f"out={out}", "quantize=dynamic", "repeats=3", f"report_json={record}"]
+        )
     return code, stdout.getvalue(), out, spy.report
 
 
@@ -132,6 +135,21 @@ def test_seg_export_writes_one_verified_file(seg_export) -> None:
     for text in ("max |diff|", "≤ atol 0.0001: OK", "ratio ort/torch", "int8 (dynamic)", "mIoU", "speed-up"):
         assert text in stdout
     assert stdout.index(": OK") < stdout.index(f"wrote {out}")  # the verdict, then what was written
+
+
+def test_seg_export_writes_its_report_as_json(seg_export) -> None:
+    code, stdout, out, report = seg_export
+    path = Path(stdout.split("wrote ")[-1].strip())
+    assert code == 0 and path.name == "export.json"
+    record = json.loads(path.read_text(encoding="utf-8"))
+    assert record["onnx"] == str(out) and record["onnx_bytes"] == out.stat().st_size
+    assert record["parity"]["max_abs_diff"] == report.parity.max_abs_diff
+    assert record["parity"]["verdict"].endswith(": OK") and record["parity"]["atol"] == 1e-4
+    assert record["latency"]["ratio_ort_over_torch"] == pytest.approx(report.parity.latency_ratio)
+    int8 = record["int8"]
+    assert int8["ok"] and int8["metrics_int8"] == report.quantization.metrics_int8
+    assert int8["speedup"] == pytest.approx(report.quantization.speedup)
+    assert int8["int8_bytes"] == out.with_name("seg.int8.onnx").stat().st_size
 
 
 def test_seg_export_has_a_dynamic_batch(seg_export, seg_run: Path, tiny_dataset: Path) -> None:
