@@ -49,7 +49,7 @@ for pair in seg:seg depth:depth completion_ordering:completion; do
 done
 # The quick-start rig's occlusion ablation (section 4.5): one epoch per sparse input, the same seed for each.
 for method in ordering zbuffer none; do
-  train "ablation_${method}_1ep" task=completion data.occlusion=$method trainer.max_epochs=1
+  train "ablation_${method}_1ep" task=completion data.occlusion=$method trainer.max_epochs=1 seed=0
 done
 for name in seg depth completion_ordering ablation_ordering_1ep ablation_zbuffer_1ep ablation_none_1ep; do
   evaluate_checkpoint "$name"

@@ -67,6 +67,8 @@ log = logging.getLogger(__name__)
 
 
 def _finite(value: float) -> float | None:
+    """A plain float for JSON (numpy scalars included), ``None`` for ``nan``."""
+    value = float(value)
     return value if math.isfinite(value) else None
 
 
@@ -129,11 +131,11 @@ class DeploymentReport:
                 "frames": self.parity_frames,
                 "atol": self.atol,
                 "rtol": self.rtol,
-                "max_abs_diff": p.max_abs_diff,
-                "max_rel_diff": p.max_rel_diff,
+                "max_abs_diff": _finite(p.max_abs_diff),
+                "max_rel_diff": _finite(p.max_rel_diff),
                 "max_allowance_used": _finite(p.max_allowance_used),
                 "verdict": p.verdict(self.atol, self.rtol),
-                "output_shape": list(p.output_shape),
+                "output_shape": [int(n) for n in p.output_shape],
             },
             "latency": {
                 "batch": self.parity_frames,
@@ -151,8 +153,8 @@ class DeploymentReport:
                 "error": q.error,
                 "onnx": None if q.path is None else str(q.path),
                 "frames": q.frames,
-                "metrics_fp32": q.metrics_fp32,
-                "metrics_int8": q.metrics_int8,
+                "metrics_fp32": {k: _finite(v) for k, v in q.metrics_fp32.items()},
+                "metrics_int8": {k: _finite(v) for k, v in q.metrics_int8.items()},
                 "fp32_bytes": q.fp32_bytes,
                 "int8_bytes": q.int8_bytes,
                 "fp32_ms": _finite(q.fp32_ms),

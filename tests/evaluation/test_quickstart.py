@@ -204,3 +204,28 @@ def test_deployment_table_reads_the_export_report() -> None:
     assert "0.42 (67.6 / 161.8 ms, batch 4, 2 threads)" in table
     assert "49.5 → 12.5 MB | mIoU 0.238 → 0.238, pixel acc 0.717 → 0.717 | ×1.22" in table
     assert "No export report" in quickstart_report.deployment_tables({})
+
+
+def test_rings_table_averages_the_seeds_that_recorded_a_breakdown(record: dict) -> None:
+    record = json.loads(json.dumps(record))
+    seeds = record["tasks"]["seg"]["seeds"]
+    seeds["0"]["breakdown"] = {"ring_0-30/mIoU": 0.1, "ring_30-95/mIoU": 0.3}
+    seeds["1"]["breakdown"] = {"ring_0-30/mIoU": 0.2, "ring_30-95/mIoU": 0.5}
+    record["tasks"]["depth"]["seeds"]["0"]["breakdown"] = {"ring_0-30/rmse": 12.0, "range_0-10/rmse": 2.5}
+    coverage = {
+        "command": "python scripts/sparse_coverage.py",
+        "commit": "0123456789",
+        "frames": 21,
+        "rings": [
+            {"theta_deg": [0, 30], "sparse_per_truth_pixel": 0.918},
+            {"theta_deg": [30, 95], "sparse_per_truth_pixel": 0.5},
+        ],
+    }
+    table = quickstart_report.rings_tables(record, coverage)
+    assert "| incidence angle θ | 0-30° | 30-95° | seeds |" in table
+    assert "| segmentation mIoU | 0.150 | 0.400 | 0, 1 |" in table
+    assert "| monocular depth RMSE (m) | 12.00 | – | 0 |" in table
+    assert "| sparse LiDAR pixels per ground-truth pixel | 0.918 | 0.500 | (21 test frames) |" in table
+    assert "| monocular depth RMSE (m) | 2.50 | 0 |" in table  # by range
+    del seeds["0"]["breakdown"], seeds["1"]["breakdown"], record["tasks"]["depth"]["seeds"]["0"]["breakdown"]
+    assert "no per-ring breakdown" in quickstart_report.rings_tables(record, coverage)
