@@ -66,6 +66,14 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 
+def _relative(path: Path) -> str:
+    """``path`` relative to the working directory when it lies below it (a record names no machine's folders)."""
+    try:
+        return Path(path).resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return str(path)
+
+
 def _finite(value: float) -> float | None:
     """A plain float for JSON (numpy scalars included), ``None`` for ``nan``."""
     value = float(value)
@@ -125,7 +133,7 @@ class DeploymentReport:
             "onnx_bytes": self.path.stat().st_size,
             "task": self.task,
             "model": self.model,
-            "checkpoint": str(self.checkpoint),
+            "checkpoint": _relative(self.checkpoint),
             "dynamic_spatial": self.dynamic_spatial,
             "parity": {
                 "frames": self.parity_frames,
