@@ -45,6 +45,7 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.cli.options import Command, Parsed, option, parse, render_help, wants_help
 from airfisheye_bench.errors import ConfigError, debug_requested, report_user_errors
 
@@ -319,8 +320,6 @@ def export(argv: Sequence[str] | None = None) -> int:
         return 2
     print(report.summary())
     if report_json:
-        from airfisheye_bench.atomic import atomic_write_text
-
         atomic_write_text(report_json, json.dumps(report.to_dict(), indent=2) + "\n")
         print(f"wrote {report_json}")
     if mlflow_run:
