@@ -26,6 +26,7 @@ from torch import Tensor, nn
 
 import models
 from airfisheye_bench.export import export_onnx, verify_onnx
+from airfisheye_bench.export.deploy import parity_tolerance
 from airfisheye_bench.io.deployment import read_onnx_metadata
 
 _PRIMARY_KEY = {"seg": "logits", "depth": "depth", "completion": "depth"}
@@ -84,10 +85,10 @@ class BaseModelTester:
         return inputs
 
     def tolerances(self) -> tuple[float, float]:
-        if self.task == "seg":
-            atol, rtol = 1e-4, 0.0
-        else:  # depth in metres: relative error; a tiny atol for exact zeros (clamped completion output)
-            atol, rtol = 1e-6, 1e-3
+        # The export's own contract (the task spec's parity rule): segmentation logits within 1e-4, depth within
+        # 1e-4 m + 1e-3 relative. A stricter floor fails on round-off: an untrained NLSPN outputs depths of ~1e-4 m,
+        # where a 1.4e-6 m difference between ONNX Runtime and PyTorch is 1.5 % relative.
+        atol, rtol = parity_tolerance(self.task)
         return (self.onnx_atol if self.onnx_atol is not None else atol), (
             self.onnx_rtol if self.onnx_rtol is not None else rtol
         )
