@@ -404,7 +404,7 @@ def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.
             seconds = round(summary["wall_s"]["mean"])
             wall = f"{seconds // 60} min {seconds % 60:02d} s"
         if missing:
-            result += f"; seed{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} not finished"
+            result += f"; seed{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} not yet in the record"
         base = entry.get("baseline")
         base_text = "–"
         if base is not None:
