@@ -302,6 +302,7 @@ def summarize(
     dataset = next(iter(identities.values()), {})
     if previous is not None:
         _carry_over(tasks, previous, dataset)
+        tasks = {task: tasks[task] for task in QUICKSTART_TASKS if task in tasks}
         if not dataset:
             dataset = dict(previous.get("dataset", {}))
     for task, entry in tasks.items():
@@ -327,7 +328,7 @@ def summarize(
 
 
 def _carry_over(tasks: dict[str, Any], previous: dict[str, Any], dataset: dict[str, Any]) -> None:
-    """Fill the planned seeds that have no run here from ``previous``'s, in seed order (see :func:`summarize`)."""
+    """Fill the planned seeds that have no run here, and the tasks not planned, from ``previous`` (:func:`summarize`)."""
     before = previous.get("dataset", {}).get("content_sha256")
     now = dataset.get("content_sha256")
     for task, entry in tasks.items():
@@ -343,6 +344,15 @@ def _carry_over(tasks: dict[str, Any], previous: dict[str, Any], dataset: dict[s
         entry["seeds"].update({str(s): earlier[str(s)] for s in kept})
         entry["seeds"] = dict(sorted(entry["seeds"].items(), key=lambda item: int(item[0])))
         entry["missing_seeds"] = [s for s in entry["missing_seeds"] if s not in kept]
+    for task, entry in previous.get("tasks", {}).items():  # a task not collected this time stays as it was
+        if task in tasks or not entry.get("seeds"):
+            continue
+        if now is not None and before != now:
+            raise ValueError(
+                f"{task} of the earlier record was measured on dataset content {str(before)[:8]}, the runs here "
+                f"on {now[:8]}: the data changed, so re-run every seed"
+            )
+        tasks[task] = json.loads(json.dumps(entry))
 
 
 def _cpu_count() -> int:

@@ -142,6 +142,16 @@ def test_seeds_of_the_earlier_record_are_kept_when_their_runs_are_elsewhere(
     assert depth["summary"]["rmse"]["mean"] == pytest.approx(16.0)
     assert depth["baseline"] == record["tasks"]["depth"]["baseline"]  # nothing here to refit it on
 
+    previous["tasks"]["completion"] = {
+        "seeds": {"0": {"metrics": {"rmse": 5.0}, "wall_s": 1.0}},
+        "missing_seeds": [],
+    }
+    only_seg = quickstart.summarize(
+        runs[:1], {}, "collect seg", "0123", previous
+    )  # seg seed 0 alone collected
+    assert list(only_seg["tasks"]) == ["seg", "depth", "completion"]  # the others are kept as they were
+    assert only_seg["tasks"]["depth"]["seeds"]["1"]["commit"] == "def"
+
     previous["dataset"]["content_sha256"] = "f" * 64  # measured on other data: never mixed
     with pytest.raises(ValueError, match="the data changed"):
         quickstart.summarize(runs, {}, "collect", "0123", previous)
