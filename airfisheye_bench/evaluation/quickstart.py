@@ -314,9 +314,8 @@ def summarize(
         if task in baselines:
             entry["baseline"] = {k: v for k, v in baselines[task].items() if not k.startswith("dataset_")}
         elif previous is not None and "baseline" in previous.get("tasks", {}).get(task, {}):
-            entry["baseline"] = previous["tasks"][task][
-                "baseline"
-            ]  # no run here to fit it on: the data's own
+            # No run here to fit it on: the earlier record's, fitted on the same data.
+            entry["baseline"] = previous["tasks"][task]["baseline"]
     return {
         "format": RESULTS_FORMAT,
         "command": command,
@@ -331,27 +330,27 @@ def _carry_over(tasks: dict[str, Any], previous: dict[str, Any], dataset: dict[s
     """Fill the planned seeds that have no run here, and the tasks not planned, from ``previous`` (:func:`summarize`)."""
     before = previous.get("dataset", {}).get("content_sha256")
     now = dataset.get("content_sha256")
+
+    def check_same_data(what: str) -> None:
+        if now is not None and before != now:
+            raise ValueError(
+                f"{what} of the earlier record were measured on dataset content {str(before)[:8]}, the runs here "
+                f"on {now[:8]}: the data changed, so re-run every seed"
+            )
+
     for task, entry in tasks.items():
         earlier = previous.get("tasks", {}).get(task, {}).get("seeds", {})
         kept = [s for s in entry["missing_seeds"] if str(s) in earlier]
         if not kept:
             continue
-        if now is not None and before != now:
-            raise ValueError(
-                f"{task} seeds {kept} of the earlier record were measured on dataset content "
-                f"{str(before)[:8]}, the runs here on {now[:8]}: the data changed, so re-run every seed"
-            )
+        check_same_data(f"{task} seeds {kept}")
         entry["seeds"].update({str(s): earlier[str(s)] for s in kept})
         entry["seeds"] = dict(sorted(entry["seeds"].items(), key=lambda item: int(item[0])))
         entry["missing_seeds"] = [s for s in entry["missing_seeds"] if s not in kept]
     for task, entry in previous.get("tasks", {}).items():  # a task not collected this time stays as it was
         if task in tasks or not entry.get("seeds"):
             continue
-        if now is not None and before != now:
-            raise ValueError(
-                f"{task} of the earlier record was measured on dataset content {str(before)[:8]}, the runs here "
-                f"on {now[:8]}: the data changed, so re-run every seed"
-            )
+        check_same_data(f"{task} seeds {list(entry['seeds'])}")
         tasks[task] = json.loads(json.dumps(entry))
 
 

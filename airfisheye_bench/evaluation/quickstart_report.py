@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.evaluation.quickstart import QUICKSTART_TASKS, replace_table
+from airfisheye_bench.evaluation.quickstart import QUICKSTART_TASKS, mean_std, replace_table
 from airfisheye_bench.specs import get_task
 
 __all__ = [
@@ -85,16 +85,15 @@ def _mean_std(entry: dict[str, Any], key: str) -> str:
     values = _seed_values(entry, key)
     if not values:
         return "–"
-    mean = sum(values) / len(values)
-    if len(values) == 1:
-        return _fmt(key, mean)
-    std = (sum((v - mean) ** 2 for v in values) / (len(values) - 1)) ** 0.5
-    return f"{_fmt(key, mean)} ± {_fmt(key, std)}"
+    stat = mean_std(values)
+    if stat["std"] is None:
+        return _fmt(key, stat["mean"])
+    return f"{_fmt(key, stat['mean'])} ± {_fmt(key, stat['std'])}"
 
 
 def _mean(entry: dict[str, Any], key: str) -> float | None:
     values = _seed_values(entry, key)
-    return sum(values) / len(values) if values else None
+    return mean_std(values)["mean"] if values else None
 
 
 def _seeds_label(entry: dict[str, Any]) -> str:
