@@ -20,6 +20,7 @@ agree.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -33,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from airfisheye_bench.atomic import atomic_write_text
@@ -320,7 +322,7 @@ def summarize(
         "format": RESULTS_FORMAT,
         "command": command,
         "commit": commit,
-        "machine": f"{platform.machine()}, {_cpu_count()} CPU cores, torch {torch.__version__}",
+        "machine": machine(),
         "dataset": {k: v for k, v in dataset.items() if k != "root"},
         "tasks": tasks,
     }
@@ -334,8 +336,9 @@ def _carry_over(tasks: dict[str, Any], previous: dict[str, Any], dataset: dict[s
     def check_same_data(what: str) -> None:
         if now is not None and before != now:
             raise ValueError(
-                f"{what} of the earlier record were measured on dataset content {str(before)[:8]}, the runs here "
-                f"on {now[:8]}: the data changed, so re-run every seed"
+                f"{what} of the earlier record were measured on dataset content {str(before)[:8]} "
+                f"({previous.get('machine', 'machine not recorded')}), the runs here on {now[:8]} ({machine()}): "
+                "the data changed, so re-run every seed"
             )
 
     for task, entry in tasks.items():
@@ -352,6 +355,23 @@ def _carry_over(tasks: dict[str, Any], previous: dict[str, Any], dataset: dict[s
             continue
         check_same_data(f"{task} seeds {list(entry['seeds'])}")
         tasks[task] = json.loads(json.dumps(entry))
+
+
+def machine() -> str:
+    """What the record was made on: architecture, CPU model and cores, torch and numpy (data and kernels may
+    differ between CPUs and library versions, so a record says where its numbers came from)."""
+    return (
+        f"{platform.machine()}, {_cpu_model()}, {_cpu_count()} CPU cores, torch {torch.__version__}, "
+        f"numpy {np.__version__}"
+    )
+
+
+def _cpu_model() -> str:
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.processor() or "unknown CPU"
 
 
 def _cpu_count() -> int:

@@ -2,7 +2,10 @@
 
 A preset lives at ``<root>/<preset>[-<lidar_preset>]-v<version>[-seed<seed>]`` (root: ``$AIRFISHEYE_DATA`` or
 ``~/.cache/airfisheye-bench``). It is generated into ``<path>.partial`` under an exclusive lock file and renamed when
-complete, so concurrent processes generate it once and an interrupted generation resumes.
+complete, so concurrent processes generate it once and an interrupted generation resumes. A cached preset is
+checked against the installed generator once per process (:func:`~airfisheye_bench.synth.writer.stale_file`: a
+sample of its frames re-rendered) and generated again, with a warning naming the file that differs, when this
+version writes something else: a cache never serves data the code no longer produces.
 """
 
 from __future__ import annotations
@@ -13,12 +16,15 @@ import os
 import shutil
 from pathlib import Path
 
-from airfisheye_bench.synth.presets import GENERATOR_VERSION, get_preset
-from airfisheye_bench.synth.writer import generate_dataset
+from airfisheye_bench.synth.presets import GENERATOR_VERSION, SynthConfig, get_preset
+from airfisheye_bench.synth.writer import generate_dataset, stale_file
 
 log = logging.getLogger(__name__)
 
 DATA_ENV_VAR = "AIRFISHEYE_DATA"
+
+#: Cached datasets found current in this process (path, manifest mtime): the check runs once per process.
+_CURRENT: set[tuple[str, int]] = set()
 
 
 def default_data_root() -> Path:
@@ -70,13 +76,16 @@ def ensure_dataset(
     if lidar_preset is not None:
         config = config.replace(lidar_preset=lidar_preset)
     target = cached_dataset_path(preset, root, seed, lidar_preset)
-    if (target / "manifest.json").is_file():
+    if _is_current(target, config, seed, device):
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
     with _exclusive_lock(target.with_name(target.name + ".lock")):
-        if (target / "manifest.json").is_file():  # another process finished while we waited
+        if _is_current(target, config, seed, device, warn=False):  # another process finished meanwhile
             return target
         partial = target.with_name(target.name + ".partial")
+        if partial.exists() and stale_file(partial, config, seed, device) is not None:
+            log.warning("%s was begun by another version of the generator: starting it again", partial)
+            shutil.rmtree(partial)
         if workers is None:
             workers = max(1, min(8, os.cpu_count() or 1))
         log.info("generating the %r synthetic dataset into %s (first use)", preset, target)
@@ -88,10 +97,38 @@ def ensure_dataset(
             device=device,
             progress=progress,
         )
-        if target.exists():  # a stale, incomplete folder (e.g. removed manifest): replace it
-            shutil.rmtree(target)
-        os.replace(partial, target)
+        if target.exists():  # stale (another generator's) or incomplete (e.g. removed manifest): replace it
+            old = target.with_name(target.name + ".old")
+            shutil.rmtree(old, ignore_errors=True)
+            os.replace(target, old)
+            os.replace(partial, target)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(partial, target)
     return target
+
+
+def _is_current(target: Path, config: SynthConfig, seed: int, device: str, warn: bool = True) -> bool:
+    """Whether ``target`` is a complete dataset that this generator writes as it is (checked once per process)."""
+    manifest = target / "manifest.json"
+    if not manifest.is_file():
+        return False
+    key = (str(target), manifest.stat().st_mtime_ns)
+    if key in _CURRENT:
+        return True
+    differs = stale_file(target, config, seed, device)
+    if differs is not None:
+        if warn:
+            log.warning(
+                "the cached dataset %s was written by another version of the generator (%s differs from what this "
+                "version writes): generating it again; runs on the old data keep its content identity in their "
+                "results.json",
+                target,
+                differs,
+            )
+        return False
+    _CURRENT.add(key)
+    return True
 
 
 @contextlib.contextmanager

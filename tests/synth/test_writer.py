@@ -350,6 +350,35 @@ def test_ensure_dataset_generates_once_for_concurrent_callers(tmp_path, monkeypa
     assert not results[0].with_name(results[0].name + ".partial").exists()
 
 
+def test_a_cache_written_by_another_generator_is_generated_again(tmp_path, monkeypatch, caplog):
+    monkeypatch.setitem(PRESETS, "micro", MICRO)
+    monkeypatch.setattr(cache, "_CURRENT", set())
+    root = cache.ensure_dataset("micro", root=tmp_path, workers=1, progress=False)
+    assert writer.stale_file(root, MICRO) is None  # the sampled frames re-render to the same content
+    before = _tree_bytes(root)
+
+    # What an older generator would have left: one LiDAR point 1 mm off in a sampled frame.
+    plan = plan_trajectories(MICRO, ENVIRONMENTS)[0]
+    rel = f"{plan.key}/lidar/000000.npy"
+    points = np.load(root / rel)
+    points[0, 0] += 1e-3
+    np.save(root / rel, points)
+    assert writer.stale_file(root, MICRO) == rel
+
+    monkeypatch.setattr(cache, "_CURRENT", set())  # a new process
+    with caplog.at_level("WARNING", logger=cache.log.name):
+        again = cache.ensure_dataset("micro", root=tmp_path, workers=1, progress=False)
+    assert again == root and verify(root).ok
+    assert f"{rel} differs from what this version writes" in caplog.text
+    after = _tree_bytes(root)
+    assert after.keys() == before.keys() and after[rel] == before[rel]
+    assert not list(tmp_path.glob("*.old")) and not list(tmp_path.glob("*.partial"))
+
+    # Another config under the same name (a preset edited without a version bump) is stale too.
+    monkeypatch.setitem(PRESETS, "micro", MICRO.replace(lidar_points_per_channel=48))
+    assert writer.stale_file(root, PRESETS["micro"]) == "dataset.yaml"
+
+
 def test_cli_generates_and_writes_a_contact_sheet(tiny_dataset, tmp_path):
     png = tmp_path / "sheet.png"
     assert cli_main(["contact_sheet", f"root={tiny_dataset}", f"png={png}"]) == 0
