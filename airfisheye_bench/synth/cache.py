@@ -11,11 +11,19 @@ version writes something else: a cache never serves data the code no longer prod
 from __future__ import annotations
 
 import contextlib
+import functools
+import hashlib
+import json
 import logging
 import os
 import shutil
 from pathlib import Path
 
+import numpy as np
+import torch
+
+from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.io.manifest import sha256_file
 from airfisheye_bench.synth.presets import GENERATOR_VERSION, SynthConfig, get_preset
 from airfisheye_bench.synth.writer import generate_dataset, stale_file
 
@@ -23,6 +31,8 @@ log = logging.getLogger(__name__)
 
 DATA_ENV_VAR = "AIRFISHEYE_DATA"
 
+#: Where a cached dataset records the code it was last found current with (left out of the manifest by its prefix).
+CURRENT_MARKER = ".airfisheye-current.json"
 #: Cached datasets found current in this process (path, manifest mtime): the check runs once per process.
 _CURRENT: set[tuple[str, int]] = set()
 
@@ -105,17 +115,27 @@ def ensure_dataset(
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(partial, target)
+        _mark_current(target)
     return target
 
 
 def _is_current(target: Path, config: SynthConfig, seed: int, device: str, warn: bool = True) -> bool:
-    """Whether ``target`` is a complete dataset that this generator writes as it is (checked once per process)."""
+    """Whether ``target`` is a complete dataset that this generator writes as it is.
+
+    The answer is kept for the process and, in ``target/.airfisheye-current.json``, for the installed code (a hash of
+    the package's sources and the torch and numpy versions): the sample is re-rendered once after each change of
+    code or libraries, not on every run.
+    """
     manifest = target / "manifest.json"
     if not manifest.is_file():
         return False
     key = (str(target), manifest.stat().st_mtime_ns)
     if key in _CURRENT:
         return True
+    with contextlib.suppress(OSError, ValueError):
+        if json.loads((target / CURRENT_MARKER).read_text(encoding="utf-8")) == _stamp(target):
+            _CURRENT.add(key)
+            return True
     differs = stale_file(target, config, seed, device)
     if differs is not None:
         if warn:
@@ -127,8 +147,30 @@ def _is_current(target: Path, config: SynthConfig, seed: int, device: str, warn:
                 differs,
             )
         return False
-    _CURRENT.add(key)
+    _mark_current(target)
     return True
+
+
+def _stamp(target: Path) -> dict[str, str]:
+    return {"manifest_sha256": sha256_file(target / "manifest.json"), "code": _code_fingerprint()}
+
+
+def _mark_current(target: Path) -> None:
+    """Record that ``target`` is what the installed generator writes (for this process and the next ones)."""
+    with contextlib.suppress(OSError):  # a read-only cache is checked again next time
+        atomic_write_text(target / CURRENT_MARKER, json.dumps(_stamp(target)) + "\n")
+    _CURRENT.add((str(target), (target / "manifest.json").stat().st_mtime_ns))
+
+
+@functools.cache
+def _code_fingerprint() -> str:
+    """SHA-256 of this package's Python sources, with the torch and numpy versions (what the generator's output
+    can depend on)."""
+    package = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256(f"torch {torch.__version__} numpy {np.__version__}".encode())
+    for path in sorted(package.rglob("*.py")):
+        h.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
 
 
 @contextlib.contextmanager

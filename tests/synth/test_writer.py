@@ -79,10 +79,12 @@ def test_layout_and_dataset_yaml(tiny_dataset):
         assert calib.face_size == s and calib.lidar_spec() == cfg.lidar_spec()
         assert reader.imu(traj).rate_hz == cfg.flight.imu_rate_hz
 
-    # No journal, state or temporary files. The content identity's cache is the reader's (io.content), written
-    # when another test of the session identified this shared dataset.
+    # No journal, state or temporary files. The content identity's cache (io.content) and the preset cache's
+    # marker (synth.cache) are the readers', written when another test of the session used this shared dataset.
     leftovers = [
-        p.name for p in tiny_dataset.rglob("*") if p.name.startswith(".") and p.name != CONTENT_CACHE_NAME
+        p.name
+        for p in tiny_dataset.rglob("*")
+        if p.name.startswith(".") and p.name not in (CONTENT_CACHE_NAME, cache.CURRENT_MARKER)
     ]
     assert leftovers == []
     assert verify(tiny_dataset).ok
@@ -365,7 +367,13 @@ def test_a_cache_written_by_another_generator_is_generated_again(tmp_path, monke
     np.save(root / rel, points)
     assert writer.stale_file(root, MICRO) == rel
 
-    monkeypatch.setattr(cache, "_CURRENT", set())  # a new process
+    probes = []
+    monkeypatch.setattr(cache, "stale_file", lambda *a: probes.append(a) or writer.stale_file(*a))
+    monkeypatch.setattr(cache, "_CURRENT", set())  # a new process, the same code: the marker answers
+    assert cache.ensure_dataset("micro", root=tmp_path, progress=False) == root and not probes
+
+    monkeypatch.setattr(cache, "_CURRENT", set())  # a new process with other code
+    monkeypatch.setattr(cache, "_code_fingerprint", lambda: "another version")
     with caplog.at_level("WARNING", logger=cache.log.name):
         again = cache.ensure_dataset("micro", root=tmp_path, workers=1, progress=False)
     assert again == root and verify(root).ok
@@ -373,6 +381,11 @@ def test_a_cache_written_by_another_generator_is_generated_again(tmp_path, monke
     after = _tree_bytes(root)
     assert after.keys() == before.keys() and after[rel] == before[rel]
     assert not list(tmp_path.glob("*.old")) and not list(tmp_path.glob("*.partial"))
+    probes.clear()
+    monkeypatch.setattr(cache, "_CURRENT", set())
+    assert (
+        cache.ensure_dataset("micro", root=tmp_path, progress=False) == root and not probes
+    )  # marked current
 
     # Another config under the same name (a preset edited without a version bump) is stale too.
     monkeypatch.setitem(PRESETS, "micro", MICRO.replace(lidar_points_per_channel=48))
