@@ -3,9 +3,10 @@
 A preset lives at ``<root>/<preset>[-<lidar_preset>]-v<version>[-seed<seed>]`` (root: ``$AIRFISHEYE_DATA`` or
 ``~/.cache/airfisheye-bench``). It is generated into ``<path>.partial`` under an exclusive lock file and renamed when
 complete, so concurrent processes generate it once and an interrupted generation resumes. A cached preset is
-checked against the installed generator once per process (:func:`~airfisheye_bench.synth.writer.stale_file`: a
-sample of its frames re-rendered) and generated again, with a warning naming the file that differs, when this
-version writes something else: a cache never serves data the code no longer produces.
+checked against the installed generator (:func:`~airfisheye_bench.synth.writer.stale_file`: a sample of its frames
+re-rendered; once per change of the installed code, recorded in :data:`CURRENT_MARKER`) and generated again, with a
+warning naming the file that differs, when this version writes something else, so that the cache does not serve
+data the code no longer produces.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ DATA_ENV_VAR = "AIRFISHEYE_DATA"
 
 #: Where a cached dataset records the code it was last found current with (left out of the manifest by its prefix).
 CURRENT_MARKER = ".airfisheye-current.json"
-#: Cached datasets found current in this process (path, manifest mtime): the check runs once per process.
+#: Cached datasets found current in this process (path, manifest mtime).
 _CURRENT: set[tuple[str, int]] = set()
 
 
