@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
+import json
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
+
+try:  # numpy's table of CPU features (numpy 2; numpy 1 kept it in numpy.core)
+    from numpy._core import _multiarray_umath as _umath
+except ImportError:  # pragma: no cover
+    from numpy.core import _multiarray_umath as _umath
 
 from airfisheye_bench.io.content import CONTENT_CACHE_NAME, content_identity, decoded_content
 from airfisheye_bench.io.manifest import create_manifest, sha256_file
@@ -26,6 +35,43 @@ def test_tiny_has_its_documented_content(tiny_dataset: Path) -> None:
         "the generator's output for preset=tiny changed: if that is intended, update TINY_CONTENT_SHA256 and "
         "the results documented on the old data"
     )
+
+
+#: Generate ``tiny`` and print its content identity, in a process whose math libraries take their plainest paths.
+_GENERATE_AND_IDENTIFY = """
+import json, sys
+from airfisheye_bench.io.content import content_identity
+from airfisheye_bench.synth.writer import generate_dataset
+print(json.dumps(content_identity(generate_dataset("tiny", sys.argv[1], workers=1, progress=False))))
+"""
+
+
+def _scalar_kernels_env() -> dict[str, str]:
+    """Environment that turns off the CPU-specific vector kernels this machine would use: torch's (the default,
+    unvectorised build of each operator), numpy's dispatched SIMD paths (down to its baseline) and MKL's
+    CPU-dependent code paths."""
+    env = dict(os.environ)
+    env["ATEN_CPU_CAPABILITY"] = "default"
+    env["NPY_DISABLE_CPU_FEATURES"] = " ".join(
+        f for f in _umath.__cpu_dispatch__ if _umath.__cpu_features__.get(f)
+    )
+    env["MKL_CBWR"] = "COMPATIBLE"
+    return env
+
+
+def test_tiny_does_not_depend_on_the_cpus_vector_kernels(tmp_path: Path) -> None:
+    """The same content with the vector kernels of this CPU turned off: the data must not depend on which SIMD
+    path (AVX2, AVX-512, none) a machine's torch, numpy and MKL take."""
+    out = subprocess.run(
+        [sys.executable, "-c", _GENERATE_AND_IDENTIFY, str(tmp_path / "tiny")],
+        env=_scalar_kernels_env(),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    identity = json.loads(out.stdout.strip().splitlines()[-1])
+    assert identity["content_sha256"] == TINY_CONTENT_SHA256
 
 
 @pytest.fixture
