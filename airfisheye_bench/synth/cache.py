@@ -133,8 +133,9 @@ def _is_current(target: Path, config: SynthConfig, seed: int, device: str, warn:
     key = (str(target), manifest.stat().st_mtime_ns)
     if key in _CURRENT:
         return True
+    stamp = _stamp(target)
     with contextlib.suppress(OSError, ValueError):
-        if json.loads((target / CURRENT_MARKER).read_text(encoding="utf-8")) == _stamp(target):
+        if json.loads((target / CURRENT_MARKER).read_text(encoding="utf-8")) == stamp:
             _CURRENT.add(key)
             return True
     differs = stale_file(target, config, seed, device)
@@ -148,7 +149,7 @@ def _is_current(target: Path, config: SynthConfig, seed: int, device: str, warn:
                 differs,
             )
         return False
-    _mark_current(target)
+    _mark_current(target, stamp)
     return True
 
 
@@ -156,10 +157,11 @@ def _stamp(target: Path) -> dict[str, str]:
     return {"manifest_sha256": sha256_file(target / "manifest.json"), "code": _code_fingerprint()}
 
 
-def _mark_current(target: Path) -> None:
-    """Record that ``target`` is what the installed generator writes (for this process and the next ones)."""
+def _mark_current(target: Path, stamp: dict[str, str] | None = None) -> None:
+    """Record that ``target`` is what the installed generator writes (for this process and the next ones);
+    ``stamp``: its :func:`_stamp`, when the caller has it."""
     with contextlib.suppress(OSError):  # a read-only cache is checked again next time
-        atomic_write_text(target / CURRENT_MARKER, json.dumps(_stamp(target)) + "\n")
+        atomic_write_text(target / CURRENT_MARKER, json.dumps(stamp or _stamp(target)) + "\n")
     _CURRENT.add((str(target), (target / "manifest.json").stat().st_mtime_ns))
 
 

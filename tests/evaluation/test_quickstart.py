@@ -146,9 +146,7 @@ def test_seeds_of_the_earlier_record_are_kept_when_their_runs_are_elsewhere(
         "seeds": {"0": {"metrics": {"rmse": 5.0}, "wall_s": 1.0}},
         "missing_seeds": [],
     }
-    only_seg = quickstart.summarize(
-        runs[:1], {}, "collect seg", "0123", previous
-    )  # seg seed 0 alone collected
+    only_seg = quickstart.summarize(runs[:1], {}, "collect seg", "0123", previous)  # seg seed 0 alone
     assert list(only_seg["tasks"]) == ["seg", "depth", "completion"]  # the others are kept as they were
     assert only_seg["tasks"]["depth"]["seeds"]["1"]["commit"] == "def"
 
