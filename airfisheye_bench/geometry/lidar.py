@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from airfisheye_bench.geometry import portable
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 
@@ -227,7 +228,10 @@ class LidarSpec:
             [[0.0, 0.0, 0.2], [0.0, 0.1, 0.0]]
         """
         radial, tangential, vertical = self.channel_origins()[np.asarray(channel)].T
-        c, s = np.cos(azimuth), np.sin(azimuth)
+        c, s = (
+            portable.cos(azimuth),
+            portable.sin(azimuth),
+        )  # generated scans start here: the same bits on any CPU
         return np.stack([radial * c - tangential * s, radial * s + tangential * c, vertical], axis=-1)
 
     # ------------------------------------------------------------------ construction and serialisation

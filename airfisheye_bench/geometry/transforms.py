@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from airfisheye_bench.geometry import portable
 from airfisheye_bench.geometry._arrays import ArrayLike, as_tensor, back, check_last_dim
 
 #: Rotation taking FLU (x forward, y left, z up) direction coordinates to OpenCV camera coordinates
@@ -114,7 +115,11 @@ def euler_to_matrix(roll: ArrayLike | float, pitch: ArrayLike | float, yaw: Arra
     p, _ = as_tensor(pitch, "pitch", dtype=dtype)
     y, _ = as_tensor(yaw, "yaw", dtype=dtype)
     r, p, y = torch.broadcast_tensors(r, p, y)
-    cr, sr, cp, sp, cy, sy = r.cos(), r.sin(), p.cos(), p.sin(), y.cos(), y.sin()
+    if r.device.type == "cpu" and not (r.requires_grad or p.requires_grad or y.requires_grad):
+        # Poses of generated data: the C library's sin/cos, the same bits on every CPU (see portable).
+        cr, sr, cp, sp, cy, sy = (f(a) for a in (r, p, y) for f in (portable.cos, portable.sin))
+    else:
+        cr, sr, cp, sp, cy, sy = r.cos(), r.sin(), p.cos(), p.sin(), y.cos(), y.sin()
     R = torch.stack(
         [
             torch.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], -1),

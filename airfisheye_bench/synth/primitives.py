@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import torch
 
+from airfisheye_bench.geometry import portable
 from airfisheye_bench.synth._ops import select as _select
 
 __all__ = [
@@ -187,7 +188,7 @@ def box_surface(
     nlx = nx_tab.gather(0, sel)[0]
     nly = ny_tab.gather(0, sel)[0]
     nlz = nz_tab.gather(0, sel)[0]
-    norm = torch.sqrt(nlx * nlx + nly * nly + nlz * nlz)
+    norm = portable.sqrt(nlx * nlx + nly * nly + nlz * nlz)
     nlx, nly, nlz = nlx / norm, nly / norm, nlz / norm
     nwx = c * nlx - s * nly
     nwy = s * nlx + c * nly
@@ -211,7 +212,7 @@ def _cylinder_interval(rays: torch.Tensor, p: torch.Tensor) -> tuple[torch.Tenso
     t_c = -(px * dx + py * dy) / a
     qx, qy = px + t_c * dx, py + t_c * dy
     c = qx * qx + qy * qy - p[2] * p[2]
-    half = torch.sqrt(torch.clamp(-c / a, min=0.0))
+    half = portable.sqrt(torch.clamp(-c / a, min=0.0))
     ts0, ts1 = t_c - half, t_c + half
     ez = _safe(dz)
     tz0 = (p[3] - oz) / ez
@@ -243,7 +244,7 @@ def cylinder_surface(
     ox, oy, oz, dx, dy, dz = rays
     hx, hy, hz = ox + t * dx, oy + t * dy, oz + t * dz
     rx, ry = hx - params[0], hy - params[1]
-    rn = torch.sqrt(rx * rx + ry * ry)
+    rn = portable.sqrt(rx * rx + ry * ry)
     rn = torch.where(rn > 0, rn, torch.ones_like(rn))
     zero = torch.zeros_like(rx)
     nx = torch.where(cap, zero, rx / rn)
@@ -262,7 +263,7 @@ def _ellipsoid_interval(rays: torch.Tensor, p: torch.Tensor) -> tuple[torch.Tens
     t_c = -(px * qx + py * qy + pz * qz) / a
     mx, my, mz = px + t_c * qx, py + t_c * qy, pz + t_c * qz
     c = mx * mx + my * my + mz * mz - 1.0
-    half = torch.sqrt(torch.clamp(-c / a, min=0.0))
+    half = portable.sqrt(torch.clamp(-c / a, min=0.0))
     return t_c - half, t_c + half, c <= 0
 
 
@@ -283,7 +284,7 @@ def ellipsoid_surface(
     gx = (hx - params[0]) / (params[3] * params[3])
     gy = (hy - params[1]) / (params[4] * params[4])
     gz = (hz - params[2]) / (params[5] * params[5])
-    gn = torch.sqrt(gx * gx + gy * gy + gz * gz)
+    gn = portable.sqrt(gx * gx + gy * gy + gz * gz)
     normal = _facing_normal(gx / gn, gy / gn, gz / gn, rays)
     uv = torch.stack([hx + 0.5 * hz, hy - 0.5 * hz], dim=-1)
     return normal, uv, torch.zeros_like(hx, dtype=torch.uint8)

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
+from airfisheye_bench.geometry import portable
 from airfisheye_bench.synth._ops import nonzero, take
 from airfisheye_bench.synth.builder import SceneData
 from airfisheye_bench.synth.classes import RAW_ID, SKY_ID
@@ -297,7 +298,7 @@ class Scene:
         o = origins.to(self.device, torch.float32)
         p = points.to(self.device, torch.float32)
         v = p - o
-        length = torch.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])
+        length = portable.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])
         safe = torch.where(length > 0, length, torch.ones_like(length))
         d = v / safe.unsqueeze(1)
         reach = length - torch.maximum(torch.full_like(length, abs_eps), rel_eps * length)

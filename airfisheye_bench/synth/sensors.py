@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera, face_rays
+from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera, face_rays, portable
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.synth.classes import IGNORE_ID
 
@@ -173,14 +173,21 @@ class ScanModel:
         if self.dropout > 0:
             keep = rng.random(n) >= self.dropout
             az, el, beam = az[keep], el[keep], beam[keep]
-        dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+        cos_el = portable.cos(el)  # the C library's, not numpy's CPU-dependent vector kernels: see portable
+        dirs = np.stack([cos_el * portable.cos(az), cos_el * portable.sin(az), portable.sin(el)], axis=-1)
         return torch.from_numpy(dirs).to(device=device), beam
 
 
 def _rotate(R: np.ndarray, dirs: torch.Tensor) -> torch.Tensor:
-    """``R [3, 3] @ d`` for directions ``[..., 3]`` in float64, returned as float32."""
-    Rt = torch.as_tensor(R, dtype=torch.float64, device=dirs.device)
-    return (dirs.to(torch.float64) @ Rt.T).to(torch.float32)
+    """``R [3, 3] @ d`` for directions ``[..., 3]`` in float64, returned as float32.
+
+    Written as three products and two sums in a fixed order, not a matrix product: a BLAS kernel's summation order
+    and fused multiply-adds depend on the CPU (MKL's AVX-512 and AVX2 paths differ in the last bit), and one bit in
+    float64 can round the float32 result the other way, so the generated data would depend on the machine.
+    """
+    d = dirs.to(torch.float64)
+    Rt = torch.as_tensor(R, dtype=torch.float64, device=dirs.device).T  # row j: how d's axis j moves
+    return (d[..., 0:1] * Rt[0] + d[..., 1:2] * Rt[1] + d[..., 2:3] * Rt[2]).to(torch.float32)
 
 
 def _cast_camera(scene, lighting, T_world_cam: np.ndarray, dirs_cam: torch.Tensor, max_dist: float):
@@ -278,7 +285,9 @@ def scan_lidar(
         origin = centre.expand_as(dirs)
     else:  # each laser's beam starts where the spec puts it (e.g. 0.2 m above an HDL-64E's base)
         d = beams.cpu().numpy()
-        start_np = spec.beam_origins(np.arctan2(d[:, 1], d[:, 0]), beam_index // spec.points_per_channel)
+        start_np = spec.beam_origins(
+            portable.arctan2(d[:, 1], d[:, 0]), beam_index // spec.points_per_channel
+        )
         start = torch.from_numpy(start_np).to(device=scene.device, dtype=torch.float32)
         origin = centre + _rotate(T_world_lidar[:3, :3], start.to(torch.float64))
     hits = scene.raycast(origin.contiguous(), dirs.contiguous(), max_dist=spec.max_range)

@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass
 
 import torch
 
+from airfisheye_bench.geometry import portable
 from airfisheye_bench.synth._ops import select, take
 
 __all__ = [
@@ -252,7 +253,7 @@ def ground_albedo(
 def sky_color(dirs: torch.Tensor, lighting: Lighting) -> torch.Tensor:
     """Display RGB ``[N, 3]`` of the sky along unit directions: horizon-to-zenith gradient plus a sun glow."""
     up = dirs[:, 2].clamp(0.0, 1.0)
-    s = torch.sqrt(up).unsqueeze(1)
+    s = portable.sqrt(up).unsqueeze(1)
     hor, zen = _vec(lighting.sky_horizon, dirs), _vec(lighting.sky_zenith, dirs)
     sky = hor + s * (zen - hor)
     lx, ly, lz = lighting.sun_direction()
@@ -298,7 +299,7 @@ def shade(
         lighting.sun_intensity * ndl
     ).unsqueeze(1) * _vec(lighting.sun_color, albedo)
     lin = albedo * light * lighting.exposure
-    rgb = torch.sqrt(lin.clamp(0.0, 1.0))
+    rgb = portable.sqrt(lin.clamp(0.0, 1.0))
     # Water: mix in the reflected sky with Schlick's Fresnel term.
     if bool(water.any()):
         cos_i = (-(dirs[:, 0] * nx + dirs[:, 1] * ny + dirs[:, 2] * nz)).clamp(0.0, 1.0)

@@ -40,6 +40,7 @@ from typing import Protocol
 import numpy as np
 import torch
 
+from airfisheye_bench.geometry import portable
 from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, euler_to_matrix, make_transform
 
 GRAVITY = 9.81
@@ -116,7 +117,17 @@ def _cardinal_bspline(x: np.ndarray, k: int, r: int) -> np.ndarray:
     out = np.zeros_like(x)
     for l in range(k + 2):  # noqa: E741 - the usual name in the truncated-power formula
         coef = (-1) ** l * math.comb(k + 1, l) / math.factorial(k - r)
-        out += coef * np.clip(x - l, 0.0, None) ** (k - r)
+        out += coef * _integer_power(np.clip(x - l, 0.0, None), k - r)
+    return out
+
+
+def _integer_power(x: np.ndarray, n: int) -> np.ndarray:
+    """``x ** n`` by repeated multiplication: numpy's ``power`` takes SVML on AVX-512 CPUs and its own kernel
+    elsewhere, which differ in the last bit, and the poses written from these splines must be the same on every
+    CPU (``docs/design.md``, "The same data on every CPU")."""
+    out = np.ones_like(x)
+    for _ in range(n):
+        out = out * x
     return out
 
 
@@ -266,7 +277,7 @@ class Flight:
 
         # Heading: direction of the control polygon, unwrapped so the yaw spline never jumps by 2 pi.
         d = np.gradient(xy, axis=0)
-        yaw_ctrl = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+        yaw_ctrl = np.unwrap(portable.arctan2(d[:, 1], d[:, 0]))
 
         # Altitude: target height above ground, raised to clear everything under the control point's support.
         alt_step = 0.02 * (cfg.altitude_m[1] - cfg.altitude_m[0])
@@ -312,7 +323,8 @@ class Flight:
         v = acc + GRAVITY * _E_Z  # thrust direction: specific force in the world frame
         nv = np.linalg.norm(v, axis=1, keepdims=True)
         zb = v / nv
-        xc = np.stack([np.cos(psi), np.sin(psi), np.zeros_like(psi)], 1)
+        cos_psi, sin_psi = portable.cos(psi), portable.sin(psi)  # the same bits on every CPU: see portable
+        xc = np.stack([cos_psi, sin_psi, np.zeros_like(psi)], 1)
         w = np.cross(zb, xc)
         nw = np.linalg.norm(w, axis=1, keepdims=True)
         yb = w / nw
@@ -323,7 +335,7 @@ class Flight:
         jerk = self.position(t, 3)
         psi_dot = self.yaw(t, 1)[:, 0]
         zb_dot = _project_out(zb, jerk) / nv
-        xc_dot = psi_dot[:, None] * np.stack([-np.sin(psi), np.cos(psi), np.zeros_like(psi)], 1)
+        xc_dot = psi_dot[:, None] * np.stack([-sin_psi, cos_psi, np.zeros_like(psi)], 1)
         w_dot = np.cross(zb_dot, xc) + np.cross(zb, xc_dot)
         yb_dot = _project_out(yb, w_dot) / nw
         xb_dot = np.cross(yb_dot, zb) + np.cross(yb, zb_dot)

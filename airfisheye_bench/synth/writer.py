@@ -23,6 +23,7 @@ What a trajectory is made of is :mod:`~airfisheye_bench.synth.recording`; its ``
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import multiprocessing as mp
@@ -340,6 +341,40 @@ def stale_file(root: str | Path, config: SynthConfig | str, seed: int = 0, devic
     complete = (root / "manifest.json").is_file()
     if complete and DatasetSpec.load(root).generator != generator_identity(config, seed):
         return DATASET_YAML
+    with tempfile.TemporaryDirectory(prefix="airfisheye-probe-") as scratch:
+        for rel in _render_sample(config, seed, Path(scratch), device):
+            if not (root / rel).is_file():
+                if complete:
+                    return rel
+                continue
+            if decoded_content(root / rel) != decoded_content(Path(scratch) / rel):
+                return rel
+    return None
+
+
+def sample_identity(config: SynthConfig | str, seed: int = 0, device: str = "cpu") -> str:
+    """SHA-256 of the decoded content of the sample :func:`stale_file` renders (the metadata and first frame of the
+    first trajectory of every environment): a preset's content in seconds, for checks that the generator writes
+    the same data on every CPU without generating all of it.
+
+    Example:
+        >>> len(sample_identity("tiny"))                                             # doctest: +SKIP
+        64
+    """
+    if isinstance(config, str):
+        config = get_preset(config)
+    digest = hashlib.sha256()
+    with tempfile.TemporaryDirectory(prefix="airfisheye-sample-") as scratch:
+        for rel in sorted(_render_sample(config, seed, Path(scratch), device)):
+            kind, data = decoded_content(Path(scratch) / rel)
+            digest.update(f"{rel}\0{kind}\0{len(data)}\0".encode())
+            digest.update(data)
+    return digest.hexdigest()
+
+
+def _render_sample(config: SynthConfig, seed: int, folder: Path, device: str) -> Iterator[str]:
+    """Render the metadata and first frame of the first trajectory of every environment into ``folder``, on one
+    thread; yields each written file's relative path as it is written."""
     plans = plan_trajectories(config, ENVIRONMENTS)
     first_of_env: dict[str, int] = {}
     for t, plan in enumerate(plans):
@@ -347,20 +382,12 @@ def stale_file(root: str | Path, config: SynthConfig | str, seed: int = 0, devic
     previous = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
-        with tempfile.TemporaryDirectory(prefix="airfisheye-probe-") as scratch:
-            worker = Worker(config, seed, scratch, plans, device)
-            for t in first_of_env.values():
-                for job in (Job(t, -1), Job(t, 0)):
-                    for rel in worker.run(job)[1]:
-                        if not (root / rel).is_file():
-                            if complete:
-                                return rel
-                            continue
-                        if decoded_content(root / rel) != decoded_content(Path(scratch) / rel):
-                            return rel
+        worker = Worker(config, seed, str(folder), plans, device)
+        for t in first_of_env.values():
+            for job in (Job(t, -1), Job(t, 0)):
+                yield from worker.run(job)[1]
     finally:
         torch.set_num_threads(previous)
-    return None
 
 
 def _execute(jobs: list[Job], args: tuple, workers: int) -> Iterator[tuple[str, dict]]:

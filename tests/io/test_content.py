@@ -21,11 +21,14 @@ except ImportError:  # pragma: no cover
 from airfisheye_bench.io.content import CONTENT_CACHE_NAME, content_identity, decoded_content
 from airfisheye_bench.io.manifest import create_manifest, sha256_file
 
-#: ``content_identity`` of ``airfisheye-generate preset=tiny seed=0``. It was the same for datasets generated here
-#: with Pillow 10.4.0 and 13.0.0 and with torch's CPU kernels forced to ATEN_CPU_CAPABILITY=default and AVX512
-#: (all four have identical files, manifest 87abfcb7). Change it only together with a deliberate change of the
+#: ``content_identity`` of ``airfisheye-generate preset=tiny seed=0`` (generator version 2). Measured on an Intel Xeon
+#: with AVX-512 (numpy 2.4.6, torch 2.14.1), with its vector kernels on and, in every combination tried, off
+#: (``test_the_data_do_not_depend_on_the_cpus_vector_kernels``). Change it only together with a deliberate change of the
 #: generator's output (and regenerate the documented results that name it).
-TINY_CONTENT_SHA256 = "58a2ef52d61733332523fca1951ad57e0ea7ab5fd0666f564a4a310c3d43519f"
+TINY_CONTENT_SHA256 = "8b04c5ffd0972aa0f6ffa39f5403c430dbb133c857ee9fa64e8a30348148d20f"
+#: ``synth.writer.sample_identity("quickstart")``: the metadata and first frame of each environment's first flight, on
+#: the same machine; the quick-start record's data must agree with it on every machine.
+QUICKSTART_SAMPLE_SHA256 = "b3f3195facad0ddaef8b1883bedc592f6a9a1ca7235cccabf2fd08bf0cd5b00b"
 
 
 def test_tiny_has_its_documented_content(tiny_dataset: Path) -> None:
@@ -37,41 +40,62 @@ def test_tiny_has_its_documented_content(tiny_dataset: Path) -> None:
     )
 
 
-#: Generate ``tiny`` and print its content identity, in a process whose math libraries take their plainest paths.
+#: Generate ``tiny`` and the ``quickstart`` sample; print both identities, in the environment the test gives.
 _GENERATE_AND_IDENTIFY = """
 import json, sys
 from airfisheye_bench.io.content import content_identity
-from airfisheye_bench.synth.writer import generate_dataset
-print(json.dumps(content_identity(generate_dataset("tiny", sys.argv[1], workers=1, progress=False))))
+from airfisheye_bench.synth.writer import generate_dataset, sample_identity
+tiny = content_identity(generate_dataset("tiny", sys.argv[1], workers=1, progress=False))["content_sha256"]
+quickstart = sample_identity("quickstart") if sys.argv[2] == "1" else None
+print(json.dumps({"tiny": tiny, "quickstart": quickstart}))
 """
 
 
-def _scalar_kernels_env() -> dict[str, str]:
-    """Environment that turns off the CPU-specific vector kernels this machine would use: torch's (the default,
-    unvectorised build of each operator), numpy's dispatched SIMD paths (down to its baseline) and MKL's
-    CPU-dependent code paths."""
-    env = dict(os.environ)
-    env["ATEN_CPU_CAPABILITY"] = "default"
-    env["NPY_DISABLE_CPU_FEATURES"] = " ".join(
-        f for f in _umath.__cpu_dispatch__ if _umath.__cpu_features__.get(f)
-    )
-    env["MKL_CBWR"] = "COMPATIBLE"
-    return env
-
-
-def test_tiny_does_not_depend_on_the_cpus_vector_kernels(tmp_path: Path) -> None:
-    """The same content with the vector kernels of this CPU turned off: the data must not depend on which SIMD
-    path (AVX2, AVX-512, none) a machine's torch, numpy and MKL take."""
+def _identities(tmp_path: Path, env: dict[str, str], quickstart: bool) -> dict[str, str | None]:
     out = subprocess.run(
-        [sys.executable, "-c", _GENERATE_AND_IDENTIFY, str(tmp_path / "tiny")],
-        env=_scalar_kernels_env(),
+        [sys.executable, "-c", _GENERATE_AND_IDENTIFY, str(tmp_path / "tiny"), "1" if quickstart else "0"],
+        env={**os.environ, **env},
         capture_output=True,
         text=True,
         timeout=600,
     )
     assert out.returncode == 0, out.stderr[-2000:]
-    identity = json.loads(out.stdout.strip().splitlines()[-1])
-    assert identity["content_sha256"] == TINY_CONTENT_SHA256
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _numpy_levels() -> list[str]:
+    """This CPU's numpy dispatch targets (e.g. ``X86_V3``, ``X86_V4``, ``AVX512_ICL``), lowest first."""
+    return [f for f in _umath.__cpu_dispatch__ if _umath.__cpu_features__.get(f)]
+
+
+def _scalar_kernels_env() -> dict[str, str]:
+    """The CPU-specific vector kernels this machine would use, turned off: torch's (the default, unvectorised build
+    of each operator), numpy's dispatched SIMD paths (down to its baseline) and MKL's CPU-dependent code paths (its
+    compatible mode, close to the path it takes on AMD CPUs)."""
+    return {
+        "ATEN_CPU_CAPABILITY": "default",
+        "NPY_DISABLE_CPU_FEATURES": " ".join(_numpy_levels()),
+        "MKL_CBWR": "COMPATIBLE",
+    }
+
+
+def test_tiny_does_not_depend_on_the_cpus_vector_kernels(tmp_path: Path) -> None:
+    """The same content with the vector kernels of this CPU turned off: the data must not depend on which SIMD
+    path (AVX2, AVX-512, none) a machine's torch, numpy and MKL take."""
+    assert _identities(tmp_path, _scalar_kernels_env(), quickstart=False)["tiny"] == TINY_CONTENT_SHA256
+
+
+@pytest.mark.slow
+def test_the_data_do_not_depend_on_the_cpus_vector_kernels(tmp_path: Path) -> None:
+    """``tiny`` and the ``quickstart`` sample under each numpy dispatch level this CPU offers (each level turned
+    off in turn, from the highest), torch's default and AVX2 kernels and MKL's compatible mode: one identity each,
+    the one named above (measured on an AVX-512 machine, so a machine without AVX-512 checks against it too)."""
+    levels = _numpy_levels()
+    envs = [{}] + [{"NPY_DISABLE_CPU_FEATURES": " ".join(levels[i:])} for i in reversed(range(len(levels)))]
+    envs += [{"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "AVX2"}, _scalar_kernels_env()]
+    for i, env in enumerate(envs):
+        identity = _identities(tmp_path / str(i), env, quickstart=True)
+        assert identity == {"tiny": TINY_CONTENT_SHA256, "quickstart": QUICKSTART_SAMPLE_SHA256}, env
 
 
 @pytest.fixture

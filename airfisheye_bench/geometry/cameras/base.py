@@ -20,6 +20,7 @@ from typing import Any, ClassVar
 
 import torch
 
+from airfisheye_bench.geometry import portable
 from airfisheye_bench.geometry._arrays import ArrayLike, as_tensor, back, check_last_dim
 
 #: Step (radians) of the central differences behind :meth:`CameraModel.pixels_per_radian`.
@@ -130,7 +131,7 @@ class CameraModel:
         batch_shape = q.shape[:-1]
         u, v = q.to(torch.float64).reshape(-1, 2).T.contiguous()  # flat: the solvers index the stragglers
         x, y, z = self._unproject(u, v)
-        norm = torch.sqrt(x * x + y * y + z * z)
+        norm = portable.sqrt(x * x + y * y + z * z)  # the rays a dataset is rendered along
         rays = torch.stack([x / norm, y / norm, z / norm], -1).view(*batch_shape, 3)
         return back(rays.to(out_dtype), was_numpy)
 
