@@ -16,7 +16,7 @@ from airfisheye_bench.cli import commands
 from airfisheye_bench.cli.options import parse, render_help
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError
-from tests.commands import exit_status
+from tests.helpers.commands import exit_status
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = {

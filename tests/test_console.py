@@ -5,8 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from tests.test_user_errors import EVALUATE, TRAIN, run_command
-from tests.training.test_train import tiny_run_overrides
+from tests.helpers.commands import EVALUATE, TRAIN, run_command
+from tests.helpers.runs import tiny_run_overrides
 
 # A warning as Python prints it (`file.py:12: UserWarning: ...`) or as Lightning does (`file.py:12: ...`).
 WARNING_LINE = re.compile(r"^\S+\.py:\d+: ", re.MULTILINE)

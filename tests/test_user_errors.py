@@ -1,23 +1,21 @@
 """Bad inputs to the real commands end in one line, ``error: <message naming the key or file>``, exit status 2.
 
-Each row of the tables runs a console command as a subprocess (the way a user meets it) and checks the exit
-status, that the message names the key or file, and that no traceback is printed. The rows run concurrently in
-module fixtures: a representative set in the default suite, the other schema rows ``slow`` (every kind of schema
-key is also checked in-process by ``test_schema_table``). Rows on an empty dataset cache check that the command
-stopped before generating the dataset. The rows that need a corrupted dataset load frames in a DataLoader worker
-and are ``slow``.
+Each row of the tables runs a console command the way a user meets it and checks the exit status, that the message
+names the key or file, and that no traceback is printed. The rows run through the commands' own entry functions in
+this process (``tests.helpers.commands.run_in_process``: ``argv``, stdout and stderr as a fresh process has them;
+what a row changes in the process, ``ROW_PATCH``, is put back after it). Module fixtures run the rows once:
+a representative set in the default suite, the other schema rows ``slow`` (every kind of schema key is also checked
+by ``test_schema_table``). Rows on an empty dataset cache check that the command stopped before generating the
+dataset. The rows that need a corrupted dataset load frames in a DataLoader worker and are ``slow``.
 """
 
 from __future__ import annotations
 
 import importlib.util
-import os
 import pickle
 import shutil
-import subprocess
 import sys
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,49 +29,21 @@ from torch.utils.data import DataLoader, Dataset
 from airfisheye_bench.config_checks import RULES, check_common_values
 from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError, UserError, report_user_errors, user_message
 from airfisheye_bench.io.errors import DatasetFormatError
+from tests.helpers.commands import (
+    EVALUATE,
+    EXPORT,
+    INSPECT,
+    INSPECT_ENTRY,
+    TRAIN,
+    Outcome,
+    assert_one_line_error,
+    run_command,
+    run_in_process,
+)
+from tests.helpers.runs import tiny_run_overrides
 from tests.io.datasets.woodscape_fixture import write_woodscape
-from tests.training.test_train import tiny_run_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
-TRAIN = "train.py"
-EVALUATE = "scripts/evaluate.py"
-EXPORT = "scripts/export_onnx.py"
-INSPECT = "-c"  # python -c "<the console entry point>" key=value ...
-INSPECT_ENTRY = "from airfisheye_bench.cli.commands import inspect; inspect()"
-
-
-@dataclass(frozen=True)
-class Outcome:
-    returncode: int
-    stdout: str
-    stderr: str
-
-
-def run_command(
-    script: str, args: list[str], debug: bool = False, extra_env: dict[str, str] | None = None
-) -> Outcome:
-    """Run ``python <script> <args>`` from the project root as a user would (``HYDRA_FULL_ERROR`` unset)."""
-    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    env.update(extra_env or {})
-    if debug:
-        env["HYDRA_FULL_ERROR"] = "1"
-    done = subprocess.run(
-        [sys.executable, script, *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300
-    )
-    return Outcome(done.returncode, done.stdout, done.stderr)
-
-
-def assert_one_line_error(outcome: Outcome, *names: str) -> str:
-    """Exit status 2, no traceback, and exactly one ``error:`` line naming every one of ``names``."""
-    output = outcome.stdout + outcome.stderr
-    errors = [line for line in outcome.stderr.splitlines() if line.startswith("error: ")]
-    assert outcome.returncode == EXIT_USER_ERROR, output[-3000:]
-    assert "Traceback" not in output, output[-3000:]
-    assert len(errors) == 1, outcome.stderr[-3000:]
-    for name in names:
-        assert name in errors[0], errors[0]
-    return errors[0]
 
 
 # ------------------------------------------------------------------- rows run as commands (no corrupt dataset)
@@ -84,12 +54,20 @@ def test_debug_switch_shows_the_traceback(tiny_dataset: Path, tmp_path: Path) ->
     assert "Traceback" in outcome.stderr and "ConfigError: trainer.max_epochs='abc'" in outcome.stderr
 
 
-#: Environment of the rows that need one: no download is tried in a test (HF_HUB_OFFLINE), the cache is empty.
-ROW_ENV = {"offline_weights": lambda tmp: {"HF_HUB_OFFLINE": "1", "HF_HOME": str(tmp / "hf")}}
+#: What a row changes in the process before it runs: no download is tried in a test (huggingface_hub's
+#: ``HF_HUB_OFFLINE``, read from the environment when it is imported, so set on its constants) and the cache is empty.
+def _offline_hub(tmp: Path, patch: pytest.MonkeyPatch) -> None:
+    from huggingface_hub import constants
+
+    patch.setattr(constants, "HF_HUB_OFFLINE", True)
+    patch.setattr(constants, "HF_HUB_CACHE", str(tmp / "hf" / "hub"))
+
+
+ROW_PATCH: dict[str, Callable[[Path, pytest.MonkeyPatch], None]] = {"offline_weights": _offline_hub}
 
 
 def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tuple[str, ...]]]:
-    """Row name -> (script, arguments, strings the message must contain); :data:`ROW_ENV` adds environments."""
+    """Row name -> (script, arguments, strings the message must contain); :data:`ROW_PATCH` prepares the process."""
     garbage = tmp / "garbage.bin"
     garbage.write_bytes(b"\x80\x04 this is not a checkpoint")
     onnx = tmp / "garbage.onnx"
@@ -319,22 +297,17 @@ class RowOutcomes:
 
 
 def _run_rows(tmp: Path, dataset: Path, selected: tuple[str, ...]) -> RowOutcomes:
-    """The selected rows run once each, three at a time (the commands spend most of their time importing)."""
+    """The selected rows, each run once in this process through the command's entry function."""
     rows = {name: row for name, row in _fast_rows(tmp, dataset).items() if name in selected}
     if _has_tensorboard():
         rows.pop("logger_missing", None)
-    with ThreadPoolExecutor(max_workers=3) as pool:
-        futures = {
-            name: pool.submit(
-                run_command, script, args, extra_env=ROW_ENV[name](tmp) if name in ROW_ENV else None
-            )
-            for name, (script, args, _) in rows.items()
-        }
-    return RowOutcomes(
-        tmp,
-        {name: future.result() for name, future in futures.items()},
-        {name: names for name, (_, _, names) in rows.items()},
-    )
+    outcomes = {}
+    for name, (script, args, _) in rows.items():
+        with pytest.MonkeyPatch.context() as patch:
+            if name in ROW_PATCH:
+                ROW_PATCH[name](tmp, patch)
+            outcomes[name] = run_in_process(script, args)
+    return RowOutcomes(tmp, outcomes, {name: names for name, (_, _, names) in rows.items()})
 
 
 def _has_tensorboard() -> bool:
@@ -542,24 +515,21 @@ def test_unknown_preset_is_refused_before_generation(tmp_path: Path) -> None:
 
 def test_a_missing_optional_package_names_its_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """``logger=mlflow`` / ``mlflow_run=`` without mlflow installed (``EXTRAS``): one line naming the key and the
-    extra to install, before any work (the dataset cache stays empty). The package is hidden from the commands by
-    a ``sitecustomize`` that marks it absent, as if it were not installed."""
-    hide = tmp_path / "hide"
-    hide.mkdir()
-    (hide / "sitecustomize.py").write_text("import sys\nsys.modules['mlflow'] = None  # not installed\n")
-    monkeypatch.setenv("PYTHONPATH", str(hide) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    extra to install, before any work (the dataset cache stays empty). The package is hidden from the commands as
+    if it were not installed (``sys.modules['mlflow'] = None``: importing it fails, ``find_spec`` finds nothing)."""
+    monkeypatch.setitem(sys.modules, "mlflow", None)
     cache = [f"paths.data_dir={tmp_path}/cache"]
     rows = {
         TRAIN: ["task=seg", "data.preset=tiny", *cache, "logger=mlflow", f"hydra.run.dir={tmp_path}/r"],
         EVALUATE: [f"ckpt_path={tmp_path}", "mlflow_run=auto", *cache, f"hydra.run.dir={tmp_path}/e"],
         EXPORT: [f"ckpt_path={tmp_path}", f"out={tmp_path}/x.onnx", "mlflow_run=auto"],
     }
-    with ThreadPoolExecutor(max_workers=3) as pool:
-        outcomes = {script: pool.submit(run_command, script, args) for script, args in rows.items()}
-    for script, outcome in outcomes.items():
+    for script, args in rows.items():
         key = "logger.mlflow" if script == TRAIN else "mlflow_run"
         assert_one_line_error(
-            outcome.result(), f"{key} needs the Python package mlflow", 'pip install -e ".[mlflow]"'
+            run_in_process(script, args),
+            f"{key} needs the Python package mlflow",
+            'pip install -e ".[mlflow]"',
         )
     assert not (tmp_path / "cache").exists() and not (tmp_path / "x.onnx").exists()
 

@@ -20,7 +20,7 @@ from airfisheye_bench.geometry.occlusion import (
 )
 from datamodules import AirFisheyeDataModule
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
-from tests.training.test_configs import compose_train
+from tests.helpers.configs import compose_train
 
 
 @pytest.mark.parametrize(

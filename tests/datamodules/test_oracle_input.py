@@ -13,7 +13,7 @@ import yaml
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.occlusion import ORACLE, SPARSE_INPUTS, lidar_depth_map
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
-from tests.training.test_configs import compose_train
+from tests.helpers.configs import compose_train
 
 
 def _dataset(root: Path, occlusion: str, min_range: float = 0.5) -> AirFisheyeDataset:

@@ -25,8 +25,8 @@ from airfisheye_bench.geometry.occlusion import ORACLE, SPARSE_INPUTS
 from airfisheye_bench.metrics import CompletionMetrics
 from airfisheye_bench.tasks import CompletionTask
 from datamodules.dataset import collate
-from tests.models.test_weights import TINY
-from tests.training.test_configs import compose_train
+from tests.helpers.configs import compose_train
+from tests.helpers.models import TINY
 
 SIZE = 32
 

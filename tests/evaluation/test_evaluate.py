@@ -7,34 +7,17 @@ from pathlib import Path
 
 import lightning as L
 import pytest
-from hydra import compose, initialize_config_dir
-from omegaconf import DictConfig, open_dict
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation import SubmissionError, load_entry
 from airfisheye_bench.evaluation.command import evaluate
-from airfisheye_bench.training import train
-from tests.training.test_configs import CONFIG_DIR, compose_train
-from tests.training.test_train import tiny_run_overrides
-
-
-def compose_eval(overrides: list[str], output_dir: Path) -> DictConfig:
-    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-        cfg = compose(config_name="evaluate", overrides=overrides)
-    with open_dict(cfg):
-        cfg.output_dir = str(output_dir)
-    return cfg
+from tests.helpers.configs import compose_eval
 
 
 @pytest.fixture(scope="module")
-def depth_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A one-epoch AdaBins run on tiny data, tested on its test split (``results.json``)."""
-    run_dir = tmp_path_factory.mktemp("depth_run")
-    cfg = compose_train(tiny_run_overrides("depth", tiny_dataset))
-    with open_dict(cfg):
-        cfg.paths.output_dir = str(run_dir)
-    train(cfg)
-    return run_dir
+def depth_run(tiny_runs) -> Path:
+    """The session's one-epoch AdaBins run on tiny data, tested on its test split (``results.json``)."""
+    return tiny_runs("depth")
 
 
 def _assert_same_metrics(a: dict, b: dict, abs_tol: float = 1e-6) -> None:

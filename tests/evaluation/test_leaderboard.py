@@ -24,7 +24,7 @@ from airfisheye_bench.evaluation import (
     write_results,
 )
 from airfisheye_bench.specs import all_tasks
-from tests.commands import exit_status
+from tests.helpers.commands import exit_status
 
 HASH_A = "a1b2c3d4" + "0" * 56
 HASH_B = "ffee0011" + "1" * 56

@@ -22,8 +22,8 @@ from airfisheye_bench.evaluation import build_leaderboard, load_entries, write_r
 from airfisheye_bench.evaluation.leaderboard import find_results
 from airfisheye_bench.evaluation.leaderboard.html import render_html, write_html
 from airfisheye_bench.viz import save_png
-from tests.commands import exit_status
 from tests.evaluation.chromium import Page, find_chromium
+from tests.helpers.commands import exit_status
 
 HASH_A = "a1b2c3d4" + "0" * 56
 HASH_B = "ffee0011" + "1" * 56

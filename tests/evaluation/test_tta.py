@@ -8,7 +8,7 @@ import torch
 
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor, check_tta, flip_tta
 from airfisheye_bench.tasks import CompletionTask, DepthTask, SegmentationTask
-from tests.models.test_weights import TINY
+from tests.helpers.models import TINY
 
 
 def make_task(task: str):

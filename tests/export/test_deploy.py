@@ -38,9 +38,9 @@ from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.training import build, train
 from datamodules.config import apply_data_overrides, instantiate_datamodule
-from tests.commands import exit_status
-from tests.training.test_configs import compose_train
-from tests.training.test_train import tiny_run_overrides
+from tests.helpers.commands import exit_status
+from tests.helpers.configs import compose_train
+from tests.helpers.runs import tiny_run_overrides
 
 SIZE = 64
 

@@ -15,7 +15,7 @@ from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_layout import organize_scan
 from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_mask, ordering_reference
-from tests.geometry.test_occlusion import rig, seen_from
+from tests.helpers.occlusion_scenes import rig, seen_from
 
 PAPER = LidarSpec()  # 64 x 2048, 270 deg
 CAMERA = FisheyeCamera(512, 512, fov_deg=190.0)

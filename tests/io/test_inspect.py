@@ -12,7 +12,7 @@ from PIL import Image
 from airfisheye_bench.cli import inspect
 from airfisheye_bench.io import DatasetReader, write_label
 from airfisheye_bench.io.inspect import inspect_dataset
-from tests.commands import exit_status
+from tests.helpers.commands import exit_status
 
 
 @pytest.fixture

@@ -19,7 +19,7 @@ from airfisheye_bench.io.inspect import inspect_dataset
 from airfisheye_bench.io.manifest import read_manifest, verify
 from airfisheye_bench.io.transcode import TranscodeReport, transcode_dataset
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
-from tests.commands import exit_status
+from tests.helpers.commands import exit_status
 
 
 @pytest.fixture(scope="module")

@@ -22,7 +22,7 @@ from airfisheye_bench.synth.classes import RAW_CLASSES, RAW_ID, RAW_TO_TRAIN, TR
 from airfisheye_bench.synth.presets import PRESETS, get_preset, plan_trajectories
 from airfisheye_bench.synth.scene import ENVIRONMENTS
 from airfisheye_bench.synth.sensors import lidar_visibility, scan_lidar
-from tests.commands import exit_status
+from tests.helpers.commands import exit_status
 
 #: A very small configuration for the tests that generate several times.
 MICRO = get_preset("tiny").replace(

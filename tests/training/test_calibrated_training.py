@@ -16,10 +16,9 @@ from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.training import train
-from tests.evaluation.test_evaluate import compose_eval
+from tests.helpers.configs import compose_eval, compose_train
+from tests.helpers.runs import tiny_run_overrides
 from tests.io import calibration_fixtures as fx
-from tests.training.test_configs import compose_train
-from tests.training.test_train import tiny_run_overrides
 
 
 @pytest.fixture(scope="module")

@@ -6,26 +6,16 @@ from pathlib import Path
 
 import hydra
 import pytest
-from hydra import compose, initialize_config_dir
-from omegaconf import DictConfig, OmegaConf, open_dict
+from omegaconf import OmegaConf
 
 from airfisheye_bench.config_checks import check_train_config
-from airfisheye_bench.constants import config_dir
 from models.weights import pretrained_weights_disabled
+from tests.helpers.configs import CONFIG_DIR, compose_train
 
-CONFIG_DIR = str(config_dir())
 EXPERIMENTS = sorted(
     str(p.relative_to(Path(CONFIG_DIR) / "experiment").with_suffix(""))
     for p in (Path(CONFIG_DIR) / "experiment").rglob("*.yaml")
 )
-
-
-def compose_train(overrides: list[str]) -> DictConfig:
-    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-        cfg = compose(config_name="train", overrides=overrides)
-    with open_dict(cfg):
-        cfg.paths.output_dir = "/tmp/unused"
-    return cfg
 
 
 @pytest.mark.parametrize(

@@ -10,7 +10,7 @@ import torchvision
 
 from airfisheye_bench.tasks import CompletionTask
 from airfisheye_bench.tasks.checkpoint import load_task
-from tests.models.test_weights import TINY
+from tests.helpers.models import TINY
 
 
 def test_checkpoint_keeps_the_initial_weights_record_without_the_file(tmp_path):

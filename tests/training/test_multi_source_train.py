@@ -15,11 +15,10 @@ from airfisheye_bench.evaluation import command
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.evaluation.leaderboard import collect_results
 from airfisheye_bench.training import check_sources, train
-from tests.evaluation.test_evaluate import compose_eval
+from tests.helpers.commands import TRAIN, assert_one_line_error, run_command
+from tests.helpers.configs import compose_eval, compose_train
+from tests.helpers.runs import tiny_run_overrides
 from tests.io.datasets.tartanair_fixture import write_tartanair_fixture
-from tests.test_user_errors import TRAIN, assert_one_line_error, run_command
-from tests.training.test_configs import compose_train
-from tests.training.test_train import tiny_run_overrides
 
 
 def _overrides(root: Path, other: Path, *extra: str) -> list[str]:

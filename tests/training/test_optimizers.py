@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from airfisheye_bench.tasks import DepthTask
-from tests.models.test_weights import TINY
+from tests.helpers.models import TINY
 
 LR = 3.57e-4
 

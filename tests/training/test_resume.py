@@ -28,8 +28,8 @@ from airfisheye_bench.runs import (
     run_name_for,
 )
 from airfisheye_bench.training import build, prepare_run_dir, train
-from tests.training.test_configs import CONFIG_DIR, compose_train
-from tests.training.test_train import tiny_run_overrides
+from tests.helpers.configs import CONFIG_DIR, compose_train
+from tests.helpers.runs import tiny_run_overrides
 
 
 def tiny_cfg(root: Path, out: Path, *overrides: str):
@@ -328,7 +328,7 @@ def test_resuming_a_tiny_run_with_more_epochs_changes_nothing_else(
     tiny_dataset: Path, tmp_path: Path
 ) -> None:
     """The scenario of a new user: a tiny run on another lens, resumed with ``trainer.max_epochs=3``."""
-    from tests.test_user_errors import TRAIN, assert_one_line_error, run_command
+    from tests.helpers.commands import TRAIN, assert_one_line_error, run_command
 
     run = tmp_path / "run"
     started = run_command(

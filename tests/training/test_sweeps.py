@@ -24,7 +24,7 @@ from airfisheye_bench.cli.commands import leaderboard
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.runs import SWEEP_NAME_ENV, register_resolvers
 from airfisheye_bench.specs import get_task, task_names
-from tests.training.test_train import tiny_run_overrides
+from tests.helpers.runs import tiny_run_overrides
 
 ROOT = Path(__file__).resolve().parents[2]
 needs_optuna = pytest.mark.skipif(

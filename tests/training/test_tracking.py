@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from airfisheye_bench.tracking import RUN_RECORD, local_store, read_run_record
-from tests.training.test_train import tiny_run_overrides
+from tests.helpers.runs import tiny_run_overrides
 
 # No network in tests: MLflow 3 sends usage telemetry unless told not to (inherited by the commands and the server).
 os.environ["MLFLOW_DISABLE_TELEMETRY"] = "true"

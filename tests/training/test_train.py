@@ -7,49 +7,28 @@ import logging
 from pathlib import Path
 
 import pytest
-from omegaconf import open_dict
+from omegaconf import OmegaConf, open_dict
 
 from airfisheye_bench.training import train
-from tests.training.test_configs import compose_train
-
-SMALL = {
-    "seg": ["model.encoder_name=resnet18"],
-    "depth": ["model.encoder_name=resnet18", "model.patch_size=2", "model.n_bins=32"],
-    "completion": ["model.encoder_name=resnet18", "model.prop_steps=2"],
-}
-
-
-def tiny_run_overrides(task: str, root: Path, size: int = 64) -> list[str]:
-    """Overrides of a seconds-long run: debug trainer, the tiny dataset at ``size``^2, one process, small model."""
-    return [
-        f"task={task}",
-        "trainer=debug",
-        f"data.root={root}",
-        f"data.camera.size={size}",
-        "data.batch_size=2",
-        "data.num_workers=0",
-        "data.persistent_workers=false",
-        "callbacks.rich_progress_bar=null",
-        *SMALL[task],
-    ]
+from tests.helpers.configs import compose_train
+from tests.helpers.runs import DONE, tiny_run_overrides
 
 
 @pytest.mark.parametrize("task", ["seg", "depth", "completion"])
-def test_fast_dev_run(task: str, tiny_dataset: Path, tmp_path: Path) -> None:
-    cfg = compose_train([*tiny_run_overrides(task, tiny_dataset), "logger=csv"])
-    with open_dict(cfg):
-        cfg.paths.output_dir = str(tmp_path)
-    results = train(cfg)
-    primary = cfg.task.primary_metric
+def test_fast_dev_run(task: str, tiny_runs) -> None:
+    """The session's tiny run of each task (``tests.helpers.runs.shared_run``: ``train(cfg)`` on the debug trainer)."""
+    run = tiny_runs(task)
+    results = json.loads((run / DONE).read_text())  # what train(cfg) returned
+    primary = OmegaConf.load(run / "config.yaml").task.primary_metric
     assert primary in results["metrics"]
-    record = json.loads((tmp_path / "results.json").read_text())
+    record = json.loads((run / "results.json").read_text())
     assert record["task"] == task and record["split"] == "test" and record["primary_metric"] == primary
     assert record["metrics"][primary] == pytest.approx(results["metrics"][primary], nan_ok=True)
     assert any(k.startswith("ring_") for k in record["breakdown"])
     assert record["dataset"]["manifest_sha256"]
-    assert (tmp_path / "checkpoints" / "last.ckpt").is_file()
-    assert (tmp_path / "config.yaml").is_file() and (tmp_path / "metrics.csv").is_file()
-    assert list((tmp_path / "panels").glob("epoch_*.png"))
+    assert (run / "checkpoints" / "last.ckpt").is_file()
+    assert (run / "config.yaml").is_file() and (run / "metrics.csv").is_file()
+    assert list((run / "panels").glob("epoch_*.png"))
 
 
 def test_a_lens_wider_than_190_degrees_is_scored_out_to_its_rim(tiny_dataset: Path, tmp_path: Path) -> None:

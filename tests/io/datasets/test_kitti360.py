@@ -33,10 +33,10 @@ from airfisheye_bench.io.datasets import DatasetSource, DepthPoints, open_datase
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.training import train
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
+from tests.helpers.commands import assert_one_line_error, run_command
+from tests.helpers.configs import compose_train
+from tests.helpers.runs import tiny_run_overrides
 from tests.io.datasets.kitti360_fixture import SEQUENCES, write_kitti360
-from tests.test_user_errors import assert_one_line_error, run_command
-from tests.training.test_configs import compose_train
-from tests.training.test_train import tiny_run_overrides
 
 SEQ = SEQUENCES[0]
 

@@ -300,8 +300,8 @@ def test_bad_files_and_options(writable_root: Path, tmp_path: Path) -> None:
 def test_train_runs_every_task_on_tartanair(task: str, fixture_root: Path, tmp_path: Path) -> None:
     """``python train.py task=<task> data=tartanair data.root=<fixture> trainer=debug ...`` writes its metrics."""
     from airfisheye_bench.training import train
-    from tests.training.test_configs import compose_train
-    from tests.training.test_train import tiny_run_overrides
+    from tests.helpers.configs import compose_train
+    from tests.helpers.runs import tiny_run_overrides
 
     overrides = tiny_run_overrides(task, fixture_root, size=64 if task == "depth" else 32)  # AdaBins needs 64
     cfg = compose_train([*overrides, "data=tartanair", "data.format_options.split_period=3", "logger=csv"])
@@ -316,7 +316,7 @@ def test_train_runs_every_task_on_tartanair(task: str, fixture_root: Path, tmp_p
 
 
 def test_the_command_line_names_a_root_without_trajectories(tmp_path: Path) -> None:
-    from tests.test_user_errors import run_command
+    from tests.helpers.commands import run_command
 
     (tmp_path / "empty").mkdir()
     done = run_command("train.py", ["task=seg", "data=tartanair", f"data.root={tmp_path / 'empty'}"])
@@ -325,7 +325,7 @@ def test_the_command_line_names_a_root_without_trajectories(tmp_path: Path) -> N
 
 
 def test_the_config_lists_every_option_with_its_default() -> None:
-    from tests.training.test_configs import compose_train
+    from tests.helpers.configs import compose_train
 
     cfg = compose_train(["task=seg", "data=tartanair"])
     assert cfg.data.format == "tartanair" and cfg.data.root is None

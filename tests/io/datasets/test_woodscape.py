@@ -15,6 +15,8 @@ from airfisheye_bench.io.datasets import open_dataset
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.training import train
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
+from tests.helpers.configs import compose_train
+from tests.helpers.runs import tiny_run_overrides
 from tests.io.datasets.woodscape_fixture import (
     HEIGHT,
     TRAIN_IDS,
@@ -25,8 +27,6 @@ from tests.io.datasets.woodscape_fixture import (
     rgb_of,
     write_woodscape,
 )
-from tests.training.test_configs import compose_train
-from tests.training.test_train import tiny_run_overrides
 
 
 @pytest.fixture(scope="module")
