@@ -251,12 +251,17 @@ def radial_limit(k1: float, k2: float, k3: float = 0.0) -> float:
 
 class RadtanInverse:
     """Invert :func:`radtan`: the radial part by :class:`MonotoneInverse` on the radius, then Newton steps on the
-    2x2 system (analytic Jacobian) for the tangential terms, on the points not yet converged. NaN where the result does not
-    reproduce the distorted point or lies beyond ``r_max`` (where the radial factor stops increasing).
+    2x2 system (analytic Jacobian) for the tangential terms, on the points not yet converged. NaN where the result does
+    not reproduce the distorted point or lies beyond ``r_valid``.
+
+    ``r_valid`` is the largest undistorted radius of the disc on which the distortion is one-to-one, so that a
+    distorted point has one undistorted point in it, not two: the radial factor still increases (``r_max``), the
+    Jacobian's determinant stays positive at every azimuth (the tangential terms fold the map a little before
+    ``r_max``), and the distorted radius stays within ``r_cap``. The camera models' valid regions end there too.
 
     Args:
         k1, k2, p1, p2, k3: OpenCV's plumb_bob coefficients.
-        r_max: Largest undistorted radius of the model's region.
+        r_max: Largest undistorted radius where the radial factor ``r (1 + k1 r^2 + ...)`` increases.
         r_cap: Largest distorted radius solved for (normalised units; 10 is 84 deg off-axis for a pinhole).
     """
 
@@ -282,6 +287,34 @@ class RadtanInverse:
             return 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3))
 
         self._radial = MonotoneInverse(f, df, min(r_max, 1e3), y_cap=r_cap)
+        self._radial_cap = r_cap
+        self.r_valid = self._one_to_one_radius(self._radial.t_hi)
+
+    def _min_det(self, r: torch.Tensor, azimuths: int = 128) -> torch.Tensor:
+        """Smallest determinant of :func:`radtan`'s Jacobian over the circle of each radius ``r``."""
+        a = torch.linspace(0.0, 2.0 * math.pi, azimuths + 1, dtype=torch.float64)[:-1]
+        x, y = r[:, None] * torch.cos(a), r[:, None] * torch.sin(a)
+        j11, j12, j22 = self._jacobian(x, y)
+        return (j11 * j22 - j12 * j12).min(dim=1).values
+
+    def _one_to_one_radius(self, hi: float, samples: int = 256) -> float:
+        """Largest radius ``<= hi`` whose disc has a positive Jacobian determinant everywhere (a near-radial map
+        whose boundary circle maps to a simple curve: one-to-one there)."""
+        if not any(self.k[2:4]):
+            return hi  # radial only: the determinant is f(r) f'(r) / r, positive up to r_max
+        r = torch.linspace(0.0, hi, samples + 1, dtype=torch.float64)[1:]
+        bad = (~(self._min_det(r) > 0)).nonzero()
+        if not len(bad):
+            return hi
+        i = int(bad[0, 0])
+        a, b = (float(r[i - 1]) if i else 0.0), float(r[i])
+        for _ in range(50):  # bisection on the first sign change
+            mid = 0.5 * (a + b)
+            if bool(self._min_det(torch.tensor([mid], dtype=torch.float64))[0] > 0):
+                a = mid
+            else:
+                b = mid
+        return a
 
     def __call__(
         self, xd: torch.Tensor, yd: torch.Tensor, max_steps: int = 40, fused: bool = True
@@ -291,8 +324,11 @@ class RadtanInverse:
         k1, k2, p1, p2, k3 = self.k
         rd = torch.hypot(xd, yd)
         # The table's interpolation alone starts within ~1e-7; the 2x2 Newton steps below polish the radial part
-        # together with the tangential one.
-        scale = self._radial(rd, steps=0) / rd.clamp_min(1e-300)
+        # together with the tangential one. The tangential terms can carry a point inside r_max past the radial
+        # part's largest radius: such a point starts from r_max (the check below still decides).
+        _, radial_hi = self._radial.y_range
+        rd_start = torch.where(rd <= self._radial_cap, rd.clamp(max=radial_hi), rd)
+        scale = self._radial(rd_start, steps=0) / rd.clamp_min(1e-300)
         x, y = torch.where(rd == 0, xd, xd * scale), torch.where(rd == 0, yd, yd * scale)
         if any(self.k) and fused and x.device.type == "cpu":
             # One fused loop, each point until it converges (several times faster than the masked steps below).
@@ -316,11 +352,11 @@ class RadtanInverse:
                 x[active], y[active] = xn, yn
         fx, fy = radtan(x, y, k1, k2, p1, p2, k3)
         tol = 1e-9 * (1.0 + rd)
-        ok = ((fx - xd).abs() <= tol) & ((fy - yd).abs() <= tol) & (torch.hypot(x, y) <= self.r_max)
+        ok = ((fx - xd).abs() <= tol) & ((fy - yd).abs() <= tol) & (torch.hypot(x, y) <= self.r_valid)
         return torch.where(ok, x, torch.nan), torch.where(ok, y, torch.nan)
 
-    def _step(self, x, y, ex, ey):
-        """One Newton step of the 2x2 system, given the residuals ``ex, ey`` at ``(x, y)``."""
+    def _jacobian(self, x, y):
+        """``(j11, j12, j22)`` of :func:`radtan`'s (symmetric) Jacobian at ``(x, y)``."""
         k1, k2, p1, p2, k3 = self.k
         r2 = x * x + y * y
         radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
@@ -328,6 +364,11 @@ class RadtanInverse:
         j11 = radial + x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x
         j12 = x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y
         j22 = radial + y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x
+        return j11, j12, j22
+
+    def _step(self, x, y, ex, ey):
+        """One Newton step of the 2x2 system, given the residuals ``ex, ey`` at ``(x, y)``."""
+        j11, j12, j22 = self._jacobian(x, y)
         det = j11 * j22 - j12 * j12  # the Jacobian is symmetric
         return x - (j22 * ex - j12 * ey) / det, y - (j11 * ey - j12 * ex) / det
 
