@@ -1,6 +1,7 @@
 """Real published calibrations, written by the tests in the formats their tools write.
 
-Calibration parameters only (no images): their values come from the sources named next to them.
+Calibration parameters only (no images): their values come from the sources named next to them. One is synthetic
+(``OCAM_LONG_INVPOL``, issue #35's kind of OCamCalib file), and says how it was made.
 """
 
 from __future__ import annotations
@@ -184,6 +185,33 @@ projection_matrix:
   cols: 4
   data: [471.8281555175781, 0, 686.7856496391687, 0, 0, 427.0946044921875, 763.6798197288299, 0, 0, 0, 1, 0]
 """
+
+# Not a published calibration: a synthetic OCamCalib file like the one of issue #35 (1024 x 768, a 33-term
+# world2cam). A lens r = 298.5 theta px; ss fitted to it (degree 4, a1 = 0); invpol made as OCamCalib's findinvpoly2
+# makes it, with N = 32 (theta from -pi/2 in steps of 0.01 while ss has a root below the half diagonal, 640 px;
+# MATLAB's polyfit, an unscaled QR); written as export_data.m writes it (%e for ss, %f for invpol). The fit's data
+# reach 123 deg, as do the image's corners; beyond, the polynomial blows up (3.7e7 px at 180 deg), and rounded to six
+# decimals it is -0.67 px on the axis.
+OCAM_LONG_INVPOL = """#polynomial coefficients for the DIRECT mapping function (ocam_model.ss in MATLAB). These are used by cam2world
+
+5 -3.029898e+02 0.000000e+00 1.860893e-03 -3.584921e-06 5.362977e-09 
+
+#polynomial coefficients for the inverse mapping function (ocam_model.invpol in MATLAB). These are used by world2cam
+
+33 471.506046 292.398142 -27.765258 18.727158 47.914054 -15.978052 -6.884066 32.972566 -17.426236 -12.862056 33.902565 -14.651267 -20.030652 14.978478 -28.507797 88.310964 170.792086 -331.018998 -593.163607 430.447262 1303.034394 225.634937 -1426.210411 -1288.543218 202.841411 1038.199331 706.318445 115.977403 -118.675726 -90.793563 -29.719208 -5.011245 -0.356129 
+
+#center: "row" and "column", starting from 0 (C convention)
+
+383.600000 511.300000
+
+#affine parameters "c", "d", "e"
+
+1.000400 0.000300 -0.000200
+
+#image size: "height" and "width"
+
+768 1024
+"""  # noqa: W291 (as the toolbox writes it)
 
 
 def write_basalt(path: Path, intrinsics: list[dict], camera_type: str) -> Path:

@@ -1,9 +1,12 @@
 """Vectorised, bounded inverses shared by the models that have no closed-form back-projection.
 
-- :class:`MonotoneInverse`: solve ``f(t) = y`` for an increasing 1-D function on ``[0, t_hi]`` (Kannala-Brandt's
-  ``theta_d(theta)``, WoodScape's ``rho(theta)``, OCam's world-to-image polynomial). A dense table brackets every
-  root; linear interpolation inside the bracket starts within ~1e-9 of it and a few Newton steps clamped to the
-  bracket polish it to machine precision, whatever the coefficients.
+- :func:`increasing_limit`: where a 1-D function stops increasing (a dense grid, bisection, and for polynomials
+  their derivative's roots), so a model's valid region and its inverse stop there, not at a nominal 180 deg.
+- :class:`MonotoneInverse`: solve ``f(t) = y`` for an increasing 1-D function on ``[t_lo, t_hi]`` (Kannala-Brandt's
+  ``theta_d(theta)``, WoodScape's ``rho(theta)``, OCam's world-to-image polynomial). A table uniform in ``y`` over
+  the radii near the image brackets every root there (a dense grid's search the few far beyond); linear
+  interpolation starts close to it and two Newton steps clamped to the bracket polish it. Each result is checked
+  (``|f(t) - y| <= tol``); a miss is solved again by safeguarded Newton steps, and is NaN if it still misses.
 - :class:`RadtanInverse`: invert OpenCV's radial-tangential distortion: the radial part as above, then Newton
   steps on the 2x2 system for the tangential terms, each point until it converges (at most 40; a numba loop on
   CPU), NaN where the result does not reproduce the input.
@@ -20,6 +23,18 @@ import torch
 from airfisheye_bench.geometry import _kernels
 
 _TABLE_SIZE = 1 << 14
+#: Samples of the dense grids behind :func:`increasing_limit` and :class:`MonotoneInverse` (no more than torch's
+#: grain size, 32768: a larger tensor's element-wise ops are split over threads, slower than one on a busy CPU).
+_DENSE = 1 << 15
+#: How far beyond the image a polynomial model is solved at all, in image sizes on every side (the frame
+#: ``[-50 W, 51 W] x [-50 H, 51 H]``): a polynomial fit has long left its calibration's data there (the Kodak SP360's
+#: ``world2cam`` reaches 180 deg at 19 image widths; a long fit that blows up reaches 1e12 px), and float64 cannot
+#: hold a 1e-6 px round trip much further out. The valid region ends where the radius leaves this frame.
+FAR_FRAME = 50.0
+#: Largest ``|f(t) - y|`` a :class:`MonotoneInverse` of a camera model accepts, in pixels: the round trip
+#: pixel -> ray -> pixel is then exact to well below the 1e-6 px bar, even for a long polynomial whose float64
+#: evaluation is itself only good to ~1e-8 px.
+PIXEL_TOL = 1e-7
 
 
 def polyval(coeffs: Sequence[float], t: torch.Tensor) -> torch.Tensor:
@@ -35,27 +50,92 @@ def polyder(coeffs: Sequence[float]) -> tuple[float, ...]:
     return tuple(i * float(c) for i, c in enumerate(coeffs))[1:] or (0.0,)
 
 
-def increasing_limit(df: Callable[[torch.Tensor], torch.Tensor], hi: float, samples: int = 8193) -> float:
-    """Largest ``t <= hi`` up to which ``f`` keeps increasing (``df > 0`` on a dense grid from 0)."""
-    t = torch.linspace(0.0, hi, samples, dtype=torch.float64)
-    bad = (df(t) <= 0).nonzero()
-    if not len(bad):
-        return hi
-    return float(t[max(int(bad[0, 0]) - 1, 0)])
+def increasing_limit(
+    df: Callable[[torch.Tensor], torch.Tensor],
+    hi: float,
+    lo: float = 0.0,
+    poly: Sequence[float] | None = None,
+    shift: float = 0.0,
+) -> float:
+    """Largest ``t`` in ``[lo, hi]`` such that ``df > 0`` on all of ``[lo, t]``: where ``f`` stops increasing.
+
+    A dense grid finds the first sample with ``df <= 0`` and bisection narrows the sign change down. A polynomial
+    ``df`` (``poly``: its coefficients in ``t - shift``, lowest order first) may dip below zero between two samples:
+    every root of it near the real axis inside ``[lo, limit]`` is checked on a fine local grid too.
+    """
+    t = torch.linspace(lo, hi, _DENSE, dtype=torch.float64)
+    bad = (~(df(t) > 0)).nonzero()
+    limit = hi
+    if len(bad):
+        i = int(bad[0, 0])
+        if i == 0:
+            return lo
+        limit = _sign_change(df, float(t[i - 1]), float(t[i]))
+    coeffs = np.trim_zeros(np.asarray(poly if poly is not None else [], dtype=np.float64), "b")
+    if len(coeffs) > 1:
+        step = (hi - lo) / (_DENSE - 1)
+        for root in np.polynomial.polynomial.polyroots(coeffs):
+            centre, half = float(root.real) + shift, 4.0 * abs(float(root.imag)) + step
+            if abs(root.imag) > 1e-3 or not lo < centre < limit + half:
+                continue
+            # From the grid sample before the root (where df > 0) to past it, 1024 steps.
+            start = lo + math.floor(max(centre - half - lo, 0.0) / step) * step
+            local = torch.linspace(start, min(limit, centre + half), 1025, dtype=torch.float64)
+            bad = (~(df(local) > 0)).nonzero()
+            if len(bad):
+                i = int(bad[0, 0])
+                limit = lo if i == 0 else _sign_change(df, float(local[i - 1]), float(local[i]))
+    return limit
+
+
+def _sign_change(df: Callable[[torch.Tensor], torch.Tensor], a: float, b: float) -> float:
+    """The last ``t`` in ``[a, b]`` with ``df > 0`` found by bisection, given ``df(a) > 0 >= df(b)``."""
+    for _ in range(60):
+        mid = 0.5 * (a + b)
+        if mid in (a, b):
+            break
+        if bool(df(torch.tensor([mid], dtype=torch.float64))[0] > 0):
+            a = mid
+        else:
+            b = mid
+    return a
+
+
+def frame_reach(
+    to_sensor: Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]],
+    width: int,
+    height: int,
+    grow: float,
+) -> float:
+    """Largest radius, in a model's sensor units, of a pixel of the image frame grown by ``grow`` image sizes on
+    every side. ``to_sensor(u, v)`` is the model's affine map from pixels to its radial plane; the radius is convex
+    over the (convex) frame, so its corners bound it."""
+    us = (-0.5 - grow * width, width - 0.5 + grow * width)
+    vs = (-0.5 - grow * height, height - 0.5 + grow * height)
+    u = torch.tensor([us[0], us[1], us[0], us[1]], dtype=torch.float64)
+    v = torch.tensor([vs[0], vs[0], vs[1], vs[1]], dtype=torch.float64)
+    gx, gy = to_sensor(u, v)
+    return float(torch.hypot(gx, gy).max())
 
 
 class MonotoneInverse:
-    """``t = f^-1(y)`` for ``f`` increasing on ``[0, t_hi]``; NaN outside ``[f(0), f(t_hi)]``.
+    """``t = f^-1(y)`` for ``f`` increasing on ``[t_lo, t_hi]``; NaN outside ``[f(t_lo), f(t_hi)]`` and wherever no
+    ``t`` reproduces ``y`` to ``tol``.
 
-    The table is uniform in ``y`` (built once with a search over a dense ``t`` grid), so finding a root's bracket
-    is one multiply and two gathers, not a search; Newton steps clamped to the bracket polish the interpolated
-    start.
+    Radii up to ``y_near`` (the image and its surroundings) find their bracket in a table uniform in ``y``: one
+    multiply and two gathers, not a search; two Newton steps clamped to the bracket polish the interpolated start.
+    The few beyond it (far outside the image) take their bracket from a search of a dense grid. A result that does
+    not reproduce ``y`` to ``tol`` (a start far from the root, ``f`` nearly flat) is solved again by safeguarded
+    Newton steps (bisection whenever a step leaves the bracket), and is NaN if it still does not: never a wrong ``t``.
 
     Args:
         f: The function (float64 tensors in and out).
         df: Its derivative.
         t_hi: Upper end of the domain where ``f`` increases.
-        y_cap: Largest ``y`` to solve for (the table stops where ``f`` reaches it), if smaller than ``f(t_hi)``.
+        y_cap: Largest ``y`` to solve for (the domain stops where ``f`` reaches it), if smaller than ``f(t_hi)``.
+        t_lo: Lower end of the domain.
+        y_near: ``y`` up to which the table reaches (default: all of ``[f(t_lo), f(t_hi)]``).
+        tol: Largest ``|f(t) - y|`` accepted (``y``'s units; default 1e-9 of the range).
     """
 
     def __init__(
@@ -64,43 +144,88 @@ class MonotoneInverse:
         df: Callable[[torch.Tensor], torch.Tensor],
         t_hi: float,
         y_cap: float = math.inf,
+        t_lo: float = 0.0,
+        y_near: float = math.inf,
+        tol: float | None = None,
     ) -> None:
-        self.f, self.df, self.t_hi = f, df, float(t_hi)
-        dense_t = torch.linspace(0.0, self.t_hi, 4 * _TABLE_SIZE, dtype=torch.float64)
+        self.f, self.df, self.t_lo, self.t_hi = f, df, float(t_lo), float(t_hi)
+        dense_t = torch.linspace(self.t_lo, self.t_hi, _DENSE, dtype=torch.float64)
         dense_y = f(dense_t)
         if dense_y[-1] > y_cap:
-            end = int(torch.searchsorted(dense_y, torch.tensor([y_cap], dtype=torch.float64))) + 1
-            self.t_hi = float(dense_t[min(end, len(dense_t) - 1)])
-            dense_t = torch.linspace(0.0, self.t_hi, 4 * _TABLE_SIZE, dtype=torch.float64)
+            # The domain ends at the last sample below the cap (then resampled: the grid keeps its density).
+            end = int(torch.searchsorted(dense_y, torch.tensor([y_cap], dtype=torch.float64)))
+            self.t_hi = float(dense_t[max(end - 1, 1)])
+            dense_t = torch.linspace(self.t_lo, self.t_hi, _DENSE, dtype=torch.float64)
             dense_y = f(dense_t)
+        self.dense_t, self.dense_y = dense_t, dense_y
         self.y_lo, self.y_hi = float(dense_y[0]), float(dense_y[-1])
-        self.table_y = torch.linspace(self.y_lo, self.y_hi, _TABLE_SIZE, dtype=torch.float64)
-        # t at each table y: interpolate the dense grid (then one Newton step there makes it exact enough to
-        # serve as brackets; the brackets are widened by one dense step to stay safe).
+        self.tol = 1e-9 * (self.y_hi - self.y_lo) if tol is None else float(tol)
+        self.y_near = min(self.y_hi, max(float(y_near), self.y_lo))
+        self.table_y = torch.linspace(self.y_lo, self.y_near, _TABLE_SIZE, dtype=torch.float64)
+        # t at each table y: interpolate the dense grid (exact to within one dense step, so the brackets, widened
+        # by one dense step, hold the root).
         idx = torch.searchsorted(dense_y, self.table_y).clamp(1, len(dense_y) - 1)
         y0, y1 = dense_y[idx - 1], dense_y[idx]
-        t = dense_t[idx - 1] + (dense_t[idx] - dense_t[idx - 1]) * (self.table_y - y0) / (y1 - y0).clamp_min(
-            1e-300
-        )
-        self.table_t = t
+        frac = ((self.table_y - y0) / (y1 - y0).clamp_min(1e-300)).clamp(0.0, 1.0)
+        self.table_t = dense_t[idx - 1] + (dense_t[idx] - dense_t[idx - 1]) * frac
         self._margin = float(dense_t[1] - dense_t[0])
-        self._step = (self.y_hi - self.y_lo) / (_TABLE_SIZE - 1)
+        self._step = (self.y_near - self.y_lo) / (_TABLE_SIZE - 1)
 
     @property
     def y_range(self) -> tuple[float, float]:
         return self.y_lo, self.y_hi
 
     def __call__(self, y: torch.Tensor, steps: int = 2) -> torch.Tensor:
+        """``t`` with ``f(t) = y`` (NaN where there is none); ``steps=0``: the table's interpolation alone, a start
+        for a caller's own Newton steps."""
         solvable = (y >= self.y_lo) & (y <= self.y_hi)
-        pos = ((y - self.y_lo) / self._step).nan_to_num(0.0).clamp(0.0, _TABLE_SIZE - 1.000001)
+        pos = ((y - self.y_lo) / max(self._step, 1e-300)).nan_to_num(0.0).clamp(0.0, _TABLE_SIZE - 1.000001)
         idx = pos.to(torch.int64)
         frac = pos - idx
         lo, hi = self.table_t[idx], self.table_t[idx + 1]
         t = lo + (hi - lo) * frac
-        lo, hi = (lo - self._margin).clamp_min(0.0), (hi + self._margin).clamp_max(self.t_hi)
+        lo, hi = (lo - self._margin).clamp_min(self.t_lo), (hi + self._margin).clamp_max(self.t_hi)
+        far = (solvable & (y > self.y_near)).nonzero().squeeze(1)
+        if len(far):
+            t[far], lo[far], hi[far] = self._dense_bracket(y[far])
+        if steps == 0:
+            return torch.where(solvable, t, torch.nan)
         for _ in range(steps):
             t = (t - (self.f(t) - y) / self.df(t)).clamp(lo, hi)
+        missed = (solvable & ~self._converged(t, self.f(t) - y)).nonzero().squeeze(1)
+        if len(missed):
+            t[missed] = self._safeguarded(y[missed])
         return torch.where(solvable, t, torch.nan)
+
+    def _converged(self, t: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
+        """``f(t) - y = r`` is solved: ``|r| <= tol`` (the pixel is exact), and ``t`` itself is within 1e-10 of the
+        root (``|r| / f'``: where ``f`` is nearly flat a small residual still leaves ``t`` far off) or ``|r|`` is a
+        thousandth of ``tol`` (the residual cannot shrink below ``f``'s own rounding)."""
+        a = r.abs()
+        return (a <= self.tol) & ((a <= 1e-3 * self.tol) | (a <= 1e-10 * self.df(t).abs()))
+
+    def _dense_bracket(self, y: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``(start, lo, hi)`` from the dense grid: ``f(lo) < y <= f(hi)`` one dense step apart."""
+        k = torch.searchsorted(self.dense_y, y).clamp(1, len(self.dense_y) - 1)
+        y0, y1 = self.dense_y[k - 1], self.dense_y[k]
+        lo, hi = self.dense_t[k - 1], self.dense_t[k]
+        frac = ((y - y0) / (y1 - y0).clamp_min(1e-300)).clamp(0.0, 1.0)
+        return lo + (hi - lo) * frac, lo, hi
+
+    def _safeguarded(self, y: torch.Tensor, max_steps: int = 80) -> torch.Tensor:
+        """Newton steps kept inside a shrinking bracket (bisection where a step leaves it); NaN where ``f`` cannot
+        reproduce ``y`` to ``tol``."""
+        t, lo, hi = self._dense_bracket(y)
+        for _ in range(max_steps):
+            r = self.f(t) - y
+            lo, hi = torch.where(r < 0, t, lo), torch.where(r > 0, t, hi)
+            newton = t - r / self.df(t)
+            nxt = torch.where((newton > lo) & (newton < hi), newton, 0.5 * (lo + hi))
+            done = self._converged(t, r) | (nxt == t)
+            if bool(done.all()):
+                break
+            t = torch.where(done, t, nxt)
+        return torch.where((self.f(t) - y).abs() <= self.tol, t, torch.nan)
 
 
 def radtan(
@@ -126,12 +251,17 @@ def radial_limit(k1: float, k2: float, k3: float = 0.0) -> float:
 
 class RadtanInverse:
     """Invert :func:`radtan`: the radial part by :class:`MonotoneInverse` on the radius, then Newton steps on the
-    2x2 system (analytic Jacobian) for the tangential terms, on the points not yet converged. NaN where the result does not
-    reproduce the distorted point or lies beyond ``r_max`` (where the radial factor stops increasing).
+    2x2 system (analytic Jacobian) for the tangential terms, on the points not yet converged. NaN where the result does
+    not reproduce the distorted point or lies beyond ``r_valid``.
+
+    ``r_valid`` is the largest undistorted radius of the disc on which the distortion is one-to-one, so that a
+    distorted point has one undistorted point in it, not two: the radial factor still increases (``r_max``), the
+    Jacobian's determinant stays positive at every azimuth (the tangential terms fold the map a little before
+    ``r_max``), and the distorted radius stays within ``r_cap``. The camera models' valid regions end there too.
 
     Args:
         k1, k2, p1, p2, k3: OpenCV's plumb_bob coefficients.
-        r_max: Largest undistorted radius of the model's region.
+        r_max: Largest undistorted radius where the radial factor ``r (1 + k1 r^2 + ...)`` increases.
         r_cap: Largest distorted radius solved for (normalised units; 10 is 84 deg off-axis for a pinhole).
     """
 
@@ -157,6 +287,34 @@ class RadtanInverse:
             return 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3))
 
         self._radial = MonotoneInverse(f, df, min(r_max, 1e3), y_cap=r_cap)
+        self._radial_cap = r_cap
+        self.r_valid = self._one_to_one_radius(self._radial.t_hi)
+
+    def _min_det(self, r: torch.Tensor, azimuths: int = 128) -> torch.Tensor:
+        """Smallest determinant of :func:`radtan`'s Jacobian over the circle of each radius ``r``."""
+        a = torch.linspace(0.0, 2.0 * math.pi, azimuths + 1, dtype=torch.float64)[:-1]
+        x, y = r[:, None] * torch.cos(a), r[:, None] * torch.sin(a)
+        j11, j12, j22 = self._jacobian(x, y)
+        return (j11 * j22 - j12 * j12).min(dim=1).values
+
+    def _one_to_one_radius(self, hi: float, samples: int = 256) -> float:
+        """Largest radius ``<= hi`` whose disc has a positive Jacobian determinant everywhere (a near-radial map
+        whose boundary circle maps to a simple curve: one-to-one there)."""
+        if not any(self.k[2:4]):
+            return hi  # radial only: the determinant is f(r) f'(r) / r, positive up to r_max
+        r = torch.linspace(0.0, hi, samples + 1, dtype=torch.float64)[1:]
+        bad = (~(self._min_det(r) > 0)).nonzero()
+        if not len(bad):
+            return hi
+        i = int(bad[0, 0])
+        a, b = (float(r[i - 1]) if i else 0.0), float(r[i])
+        for _ in range(50):  # bisection on the first sign change
+            mid = 0.5 * (a + b)
+            if bool(self._min_det(torch.tensor([mid], dtype=torch.float64))[0] > 0):
+                a = mid
+            else:
+                b = mid
+        return a
 
     def __call__(
         self, xd: torch.Tensor, yd: torch.Tensor, max_steps: int = 40, fused: bool = True
@@ -166,8 +324,11 @@ class RadtanInverse:
         k1, k2, p1, p2, k3 = self.k
         rd = torch.hypot(xd, yd)
         # The table's interpolation alone starts within ~1e-7; the 2x2 Newton steps below polish the radial part
-        # together with the tangential one.
-        scale = self._radial(rd, steps=0) / rd.clamp_min(1e-300)
+        # together with the tangential one. The tangential terms can carry a point inside r_max past the radial
+        # part's largest radius: such a point starts from r_max (the check below still decides).
+        _, radial_hi = self._radial.y_range
+        rd_start = torch.where(rd <= self._radial_cap, rd.clamp(max=radial_hi), rd)
+        scale = self._radial(rd_start, steps=0) / rd.clamp_min(1e-300)
         x, y = torch.where(rd == 0, xd, xd * scale), torch.where(rd == 0, yd, yd * scale)
         if any(self.k) and fused and x.device.type == "cpu":
             # One fused loop, each point until it converges (several times faster than the masked steps below).
@@ -191,11 +352,11 @@ class RadtanInverse:
                 x[active], y[active] = xn, yn
         fx, fy = radtan(x, y, k1, k2, p1, p2, k3)
         tol = 1e-9 * (1.0 + rd)
-        ok = ((fx - xd).abs() <= tol) & ((fy - yd).abs() <= tol) & (torch.hypot(x, y) <= self.r_max)
+        ok = ((fx - xd).abs() <= tol) & ((fy - yd).abs() <= tol) & (torch.hypot(x, y) <= self.r_valid)
         return torch.where(ok, x, torch.nan), torch.where(ok, y, torch.nan)
 
-    def _step(self, x, y, ex, ey):
-        """One Newton step of the 2x2 system, given the residuals ``ex, ey`` at ``(x, y)``."""
+    def _jacobian(self, x, y):
+        """``(j11, j12, j22)`` of :func:`radtan`'s (symmetric) Jacobian at ``(x, y)``."""
         k1, k2, p1, p2, k3 = self.k
         r2 = x * x + y * y
         radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
@@ -203,13 +364,21 @@ class RadtanInverse:
         j11 = radial + x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x
         j12 = x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y
         j22 = radial + y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x
+        return j11, j12, j22
+
+    def _step(self, x, y, ex, ey):
+        """One Newton step of the 2x2 system, given the residuals ``ex, ey`` at ``(x, y)``."""
+        j11, j12, j22 = self._jacobian(x, y)
         det = j11 * j22 - j12 * j12  # the Jacobian is symmetric
         return x - (j22 * ex - j12 * ey) / det, y - (j11 * ey - j12 * ex) / det
 
 
 __all__ = [
+    "FAR_FRAME",
+    "PIXEL_TOL",
     "MonotoneInverse",
     "RadtanInverse",
+    "frame_reach",
     "increasing_limit",
     "polyder",
     "polyval",

@@ -3,7 +3,8 @@
 Projection and its valid region, back-projection and its valid region in closed form, as in basalt's
 ``include/basalt/camera/double_sphere_camera.hpp``:
 ``d1 = |p|``, ``d2 = |(x, y, xi d1 + z)|``, ``u = fx x / (alpha d2 + (1 - alpha)(xi d1 + z)) + cx`` (v likewise),
-valid where ``z > -w2 d1``; back-projection valid where ``alpha <= 0.5`` or ``r^2 < 1 / (2 alpha - 1)``.
+valid where ``z > -w2 d1``; back-projection valid where ``alpha <= 0.5`` or ``r^2 < 1 / (2 alpha - 1)``, and (unlike
+basalt) only where its ray lies in the projection's region, so that the two agree on every pixel.
 """
 
 from __future__ import annotations
@@ -67,10 +68,12 @@ class DoubleSphere(CameraModel):
         mz = (1.0 - a * a * r2) / (a * torch.sqrt(1.0 - (2.0 * a - 1.0) * r2) + 1.0 - a)
         k = (mz * xi + torch.sqrt(mz * mz + (1.0 - xi * xi) * r2)) / (mz * mz + r2)
         x, y, z = k * mx, k * my, k * mz - xi
+        ok = z > -self._w2 * torch.sqrt(x * x + y * y + z * z)
         if a > 0.5:
-            ok = r2 < 1.0 / (2.0 * a - 1.0)
-            x, y, z = (torch.where(ok, c, torch.nan) for c in (x, y, z))
-        return x, y, z
+            # basalt's back-projection condition; past the projection's region (z > -w2 d1) the formula still
+            # gives rays for a thin ring of pixels (up to 1 deg wide): no ray there, as project() says.
+            ok &= r2 < 1.0 / (2.0 * a - 1.0)
+        return tuple(torch.where(ok, c, torch.nan) for c in (x, y, z))
 
 
 __all__ = ["DoubleSphere"]

@@ -5,8 +5,9 @@
 ``u = fx (theta_d x / r + skew theta_d y / r) + cx``, ``v = fy theta_d y / r + cy`` (``r = sqrt(x^2 + y^2)``;
 ``skew`` is OpenCV's ``alpha``). Unlike OpenCV's ``projectPoints`` (``theta = atan(r / z)``, valid below 90 deg)
 the angle is ``atan2(r, z)`` as in basalt, so the model covers lenses wider than 180 deg. The valid region is
-``theta`` up to where ``theta_d`` stops increasing (at most pi); back-projection inverts ``theta_d`` with the
-bounded Newton solver of ``_solve.py``.
+``theta`` up to where ``theta_d`` stops increasing (at most pi), or where the image radius leaves the frame
+``FAR_FRAME`` image sizes around the image (``theta_limit``); back-projection inverts ``theta_d`` there with the
+bounded Newton solver of ``_solve.py`` and is NaN beyond.
 """
 
 from __future__ import annotations
@@ -16,7 +17,13 @@ from typing import Any, ClassVar
 
 import torch
 
-from airfisheye_bench.geometry.cameras._solve import MonotoneInverse, increasing_limit
+from airfisheye_bench.geometry.cameras._solve import (
+    FAR_FRAME,
+    PIXEL_TOL,
+    MonotoneInverse,
+    frame_reach,
+    increasing_limit,
+)
 from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
 
 
@@ -75,15 +82,29 @@ class KannalaBrandt(CameraModel):
             finite_float(n, v) for n, v in zip(("k1", "k2", "k3", "k4"), (k1, k2, k3, k4), strict=True)
         )
         self.skew = finite_float("skew", skew)
-        #: Largest incidence angle where theta_d still increases (the model's valid region).
-        self.theta_limit = increasing_limit(self._dtheta_d, math.pi)
-        if self.fov_deg is not None and self.max_theta > self.theta_limit + 1e-12:
+        k1, k2, k3, k4 = self.k
+        monotone = increasing_limit(
+            self._dtheta_d, math.pi, poly=(1.0, 0.0, 3 * k1, 0.0, 5 * k2, 0.0, 7 * k3, 0.0, 9 * k4)
+        )
+        if self.fov_deg is not None and self.max_theta > monotone + 1e-12:
             raise ValueError(
                 f"k={self.k}: the Kannala-Brandt polynomial is not increasing up to fov_deg/2={self.fov_deg / 2:g} deg"
-                f" (only up to {math.degrees(self.theta_limit):.1f} deg), so it cannot be inverted there; reduce "
+                f" (only up to {math.degrees(monotone):.1f} deg), so it cannot be inverted there; reduce "
                 "fov_deg or fix the coefficients"
             )
-        self._inverse = MonotoneInverse(self.theta_d, self._dtheta_d, self.theta_limit)
+        # Solved (and valid) while theta_d increases and the image radius stays within FAR_FRAME image sizes of
+        # the image: beyond, a ray's pixel is no sensor's and the polynomial's growth is no lens's.
+        scale = max(self.fx, self.fy) * (1.0 + abs(self.skew))  # pixels per unit of theta_d, at most
+        self._inverse = MonotoneInverse(
+            self.theta_d,
+            self._dtheta_d,
+            monotone,
+            y_cap=frame_reach(self._normalised, self.width, self.height, FAR_FRAME),
+            y_near=frame_reach(self._normalised, self.width, self.height, 1.0),
+            tol=PIXEL_TOL / scale,
+        )
+        #: Largest incidence angle of the valid region (radians): where theta_d stops increasing, at most pi.
+        self.theta_limit = self._inverse.t_hi
 
     @property
     def k(self) -> tuple[float, float, float, float]:
@@ -110,9 +131,13 @@ class KannalaBrandt(CameraModel):
             theta <= self.theta_limit + 1e-12,
         )
 
-    def _unproject(self, u, v):
+    def _normalised(self, u: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(m_x, m_y)``: the pixel's offset in units of the focal lengths, skew removed (``theta_d`` its norm)."""
         my = (v - self.cy) / self.fy
-        mx = (u - self.cx) / self.fx - self.skew * my
+        return (u - self.cx) / self.fx - self.skew * my, my
+
+    def _unproject(self, u, v):
+        mx, my = self._normalised(u, v)
         td = torch.hypot(mx, my)
         theta = self._inverse(td)
         s = torch.sin(theta) / td.clamp_min(1e-300)

@@ -9,6 +9,12 @@ this project's frame (x right, y down, z forward) its ``world2cam`` reads, with 
 its inverse. ``project`` evaluates ``world2cam`` exactly as the toolbox does; ``unproject`` inverts that same
 polynomial (bounded Newton, ``_solve.py``), so that the two are exact inverses of each other;
 :meth:`Ocam.cam2world_rays` evaluates the toolbox's ``cam2world`` for comparison.
+
+``invpol`` is fitted only over the calibration's data (OCamCalib's ``findinvpoly``: up to the image's half diagonal);
+a long fit may turn back or blow up beyond, and its value on the axis may be slightly negative. The valid region is
+therefore found from the polynomial itself: from ``theta_start`` (where ``rho`` turns >= 0; 0 for most fits) to
+``theta_limit`` (where ``rho`` stops increasing, or leaves the frame ``FAR_FRAME`` image sizes around the image),
+never a nominal 180 deg; ``unproject`` is NaN outside it.
 """
 
 from __future__ import annotations
@@ -16,9 +22,18 @@ from __future__ import annotations
 import math
 from typing import Any, ClassVar
 
+import numpy as np
 import torch
 
-from airfisheye_bench.geometry.cameras._solve import MonotoneInverse, increasing_limit, polyder, polyval
+from airfisheye_bench.geometry.cameras._solve import (
+    FAR_FRAME,
+    PIXEL_TOL,
+    MonotoneInverse,
+    frame_reach,
+    increasing_limit,
+    polyder,
+    polyval,
+)
 from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, float_list, scaled_centre
 
 
@@ -60,11 +75,46 @@ class Ocam(CameraModel):
         self.cam2world = float_list("cam2world", cam2world, 2)
         self.world2cam = float_list("world2cam", world2cam, 2)
         self._dw2c = polyder(self.world2cam)
-        #: Largest incidence angle up to which world2cam's radius increases (the model's valid region).
-        self.theta_limit = increasing_limit(self._drho, math.pi)
-        if self.theta_limit <= 0:
+        # The valid region is where world2cam is invertible: from where its radius is >= 0 (a fit may give a
+        # slightly negative radius on the axis, which would mirror a ray to the far side of the centre) to where
+        # it stops increasing or leaves the frame FAR_FRAME image sizes around the image (a long fit may blow up
+        # past its calibration's data). Not a nominal 180 deg.
+        monotone = increasing_limit(self._drho, math.pi, poly=self._dw2c, shift=math.pi / 2)
+        if monotone <= 0:
             raise ValueError("world2cam's radius does not increase away from the optical axis")
-        self._inverse = MonotoneInverse(self._rho, self._drho, self.theta_limit)
+        #: Smallest incidence angle > 0 of the valid region (0 unless world2cam is negative on the axis).
+        self.theta_start = self._zero_crossing(monotone)
+        affine_norm = float(np.linalg.norm(np.array([[1.0, self.e], [self.d, self.c]]), 2))
+        self._inverse = MonotoneInverse(
+            self._rho,
+            self._drho,
+            monotone,
+            y_cap=frame_reach(self._sensor, self.width, self.height, FAR_FRAME),
+            t_lo=self.theta_start,
+            y_near=frame_reach(self._sensor, self.width, self.height, 1.0),
+            tol=PIXEL_TOL / max(1.0, affine_norm),
+        )
+        #: Largest incidence angle of the valid region (radians).
+        self.theta_limit = self._inverse.t_hi
+
+    def _zero_crossing(self, hi: float) -> float:
+        """The incidence angle in ``[0, hi]`` where world2cam's radius (increasing there) turns >= 0."""
+        if self._rho(torch.zeros(1, dtype=torch.float64))[0] >= 0:
+            return 0.0
+        if self._rho(torch.tensor([hi], dtype=torch.float64))[0] <= 0:
+            raise ValueError(
+                "world2cam's radius stays negative wherever it increases: no ray reaches the image"
+            )
+        lo = 0.0
+        for _ in range(80):  # bisection: rho(lo) < 0 < rho(hi)
+            mid = 0.5 * (lo + hi)
+            if mid in (lo, hi):
+                break
+            if self._rho(torch.tensor([mid], dtype=torch.float64))[0] < 0:
+                lo = mid
+            else:
+                hi = mid
+        return hi
 
     def _rho(self, theta: torch.Tensor) -> torch.Tensor:
         """Image radius (pixels, before the affine) at incidence angle ``theta`` from the optical axis."""
@@ -91,17 +141,18 @@ class Ocam(CameraModel):
         on_axis = n == 0  # OCamCalib maps the axis to the centre
         gx, gy = torch.where(on_axis, 0.0, s * x), torch.where(on_axis, 0.0, s * y)
         u, v = self._affine(gx, gy)
-        return u, v, theta <= self.theta_limit + 1e-12
+        # The axis maps to the centre; other rays below theta_start would land mirrored (negative radius).
+        in_region = (theta <= self.theta_limit + 1e-12) & ((theta >= self.theta_start) | on_axis)
+        return u, v, in_region
 
     def _unproject(self, u, v):
         gx, gy = self._sensor(u, v)
         r = torch.hypot(gx, gy)
-        lo, _ = self._inverse.y_range
-        # world2cam is a fit: it may not pass exactly through 0 on the axis; radii below its value there look
-        # along the axis.
-        theta = torch.where(r <= lo, 0.0, self._inverse(r))
-        s = torch.sin(theta) / r.clamp_min(1e-300)
+        # NaN beyond the valid region, and below world2cam's radius at theta_start (a fit's value on the axis, a
+        # fraction of a pixel): no ray lands there. The centre itself is the axis.
         on_axis = r == 0
+        theta = torch.where(on_axis, 0.0, self._inverse(r))
+        s = torch.sin(theta) / r.clamp_min(1e-300)
         return torch.where(on_axis, 0.0, s * gx), torch.where(on_axis, 0.0, s * gy), torch.cos(theta)
 
     def cam2world_rays(self, uv: torch.Tensor) -> torch.Tensor:

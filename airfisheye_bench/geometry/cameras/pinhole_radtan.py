@@ -2,7 +2,8 @@
 baseline, ROS ``plumb_bob``, Kalibr ``pinhole-radtan``, and the cube faces (``fx = fy = S / 2``, no distortion).
 
 ``m = (x, y) / z`` distorted as in OpenCV's ``projectPoints``; valid in front of the camera (``z > 0``) while the
-radial factor still increases; back-projection by bounded Newton steps on the distortion (``_solve.py``).
+distortion is one-to-one (the radial factor increases and the tangential terms do not fold it; ``_solve.py``'s
+``RadtanInverse.r_valid``); back-projection by bounded Newton steps on the distortion (``_solve.py``).
 """
 
 from __future__ import annotations
@@ -63,7 +64,7 @@ class PinholeRadtan(CameraModel):
         mx, my = x / z, y / z
         in_region = z > 0
         if self._distorted:
-            in_region &= mx.hypot(my) <= self._m_max
+            in_region &= mx.hypot(my) <= self._undistort.r_valid
             mx, my = radtan(mx, my, self.k1, self.k2, self.p1, self.p2, self.k3)
         return self.fx * mx + self.cx, self.fy * my + self.cy, in_region
 

@@ -4,7 +4,8 @@
 ``u = cx + rho x / n``, ``v = cy + aspect_ratio rho y / n`` (``n = sqrt(x^2 + y^2)``). WoodScape's JSON stores
 ``cx_offset``, ``cy_offset`` from the image centre; its ``Camera`` turns them into
 ``cx = W / 2 + cx_offset - 0.5`` (likewise cy), which is what the readers pass here. The valid region is
-``theta`` up to where ``rho`` stops increasing (at most pi); back-projection inverts ``rho`` by bounded Newton steps
+``theta`` up to where ``rho`` stops increasing (at most pi), or where it leaves the frame ``FAR_FRAME`` image sizes
+around the image (``theta_limit``); back-projection inverts ``rho`` there by bounded Newton steps and is NaN beyond
 (WoodScape itself takes the smallest real root of the polynomial, one pixel at a time).
 """
 
@@ -15,7 +16,15 @@ from typing import Any, ClassVar
 
 import torch
 
-from airfisheye_bench.geometry.cameras._solve import MonotoneInverse, increasing_limit, polyder, polyval
+from airfisheye_bench.geometry.cameras._solve import (
+    FAR_FRAME,
+    PIXEL_TOL,
+    MonotoneInverse,
+    frame_reach,
+    increasing_limit,
+    polyder,
+    polyval,
+)
 from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, scaled_centre
 
 
@@ -61,15 +70,25 @@ class RadialPoly(CameraModel):
         self.aspect_ratio = finite_float("aspect_ratio", aspect_ratio, positive=True)
         self._coeffs = (0.0, self.k1, self.k2, self.k3, self.k4)
         self._dcoeffs = polyder(self._coeffs)
-        self.theta_limit = increasing_limit(lambda t: polyval(self._dcoeffs, t), math.pi)
-        if self.theta_limit <= 0:
+        monotone = increasing_limit(lambda t: polyval(self._dcoeffs, t), math.pi, poly=self._dcoeffs)
+        if monotone <= 0:
             raise ValueError(f"rho(theta) must increase from the optical axis (k1 > 0), got k1={k1}")
-        if self.fov_deg is not None and self.max_theta > self.theta_limit + 1e-12:
+        if self.fov_deg is not None and self.max_theta > monotone + 1e-12:
             raise ValueError(
-                f"rho(theta) stops increasing at {math.degrees(self.theta_limit):.1f} deg, below fov_deg/2="
+                f"rho(theta) stops increasing at {math.degrees(monotone):.1f} deg, below fov_deg/2="
                 f"{self.fov_deg / 2:g} deg"
             )
-        self._inverse = MonotoneInverse(self.rho, lambda t: polyval(self._dcoeffs, t), self.theta_limit)
+        # Solved (and valid) while rho increases and stays within FAR_FRAME image sizes of the image.
+        self._inverse = MonotoneInverse(
+            self.rho,
+            lambda t: polyval(self._dcoeffs, t),
+            monotone,
+            y_cap=frame_reach(self._sensor, self.width, self.height, FAR_FRAME),
+            y_near=frame_reach(self._sensor, self.width, self.height, 1.0),
+            tol=PIXEL_TOL / max(1.0, self.aspect_ratio),
+        )
+        #: Largest incidence angle of the valid region (radians): where rho stops increasing, at most pi.
+        self.theta_limit = self._inverse.t_hi
 
     def rho(self, theta: torch.Tensor) -> torch.Tensor:
         """Image radius (pixels) at incidence angle ``theta``."""
@@ -81,8 +100,12 @@ class RadialPoly(CameraModel):
         s = self.rho(theta) / n.clamp_min(1e-300)
         return self.cx + s * x, self.cy + self.aspect_ratio * s * y, theta <= self.theta_limit + 1e-12
 
+    def _sensor(self, u: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The pixel's offset from the centre with the aspect ratio removed (its norm is ``rho``)."""
+        return u - self.cx, (v - self.cy) / self.aspect_ratio
+
     def _unproject(self, u, v):
-        gx, gy = u - self.cx, (v - self.cy) / self.aspect_ratio
+        gx, gy = self._sensor(u, v)
         r = torch.hypot(gx, gy)
         theta = self._inverse(r)
         s = torch.sin(theta) / r.clamp_min(1e-300)

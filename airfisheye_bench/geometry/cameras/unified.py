@@ -5,7 +5,8 @@ A point is put on the unit sphere, projected from ``(0, 0, -xi)``: ``m = (x, y) 
 ``m`` is distorted as OpenCV's plumb_bob (``k1, k2, p1, p2``) and ``u = fx m_x' + cx``, ``v = fy m_y' + cy``
 (Mei and Rives, ICRA 2007; opencv_contrib ``ccalib/src/omnidir.cpp``). The valid region is basalt's
 (``unified_camera.hpp``): ``z > -w d`` with ``w = xi`` for ``xi <= 1`` and ``1 / xi`` beyond, where the sphere
-is seen from the projection centre, and the distortion must still increase with the radius there.
+is seen from the projection centre, and the distortion must be one-to-one there (the radial factor increases and
+the tangential terms do not fold it: ``RadtanInverse.r_valid`` in ``_solve.py``).
 Back-projection undoes the distortion with bounded Newton steps (``_solve.py``), then lifts ``m`` to the sphere in
 closed form: ``ray = (f m_x, f m_y, f - xi)``, ``f = (xi + sqrt(1 + (1 - xi^2) |m|^2)) / (1 + |m|^2)``.
 """
@@ -72,7 +73,7 @@ class Unified(CameraModel):
         mx, my = x / denom, y / denom
         in_region = z > -self._w * d
         if self._distorted:
-            in_region &= torch.hypot(mx, my) <= self._m_max
+            in_region &= torch.hypot(mx, my) <= self._undistort.r_valid
             mx, my = radtan(mx, my, self.k1, self.k2, self.p1, self.p2)
         return self.fx * mx + self.cx, self.fy * my + self.cy, in_region
 

@@ -1,0 +1,340 @@
+"""Back-projection is exact wherever it gives a ray and NaN wherever it does not, for every camera model (issue #35:
+"no silent wrong geometry, anywhere").
+
+Every family of ``CAMERA_MODELS`` is drawn at random (seeded) over its realistic range, not only the published
+calibrations: polynomials that turn back or blow up inside or beyond the image, mirrors past the sphere's rim,
+distortions that fold. On a dense grid over each image (pixel centres and the half-pixel points between them):
+
+- a pixel has a whole unit ray or none (NaN in all three coordinates), and ``valid_mask`` only where it has one;
+- a ray projects validly (its region; only ``fov_deg`` may exclude it) and back onto its pixel within 1e-6 px;
+- for the radial models, the ray's incidence lies where the forward radius ``r(theta)`` is increasing, found here
+  independently on a fine grid: the ray is the pixel's only one, not a second root of a polynomial.
+
+And from the other side, directions over the sphere that project validly into the image come back within 1e-9 rad.
+Finally the OCamCalib file of the issue's kind (``OCAM_LONG_INVPOL``) through the file reader.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from airfisheye_bench.geometry.cameras import CAMERA_MODELS, CameraModel, camera_from_dict
+from airfisheye_bench.io.calibration_files import read_calibration
+from tests.geometry.camera_tester import angle_between, sphere_directions
+from tests.io import calibration_fixtures as fx
+
+#: Random calibrations per family.
+PER_FAMILY = 30
+MAX_PX = 1e-6
+MAX_RAD = 1e-9
+
+
+# ---------------------------------------------------------------------------------------------- random calibrations
+def _frame(rng: np.random.Generator) -> dict:
+    """A small image (the lens scales with it) with its principal point near the centre; its dense grid stays
+    below torch's grain size (32768), whose larger tensors are split over threads."""
+    w = int(rng.choice([48, 64, 80]))
+    h = int(w * rng.choice([1.0, 0.75]))
+    return {
+        "width": w,
+        "height": h,
+        "cx": (w - 1) / 2 + rng.uniform(-0.05, 0.05) * w,
+        "cy": (h - 1) / 2 + rng.uniform(-0.05, 0.05) * h,
+    }
+
+
+def _focal(rng: np.random.Generator, frame: dict, lo: float, hi: float) -> dict:
+    fx = rng.uniform(lo, hi) * frame["width"]
+    return {"fx": fx, "fy": fx * rng.uniform(0.98, 1.02)}
+
+
+def _ideal(model: str, max_fov: float) -> Callable[[np.random.Generator], dict]:
+    def draw(rng: np.random.Generator) -> dict:
+        d = {"model": model, **_frame(rng), "fov_deg": rng.uniform(60.0, max_fov)}
+        if rng.random() < 0.5:  # else the default focal, which inscribes the image circle
+            d["focal"] = rng.uniform(0.15, 0.5) * d["width"]
+        return d
+
+    return draw
+
+
+def _kannala_brandt(rng: np.random.Generator) -> dict:
+    # OpenCV fisheye / Kalibr pinhole-equi ranges: many of these turn back before 180 deg, some inside the image.
+    frame = _frame(rng)
+    k = rng.uniform([-0.1, -0.05, -0.02, -0.005], [0.1, 0.05, 0.02, 0.005])
+    skew = rng.uniform(-0.003, 0.003) if rng.random() < 0.3 else 0.0
+    d = {"model": "kannala_brandt", **frame, **_focal(rng, frame, 0.25, 0.45), "skew": skew}
+    d.update(zip(("k1", "k2", "k3", "k4"), k.tolist(), strict=True))
+    if rng.random() < 0.3:  # an image circle, inside the range where theta_d increases
+        limit = camera_from_dict(d).theta_limit
+        d["fov_deg"] = min(rng.uniform(150.0, 230.0), 2 * math.degrees(limit))
+    return d
+
+
+def _unified(rng: np.random.Generator) -> dict:
+    # MEI: xi from a perspective lens to a mirror (KITTI-360's 2.2-2.6, with k2 up to 4.5).
+    frame = _frame(rng)
+    xi = rng.uniform(0.0, 3.0)
+    fx = (1.0 + xi) * rng.uniform(0.25, 0.45) * frame["width"]
+    k2 = rng.uniform(-0.1, 0.5) + (rng.uniform(0.0, 4.5) if xi > 1.5 else 0.0)
+    return {
+        "model": "unified",
+        **frame,
+        "fx": fx,
+        "fy": fx * rng.uniform(0.98, 1.02),
+        "xi": xi,
+        "k1": rng.uniform(-0.3, 0.1),
+        "k2": k2,
+        "p1": rng.uniform(-2e-3, 2e-3),
+        "p2": rng.uniform(-2e-3, 2e-3),
+    }
+
+
+def _double_sphere(rng: np.random.Generator) -> dict:
+    frame = _frame(rng)
+    return {
+        "model": "double_sphere",
+        **frame,
+        **_focal(rng, frame, 0.2, 0.45),
+        "xi": rng.uniform(-0.4, 0.4),
+        "alpha": rng.uniform(0.4, 0.75),
+    }
+
+
+def _eucm(rng: np.random.Generator) -> dict:
+    frame = _frame(rng)
+    return {
+        "model": "eucm",
+        **frame,
+        **_focal(rng, frame, 0.25, 0.5),
+        "alpha": rng.uniform(0.4, 0.8),
+        "beta": rng.uniform(0.6, 1.8),
+    }
+
+
+def _radial_poly(rng: np.random.Generator) -> dict:
+    # WoodScape's front camera has k = (0.265, -0.025, 0.038, -0.0056) image widths per radian^i.
+    frame = _frame(rng)
+    w = frame["width"]
+    k = w * rng.uniform([0.2, -0.05, 0.0, -0.012], [0.32, 0.01, 0.05, 0.002])
+    return {
+        "model": "radial_poly",
+        **frame,
+        **dict(zip(("k1", "k2", "k3", "k4"), k.tolist(), strict=True)),
+        "aspect_ratio": rng.uniform(0.98, 1.02),
+    }
+
+
+def _pinhole_radtan(rng: np.random.Generator) -> dict:
+    frame = _frame(rng)
+    return {
+        "model": "pinhole_radtan",
+        **frame,
+        **_focal(rng, frame, 0.5, 1.2),
+        "k1": rng.uniform(-0.4, 0.2),
+        "k2": rng.uniform(-0.1, 0.3),
+        "p1": rng.uniform(-3e-3, 3e-3),
+        "p2": rng.uniform(-3e-3, 3e-3),
+        "k3": rng.uniform(-0.05, 0.05),
+    }
+
+
+def _ocam(rng: np.random.Generator) -> dict:
+    """A lens ``r = f theta (1 + a theta^2 + b theta^4)`` fitted as OCamCalib does: world2cam of 6-16 terms in
+    ``theta - pi/2`` over the calibrated range only (then written with six decimals, as export_data.m does), so
+    beyond it the fit may turn back or blow up. cam2world (unused by project / unproject) is a matching ss."""
+    frame = _frame(rng)
+    f = rng.uniform(0.25, 0.4) * frame["width"]
+    a, b = rng.uniform(-0.06, 0.06), rng.uniform(-0.01, 0.01)
+    theta = np.linspace(0.0, math.radians(rng.uniform(95.0, 130.0)), 200)
+    r = f * theta * (1 + a * theta**2 + b * theta**4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", np.exceptions.RankWarning)
+        coeffs = np.polynomial.polynomial.polyfit(theta - math.pi / 2, r, int(rng.integers(5, 16)))
+    return {
+        "model": "ocam",
+        **frame,
+        "c": 1.0 + rng.uniform(-1e-3, 1e-3),
+        "d": rng.uniform(-1e-3, 1e-3),
+        "e": rng.uniform(-1e-3, 1e-3),
+        "cam2world": [-f, 0.0, 1.0 / (2 * f), 0.0, 0.0],
+        "world2cam": [round(float(c), 6) for c in coeffs],
+    }
+
+
+FAMILIES: dict[str, Callable[[np.random.Generator], dict]] = {
+    "equidistant": _ideal("equidistant", 360.0),
+    "equisolid": _ideal("equisolid", 360.0),
+    "stereographic": _ideal("stereographic", 300.0),
+    "orthographic": _ideal("orthographic", 180.0),
+    "kannala_brandt": _kannala_brandt,
+    "unified": _unified,
+    "double_sphere": _double_sphere,
+    "eucm": _eucm,
+    "ocam": _ocam,
+    "radial_poly": _radial_poly,
+    "pinhole_radtan": _pinhole_radtan,
+}
+
+
+def random_cameras(family: str, n: int = PER_FAMILY) -> list[CameraModel]:
+    """``n`` cameras of one family, the same ones every run (the family's name seeds the generator)."""
+    rng = np.random.default_rng([35, *family.encode()])
+    return [camera_from_dict(FAMILIES[family](rng)) for _ in range(n)]
+
+
+# ---------------------------------------------------------------------------------------------- independent checks
+def forward_radius(cam: CameraModel) -> Callable[[np.ndarray], np.ndarray] | None:
+    """The radial models' ``r(theta)`` (any positive scale), evaluated here with numpy, not by the model's code."""
+    if cam.model == "ocam":
+        coeffs = np.asarray(cam.world2cam)
+        return lambda t: np.polynomial.polynomial.polyval(t - np.pi / 2, coeffs)
+    if cam.model == "radial_poly":
+        coeffs = np.array([0.0, cam.k1, cam.k2, cam.k3, cam.k4])
+        return lambda t: np.polynomial.polynomial.polyval(t, coeffs)
+    if cam.model == "kannala_brandt":
+        coeffs = np.array([0.0, 1.0, 0.0, cam.k1, 0.0, cam.k2, 0.0, cam.k3, 0.0, cam.k4])
+        return lambda t: np.polynomial.polynomial.polyval(t, coeffs)
+    return None
+
+
+def increasing_until(r: Callable[[np.ndarray], np.ndarray], samples: int = 100_001) -> float:
+    """First incidence angle (on a fine grid over [0, pi]) where ``r`` stops increasing, else pi."""
+    t = np.linspace(0.0, np.pi, samples)
+    flat = np.nonzero(np.diff(r(t)) <= 0)[0]
+    return float(t[flat[0]]) if len(flat) else np.pi
+
+
+def dense_grid(cam: CameraModel) -> torch.Tensor:
+    """Pixel centres and the half-pixel points between them, over the whole image, ``[N, 2]`` float64."""
+    u = torch.arange(-0.5, cam.width - 0.49, 0.5, dtype=torch.float64)
+    v = torch.arange(-0.5, cam.height - 0.49, 0.5, dtype=torch.float64)
+    vv, uu = torch.meshgrid(v, u, indexing="ij")
+    return torch.stack([uu, vv], -1).reshape(-1, 2)
+
+
+def check_exact(cam: CameraModel) -> dict[str, float]:
+    """Assert the contract of the module docstring on one camera; returns its numbers."""
+    uv = dense_grid(cam)
+    rays = cam.unproject(uv)
+    has = torch.isfinite(rays).all(-1)
+    assert (has | torch.isnan(rays).all(-1)).all(), f"{cam}: a ray that is partly NaN"
+    assert not (cam.valid_mask() & ~torch.isfinite(cam.ray_grid(torch.float64)).all(-1)).any()
+    rays, uv = rays[has], uv[has]
+    assert ((rays.norm(dim=-1) - 1).abs() <= 1e-12).all(), f"{cam}: a ray is not unit-length"
+    uv2, valid = cam.project(rays)
+    theta = torch.atan2(torch.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])
+    # Only the field of view may exclude a back-projected ray: it is in the model's region.
+    assert (valid | (theta > cam.max_theta)).all(), f"{cam}: unproject gave a ray outside the model's region"
+    err = (uv2 - uv).norm(dim=-1)
+    worst = float(err.max()) if len(err) else 0.0
+    assert worst <= MAX_PX, f"{cam}: pixel -> ray -> pixel off by {worst:.3g} px"
+    r = forward_radius(cam)
+    if r is not None:
+        # The ray's incidence is where r(theta) increases: the pixel's only ray (no second root past a turn).
+        limit = increasing_until(r)
+        step = np.pi / 100_000
+        assert cam.theta_limit <= limit + step, (
+            f"{cam}: valid to {cam.theta_limit}, r(theta) turns at {limit}"
+        )
+        assert not len(theta) or float(theta.max()) <= limit + step
+        if cam.model == "ocam":  # and where the radius is not negative (a ray there lands mirrored)
+            assert np.all((r(theta.numpy()) >= -1e-9) | (theta.numpy() == 0))
+    # From the sphere: every direction that projects validly into the image comes back (no missing ray), to
+    # 1e-9 rad, or to what 1e-9 px is worth where the lens is nearly flat (a polynomial about to turn: there one
+    # pixel spans a wide angle, whatever the solver).
+    dirs = sphere_directions(3000, seed=cam.width)
+    puv, pvalid = cam.project(dirs)
+    pvalid &= cam.in_image(puv)
+    back = cam.unproject(puv[pvalid])
+    assert torch.isfinite(back).all(), f"{cam}: a pixel the lens sees has no ray"
+    angle = angle_between(back, dirs[pvalid])
+    bar = MAX_RAD + 1e-9 / smallest_scale(cam, dirs[pvalid])
+    assert (angle <= bar).all(), f"{cam}: direction -> pixel -> ray off by {float(angle.max()):.3g} rad"
+    return {"px": worst, "rad": float(angle.max()) if len(angle) else 0.0, "rays": int(has.sum())}
+
+
+def smallest_scale(cam: CameraModel, d: torch.Tensor, h: float = 1e-7) -> torch.Tensor:
+    """Smaller singular value of the projection's Jacobian with respect to the unit direction ``d`` (pixels per
+    radian along the direction the image changes least), by central differences."""
+    helper = torch.tensor([0.3, 0.5, 0.81], dtype=torch.float64).expand_as(d)
+    e1 = torch.linalg.cross(d, helper)
+    e1 = e1 / e1.norm(dim=-1, keepdim=True)
+    e2 = torch.linalg.cross(d, e1)
+    cols = [(cam.project(d + h * e)[0] - cam.project(d - h * e)[0]) / (2 * h) for e in (e1, e2)]
+    a, b, c = (cols[0] ** 2).sum(-1), (cols[0] * cols[1]).sum(-1), (cols[1] ** 2).sum(-1)
+    return torch.sqrt((0.5 * (a + c) - torch.sqrt(0.25 * (a - c) ** 2 + b * b)).clamp_min(1e-300))
+
+
+# ---------------------------------------------------------------------------------------------- tests
+def test_every_family_of_the_registry_is_drawn() -> None:
+    assert set(FAMILIES) == set(CAMERA_MODELS)
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES))
+def test_unproject_is_exact_on_random_calibrations(family: str) -> None:
+    cams = random_cameras(family)
+    stats = [check_exact(cam) for cam in cams]
+    assert sum(s["rays"] for s in stats) > 0
+    if family in ("kannala_brandt", "ocam", "radial_poly"):
+        # The draws reach polynomials that turn back inside 180 deg (the case the valid region must follow).
+        assert any(cam.theta_limit < math.pi for cam in cams)
+
+
+def _theta_of_radius(world2cam: list[float], r: np.ndarray, hi: float) -> np.ndarray:
+    """Incidence angle where world2cam's radius is ``r`` (bisection in numpy; world2cam increases on [lo, hi])."""
+    lo_t, hi_t = np.zeros_like(r), np.full_like(r, hi)
+    coeffs = np.asarray(world2cam)
+    for _ in range(80):
+        mid = 0.5 * (lo_t + hi_t)
+        above = np.polynomial.polynomial.polyval(mid - np.pi / 2, coeffs) > r
+        lo_t, hi_t = np.where(above, lo_t, mid), np.where(above, mid, hi_t)
+    return 0.5 * (lo_t + hi_t)
+
+
+def test_ocamcalib_long_invpol_file(tmp_path: Path) -> None:
+    """The issue's kind of file: 33 terms, 1024 x 768, exact to the image's corners at 123 deg; valid only where
+    world2cam increases and stays within reach of the image, not to 180 deg; no ray on the axis's negative radii."""
+    path = tmp_path / "calib_results.txt"
+    path.write_text(fx.OCAM_LONG_INVPOL)
+    cam = camera_from_dict(read_calibration(path).camera)
+    assert (cam.width, cam.height, len(cam.world2cam)) == (1024, 768, 33)
+    r = forward_radius(cam)
+    assert r(np.array([0.0]))[0] < -0.6 and r(np.array([np.pi]))[0] > 1e7  # what the fit does off its data
+
+    # Every pixel of the image (a 4-px grid, and the frame's edge at every half pixel) has its ray, exact both ways.
+    edge = dense_grid(cam)
+    edge = edge[(edge[:, 0] == -0.5) | (edge[:, 0] == 1023.5) | (edge[:, 1] == -0.5) | (edge[:, 1] == 767.5)]
+    uv = torch.cat([cam.pixel_grid()[::4, ::4].reshape(-1, 2), edge])
+    rays = cam.unproject(uv)
+    assert torch.isfinite(rays).all()
+    uv2, valid = cam.project(rays)
+    assert valid.all() and (uv2 - uv).norm(dim=-1).max() <= MAX_PX
+    theta = torch.atan2(torch.hypot(rays[:, 0], rays[:, 1]), rays[:, 2]).numpy()
+    gx, gy = cam._sensor(uv[:, 0], uv[:, 1])
+    expected = _theta_of_radius(cam.world2cam, torch.hypot(gx, gy).numpy(), math.radians(130.0))
+    assert np.abs(theta - expected).max() <= MAX_RAD
+    # The image reaches 123 deg at its corners; the field of view it reports is that (on a 256 x 192 copy of the
+    # lens, whose corner pixels' centres lie a little further in), not 360 deg.
+    assert 123.0 < math.degrees(theta.max()) < 123.5
+    assert 245.0 < cam.resized(256, 192).coverage_deg < 246.5
+
+    # The valid region: from where the radius turns positive, to where it leaves the frame 50 images around.
+    assert 0.0 < cam.theta_start < 0.01 and math.radians(120.0) < cam.theta_limit < math.radians(170.0)
+    assert r(np.array([cam.theta_limit]))[0] == pytest.approx(cam._inverse.y_range[1], rel=1e-9)
+    t = torch.tensor(
+        [0.0, 0.5 * cam.theta_start, cam.theta_limit - 1e-6, cam.theta_limit + 1e-6, math.pi - 1e-3]
+    )
+    dirs = torch.stack([torch.sin(t), torch.zeros_like(t), torch.cos(t)], -1).double()
+    puv, pvalid = cam.project(dirs)
+    assert pvalid.tolist() == [True, False, True, False, False]
+    back = cam.unproject(puv)
+    assert torch.isfinite(back[[0, 2]]).all() and torch.isnan(back[[3, 4]]).all()
+    assert angle_between(back[[0, 2]], dirs[[0, 2]]).max() <= MAX_RAD
