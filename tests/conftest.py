@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from tests.helpers.runs import locked, shared_run
+from tests.helpers.runs import locked, shared_export, shared_run
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -67,3 +67,14 @@ def tiny_runs(tiny_dataset: Path, shared_dir: Path):
         return shared_run(task, tiny_dataset, shared_dir / "runs" / task)
 
     return run
+
+
+@pytest.fixture(scope="session")
+def tiny_exports(tiny_runs, shared_dir: Path):
+    """``tiny_exports(task)``: ``(onnx_path, exit status, printed report)`` of ``airfisheye-export`` on the session's
+    tiny run of ``task`` (``tests.helpers.runs.shared_export``), exported on first use. Read-only."""
+
+    def exported(task: str) -> tuple[Path, int, str]:
+        return shared_export(task, tiny_runs(task), shared_dir / "exports" / task)
+
+    return exported

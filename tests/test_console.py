@@ -1,9 +1,12 @@
-"""What a fresh run prints: each log message once, no warning that is not the user's business, the table logged."""
+"""What a fresh run and an evaluation print (real processes: the console handlers and warning filters are what is
+tested): each log message once, no warning that is not the user's business, the table logged."""
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
+
+import pytest
 
 from tests.helpers.commands import EVALUATE, TRAIN, run_command
 from tests.helpers.runs import tiny_run_overrides
@@ -13,7 +16,7 @@ WARNING_LINE = re.compile(r"^\S+\.py:\d+: ", re.MULTILINE)
 LOG_LINE = re.compile(r"^\[[\d\- :,]+\]\[[\w.]+\]\[\w+\] - (.*)$", re.MULTILINE)
 
 
-def test_fresh_train_and_evaluate_print_each_message_once(tiny_dataset: Path, tmp_path: Path) -> None:
+def test_a_fresh_train_prints_each_message_once(tiny_dataset: Path, tmp_path: Path) -> None:
     run = tmp_path / "run"
     train = run_command(TRAIN, [*tiny_run_overrides("seg", tiny_dataset), f"hydra.run.dir={run}"])
     output = train.stdout + train.stderr
@@ -33,6 +36,15 @@ def test_fresh_train_and_evaluate_print_each_message_once(tiny_dataset: Path, tm
     assert "test results (seg, best checkpoint)" in log_text and "mIoU by incidence-angle ring" in log_text
     assert "ring_0-30/IoU/" not in output + log_text and "test/ring_0-30" not in output
 
+
+@pytest.fixture(scope="module")
+def seg_run(tiny_runs) -> Path:
+    """The session's tiny seg run (read-only)."""
+    return tiny_runs("seg")
+
+
+def test_evaluate_prints_its_table_once_and_no_warning(seg_run: Path, tmp_path: Path) -> None:
+    run = seg_run
     evaluated = run_command(EVALUATE, [f"ckpt_path={run}", f"hydra.run.dir={tmp_path / 'eval'}"])
     assert evaluated.returncode == 0, evaluated.stderr[-3000:]
     assert not WARNING_LINE.findall(evaluated.stdout + evaluated.stderr), evaluated.stderr

@@ -140,11 +140,14 @@ def test_incomplete_submission_lists_missing_frames(tiny_dataset: Path, tmp_path
     assert not (tmp_path / "out" / "results.json").exists()
 
 
-def test_onnx_export_gives_checkpoint_metrics(depth_run: Path, tmp_path: Path) -> None:
-    from airfisheye_bench.export.deploy import export_deployment
+@pytest.fixture(scope="module")
+def depth_onnx(tiny_exports) -> Path:
+    """The session's ONNX export of :func:`depth_run` (read-only)."""
+    return tiny_exports("depth")[0]
 
-    onnx_path = tmp_path / "depth.onnx"
-    export_deployment(depth_run, onnx_path, parity_samples=2, repeats=1)
+
+def test_onnx_export_gives_checkpoint_metrics(depth_run: Path, depth_onnx: Path, tmp_path: Path) -> None:
+    onnx_path = depth_onnx
     ckpt = evaluate(
         compose_eval([f"ckpt_path={depth_run}", "num_workers=0", "num_panels=0"], tmp_path / "ckpt")
     )
@@ -175,6 +178,10 @@ def test_onnx_export_gives_checkpoint_metrics(depth_run: Path, tmp_path: Path) -
     # Which weights training started from travels through the checkpoint and the ONNX metadata.
     weights = {"encoder_weights": None, "weights_path": None}  # the quick start: random initialisation
     assert ckpt["model"]["weights"] == onnx["model"]["weights"] == weights
+
+
+def test_an_onnx_model_refuses_data_of_another_size_or_lens(depth_onnx: Path, tmp_path: Path) -> None:
+    onnx_path = depth_onnx
     # A fixed-size export refuses data served at another size, naming both.
     with pytest.raises(ValueError, match="takes 64x64 images but the data serves 32x32"):
         evaluate(

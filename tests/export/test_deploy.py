@@ -36,7 +36,7 @@ from airfisheye_bench.io.deployment import (
 from airfisheye_bench.runs import resolve_checkpoint
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
-from airfisheye_bench.training import build, train
+from airfisheye_bench.training import build
 from datamodules.config import apply_data_overrides, instantiate_datamodule
 from tests.helpers.commands import exit_status
 from tests.helpers.configs import compose_train
@@ -52,16 +52,6 @@ def task_keys(task: str) -> set[str]:
 
 def _overrides(task: str, tiny_dataset: Path) -> list[str]:
     return [*tiny_run_overrides(task, tiny_dataset, SIZE), "logger=csv"]
-
-
-def trained_run(task: str, tiny_dataset: Path, run_dir: Path) -> Path:
-    """A real (two-step) training run: config.yaml, checkpoints/, results.json naming the best checkpoint."""
-    cfg = compose_train(_overrides(task, tiny_dataset))
-    with open_dict(cfg):
-        cfg.paths.output_dir = str(run_dir)
-        cfg.trainer.limit_train_batches = 1
-    train(cfg)
-    return run_dir
 
 
 def untrained_run(task: str, tiny_dataset: Path, run_dir: Path) -> Path:
@@ -98,8 +88,9 @@ class _Spy:
 
 # ------------------------------------------------------------------------------------------ segmentation
 @pytest.fixture(scope="module")
-def seg_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return trained_run("seg", tiny_dataset, tmp_path_factory.mktemp("seg_run"))
+def seg_run(tiny_runs) -> Path:
+    """The session's tiny segmentation run (read-only)."""
+    return tiny_runs("seg")
 
 
 @pytest.fixture(scope="module")
@@ -235,13 +226,10 @@ def test_parity_failure_leaves_nothing_at_out(
 
 # --------------------------------------------------------------------------------- depth and completion
 @pytest.mark.parametrize("task", ["depth", "completion"])
-def test_depth_tasks_export_through_the_cli(task: str, tiny_dataset: Path, tmp_path: Path, capsys) -> None:
-    run = untrained_run(task, tiny_dataset, tmp_path / "run")
-    out = tmp_path / "export" / f"{task}.onnx"
-    code, stdout, err = run_cli(
-        [f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1"], capsys
-    )
-    assert code == 0, err
+def test_depth_tasks_export_through_the_cli(task: str, tiny_exports) -> None:
+    """The session's export of each tiny run (``airfisheye-export ckpt_path=<run>/checkpoints/last.ckpt``)."""
+    out, code, stdout = tiny_exports(task)
+    assert code == 0, stdout
     assert "|diff| ≤ atol 0.0001 + rtol 0.001 × |torch| everywhere" in stdout and "ratio ort/torch" in stdout
     assert stdout.index(": OK") < stdout.index("wrote ")
     names = ["image", "sparse_depth"] if task == "completion" else ["image"]

@@ -3,13 +3,15 @@
 A trained run is what the evaluate, export, deploy, leaderboard and resume tests start from. Training one takes
 seconds, so each task's run is trained once per session (:func:`shared_run`) into a folder that every pytest-xdist
 worker of the session sees, under a lock: the first worker to ask trains it, the others wait and reuse it. A test
-that changes a run works on a copy (:func:`copy_run`).
+that changes a run works on a copy (:func:`copy_run`). Each task's run is exported to ONNX once as well
+(:func:`shared_export`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import io
 import json
 import shutil
 from collections.abc import Iterator
@@ -83,3 +85,25 @@ def copy_run(run: Path, to: Path) -> Path:
     """A copy of a run folder that a test may change (its checkpoints, config and logs)."""
     shutil.copytree(run, to)
     return to
+
+
+def shared_export(task: str, run: Path, folder: Path) -> tuple[Path, int, str]:
+    """``airfisheye-export ckpt_path=<run>/checkpoints/last.ckpt out=<folder>/<task>.onnx repeats=1`` through the
+    command's main, once per session: ``(the ONNX file, the exit status, what it printed)``. Read-only."""
+    from airfisheye_bench.cli import export
+
+    out = folder / f"{task}.onnx"
+    record = folder / "command.json"
+    with locked(folder.with_name(folder.name + ".lock")):
+        if not record.is_file():
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir(parents=True)
+            printed = io.StringIO()
+            with contextlib.redirect_stdout(printed):
+                try:
+                    code = export([f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1"])
+                except SystemExit as stop:
+                    code = int(stop.code or 0)
+            record.write_text(json.dumps({"code": code, "stdout": printed.getvalue()}))
+    done = json.loads(record.read_text())
+    return out, done["code"], done["stdout"]

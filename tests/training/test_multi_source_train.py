@@ -15,7 +15,7 @@ from airfisheye_bench.evaluation import command
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.evaluation.leaderboard import collect_results
 from airfisheye_bench.training import check_sources, train
-from tests.helpers.commands import TRAIN, assert_one_line_error, run_command
+from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
 from tests.helpers.configs import compose_eval, compose_train
 from tests.helpers.runs import tiny_run_overrides
 from tests.io.datasets.tartanair_fixture import write_tartanair_fixture
@@ -127,7 +127,7 @@ def test_train_py_stops_on_an_unknown_source_with_one_line_before_writing(tmp_pa
         f"paths.data_dir={tmp_path}/cache",
     ]
     error = assert_one_line_error(
-        run_command(TRAIN, args), "data.sources", "'mystery'", "data.source_options.mystery"
+        run_in_process(TRAIN, args), "data.sources", "'mystery'", "data.source_options.mystery"
     )
     assert "unknown source name" in error
     assert not (run_dir / "config.yaml").exists()  # refused before the run directory is written

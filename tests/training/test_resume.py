@@ -327,8 +327,10 @@ def _files(folder: Path) -> dict[str, bytes]:
 def test_resuming_a_tiny_run_with_more_epochs_changes_nothing_else(
     tiny_dataset: Path, tmp_path: Path
 ) -> None:
-    """The scenario of a new user: a tiny run on another lens, resumed with ``trainer.max_epochs=3``."""
-    from tests.helpers.commands import TRAIN, assert_one_line_error, run_command
+    """The scenario of a new user: a tiny run on another lens, resumed with ``trainer.max_epochs=3`` (each command
+    through ``train.py``'s entry function in this process: its argv, output and exit status)."""
+    from tests.helpers.commands import TRAIN, assert_one_line_error
+    from tests.helpers.commands import run_in_process as run_command
 
     run = tmp_path / "run"
     started = run_command(

@@ -33,7 +33,7 @@ from airfisheye_bench.io.datasets import DatasetSource, DepthPoints, open_datase
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.training import train
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
-from tests.helpers.commands import assert_one_line_error, run_command
+from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
 from tests.helpers.configs import compose_train
 from tests.helpers.runs import tiny_run_overrides
 from tests.io.datasets.kitti360_fixture import SEQUENCES, write_kitti360
@@ -429,8 +429,8 @@ def test_the_config_lists_every_option_with_its_default() -> None:
 
 # --------------------------------------------------------------------------------------------- end to end
 def test_seg_is_refused_in_one_line(root: Path, tmp_path: Path) -> None:
-    outcome = run_command(
-        "train.py",
+    outcome = run_in_process(
+        TRAIN,
         ["task=seg", "data=kitti360", f"data.root={root}", "trainer=debug", f"hydra.run.dir={tmp_path}"],
     )
     assert_one_line_error(

@@ -316,10 +316,11 @@ def test_train_runs_every_task_on_tartanair(task: str, fixture_root: Path, tmp_p
 
 
 def test_the_command_line_names_a_root_without_trajectories(tmp_path: Path) -> None:
-    from tests.helpers.commands import run_command
+    from tests.helpers.commands import TRAIN, run_in_process
 
     (tmp_path / "empty").mkdir()
-    done = run_command("train.py", ["task=seg", "data=tartanair", f"data.root={tmp_path / 'empty'}"])
+    args = ["task=seg", "data=tartanair", f"data.root={tmp_path / 'empty'}", f"hydra.run.dir={tmp_path / 'run'}"]
+    done = run_in_process(TRAIN, args)
     assert done.returncode == 2, done.stderr
     assert "no TartanAir V2 trajectory" in done.stderr and "Traceback" not in done.stderr
 
