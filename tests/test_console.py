@@ -11,6 +11,8 @@ import pytest
 from tests.helpers.commands import EVALUATE, TRAIN, run_command
 from tests.helpers.runs import tiny_run_overrides
 
+pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
+
 # A warning as Python prints it (`file.py:12: UserWarning: ...`) or as Lightning does (`file.py:12: ...`).
 WARNING_LINE = re.compile(r"^\S+\.py:\d+: ", re.MULTILINE)
 LOG_LINE = re.compile(r"^\[[\d\- :,]+\]\[[\w.]+\]\[\w+\] - (.*)$", re.MULTILINE)

@@ -47,6 +47,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 # ------------------------------------------------------------------- rows run as commands (no corrupt dataset)
+@pytest.mark.integration
 def test_debug_switch_shows_the_traceback(tiny_dataset: Path, tmp_path: Path) -> None:
     args = [*tiny_run_overrides("seg", tiny_dataset), "trainer.max_epochs=abc", f"hydra.run.dir={tmp_path}"]
     outcome = run_command(TRAIN, args, debug=True)
@@ -414,6 +415,7 @@ def _check_row(row: str, rows: RowOutcomes) -> None:
         assert "+trainer" not in message and "Could not" not in rows.outcomes[row].stderr
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("row", DEFAULT_ROWS)
 def test_fast_rows(row: str, fast_rows: RowOutcomes) -> None:
     _check_row(row, fast_rows)
@@ -513,6 +515,7 @@ def test_unknown_preset_is_refused_before_generation(tmp_path: Path) -> None:
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.integration
 def test_a_missing_optional_package_names_its_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """``logger=mlflow`` / ``mlflow_run=`` without mlflow installed (``EXTRAS``): one line naming the key and the
     extra to install, before any work (the dataset cache stays empty). The package is hidden from the commands as

@@ -10,6 +10,7 @@ import pytest
 from airfisheye_bench.benchmarks import loader_speed
 
 
+@pytest.mark.integration
 def test_main_tiny(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bench = loader_speed
     argv = ["--root", str(tiny_dataset), "--size", "32", "--samples", "3", "--repeats", "2"]

@@ -13,6 +13,8 @@ from airfisheye_bench.evaluation import SubmissionError, load_entry
 from airfisheye_bench.evaluation.command import evaluate
 from tests.helpers.configs import compose_eval
 
+pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
+
 
 @pytest.fixture(scope="module")
 def depth_run(tiny_runs) -> Path:

@@ -42,6 +42,8 @@ from tests.helpers.commands import exit_status
 from tests.helpers.configs import compose_train
 from tests.helpers.runs import tiny_run_overrides
 
+pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
+
 SIZE = 64
 
 

@@ -9,6 +9,8 @@ from torch import nn
 from airfisheye_bench.export import OnnxParityError, export_onnx, verify_onnx
 from airfisheye_bench.io.deployment import read_onnx_metadata
 
+pytestmark = pytest.mark.integration  # ONNX exports: seconds each
+
 
 class TwoInputNet(nn.Module):
     """A miniature completion-style model: image + sparse depth -> depth."""

@@ -101,7 +101,9 @@ def shared_export(task: str, run: Path, folder: Path) -> tuple[Path, int, str]:
             printed = io.StringIO()
             with contextlib.redirect_stdout(printed):
                 try:
-                    code = export([f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1"])
+                    code = export(
+                        [f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1"]
+                    )
                 except SystemExit as stop:
                     code = int(stop.code or 0)
             record.write_text(json.dumps({"code": code, "stdout": printed.getvalue()}))

@@ -79,6 +79,7 @@ def _scalar_kernels_env() -> dict[str, str]:
     }
 
 
+@pytest.mark.integration
 def test_tiny_does_not_depend_on_the_cpus_vector_kernels(tmp_path: Path) -> None:
     """The same content with the vector kernels of this CPU turned off: the data must not depend on which SIMD
     path (AVX2, AVX-512, none) a machine's torch, numpy and MKL take."""

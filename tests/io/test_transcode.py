@@ -107,6 +107,7 @@ def test_npy_back_to_png16_gives_the_source_values(tiny_dataset: Path, jpg_npy, 
         assert np.array_equal(out.fisheye(sid, "depth"), src.fisheye(sid, "depth"))
 
 
+@pytest.mark.integration
 def test_workers_and_copies_give_the_same_bytes(tiny_dataset: Path, jpg_npy, tmp_path: Path) -> None:
     dst, serial = jpg_npy
     parallel = transcode_dataset(tiny_dataset, tmp_path / "parallel", workers=2, link=False)
@@ -118,6 +119,7 @@ def test_workers_and_copies_give_the_same_bytes(tiny_dataset: Path, jpg_npy, tmp
     assert not os.path.samefile(copied, DatasetReader(tiny_dataset).layout.lidar(sid))
 
 
+@pytest.mark.integration
 def test_a_corrupt_file_is_named(tiny_dataset: Path, tmp_path: Path) -> None:
     src = tmp_path / "src"
     shutil.copytree(tiny_dataset, src, copy_function=os.link)

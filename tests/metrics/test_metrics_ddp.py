@@ -68,6 +68,7 @@ def _worker(rank: int, init_file: str, batches, results: str) -> None:
         dist.destroy_process_group()
 
 
+@pytest.mark.integration
 def test_two_gloo_processes_match_one_process(tmp_path):
     batches = _batches()
     single = _make_metrics()

@@ -216,6 +216,7 @@ class BaseModelTester:
         )
         return model, str(path)
 
+    @pytest.mark.integration
     @pytest.mark.parametrize("batch", [2, 3])
     def test_onnx_matches_pytorch_with_dynamic_batch(self, exported, batch):
         model, path = exported
@@ -230,6 +231,7 @@ class BaseModelTester:
         )
         assert report.output_shape == (batch, self.out_channels, *self.input_sizes[0])
 
+    @pytest.mark.integration
     def test_onnx_names_and_metadata(self, exported):
         import onnx
 

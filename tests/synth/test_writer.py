@@ -265,6 +265,7 @@ def micro_reference(tmp_path_factory) -> Path:
     )
 
 
+@pytest.mark.integration
 def test_two_workers_give_identical_bytes(micro_reference, tmp_path):
     other = writer.generate_dataset(MICRO, tmp_path / "two", seed=3, workers=2, progress=False)
     assert _tree_bytes(other) == _tree_bytes(micro_reference)

@@ -16,6 +16,7 @@ def bench() -> ModuleType:
     return lightning_overhead
 
 
+@pytest.mark.integration
 def test_main_tiny(bench: ModuleType, capsys: pytest.CaptureFixture[str]) -> None:
     steps, repeats = 3, 2
     argv = ["--tasks", "seg", "--size", "32", "--batch", "2", "--warmup", "2", "--steps", str(steps)]

@@ -20,6 +20,8 @@ from tests.helpers.configs import compose_eval, compose_train
 from tests.helpers.runs import tiny_run_overrides
 from tests.io import calibration_fixtures as fx
 
+pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
+
 
 @pytest.fixture(scope="module")
 def ds_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:

@@ -20,6 +20,8 @@ from tests.helpers.configs import compose_eval, compose_train
 from tests.helpers.runs import tiny_run_overrides
 from tests.io.datasets.tartanair_fixture import write_tartanair_fixture
 
+pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
+
 
 def _overrides(root: Path, other: Path, *extra: str) -> list[str]:
     """The tiny run on the synthetic ``tiny`` preset plus an AirFisheye-format root (``other``)."""

@@ -39,6 +39,7 @@ def tiny_cfg(root: Path, out: Path, *overrides: str):
     return cfg
 
 
+@pytest.mark.integration
 def test_last_checkpoint_holds_the_final_state(tiny_dataset: Path, tmp_path: Path) -> None:
     # The monitored metric need not improve: last.ckpt is rewritten at every epoch end regardless.
     cfg = tiny_cfg(tiny_dataset, tmp_path, "trainer.max_epochs=3", "trainer.limit_train_batches=1")
@@ -306,6 +307,7 @@ def test_model_checkpoint_may_not_write_last_ckpt() -> None:
         check_train_config(cfg)
 
 
+@pytest.mark.integration
 def test_a_resume_reads_no_initial_weights(tiny_dataset: Path, tmp_path: Path) -> None:
     weights = tmp_path / "resnet18.pth"
     torch.save(torchvision.models.resnet18(weights=None).state_dict(), weights)
@@ -324,6 +326,7 @@ def _files(folder: Path) -> dict[str, bytes]:
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
+@pytest.mark.integration
 def test_resuming_a_tiny_run_with_more_epochs_changes_nothing_else(
     tiny_dataset: Path, tmp_path: Path
 ) -> None:

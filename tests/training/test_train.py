@@ -13,6 +13,8 @@ from airfisheye_bench.training import train
 from tests.helpers.configs import compose_train
 from tests.helpers.runs import DONE, tiny_run_overrides
 
+pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
+
 
 @pytest.mark.parametrize("task", ["seg", "depth", "completion"])
 def test_fast_dev_run(task: str, tiny_runs) -> None:

@@ -428,6 +428,7 @@ def test_the_config_lists_every_option_with_its_default() -> None:
 
 
 # --------------------------------------------------------------------------------------------- end to end
+@pytest.mark.integration
 def test_seg_is_refused_in_one_line(root: Path, tmp_path: Path) -> None:
     outcome = run_in_process(
         TRAIN,
@@ -439,6 +440,7 @@ def test_seg_is_refused_in_one_line(root: Path, tmp_path: Path) -> None:
     assert not (tmp_path / "results.json").exists()
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("task", ["depth", "completion"])
 def test_training_end_to_end(root: Path, tmp_path: Path, task: str) -> None:
     overrides = [

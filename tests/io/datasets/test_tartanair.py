@@ -296,6 +296,7 @@ def test_bad_files_and_options(writable_root: Path, tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------------------------------- end to end
+@pytest.mark.integration
 @pytest.mark.parametrize("task", ["seg", "depth", "completion"])
 def test_train_runs_every_task_on_tartanair(task: str, fixture_root: Path, tmp_path: Path) -> None:
     """``python train.py task=<task> data=tartanair data.root=<fixture> trainer=debug ...`` writes its metrics."""
@@ -315,11 +316,17 @@ def test_train_runs_every_task_on_tartanair(task: str, fixture_root: Path, tmp_p
     assert record["metrics"][primary] == pytest.approx(results["metrics"][primary])
 
 
+@pytest.mark.integration
 def test_the_command_line_names_a_root_without_trajectories(tmp_path: Path) -> None:
     from tests.helpers.commands import TRAIN, run_in_process
 
     (tmp_path / "empty").mkdir()
-    args = ["task=seg", "data=tartanair", f"data.root={tmp_path / 'empty'}", f"hydra.run.dir={tmp_path / 'run'}"]
+    args = [
+        "task=seg",
+        "data=tartanair",
+        f"data.root={tmp_path / 'empty'}",
+        f"hydra.run.dir={tmp_path / 'run'}",
+    ]
     done = run_in_process(TRAIN, args)
     assert done.returncode == 2, done.stderr
     assert "no TartanAir V2 trajectory" in done.stderr and "Traceback" not in done.stderr

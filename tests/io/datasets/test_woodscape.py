@@ -157,6 +157,7 @@ def test_the_dataset_serves_labels_at_the_training_size(woodscape: Path) -> None
     assert ds.camera.width == 64 and ds.camera.height == 48
 
 
+@pytest.mark.integration
 def test_train_seg_end_to_end(woodscape: Path, tmp_path: Path) -> None:
     overrides = [*tiny_run_overrides("seg", woodscape), "data=woodscape", "logger=csv"]
     cfg = compose_train(overrides)
