@@ -273,6 +273,23 @@ def test_files_and_directories_are_collected_recursively_once(tmp_path: Path) ->
     assert found == sorted([deep, other])
 
 
+def test_a_run_tracked_with_mlflow_is_collected_once(tmp_path: Path) -> None:
+    """``logger=mlflow`` keeps a copy of ``results.json`` among the run's artifacts in its store under the run
+    (``<run>/mlflow/mlflow.db``, ``<run>/mlflow/artifacts/<experiment>/<run id>/artifacts/``): one run, not two."""
+    run = _write(tmp_path / "logs" / "seg" / "runs", "2025-01-01_00-00-00", "seg", {"mIoU": 0.2})
+    store = run.parent / "mlflow"
+    store.mkdir()
+    (store / "mlflow.db").write_bytes(b"SQLite format 3\0")
+    copy = store / "artifacts" / "1" / "0123abcd" / "artifacts" / "results.json"
+    copy.parent.mkdir(parents=True)
+    copy.write_bytes(run.read_bytes())
+    legacy = run.parent / "mlruns" / "0" / "abcd" / "artifacts" / "results.json"  # a file store of MLflow 2
+    legacy.parent.mkdir(parents=True)
+    legacy.write_bytes(run.read_bytes())
+    assert find_results([tmp_path / "logs"]) == [run]
+    assert find_results([copy]) == [copy]  # a file given by name is taken as it is
+
+
 def test_missing_paths_and_empty_folders_are_clear_errors(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="nope: no such file or directory"):
         find_results([tmp_path / "nope"])

@@ -130,7 +130,8 @@ def find_results(paths: Iterable[str | Path]) -> list[Path]:
     """Expand files and directories (searched recursively for ``results.json``) into a sorted, unique list.
 
     Args:
-        paths: ``results.json`` files (any name is accepted when given directly) or directories.
+        paths: ``results.json`` files (any name is accepted when given directly) or directories. In a directory,
+            the copies that an MLflow store keeps among a run's artifacts are not runs of their own.
 
     Returns:
         The files found, each once.
@@ -154,7 +155,11 @@ def find_results(paths: Iterable[str | Path]) -> list[Path]:
             hits = [path]
         elif path.is_dir():
             searched.append(str(path))
-            hits = [hit for hit in path.rglob("results.json") if hit.is_file()]
+            hits = [
+                hit
+                for hit in path.rglob("results.json")
+                if hit.is_file() and not _in_tracking_store(hit, path)
+            ]
         else:
             raise MissingFileError(f"{path}: no such file or directory")
         for hit in hits:
@@ -162,6 +167,17 @@ def find_results(paths: Iterable[str | Path]) -> list[Path]:
     if not found:
         raise MissingFileError(f"no results.json found under {', '.join(searched) or '(no paths given)'}")
     return sorted(found.values())
+
+
+def _in_tracking_store(hit: Path, root: Path) -> bool:
+    """``hit`` lies in an MLflow store below ``root`` (``<run>/mlflow/``, holding ``mlflow.db``, or ``mlruns/``):
+    the copy of a run's ``results.json`` that ``logger=mlflow`` keeps among the run's artifacts, not another run."""
+    for folder in hit.parents:
+        if folder == root:
+            return False
+        if folder.name in ("mlruns", "mlartifacts") or (folder / "mlflow.db").is_file():
+            return True
+    return False
 
 
 def _number(value: Any, where: str) -> float | None:
