@@ -108,9 +108,9 @@ def render_html(
     body = [
         "<header>",
         "<h1>AirFisheye-bench leaderboard</h1>",
-        f"<p>{board.files} result(s){paper}. Ranks restart for every dataset (name + manifest hash prefix) and "
-        "split: results measured on different data are not comparable. Click a column header to sort; click a "
-        "model for its detail view.</p>",
+        f"<p>{board.files} result(s){paper}. Ranks restart for every dataset (its name and its content hash: "
+        "the decoded data; the manifest hash where a result has no content hash) and split: results measured on "
+        "different data are not comparable. Click a column header to sort; click a model for its detail view.</p>",
         f'<nav aria-label="Tasks"><ul>{nav}</ul></nav>',
         "</header>",
         "<main>",

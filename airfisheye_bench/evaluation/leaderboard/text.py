@@ -47,8 +47,9 @@ def render_markdown(tables: Sequence[TaskTable], files: int, paper: bool, invali
     lines = [
         "# AirFisheye-bench leaderboard",
         "",
-        f"{files} result(s){with_paper}. Ranks restart for every dataset (name + content or manifest hash prefix) and "
-        "split: results measured on different data are not comparable. Values are fractions and metres "
+        f"{files} result(s){with_paper}. Ranks restart for every dataset (its name and its content hash, or its "
+        "manifest hash where a result has no content hash) and split: results measured on different data are not "
+        "comparable. Values are fractions and metres "
         f"(columns marked (%) printed in %); {MISSING} = not reported.",
     ]
     for table in tables:
