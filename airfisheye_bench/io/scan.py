@@ -9,11 +9,13 @@ nuScenes            float32 ``[N, 5]``: x y z intensity ring; frame    the ``rin
 ``.pcd.bin``        x right, y forward, z up: turned here by +90 deg
                     about z into x forward, y left
 PCD (``.pcd``)      v0.7 header (``FIELDS SIZE TYPE COUNT WIDTH        a ``ring`` field where the driver wrote
-                    HEIGHT VIEWPOINT POINTS DATA``), ``ascii`` or      one (ROS Velodyne / Ouster drivers)
-                    ``binary``; VIEWPOINT (the sensor's pose) is
-                    undone; HEIGHT > 1 is an organised cloud
+                    HEIGHT VIEWPOINT POINTS DATA``), ``ascii``,        one (ROS Velodyne / Ouster drivers)
+                    ``binary`` or ``binary_compressed`` (PCL's
+                    default: LZF, field by field); VIEWPOINT (the
+                    sensor's pose) is undone; HEIGHT > 1 is an
+                    organised cloud
 PLY (``.ply``)      ``ascii`` or ``binary_little_endian``, element     a ``ring`` property where present
-                    ``vertex`` with x y z [intensity] [ring]
+                    ``vertex`` of scalar properties
 ``.npy``            ``[N, 3|4|5]`` x y z [intensity [ring]], or an     the 5th column
                     organised ``[H, W, 3|4|5]``
 ``.npz``            arrays ``points`` ``[N, 3]`` (or ``xyz``), and     ``ring`` / ``rings``
@@ -21,10 +23,11 @@ PLY (``.ply``)      ``ascii`` or ``binary_little_endian``, element     a ``ring`
 ==================  =================================================  =========================================
 
 Field names are matched without case; ``i``, ``reflectance`` and ``reflectivity`` read as intensity, ``laser_id``
-and ``channel`` as ring; per-point time stamps, ambient light, range, noise, return type and labels are known and
-ignored. Anything else, a size that does not fit the fields, a non-finite coordinate (outside an organised cloud,
-whose empty cells are NaN or zero by convention: those are dropped and counted in ``no_returns``) is one
-:class:`~airfisheye_bench.io.errors.DatasetFormatError` naming the file.
+and ``channel`` as ring; every other field (time stamps, colour, normals, curvature, ``_`` padding...) is skipped
+(its bytes per its SIZE / TYPE / COUNT or PLY type). No x, y or z, a size that does not fit the fields, a
+non-finite coordinate (outside an organised cloud, whose empty cells are NaN or zero by convention: those are
+dropped and counted in ``no_returns``) is one :class:`~airfisheye_bench.io.errors.DatasetFormatError` naming the
+file.
 
 Example:
     >>> import tempfile, pathlib
@@ -43,12 +46,12 @@ from pathlib import Path
 import numpy as np
 
 from airfisheye_bench.io.errors import DatasetFormatError
+from airfisheye_bench.io.lzf import lzf_decompress
 
 SCAN_SUFFIXES = (".pcd.bin", ".bin", ".pcd", ".ply", ".npy", ".npz")
 
 _INTENSITY = ("intensity", "i", "reflectance", "reflectivity", "remission")
 _RING = ("ring", "rings", "laser_id", "channel")
-_IGNORED = ("t", "time", "timestamp", "ambient", "range", "noise", "return_type", "label", "tag", "line", "_")
 
 
 @dataclass
@@ -150,28 +153,28 @@ def _read_nuscenes(path: Path):
     return points, data[:, 3], data[:, 4], 0
 
 
-def _columns(path: Path, names: list[str], columns: list[np.ndarray]):
-    """x y z, intensity, ring from named columns; unknown names are an error."""
+def _columns(path: Path, names: list[str], columns: list[np.ndarray | None]):
+    """x y z, intensity, ring from named columns; other fields (colour, normals, curvature...) are ignored."""
     lookup: dict[str, np.ndarray] = {}
     for name, col in zip(names, columns, strict=True):
-        key = name.lower()
-        if key in ("x", "y", "z"):
-            lookup[key] = col
-        elif key in _INTENSITY:
-            lookup.setdefault("intensity", col)
-        elif key in _RING:
-            lookup.setdefault("ring", col)
-        elif key not in _IGNORED:
-            raise DatasetFormatError(
-                path,
-                f"unknown field {name!r}; expected x, y, z and optionally intensity ({', '.join(_INTENSITY[1:])}), "
-                f"ring ({', '.join(_RING[1:])}) or the ignored {', '.join(_IGNORED)}",
-            )
+        key = _field_kind(name)
+        if key is not None and col is not None:
+            lookup.setdefault(key, col)
     missing = [k for k in ("x", "y", "z") if k not in lookup]
     if missing:
         raise DatasetFormatError(path, f"no field {', '.join(missing)}: a scan needs x, y and z")
     points = np.stack([np.asarray(lookup[k], dtype=np.float64) for k in "xyz"], axis=1)
     return points, lookup.get("intensity"), lookup.get("ring")
+
+
+def _field_kind(name: str) -> str | None:
+    """``x`` / ``y`` / ``z`` / ``intensity`` / ``ring`` for a field the reader uses, ``None`` for any other."""
+    key = name.lower()
+    if key in ("x", "y", "z"):
+        return key
+    if key in _INTENSITY:
+        return "intensity"
+    return "ring" if key in _RING else None
 
 
 def _drop_no_returns(points, intensity, rings, organised: bool):
@@ -243,8 +246,12 @@ def _read_pcd(path: Path):
             )
         data = np.frombuffer(body, dtype=dtype, count=n)
         columns = [np.asarray(data[f]).reshape(n, -1)[:, 0] for f in dtype.names]
+    elif mode == "binary_compressed":
+        columns = _pcd_compressed_columns(path, raw[offset:], dtype, n)
     else:
-        raise DatasetFormatError(path, f"PCD DATA {mode!r} is not supported; expected ascii or binary")
+        raise DatasetFormatError(
+            path, f"PCD DATA {mode!r} is not supported; expected ascii, binary or binary_compressed"
+        )
     points, intensity, rings = _columns(path, names, columns)
     points, intensity, rings, dropped = _drop_no_returns(points, intensity, rings, height > 1)
     viewpoint = [float(v) for v in header.get("VIEWPOINT", [0, 0, 0, 1, 0, 0, 0])]
@@ -261,6 +268,38 @@ def _read_pcd(path: Path):
         )
         points = (points - t) @ R
     return points, intensity, rings, dropped
+
+
+def _pcd_compressed_columns(path: Path, body: bytes, dtype: np.dtype, n: int) -> list[np.ndarray | None]:
+    """The first value of every field of a PCD ``DATA binary_compressed`` body (``None`` for ``_`` padding).
+
+    PCL's layout (``pcl::PCDWriter::writeBinaryCompressed`` / ``PCDReader::readBodyBinary`` in io/src/pcd_io.cpp):
+    uint32 compressed size, uint32 uncompressed size, then LZF data that holds the fields one after the other
+    (all points' x, then all y, ...: compresses better than point by point); ``_`` padding fields are not stored.
+    """
+    if len(body) < 8:
+        raise DatasetFormatError(path, "PCD binary_compressed data ends before its two uint32 sizes")
+    packed, unpacked = (int(v) for v in np.frombuffer(body[:8], dtype="<u4"))
+    stored = [(name, dtype.fields[name][0]) for name in dtype.names if name.split("#")[0] != "_"]
+    expected = n * sum(t.itemsize for _, t in stored)
+    if unpacked != expected or len(body) < 8 + packed:
+        raise DatasetFormatError(
+            path,
+            f"PCD binary_compressed sizes {packed} / {unpacked} bytes (packed / unpacked) do not fit {len(body) - 8} "
+            f"bytes of data and {expected} bytes for {n} points",
+        )
+    try:
+        buf = lzf_decompress(body[8 : 8 + packed], unpacked)
+    except ValueError as err:
+        raise DatasetFormatError(path, f"PCD binary_compressed data is corrupt ({err})") from None
+    planes: dict[str, np.ndarray] = {}
+    start = 0
+    for name, typ in stored:  # typ: the field's scalar type, with a (COUNT,) shape where COUNT > 1
+        count = typ.itemsize // typ.base.itemsize
+        plane = np.frombuffer(buf, dtype=typ.base, count=n * count, offset=start)
+        planes[name] = plane.reshape(n, count)[:, 0]
+        start += n * typ.itemsize
+    return [planes.get(name) for name in dtype.names]
 
 
 _PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4"}
@@ -342,6 +381,8 @@ def _read_npz(path: Path):
         raise DatasetFormatError(path, "a .npz scan has an array 'points' (or 'xyz') of shape [N, 3]")
     names, columns = ["x", "y", "z"], list(xyz.T)
     for key, value in arrays.items():
+        if _field_kind(key) is None:  # colour, normals...: not read, whatever their shape
+            continue
         if value.shape != (len(xyz),):
             raise DatasetFormatError(
                 path, f"array {key!r} has shape {value.shape}; expected one value per point"

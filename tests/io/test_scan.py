@@ -12,6 +12,7 @@ from airfisheye_bench.cli.commands import inspect
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.inspect_scans import inspect_scans
 from airfisheye_bench.io.scan import load_scan, write_pcd, write_ply
+from tests.helpers.pcl_files import write_pcd_binary_compressed
 
 RNG = np.random.default_rng(0)
 POINTS = RNG.uniform(-20.0, 20.0, (50, 3)).astype(np.float32).astype(np.float64)
@@ -70,6 +71,124 @@ def test_pcd_as_a_driver_writes_it(tmp_path: Path) -> None:
     assert np.array_equal(scan.rings, RINGS)
 
 
+# A colour + normals + intensity + ring cloud as PCL's point types lay it out: rgb packed in a float, normals and
+# curvature, a COUNT 3 field and a padding field between them.
+EXTRA_FIELDS = [
+    ("x", "<f4", POINTS[:, 0]),
+    ("y", "<f4", POINTS[:, 1]),
+    ("z", "<f4", POINTS[:, 2]),
+    ("_", "<u1", np.zeros((50, 4))),
+    ("rgb", "<u4", RNG.integers(0, 2**24, 50)),
+    ("normal_x", "<f4", RNG.normal(size=50)),
+    ("normal_y", "<f4", RNG.normal(size=50)),
+    ("normal_z", "<f4", RNG.normal(size=50)),
+    ("curvature", "<f4", RNG.uniform(size=50)),
+    ("principal", "<f8", RNG.normal(size=(50, 3))),
+    ("intensity", "<f4", INTENSITY),
+    ("ring", "<u2", RINGS),
+    ("time", "<f4", np.linspace(0.0, 0.1, 50)),
+]
+
+
+def _pcd_with_fields(path: Path, fields: list[tuple[str, str, np.ndarray]], data: str) -> None:
+    """A PCD file with any fields (``(name, numpy dtype, values [N] or [N, COUNT])``), ``ascii`` or ``binary``."""
+    n = len(fields[0][2])
+    cols = [np.asarray(v).astype(t).reshape(n, -1) for _, t, v in fields]
+    header = (
+        f"VERSION 0.7\nFIELDS {' '.join(f[0] for f in fields)}\n"
+        f"SIZE {' '.join(str(c.dtype.itemsize) for c in cols)}\n"
+        f"TYPE {' '.join({'f': 'F', 'i': 'I', 'u': 'U'}[c.dtype.kind] for c in cols)}\n"
+        f"COUNT {' '.join(str(c.shape[1]) for c in cols)}\nWIDTH {n}\nHEIGHT 1\nPOINTS {n}\nDATA {data}\n"
+    )
+    if data == "binary":
+        rec = np.empty(
+            n, dtype=[(f"f{k}", c.dtype, c.shape[1:] if c.shape[1] > 1 else ()) for k, c in enumerate(cols)]
+        )
+        for k, c in enumerate(cols):
+            rec[f"f{k}"] = c if c.shape[1] > 1 else c[:, 0]
+        body = rec.tobytes()
+    else:
+        body = "".join(
+            " ".join(repr(v) for c in cols for v in c[i].tolist()) + "\n" for i in range(n)
+        ).encode()
+    path.write_bytes(header.encode() + body)
+
+
+@pytest.mark.parametrize("data", ["ascii", "binary", "binary_compressed"])
+def test_pcd_with_colour_normals_and_other_fields(tmp_path: Path, data: str) -> None:
+    """Fields the reader does not use are skipped by their SIZE x COUNT (and left out of the compressed data
+    when they are ``_`` padding, as PCL does); x y z, intensity and ring come out exact."""
+    path = tmp_path / "coloured.pcd"
+    if data == "binary_compressed":
+        write_pcd_binary_compressed(path, EXTRA_FIELDS)
+    else:
+        _pcd_with_fields(path, EXTRA_FIELDS, data)
+    scan = load_scan(path)
+    np.testing.assert_array_equal(scan.points, POINTS)
+    np.testing.assert_array_equal(scan.intensity, INTENSITY)
+    np.testing.assert_array_equal(scan.rings, RINGS)
+
+
+def test_pcd_binary_compressed_as_pcl_writes_it(tmp_path: Path) -> None:
+    """An organised 130k-point cloud in PCL's binary_compressed layout (``pcl::PCDWriter::writeBinaryCompressed``,
+    io/src/pcd_io.cpp: uint32 packed and unpacked sizes, then LZF of all x, all y, ...; the compressor is
+    tests/helpers/pcl_files.py): the NaN cells are dropped and counted, the rest read back exactly."""
+    rng = np.random.default_rng(1)
+    n, rings = 130_048, 64
+    points = rng.uniform(-50.0, 50.0, (n, 3)).astype(np.float32)
+    points[rng.random(n) < 0.1] = np.nan
+    ring = np.repeat(np.arange(rings), n // rings)
+    intensity = rng.integers(0, 256, n).astype(np.float32)
+    fields = [("x", "<f4", points[:, 0]), ("y", "<f4", points[:, 1]), ("z", "<f4", points[:, 2])]
+    fields += [("intensity", "<f4", intensity), ("ring", "<u2", ring), ("t", "<f4", np.zeros(n))]
+    path = tmp_path / "organised.pcd"
+    write_pcd_binary_compressed(path, fields, height=rings)
+    scan = load_scan(path)
+    valid = ~np.isnan(points).any(axis=1)
+    assert scan.no_returns == int((~valid).sum()) > 0
+    np.testing.assert_array_equal(scan.points, points[valid])
+    np.testing.assert_array_equal(scan.intensity, intensity[valid])
+    np.testing.assert_array_equal(scan.rings, ring[valid])
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_ply_with_colour_normals_and_other_properties(tmp_path: Path, binary: bool) -> None:
+    """Properties of every PLY type around x y z (double here), intensity and ring; their bytes are skipped."""
+    props = [
+        ("double", "x", POINTS[:, 0]),
+        ("uchar", "red", RNG.integers(0, 256, 50)),
+        ("double", "y", POINTS[:, 1]),
+        ("double", "z", POINTS[:, 2]),
+        ("uint8", "green", RNG.integers(0, 256, 50)),
+        ("short", "label", RNG.integers(-5, 5, 50)),
+        ("float", "nx", RNG.normal(size=50)),
+        ("float32", "curvature", RNG.uniform(size=50)),
+        ("float", "intensity", INTENSITY),
+        ("int", "segment", RNG.integers(0, 1000, 50)),
+        ("ushort", "ring", RINGS),
+        ("float64", "timestamp", np.linspace(0.0, 0.1, 50)),
+    ]
+    types = {"double": "<f8", "float64": "<f8", "float": "<f4", "float32": "<f4", "uchar": "u1"}
+    types.update({"uint8": "u1", "short": "<i2", "int": "<i4", "ushort": "<u2"})
+    fmt = "binary_little_endian" if binary else "ascii"
+    header = f"ply\nformat {fmt} 1.0\ncomment a coloured scan\nelement vertex 50\n"
+    header += "".join(f"property {t} {name}\n" for t, name, _ in props) + "end_header\n"
+    if binary:
+        rec = np.empty(50, dtype=[(name, types[t]) for t, name, _ in props])
+        for _, name, values in props:
+            rec[name] = values
+        body = rec.tobytes()
+    else:
+        rows = zip(*(np.asarray(v).astype(types[t]).tolist() for t, _, v in props), strict=True)
+        body = "".join(" ".join(repr(v) for v in row) + "\n" for row in rows).encode()
+    path = tmp_path / "coloured.ply"
+    path.write_bytes(header.encode() + body)
+    scan = load_scan(path)
+    np.testing.assert_array_equal(scan.points, POINTS)
+    np.testing.assert_array_equal(scan.intensity, INTENSITY)
+    np.testing.assert_array_equal(scan.rings, RINGS)
+
+
 def test_an_organised_pcd_drops_and_counts_its_empty_cells(tmp_path: Path) -> None:
     grid = POINTS.copy()
     grid[::5] = np.nan
@@ -112,14 +231,25 @@ def _bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     p = tmp / "field.pcd"
     write_pcd(p, POINTS)
     p.write_bytes(p.read_bytes().replace(b"FIELDS x y z", b"FIELDS x y w"))
-    out["unknown field"] = (p, "unknown field 'w'")
+    out["no z field"] = (p, "no field z: a scan needs x, y and z")
+    p = tmp / "packed.pcd"
+    write_pcd_binary_compressed(p, EXTRA_FIELDS)
+    good = p.read_bytes()
+    p.write_bytes(good[:-10])
+    out["pcd compressed size"] = (p, "binary_compressed sizes")
+    p = tmp / "corrupt.pcd"
+    data_at = good.index(b"DATA binary_compressed\n") + len(b"DATA binary_compressed\n") + 8
+    p.write_bytes(
+        good[:data_at] + b"\xff" + good[data_at + 1 :]
+    )  # the first token: a copy from before the start
+    out["pcd compressed data"] = (p, "binary_compressed data is corrupt")
     p = tmp / "cut.pcd"
     write_pcd(p, POINTS, INTENSITY)
     p.write_bytes(p.read_bytes()[:-7])
     out["pcd size"] = (p, "bytes of binary data for 50 points")
     p = tmp / "keys.npz"
-    np.savez(p, points=POINTS, colour=INTENSITY)
-    out["npz field"] = (p, "unknown field 'colour'")
+    np.savez(p, points=POINTS, colour=np.zeros((50, 3)), intensity=INTENSITY[:10])
+    out["npz field"] = (p, "array 'intensity' has shape (10,)")
     p = tmp / "scan.las"
     p.write_bytes(b"LASF")
     out["suffix"] = (p, "not a LiDAR scan file")
