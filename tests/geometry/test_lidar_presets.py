@@ -138,3 +138,120 @@ def test_spec_files_and_their_errors(tmp_path: Path) -> None:
         load_lidar_spec("vlp17")
     with pytest.raises(ValueError, match="beam_altitude_angles"):
         ouster_metadata_table({"beam_intrinsics": {}})
+
+
+# ------------------------------------------------------------------ the ROS Velodyne driver's calibration YAML
+# github:ros-drivers/velodyne velodyne_pointcloud/params/VLP16db.yaml (commit 29abd0e), vert_correction of laser
+# IDs 0-15 in radians: the VLP-16's -15..15 deg in 2 deg steps, interleaved.
+VLP16DB_VERT_CORRECTION = (
+    -0.2617993877991494, 0.017453292519943295, -0.22689280275926285, 0.05235987755982989, -0.19198621771937624,
+    0.08726646259971647, -0.15707963267948966, 0.12217304763960307, -0.12217304763960307, 0.15707963267948966,
+    -0.08726646259971647, 0.19198621771937624, -0.05235987755982989, 0.22689280275926285, -0.017453292519943295,
+    0.2617993877991494,
+)  # fmt: skip
+# The same repository's 64e_s2.1-sztaki.yaml (an HDL-64E S2), laser IDs 0-3: (rot_correction, vert_correction,
+# vert_offset_correction, horiz_offset_correction), radians and metres.
+SZTAKI_LASERS = (
+    (-0.1248942899601548, -0.15304134919741974, 0.19548199, 0.025999999),
+    (-0.06924466398252106, -0.1458455539136526, 0.19601112, -0.025999999),
+    (0.0824016906676694, 0.04339494149708345, 0.20969539999999998, 0.025999999),
+    (0.137808349360133, 0.05196082373432465, 0.21031273, -0.025999999),
+)
+
+
+def _velodyne_yaml(path: Path, lasers: list[dict], **top) -> Path:
+    """A calibration file in the driver's own layout: one flow mapping per laser, as gen_calibration.py writes."""
+    lines = ["lasers:"]
+    for laser in lasers:
+        values = {"dist_correction": 0.0, "dist_correction_x": 0.0, "dist_correction_y": 0.0}
+        values.update({"focal_distance": 0.0, "focal_slope": 0.0, **laser})
+        lines.append("- {" + ", ".join(f"{k}: {v!r}" for k, v in sorted(values.items())) + "}")
+    top = {"num_lasers": len(lasers), "distance_resolution": 0.002, **top}
+    lines += [f"{k}: {v}" for k, v in top.items()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _laser(laser_id: int, vert: float, rot: float = 0.0, v_off: float = 0.0, h_off: float = 0.0) -> dict:
+    return {"laser_id": laser_id, "rot_correction": rot, "vert_correction": vert,
+            "vert_offset_correction": v_off, "horiz_offset_correction": h_off}  # fmt: skip
+
+
+def test_a_velodyne_driver_calibration_becomes_a_spec(tmp_path: Path) -> None:
+    """VLP16db.yaml: its 16 lasers sorted by elevation (ring 0 the lowest, as the driver numbers its rings) give
+    the VLP-16's -15..15 deg, the vlp16 preset's table; no offsets in the file, none in the spec."""
+    lasers = [_laser(i, v) for i, v in enumerate(VLP16DB_VERT_CORRECTION)]
+    spec = load_lidar_spec(str(_velodyne_yaml(tmp_path / "VLP16db.yaml", lasers)))
+    np.testing.assert_allclose(spec.elevations_deg, np.arange(-15.0, 16.0, 2.0), atol=1e-12)
+    np.testing.assert_allclose(spec.elevations_deg, LIDAR_PRESETS["vlp16"]["elevations_deg"], atol=1e-12)
+    assert spec.azimuth_offsets_deg is None and spec.beam_origins_m is None
+    assert (spec.channels, spec.hfov_deg, spec.points_per_channel, spec.name) == (16, 360.0, 1800, "VLP16db")
+    reordered = _velodyne_yaml(tmp_path / "any_order.yaml", lasers[::-1], points_per_channel=900)
+    assert (
+        load_lidar_spec(str(reordered)).elevations_deg == spec.elevations_deg
+    )  # by laser_id, not list order
+    assert load_lidar_spec(str(reordered)).points_per_channel == 900
+
+
+def test_a_velodyne_calibration_places_the_beams_as_the_driver_does(tmp_path: Path) -> None:
+    """Four HDL-64E S2 lasers of 64e_s2.1-sztaki.yaml: every point the driver's ``RawData::unpack``
+    (velodyne_pointcloud/src/lib/rawdata.cc, without the two-point distance correction) computes from an encoder
+    angle and a distance lies on the spec's beam of that laser, from its origin, at that distance."""
+    lasers = [_laser(i, vert, rot, v_off, h_off) for i, (rot, vert, v_off, h_off) in enumerate(SZTAKI_LASERS)]
+    spec = load_lidar_spec(str(_velodyne_yaml(tmp_path / "64e_s2.yaml", lasers)))
+    rng = np.random.default_rng(0)
+    laser = rng.integers(0, 4, 500)
+    rotation = rng.uniform(0.0, 2.0 * math.pi, 500)  # the encoder angle, clockwise from forward
+    distance = rng.uniform(1.0, 80.0, 500)
+    rot, vert, v_off, h_off = np.array(SZTAKI_LASERS)[laser].T
+    cos_rot = np.cos(rotation) * np.cos(rot) + np.sin(rotation) * np.sin(
+        rot
+    )  # cos(rotation - rot_correction)
+    sin_rot = np.sin(rotation) * np.cos(rot) - np.cos(rotation) * np.sin(rot)
+    xy_distance = distance * np.cos(vert) - v_off * np.sin(vert)
+    x = xy_distance * sin_rot - h_off * cos_rot
+    y = xy_distance * cos_rot + h_off * sin_rot
+    z = distance * np.sin(vert) + v_off * np.cos(vert)
+    driver = np.stack([y, -x, z], axis=1)  # "Use standard ROS coordinate system": x_coord = y, y_coord = -x
+    ring = np.argsort(np.argsort(np.array(SZTAKI_LASERS)[:, 1]))[laser]  # laser -> its rank in elevation
+    azimuth = -rotation + spec.channel_azimuth_offsets()[ring]
+    elevation = spec.channel_elevations()[ring]
+    direction = np.stack(
+        [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], axis=1
+    )
+    ours = spec.beam_origins(azimuth, ring) + distance[:, None] * direction
+    np.testing.assert_allclose(ours, driver, atol=1e-9)
+    by_elevation = np.array(SZTAKI_LASERS)[np.argsort(np.array(SZTAKI_LASERS)[:, 1])]
+    np.testing.assert_allclose(spec.azimuth_offsets_deg, np.degrees(by_elevation[:, 0]), atol=1e-12)
+    assert spec.beam_origins_m[0][1] == pytest.approx(0.025999999)  # laser 0, the lowest: h_off to its left
+
+
+@pytest.mark.parametrize(
+    ("change", "key", "expected"),
+    [
+        (lambda lasers: lasers[3].update(vert_correction=-15.0), "lasers[3].vert_correction", "radians"),
+        (lambda lasers: lasers[2].pop("rot_correction"), "lasers[2].rot_correction", "radians"),
+        (lambda lasers: lasers[1].update(vert_offset_correction=19.5), "lasers[1].vert_offset_correction", "metres"),
+        (lambda lasers: lasers[1].update(laser_id=0), "lasers[1].laser_id", "listed twice"),
+        (lambda lasers: lasers[1].update(laser_id=16), "lasers[1].laser_id", "integer in [0, 16)"),
+        (lambda lasers: lasers[5].update(vert_correction=lasers[0]["vert_correction"]), "lasers[5].vert_correction",
+         "its own elevation"),
+    ],
+)  # fmt: skip
+def test_a_bad_velodyne_calibration_is_one_line_naming_the_key(tmp_path: Path, change, key, expected) -> None:
+    lasers = [_laser(i, v) for i, v in enumerate(VLP16DB_VERT_CORRECTION)]
+    change(lasers)
+    path = _velodyne_yaml(tmp_path / "calib.yaml", lasers)
+    with pytest.raises(DatasetFormatError) as info:
+        load_lidar_spec(str(path))
+    message = str(info.value)
+    assert str(path) in message and f"key '{key}'" in message and expected in message
+    assert "\n" not in message and len(message.replace(str(path), "")) <= 200
+
+
+def test_a_velodyne_calibration_with_other_top_level_keys_is_refused(tmp_path: Path) -> None:
+    lasers = [_laser(i, v) for i, v in enumerate(VLP16DB_VERT_CORRECTION)]
+    for top, key in (({"num_lasers": 32}, "num_lasers"), ({"rpm": 600}, "rpm")):
+        path = _velodyne_yaml(tmp_path / "calib.yaml", lasers, **top)
+        with pytest.raises(DatasetFormatError, match=rf"calib\.yaml: key '{key}': .{{10,200}}$"):
+            load_lidar_spec(str(path))
