@@ -21,7 +21,7 @@ from airfisheye_bench.io.codecs import (
     write_rgb,
     write_visibility,
 )
-from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError
+from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
 from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
 from airfisheye_bench.io.reader import DatasetReader
@@ -45,6 +45,7 @@ __all__ = [
     "DatasetLayout",
     "DatasetReader",
     "DatasetSpec",
+    "EmptySplitError",
     "FileEncodings",
     "ImuTable",
     "PoseTable",

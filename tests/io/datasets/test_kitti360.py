@@ -28,7 +28,7 @@ import torch
 from omegaconf import open_dict
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.io import DatasetFormatError
+from airfisheye_bench.io import DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.datasets import DatasetSource, DepthPoints, open_dataset
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.training import train
@@ -351,6 +351,11 @@ def test_sequences_option_sets_the_splits(root: Path) -> None:
     assert src.split("train")[0].startswith(SEQUENCES[1]) and src.split("test")[0].startswith(SEQ)
     with pytest.raises(ConfigError, match=r"data\.format_options\.sequences\.val: .*nope is not a folder"):
         open_dataset(root, "kitti360", {"sequences": {"val": ["nope"]}})
+    with pytest.raises(EmptySplitError, match=r"split 'val' is empty .*split's sequences: none"):
+        AirFisheyeDataset(
+            root, "val", "depth", source="fisheye", dataset_format="kitti360",
+            format_options={"sequences": {"train": [SEQ], "test": [SEQ]}},
+        )  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------- bad input
