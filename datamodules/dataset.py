@@ -49,7 +49,7 @@ from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options, lidar_depth_map
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
-from airfisheye_bench.io import DatasetFormatError
+from airfisheye_bench.io import DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.datasets import modalities_of, open_dataset
 from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.specs import get_task
@@ -145,8 +145,12 @@ class AirFisheyeDataset(Dataset):
         self.lidar_counts: dict[str, int] = {}
         self._epoch = SharedEpoch()
         self.sample_ids = self.reader.split(split)
-        if not self.sample_ids:
-            raise ValueError(f"split {split!r} of {root} is empty")
+        if not self.sample_ids:  # a partial download: say what the split takes, not only that it has nothing
+            raise EmptySplitError(
+                self.reader.root,
+                f"split {split!r} is empty (data.format={self.reader.format}): expected "
+                f"{self.reader.split_rule(split)}",
+            )
         if source == "cubemap" and not self.spec.has("cubemap"):
             raise ConfigError(f"{self.reader.missing_reason('cubemap')}; use data.source=fisheye")
         for content in task_spec.requires:

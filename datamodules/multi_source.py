@@ -24,6 +24,7 @@ from torch.utils.data import Dataset
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError, UserError
 from airfisheye_bench.geometry.serving import serve_camera
+from airfisheye_bench.io import DatasetFormatError
 from airfisheye_bench.specs import get_task
 from datamodules.dataset import AirFisheyeDataset
 from datamodules.sampling import EpochSeededSampler, draw_seed
@@ -153,6 +154,10 @@ def open_split(
             dataset = AirFisheyeDataset(
                 roots[src.name], split, augment=augment, seed=draw_seed(seed, -3, k), **kwargs
             )
+        except DatasetFormatError as err:  # built from its file and message: the file stays first
+            raise type(err)(
+                err.path, f"{err.message} (data.sources: source {src.describe()})", err.key
+            ) from None
         except UserError as err:
             raise type(err)(f"data.sources: source {src.describe()}: {err}") from None
         except ValueError as err:

@@ -47,6 +47,7 @@ from torch.utils.data import Dataset
 from airfisheye_bench.evaluation.evaluator import evaluate_predictions
 from airfisheye_bench.evaluation.predictors import FilePredictor
 from airfisheye_bench.evaluation.submission import SubmissionWriter, read_prediction
+from airfisheye_bench.io import EmptySplitError
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.specs import get_task
@@ -124,9 +125,8 @@ def evaluation_set(root: Path, task: str, size: int, frames: int) -> RepeatedFra
             bases.append(
                 AirFisheyeDataset(root, split, task, source="fisheye", camera=CameraConfig(size=size))
             )
-        except ValueError as err:  # an empty split
-            if "is empty" not in str(err):
-                raise
+        except EmptySplitError:  # a split the generated data left empty
+            continue
     if not bases:
         raise ValueError(f"{root} has no frames")
     return RepeatedFrames(bases, frames)

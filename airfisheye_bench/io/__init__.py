@@ -1,5 +1,6 @@
 """Reading and writing the on-disk AirFisheye layout (``docs/design.md``), for synthetic and real releases alike,
-and the calibration files of other tools (:func:`load_camera`, ``docs/design.md`` "Calibration files").
+the calibration files of other tools (:func:`load_camera`, ``docs/design.md`` "Calibration files") and LiDAR scan
+files (:func:`load_scan`, ``docs/design.md`` "Scan files and filtering").
 
 This package is the one place that knows file names and encodings; the generator writes through it and the
 datamodules read through it (:class:`DatasetReader`).
@@ -21,10 +22,11 @@ from airfisheye_bench.io.codecs import (
     write_rgb,
     write_visibility,
 )
-from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError
+from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
 from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
 from airfisheye_bench.io.reader import DatasetReader
+from airfisheye_bench.io.scan import Scan, load_scan
 from airfisheye_bench.io.spec import (
     DATASET_YAML,
     ClassDef,
@@ -45,13 +47,16 @@ __all__ = [
     "DatasetLayout",
     "DatasetReader",
     "DatasetSpec",
+    "EmptySplitError",
     "FileEncodings",
     "ImuTable",
     "PoseTable",
+    "Scan",
     "SplitsSpec",
     "camera_from_lidar",
     "classes_from",
     "load_camera",
+    "load_scan",
     "parse_sample_id",
     "read_calibration",
     "read_depth",

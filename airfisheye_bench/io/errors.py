@@ -1,4 +1,4 @@
-"""The one error type raised for malformed dataset files."""
+"""The error types raised for malformed dataset files."""
 
 from __future__ import annotations
 
@@ -48,4 +48,14 @@ class CalibrationFileError(DatasetFormatError):
         ...                            key="cam0.distortion_model")
         >>> isinstance(err, ValueError), str(err)
         (True, "camchain.yaml: key 'cam0.distortion_model': ds + radtan is not supported; supported: ds + none")
+    """
+
+
+class EmptySplitError(DatasetFormatError):
+    """A split of a dataset holds no sample; the message names the root, the split and the samples it takes.
+
+    Example:
+        >>> err = EmptySplitError("/data/ws", "split 'val' is empty: expected images of the devkit's list")
+        >>> isinstance(err, ValueError), str(err)
+        (True, "/data/ws: split 'val' is empty: expected images of the devkit's list")
     """

@@ -64,6 +64,11 @@ class DatasetReader:
             raise ValueError(f"split must be one of {self.split_names}, got {name!r}")
         return read_split(self.layout.split_file(self.spec.splits.files[name]))
 
+    def split_rule(self, name: str) -> str:
+        """The split file that lists split ``name``."""
+        path = self.layout.split_file(self.spec.splits.files[name])
+        return f"one sample id <env>/<trajectory>/<frame> a line in {path}"
+
     def trajectories(self) -> list[str]:
         """All ``"<env>/<traj>"`` named by the split files, sorted."""
         return sorted({trajectory_of(s) for name in self.split_names for s in self.split(name)})

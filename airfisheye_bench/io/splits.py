@@ -1,7 +1,9 @@
-"""Split files: ``splits/<name>.txt`` with one sample id ``<env>/<trajectory>/<frame>`` per line."""
+"""Split files: ``splits/<name>.txt`` with one sample id ``<env>/<trajectory>/<frame>`` per line; the frame-block
+rule of a dataset with too few trajectories to split by trajectory."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_text
@@ -52,3 +54,24 @@ def read_split(path: str | Path) -> list[str]:
         seen.add(sid)
         ids.append(sid)
     return ids
+
+
+def frame_blocks(frames: Sequence[str], period: int) -> dict[str, list[str]]:
+    """One trajectory's frames in three contiguous blocks: ``train``, then ``val``, then ``test``, the last two of
+    ``len(frames) // period`` frames each (at least one); fewer than 3 frames all go to ``train``.
+
+    Contiguous blocks keep neighbouring (near-duplicate) frames in one split: only the two cuts border another split.
+
+    Example:
+        >>> {name: len(ids) for name, ids in frame_blocks([f"{i:06d}" for i in range(25)], 10).items()}
+        {'train': 21, 'val': 2, 'test': 2}
+        >>> frame_blocks(["000000", "000001", "000002"], 10)
+        {'train': ['000000'], 'val': ['000001'], 'test': ['000002']}
+    """
+    n = len(frames)
+    held = max(1, n // period) if n >= 3 else 0
+    return {
+        "train": list(frames[: n - 2 * held]),
+        "val": list(frames[n - 2 * held : n - held]),
+        "test": list(frames[n - held :]),
+    }

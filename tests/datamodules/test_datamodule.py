@@ -14,7 +14,7 @@ import torch
 from airfisheye_bench.geometry import transform_points
 from airfisheye_bench.geometry.cubemap import direction_to_face
 from airfisheye_bench.geometry.occlusion import project_lidar
-from airfisheye_bench.io import DatasetFormatError, DatasetReader
+from airfisheye_bench.io import DatasetFormatError, DatasetReader, EmptySplitError
 from datamodules import AirFisheyeDataModule, AirFisheyeDataset, CameraConfig, FisheyeAugment, collate
 
 
@@ -266,6 +266,9 @@ def test_missing_root_and_split_are_clear_errors(tmp_path: Path, broken_copy: Pa
         AirFisheyeDataModule("seg", root=tmp_path / "nowhere")
     (broken_copy / "splits" / "val.txt").unlink()
     with pytest.raises((ValueError, OSError), match=r"val\.txt"):
+        AirFisheyeDataset(broken_copy, "val", "seg")
+    (broken_copy / "splits" / "val.txt").write_text("# no frames\n")
+    with pytest.raises(EmptySplitError, match=r"split 'val' is empty .*splits/val\.txt"):
         AirFisheyeDataset(broken_copy, "val", "seg")
 
 

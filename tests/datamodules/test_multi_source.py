@@ -10,6 +10,7 @@ import yaml
 
 from airfisheye_bench.benchmarks import multi_source_cost
 from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.io import EmptySplitError
 from airfisheye_bench.synth.cache import cached_dataset_path
 from datamodules import AirFisheyeDataModule
 from datamodules.multi_source import SourceMixtureSampler
@@ -207,6 +208,19 @@ def test_the_benchmark_script_compares_one_source_with_two(tiny_dataset: Path, c
     )
     rows = capsys.readouterr().out.splitlines()[1:]
     assert len(rows) == 5 and sum("two sources" in r for r in rows) == 2 and "pool: add" in rows[-1]
+
+
+def test_an_empty_split_of_a_source_names_the_root_and_the_source(tiny_dataset: Path, tmp_path: Path) -> None:
+    ws = tmp_path / "woodscape"
+    for folder in ("rgb_images", "semantic_annotations/gtLabels", "calibration"):
+        (ws / folder).mkdir(parents=True)
+    woodscape = {"root": str(ws), "source": "fisheye", "format_options": {"classes": "benchmark"}}
+    dm = _datamodule(["a", "woodscape"], {"a": {"root": str(tiny_dataset)}, "woodscape": woodscape})
+    with pytest.raises(
+        EmptySplitError, match=r"split 'train' is empty .*\(data\.sources: source woodscape"
+    ) as info:
+        dm.setup("fit")
+    assert str(info.value).startswith(f"{ws}: ")
 
 
 def test_a_4x3_fisheye_source_is_padded_to_the_common_square(tiny_dataset: Path, tmp_path: Path) -> None:

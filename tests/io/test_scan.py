@@ -8,10 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from airfisheye_bench import io
 from airfisheye_bench.cli.commands import inspect
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.inspect_scans import inspect_scans
-from airfisheye_bench.io.scan import load_scan, write_pcd, write_ply
+from airfisheye_bench.io.scan import Scan, load_scan, write_pcd, write_ply
+from tests.helpers.commands import run_command
 from tests.helpers.pcl_files import write_pcd_binary_compressed
 
 RNG = np.random.default_rng(0)
@@ -261,6 +263,16 @@ def test_a_bad_file_is_one_error_naming_it(tmp_path: Path) -> None:
         with pytest.raises(DatasetFormatError) as info:
             load_scan(path)
         assert str(path) in str(info.value) and message in str(info.value), name
+
+
+def test_load_scan_is_exported_by_the_io_package(tmp_path: Path) -> None:
+    """``from airfisheye_bench.io import load_scan`` in a fresh interpreter (an import cycle would show only there)."""
+    path = tmp_path / "000000.bin"
+    np.column_stack([POINTS, INTENSITY]).astype(np.float32).tofile(path)
+    code = f"from airfisheye_bench.io import Scan, load_scan; print(len(load_scan({str(path)!r}).points))"
+    done = run_command("-c", [code])
+    assert done.returncode == 0 and done.stdout.split() == ["50"], done.stderr[-2000:]
+    assert io.load_scan is load_scan and io.Scan is Scan
 
 
 def test_inspect_a_folder_of_kitti_scans(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

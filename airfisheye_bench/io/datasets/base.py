@@ -58,7 +58,10 @@ class DatasetSource(Protocol):
     def split_names(self) -> list[str]: ...
 
     def split(self, name: str) -> list[str]:
-        """Sample ids of split ``name``, in a fixed order."""
+        """Sample ids of split ``name``, in a fixed order (empty when the root has none for it)."""
+
+    def split_rule(self, name: str) -> str:
+        """Which samples split ``name`` takes, in words: named by the refusal of an empty split."""
 
     def calib(self, sample_id: str) -> Calibration:
         """The calibration in force for a sample (camera, extrinsics, LiDAR spec; ``face_size`` for cube faces)."""

@@ -191,6 +191,13 @@ class Kitti360Source:
             out += [f"{seq}/{frame:010d}" for frame in self._frames(seq)[:: self.frame_step]]
         return out
 
+    def split_rule(self, name: str) -> str:
+        seqs = ", ".join(self._split_sequences()[name]) or "none"
+        return (
+            f"frames of data_poses/<seq>/poses.txt with a data_2d_raw/<seq>/{self.camera}/data_rgb image and a "
+            f"velodyne scan, in the split's sequences: {seqs}"
+        )
+
     @cached_property
     def _all_sequences(self) -> list[str]:
         return usable_sequences(self.root, self.camera)

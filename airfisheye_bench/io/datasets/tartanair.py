@@ -32,6 +32,7 @@ Example:
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 from typing import ClassVar
 
@@ -55,6 +56,9 @@ from airfisheye_bench.io.datasets.tartanair_labels import IGNORE, TRAIN_CLASSES,
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan, load_scan
 from airfisheye_bench.io.spec import ClassDef, DatasetSpec, SplitsSpec
+from airfisheye_bench.io.splits import frame_blocks
+
+log = logging.getLogger(__name__)
 
 #: Our face name -> TartanAir's (``tartanair_module.py`` ``camera_directions``).
 TARTANAIR_FACE = {
@@ -97,7 +101,10 @@ class TartanAirSource:
         difficulties: ``easy`` and/or ``hard`` (the ``Data_<difficulty>`` folders).
         split_period: Splits by trajectory: the selected trajectories sorted by environment, difficulty, id; the
             k-th goes to ``val`` when ``k % split_period == split_period - 2``, ``test`` when ``split_period - 1``,
-            else ``train`` (10: 80/10/10).
+            else ``train`` (10: 80/10/10). With fewer trajectories than ``split_period`` (a small download), by
+            frame blocks instead: each trajectory's frames in order, the last ``2 / split_period`` of them (at least
+            one each; none from a trajectory of under 3 frames) in a ``val`` then a ``test`` block
+            (:func:`~airfisheye_bench.io.splits.frame_blocks`).
         frame_stride: Use every n-th frame (10 Hz frames are near-duplicates).
         lidar: ``dataset`` (``lidar/*_lcam_front_lidar.ply``) or a preset of
             :data:`~airfisheye_bench.geometry.lidar_presets.LIDAR_PRESETS`, cast into the six depth faces.
@@ -158,6 +165,14 @@ class TartanAirSource:
         self._lidar = TARTANAIR_VLP16 if lidar == "dataset" else LidarSpec.from_preset(lidar)
         self._trajs = self._find_trajectories(environments, tuple(difficulties))
         self._frames = {key: self._list_frames(key) for key in self._trajs}
+        # Most downloads hold a few trajectories: splitting those by trajectory would leave val or test empty.
+        self._by_frames = len(self._trajs) < self.options["split_period"]
+        if self._by_frames:
+            log.info(
+                "tartanair: %d trajectories, fewer than split_period=%d: split by frame blocks within each",
+                len(self._trajs),
+                split_period,
+            )
         self._cache: dict[tuple[str, str], object] = {}
         front = self._face_file(self._first_sample(), "front", "rgb")
         classes = tuple(ClassDef(i, name, color) for i, (name, color) in enumerate(TRAIN_CLASSES))
@@ -167,7 +182,10 @@ class TartanAirSource:
             train_classes=classes,
             raw_to_train={c.id: c.id for c in classes},
             ignore_index=IGNORE,
-            splits=SplitsSpec(files={s: s for s in ("train", "val", "test")}, by="trajectory"),
+            splits=SplitsSpec(
+                files={s: s for s in ("train", "val", "test")},
+                by="frame_blocks" if self._by_frames else "trajectory",
+            ),
             sensors={"cubemap": {"face_size": self._image_size(front)}},
             contents=("cubemap", "lidar"),  # poses: T_world_cam, not the AirFisheye pose table
             description="TartanAir V2 (CC BY 4.0), read in place",
@@ -215,13 +233,38 @@ class TartanAirSource:
         """Sample ids ``<env>/<difficulty>_<Pxxx>/<frame>`` of split ``name`` (see ``split_period``)."""
         if name not in self.split_names:
             raise ValueError(f"split must be one of {self.split_names}, got {name!r}")
-        return [f"{key}/{frame}" for key in self.trajectories(name) for frame in self._frames[key]]
+        return [
+            f"{key}/{frame}" for key in self.trajectories(name) for frame in self._split_frames(key, name)
+        ]
 
     def trajectories(self, split: str | None = None) -> list[str]:
-        """``<env>/<difficulty>_<Pxxx>`` of ``split`` (all when ``None``), sorted."""
+        """``<env>/<difficulty>_<Pxxx>`` with frames in ``split`` (all when ``None``), sorted."""
+        if split is None:
+            return list(self._trajs)
+        if self._by_frames:
+            return [key for key in self._trajs if self._split_frames(key, split)]
         period = self.options["split_period"]
         names = {period - 2: "val", period - 1: "test"}
-        return [key for k, key in enumerate(self._trajs) if split in (None, names.get(k % period, "train"))]
+        return [key for k, key in enumerate(self._trajs) if names.get(k % period, "train") == split]
+
+    def split_rule(self, name: str) -> str:
+        period, stride = self.options["split_period"], self.options["frame_stride"]
+        if not self._by_frames:
+            return (
+                f"the {name} trajectories of the {len(self._trajs)} sorted ones (k % {period} == {period - 2}: val, "
+                f"{period - 1}: test, else train; data.format_options.split_period)"
+            )
+        return (
+            f"the {name} block of each trajectory's frames: the {len(self._trajs)} trajectories (fewer than "
+            f"data.format_options.split_period={period}) are split by frame blocks, and only a trajectory of at "
+            f"least 3 frames (after frame_stride={stride}) has val and test blocks"
+        )
+
+    def _split_frames(self, key: str, split: str) -> list[str]:
+        """The frames of trajectory ``key`` in ``split`` (all of them when it splits by trajectory)."""
+        if self._by_frames:
+            return frame_blocks(self._frames[key], self.options["split_period"])[split]
+        return self._frames[key]
 
     # ---------------------------------------------------------------------------- calibration
     def calib(self, sample_id: str) -> Calibration:

@@ -223,6 +223,17 @@ class WoodScapeSource:
             self._split_cache[name] = ids
         return list(self._split_cache[name])
 
+    def split_rule(self, name: str) -> str:
+        images = f"{self.rgb_dir}/<id>_<CAM>.png images of the views {', '.join(self.views)}"
+        if self.split_lists is not None:
+            return f"{images} listed in {self.split_lists / f'{name}.txt'}"
+        if name == "val":
+            return (
+                f"{images} of the devkit's validation list ({len(_read_list(_SPLITS_DIR / 'val.txt'))} images); "
+                "data.format_options.split_lists gives lists of one's own"
+            )
+        return f"{images} not in the devkit's validation list"
+
     def _selected(self, ids: list[str]) -> list[str]:
         return [s for s in ids if s.rsplit("_", 1)[1] in self.views]
 

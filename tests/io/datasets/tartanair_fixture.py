@@ -175,11 +175,18 @@ def write_frame(
 
 
 def write_tartanair_fixture(
-    root: Path, size: int = 48, frames: int = 3, lidar_frame: str = "ned", azimuths: int = 360
+    root: Path,
+    size: int = 48,
+    frames: int = 3,
+    lidar_frame: str = "ned",
+    azimuths: int = 360,
+    environments: tuple[str, ...] = tuple(NAME_MAPS),
 ) -> Path:
-    """Write two environments x :data:`TRAJECTORIES` x ``frames`` frames under ``root``; returns ``root``."""
+    """Write ``environments`` (of :data:`NAME_MAPS`) x :data:`TRAJECTORIES` x ``frames`` frames under ``root``
+    (one environment: a 3-trajectory download); returns ``root``."""
     root = Path(root)
-    for env, name_map in NAME_MAPS.items():
+    for env in environments:
+        name_map = NAME_MAPS[env]
         (root / env).mkdir(parents=True, exist_ok=True)
         (root / env / "seg_label_map.json").write_text(json.dumps({"name_map": name_map}, indent=4))
         for rel in TRAJECTORIES:

@@ -28,7 +28,7 @@ import torch
 from omegaconf import open_dict
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.io import DatasetFormatError
+from airfisheye_bench.io import DatasetFormatError, EmptySplitError, load_camera
 from airfisheye_bench.io.datasets import DatasetSource, DepthPoints, open_dataset
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.training import train
@@ -36,6 +36,7 @@ from datamodules.dataset import AirFisheyeDataset, CameraConfig
 from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
 from tests.helpers.configs import compose_train
 from tests.helpers.runs import tiny_run_overrides
+from tests.io import calibration_fixtures
 from tests.io.datasets.kitti360_fixture import SEQUENCES, write_kitti360
 
 SEQ = SEQUENCES[0]
@@ -190,6 +191,27 @@ def test_a_velodyne_point_lands_where_the_devkit_projects_it(root: Path, tmp_pat
     for ui, vi, di in zip(u, v, depth, strict=True):
         assert depth_map[round(vi), round(ui)].item() == pytest.approx(di, abs=1e-4)
     assert int((depth_map > 0).sum()) == 3
+
+
+@pytest.mark.parametrize(("cam", "most"), [("image_02", 0.62), ("image_03", 1.23)])
+def test_the_devkit_leaves_out_the_tangential_terms(tmp_path: Path, cam: str, most: float) -> None:
+    """docs/design.md, "Camera models": on KITTI-360's own calibrations ``cam2image`` (k1, k2 only) and ``unified``
+    (p1, p2 kept, as ``cv2.omnidir``) put a ray up to 0.62 px (image_02) and 1.23 px (image_03) apart in the image."""
+    (tmp_path / "calibration").mkdir()
+    camera = load_camera(calibration_fixtures.write_kitti360(tmp_path / "calibration" / f"{cam}.yaml", cam))
+    theta, phi = np.meshgrid(
+        np.radians(np.arange(0.0, 180.0, 0.25)), np.radians(np.arange(-180.0, 180.0, 0.5))
+    )
+    rays = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], -1).reshape(
+        -1, 3
+    )
+    u, v, _ = devkit_cam2image(tmp_path, cam, rays)
+    ours, valid = camera.project(rays)
+    theirs = np.stack([u, v], 1)
+    inside = valid & camera.in_image(ours) & camera.in_image(theirs)
+    shift = np.linalg.norm(ours[inside] - theirs[inside], axis=1)
+    assert shift.max() == pytest.approx(most, abs=0.01)
+    assert shift[np.degrees(theta.reshape(-1))[inside] <= 45.0].max() < most / 3
 
 
 @pytest.mark.parametrize("frame", [0, 1, 3])
@@ -351,6 +373,11 @@ def test_sequences_option_sets_the_splits(root: Path) -> None:
     assert src.split("train")[0].startswith(SEQUENCES[1]) and src.split("test")[0].startswith(SEQ)
     with pytest.raises(ConfigError, match=r"data\.format_options\.sequences\.val: .*nope is not a folder"):
         open_dataset(root, "kitti360", {"sequences": {"val": ["nope"]}})
+    with pytest.raises(EmptySplitError, match=r"split 'val' is empty .*split's sequences: none"):
+        AirFisheyeDataset(
+            root, "val", "depth", source="fisheye", dataset_format="kitti360",
+            format_options={"sequences": {"train": [SEQ], "test": [SEQ]}},
+        )  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------- bad input

@@ -39,6 +39,13 @@ def fixture_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_tartanair_fixture(tmp_path_factory.mktemp("tartanair") / "root", size=SIZE)
 
 
+@pytest.fixture(scope="module")
+def small_download(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Three trajectories (one environment) of 5 frames: fewer than the 10 a split by trajectory needs."""
+    root = tmp_path_factory.mktemp("tartanair_small") / "root"
+    return write_tartanair_fixture(root, size=SIZE, frames=5, environments=("CoalMine",))
+
+
 @pytest.fixture
 def writable_root(fixture_root: Path, tmp_path: Path) -> Path:
     return Path(shutil.copytree(fixture_root, tmp_path / "root"))
@@ -186,11 +193,33 @@ def test_splits_by_trajectory(fixture_root: Path) -> None:
     assert src.split("train")[:2] == [FIRST, "CoalMine/easy_P000/000001"]
     every = [s for name in src.split_names for s in src.split(name)]
     assert len(every) == len(set(every)) == 18
-    only = source(fixture_root, environments=["OldTownFall"], difficulties=["easy"], frame_stride=2)
+    assert src.spec.splits.by == "trajectory"
+    only = source(fixture_root, environments=["OldTownFall"], frame_stride=2)
     assert only.split("train") == ["OldTownFall/easy_P000/000000", "OldTownFall/easy_P000/000002"]
     assert only.split("val") == ["OldTownFall/easy_P001/000000", "OldTownFall/easy_P001/000002"]
-    default = open_dataset(fixture_root, "tartanair")  # period 10: six trajectories all train
-    assert len(default.split("train")) == 18 and default.split("test") == []
+
+
+def test_fewer_trajectories_than_the_period_split_by_frame_blocks(
+    small_download: Path, fixture_root: Path
+) -> None:
+    """A 3-trajectory download with split_period 10: each trajectory's frames in three contiguous blocks."""
+    src = open_dataset(small_download, "tartanair")
+    assert src.spec.splits.by == "frame_blocks"
+    trajs = ["CoalMine/easy_P000", "CoalMine/easy_P001", "CoalMine/hard_P000"]
+    blocks = {"train": ["000000", "000001", "000002"], "val": ["000003"], "test": ["000004"]}
+    for name, frames in blocks.items():
+        assert src.split(name) == [f"{t}/{f}" for t in trajs for f in frames], name
+        assert src.trajectories(name) == trajs
+    again = open_dataset(small_download, "tartanair")
+    assert all(again.split(name) == src.split(name) for name in blocks)  # deterministic
+    six = open_dataset(fixture_root, "tartanair")  # 6 trajectories of 3 frames: one frame per split in each
+    assert [len(six.split(name)) for name in blocks] == [6, 6, 6]
+    assert six.split("test")[:2] == ["CoalMine/easy_P000/000002", "CoalMine/easy_P001/000002"]
+    strided = open_dataset(
+        small_download, "tartanair", {"frame_stride": 3}
+    )  # 2 frames a trajectory: all train
+    assert len(strided.split("train")) == 6 and strided.split("val") == strided.split("test") == []
+    assert "at least 3 frames" in strided.split_rule("val")
 
 
 # ------------------------------------------------------------------------------------- calibration, poses
@@ -314,6 +343,40 @@ def test_train_runs_every_task_on_tartanair(task: str, fixture_root: Path, tmp_p
     assert record["task"] == task and record["split"] == "test"
     assert np.isfinite(record["metrics"][primary])
     assert record["metrics"][primary] == pytest.approx(results["metrics"][primary])
+
+
+@pytest.mark.integration
+def test_train_seg_on_a_three_trajectory_download(small_download: Path, tmp_path: Path) -> None:
+    """``python train.py task=seg data=tartanair data.root=<3 trajectories>`` with the default split_period."""
+    from airfisheye_bench.training import train
+    from tests.helpers.configs import compose_train
+    from tests.helpers.runs import tiny_run_overrides
+
+    cfg = compose_train([*tiny_run_overrides("seg", small_download, size=32), "data=tartanair", "logger=csv"])
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(tmp_path)
+    results = train(cfg)
+    record = json.loads((tmp_path / "results.json").read_text())
+    assert record["split"] == "test" and np.isfinite(record["metrics"]["mIoU"])
+    assert record["metrics"]["mIoU"] == pytest.approx(results["metrics"]["mIoU"])
+
+
+@pytest.mark.integration
+def test_an_empty_split_is_one_line(small_download: Path, tmp_path: Path) -> None:
+    """Trajectories of 2 frames (every 3rd of 5) leave val empty: one line naming the root, the split, the rule."""
+    from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
+
+    args = [
+        "task=seg",
+        "data=tartanair",
+        f"data.root={small_download}",
+        "data.format_options.frame_stride=3",
+        "trainer=debug",
+        f"hydra.run.dir={tmp_path}",
+    ]
+    outcome = run_in_process(TRAIN, args)
+    assert_one_line_error(outcome, str(small_download), "split 'val' is empty", "at least 3 frames")
+    assert not (tmp_path / "results.json").exists()
 
 
 @pytest.mark.integration

@@ -15,6 +15,7 @@ from airfisheye_bench.io.datasets import open_dataset
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.training import train
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
+from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
 from tests.helpers.configs import compose_train
 from tests.helpers.runs import tiny_run_overrides
 from tests.io.datasets.woodscape_fixture import (
@@ -155,6 +156,42 @@ def test_the_dataset_serves_labels_at_the_training_size(woodscape: Path) -> None
     assert sample["image"].shape == (3, 48, 64) and sample["label"].shape == (48, 64)
     assert set(sample["label"].unique().tolist()) <= set(range(10))
     assert ds.camera.width == 64 and ds.camera.height == 48
+
+
+@pytest.mark.integration
+def test_an_empty_folder_is_one_line(tmp_path: Path) -> None:
+    """The folders of a WoodScape root without a file in them: one line naming the root, the split and the images."""
+    root = tmp_path / "woodscape"
+    for folder in ("rgb_images", "semantic_annotations/gtLabels", "calibration"):
+        (root / folder).mkdir(parents=True)
+    outcome = run_in_process(
+        TRAIN,
+        [
+            "task=seg",
+            "data=woodscape",
+            f"data.root={root}",
+            "trainer=debug",
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ],
+    )
+    assert_one_line_error(outcome, str(root), "split 'train' is empty", "rgb_images/<id>_<CAM>.png")
+
+
+@pytest.mark.integration
+def test_a_download_without_the_validation_images_is_one_line(copy: Path, tmp_path: Path) -> None:
+    for sid in VAL_IDS:
+        (copy / "rgb_images" / f"{sid}.png").unlink()
+    outcome = run_in_process(
+        TRAIN,
+        [
+            "task=seg",
+            "data=woodscape",
+            f"data.root={copy}",
+            "trainer=debug",
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ],
+    )
+    assert_one_line_error(outcome, str(copy), "split 'val' is empty", "validation list", "split_lists")
 
 
 @pytest.mark.integration
