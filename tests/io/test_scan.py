@@ -265,6 +265,7 @@ def test_a_bad_file_is_one_error_naming_it(tmp_path: Path) -> None:
         assert str(path) in str(info.value) and message in str(info.value), name
 
 
+@pytest.mark.integration  # a fresh interpreter
 def test_load_scan_is_exported_by_the_io_package(tmp_path: Path) -> None:
     """``from airfisheye_bench.io import load_scan`` in a fresh interpreter (an import cycle would show only there)."""
     path = tmp_path / "000000.bin"
