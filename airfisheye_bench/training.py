@@ -46,6 +46,7 @@ from airfisheye_bench.runs import (
 )
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tracking import log_run_outputs, start_tracking
+from datamodules.coverage import input_coverage
 from datamodules.sources import mixture_identity, resolve_sources
 from models.weights import pretrained_weights_disabled
 
@@ -410,6 +411,7 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
                 dataset=dataset
                 or dataset_identity(datamodule.dataset_root(), datamodule.split_dataset("test").spec.name),
                 sources=sources,
+                sparse_coverage=input_coverage(datamodule.split_dataset("test"), cfg.task.name),
                 model={
                     "source": "checkpoint",
                     "stage": "training",  # the leaderboard tells this row from evaluate.py's of the same weights

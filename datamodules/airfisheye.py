@@ -20,6 +20,7 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
 from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
@@ -70,10 +71,12 @@ class AirFisheyeDataModule(L.LightningDataModule):
         seed: Seed of the shuffling and augmentation draws.
         dataset_seed: Seed of the synthetic dataset itself (``root=None``); 0 is the canonical release of each
             preset. Independent of ``seed`` so that changing the training seed never changes the data.
-        lidar: ``{"preset": ..., "min_range": 1.0}``. ``preset``: the LiDAR (a preset name such as ``hdl64e``, or a
+        lidar: ``{"preset": ..., "min_range": 1.0, "density": "native"}``. ``preset``: the LiDAR (a preset name such as ``hdl64e``, or a
             YAML / JSON / Ouster metadata file): with ``root`` it replaces ``calib.yaml``'s spec (a real release
             whose calibration has none); without, the synthetic ``preset`` is generated with that sensor (cached
             apart). ``min_range``: returns closer than this many metres are self-hits, removed and counted.
+            ``density``: ``native`` (every return) or ``paper`` (a fixed subset of the beams: the returns per
+            pixel of the paper's sensor on its 1536^2 image, at any served size; docs/design.md).
         format: How ``root`` is laid out: ``airfisheye`` (the release's layout, and the synthetic data) or a public
             dataset's own layout (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`; ``docs/design.md``,
             "Dataset formats"). Any format but ``airfisheye`` needs ``root``.
@@ -145,7 +148,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             "augment", augment or {}, {"hflip", "rotate_deg", "color_jitter"}, ("color_jitter",)
         )
         self.augment = FisheyeAugment(**augment_kwargs) if augment is not None else None
-        lidar_opts = _options("lidar", dict(lidar or {}), {"preset", "min_range"}, ())
+        lidar_opts = _options("lidar", dict(lidar or {}), {"preset", "min_range", "density"}, ())
         self.lidar_preset, lidar_spec = _lidar_spec(lidar_opts.get("preset"), root)
         # Every source of a mixture is served with data.lidar.preset's sensor (synthetic: generated with it).
         self.source_lidar = {
@@ -155,6 +158,9 @@ class AirFisheyeDataModule(L.LightningDataModule):
         min_range = DEFAULT_MIN_RANGE if min_range is None else min_range
         if isinstance(min_range, bool) or not isinstance(min_range, (int, float)) or not min_range >= 0:
             raise ConfigError(f"data.lidar.min_range={min_range!r}: expected a number of metres >= 0")
+        density = lidar_opts.get("density") or "native"
+        if density not in LIDAR_DENSITIES:
+            raise ConfigError(f"data.lidar.density={density!r}: expected one of {', '.join(LIDAR_DENSITIES)}")
         self.dataset_kwargs = dict(
             task=task,
             source=source,
@@ -166,6 +172,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             skip_bad_frames=skip_bad_frames,
             lidar_spec=lidar_spec,
             lidar_min_range=float(min_range),
+            lidar_density=density,
             dataset_format=format,
             format_options=dict(format_options or {}),
         )

@@ -27,7 +27,8 @@ training resolution); ``fisheye`` reads the pre-rendered fisheye files (resized 
 LiDAR (``sparse_depth``): the scan's rings come from where they are known (docs/design.md, "Rings": a ring field
 or the generator's ``lidar_beam``, the firing order of KITTI ``.bin``, else the channel table), then returns closer
 than ``lidar_min_range`` and returns no channel explains are removed and counted (``lidar_counts``; logged for
-the first frame a process serves), before the occlusion correction.
+the first frame a process serves), and with ``lidar_density="paper"`` only the returns of a fixed subset of beams
+are kept, before the occlusion correction.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye
 from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset
 from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options, lidar_depth_map
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
@@ -91,6 +93,9 @@ class AirFisheyeDataset(Dataset):
         dataset_format: How ``root`` is laid out (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`:
             ``airfisheye``, or a public dataset's own layout).
         format_options: That format's options (``data.format_options``; unset ones take their defaults).
+        lidar_density: ``native`` serves every return; ``paper`` a fixed subset of the scan's beams with which the
+            served image gets the returns per pixel of the paper's sensor on its 1536^2 image
+            (:mod:`~airfisheye_bench.geometry.lidar_density`), before the occlusion correction.
 
     Example:
         >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
@@ -116,8 +121,11 @@ class AirFisheyeDataset(Dataset):
         lidar_min_range: float = DEFAULT_MIN_RANGE,
         dataset_format: str = "airfisheye",
         format_options: Mapping | None = None,
+        lidar_density: str = "native",
     ) -> None:
         task_spec = get_task(task)
+        if lidar_density not in LIDAR_DENSITIES:
+            raise ValueError(f"lidar_density must be one of {LIDAR_DENSITIES}, got {lidar_density!r}")
         if source not in IMAGE_SOURCES:
             raise ValueError(f"source must be one of {IMAGE_SOURCES}, got {source!r}")
         if not max_depth > 0:
@@ -141,6 +149,7 @@ class AirFisheyeDataset(Dataset):
         self.seed = int(seed)
         self.lidar_spec = lidar_spec
         self.lidar_min_range = float(lidar_min_range)
+        self.lidar_density = lidar_density
         #: Returns removed from the scans served by this process, by reason, and the ring sources used.
         self.lidar_counts: dict[str, int] = {}
         self._epoch = SharedEpoch()
@@ -385,6 +394,13 @@ class AirFisheyeDataset(Dataset):
         if isinstance(method, str) and method == ORACLE:  # the truly visible points, projected without a test
             visible = oracle_visible(self.reader, sample_id, keep)
             points, rings, method = points[visible], rings[visible], Occlusion("none")
+        if (
+            self.lidar_density == "paper"
+        ):  # a sparser sensor's returns, so the correction sees what it would get
+            camera = self.camera
+            subset = paper_density_subset(spec, max(camera.width, camera.height), camera.coverage_deg)
+            served = subset.mask(points, rings, spec)
+            points, rings = points[served], rings[served]
         T = _augmented(self.T_cam_lidar(sample_id), params)
         depth = lidar_depth_map(
             points,

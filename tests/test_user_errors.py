@@ -189,6 +189,11 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             [*fresh, "data.lidar.min_range=-1", f"hydra.run.dir={tmp}/r21"],
             ("data.lidar.min_range=-1", ">= 0"),
         ),
+        "lidar_density": (
+            TRAIN,
+            [*fresh, "data.lidar.density=sparse", f"hydra.run.dir={tmp}/r22"],
+            ("data.lidar.density='sparse'", "native, paper"),
+        ),
         "lidar_preset": (
             TRAIN,
             [*fresh, "data.lidar.preset=hdl65e", f"hydra.run.dir={tmp}/r16"],
@@ -335,6 +340,7 @@ FAIL_FAST = (
     "lidar_preset",
     "occlusion_options",
     "lidar_min_range",
+    "lidar_density",
 )
 """Rows on the synthetic preset with an empty cache, refused before the dataset is generated."""
 
@@ -381,6 +387,7 @@ SLOW_ROWS = (
     "lidar_spec_file",
     "inspect_lidar",
     "lidar_min_range",
+    "lidar_density",
 )
 
 
@@ -476,6 +483,7 @@ SCHEMA_TABLE = [
         "data.format_options={'camera': 'image_03'}: unknown keys ['camera'] for data.format=airfisheye",
     ),
     ("train", ["data.lidar.min_range=-1"], "data.lidar.min_range=-1: expected a number >= 0"),
+    ("train", ["data.lidar.density=sparse"], "data.lidar.density='sparse': expected one of native, paper"),
     ("train", ["data.lidar.preset=hdl65e"], "data.lidar.preset='hdl65e': expected one of hdl32e, hdl64e"),
     ("train", ["data.lidar.preset=/"], "data.lidar.preset='/': expected one of"),
     ("train", ["+data.camera.k=[0.1,0.2]"], "data.camera.k=[0.1, 0.2]: expected four numbers"),

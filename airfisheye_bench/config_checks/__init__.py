@@ -80,6 +80,12 @@ def _occlusion_options_problem(value: Any, method: Any) -> str | None:
     return None
 
 
+def _lidar_densities() -> tuple[str, ...]:
+    from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES  # imports torch: only when checked
+
+    return LIDAR_DENSITIES
+
+
 def _dataset_formats() -> tuple[str, ...]:
     from airfisheye_bench.io.datasets import DATASET_FORMATS  # imports torch: only when checked
 
@@ -311,6 +317,11 @@ RULES: dict[str, ValueRule] = {
         uses=("data.occlusion",),
         nullable=True,
         hint="see docs/design.md, LiDAR and occlusion",
+    ),
+    "data.lidar.density": ValueRule(
+        "choice",
+        choices=_lidar_densities,
+        hint="the sparse input's returns per pixel: the scan's, or the paper's",
     ),
     "data.format": ValueRule("choice", choices=_dataset_formats, hint="how data.root is laid out"),
     "data.format_options": ValueRule(

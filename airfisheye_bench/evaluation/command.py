@@ -51,6 +51,7 @@ from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.tracking import log_to_run, resolve_run
 from airfisheye_bench.viz import save_png, task_panel
 from datamodules.config import apply_data_overrides, instantiate_datamodule, parse_data_overrides
+from datamodules.coverage import input_coverage
 
 log = logging.getLogger(__name__)
 
@@ -303,6 +304,7 @@ def _write(
         metrics=result.metrics,
         breakdown=result.breakdown,
         dataset=dataset_identity(datamodule.dataset_root(), datamodule.split_dataset(cfg.split).spec.name),
+        sparse_coverage=input_coverage(datamodule.split_dataset(cfg.split), task),
         model=identity,
         config={
             # The task group's training settings (optimiser, model defaults) play no part in evaluation.

@@ -1,7 +1,8 @@
 """``results.json``: one evaluated model on one split, in the format the leaderboard collects.
 
 ``{"version", "task", "split", "primary_metric", "metrics": {key: value}, "breakdown": {"ring_60-80/rmse": ...},
-"dataset": {...identity...}, "model": {...}, "config": {...}, "created": ISO time}``. Metric values are fractions
+"dataset": {...identity...}, "model": {...}, "config": {...}, "created": ISO time}``, and for completion
+``"sparse_coverage": {"ring_0-30": ...}`` (the sparse input's pixels per ground-truth pixel by ring). Metric values are fractions
 (mIoU 0.512) or metres; NaN (e.g. a class absent from the split) is written as ``null``.
 
 ``model`` says what was evaluated, which the leaderboard labels each row with (:func:`evaluated_label`):
@@ -64,12 +65,16 @@ def write_results(
     model: dict[str, Any] | None = None,
     config: dict[str, Any] | None = None,
     sources: dict[str, Any] | None = None,
+    sparse_coverage: dict[str, float] | None = None,
 ) -> Path:
     """Write ``results.json`` atomically and return its path; ``primary_metric`` is the task spec's.
 
     ``sources`` (a run of several datasets, ``data.sources``): by source name, ``{"dataset": its identity,
     "metrics": ..., "breakdown": ...}``; ``metrics`` and ``breakdown`` are then the pooled ones and ``dataset`` the
     mixture's identity (:func:`source_records` turns such a file into one record per source).
+
+    ``sparse_coverage`` (a task with a sparse input: completion): its pixels per ground-truth pixel by ring over the
+    split, ``{"ring_0-30": 0.031, ...}`` (``datamodules.coverage``), how dense the input the model saw was.
     """
     primary = get_task(task).primary_metric
     record = {
@@ -84,6 +89,8 @@ def write_results(
         "config": _clean(config or {}),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     }
+    if sparse_coverage is not None:
+        record["sparse_coverage"] = _clean(sparse_coverage)
     if sources:
         record["sources"] = _clean(sources)
     path = Path(path)

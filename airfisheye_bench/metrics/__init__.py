@@ -15,6 +15,7 @@ from airfisheye_bench.metrics.binned import (
     ring_edges_for,
 )
 from airfisheye_bench.metrics.completion import CompletionMetrics
+from airfisheye_bench.metrics.coverage import RingCoverage
 from airfisheye_bench.metrics.depth import DepthMetrics
 from airfisheye_bench.metrics.functional import (
     COMPLETION_METRIC_KEYS,
@@ -37,6 +38,7 @@ __all__ = [
     "BinnedMetrics",
     "CompletionMetrics",
     "DepthMetrics",
+    "RingCoverage",
     "SegmentationMetrics",
     "TaskScorer",
     "bin_index",

@@ -28,6 +28,12 @@ def test_fast_dev_run(task: str, tiny_runs) -> None:
     assert record["metrics"][primary] == pytest.approx(results["metrics"][primary], nan_ok=True)
     assert any(k.startswith("ring_") for k in record["breakdown"])
     assert record["dataset"]["manifest_sha256"]
+    if task == "completion":  # how densely the sparse input covered the test split's ground truth, by ring
+        coverage = record["sparse_coverage"]
+        assert set(coverage) == {"ring_0-30", "ring_30-60", "ring_60-80", "ring_80-95"}
+        assert all(0 < value <= 1 for value in coverage.values())
+    else:
+        assert "sparse_coverage" not in record
     assert (run / "checkpoints" / "last.ckpt").is_file()
     assert (run / "config.yaml").is_file() and (run / "metrics.csv").is_file()
     assert list((run / "panels").glob("epoch_*.png"))

@@ -1,0 +1,57 @@
+"""``data.lidar.density=paper`` as served: the sparse input of the tiny preset has the paper sensor's pixels per
+ground-truth pixel on its 1536^2 image, ring by ring, from a fixed subset of every frame's beams."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.geometry.lidar import LidarSpec
+from airfisheye_bench.geometry.lidar_density import paper_density_subset
+from datamodules import AirFisheyeDataModule
+from datamodules.coverage import sparse_coverage
+
+
+def _split(tiny_dataset: Path, density: str, split: str = "train"):
+    dm = AirFisheyeDataModule(
+        "completion", root=tiny_dataset, camera={"size": 64}, lidar={"density": density}
+    )
+    return dm.split_dataset(split)
+
+
+def test_paper_density_matches_the_paper_sensor_at_1536_by_ring(tiny_dataset: Path) -> None:
+    """The tiny preset at its own size (64^2, a 16 x 128 scan): within 25 % of the paper's 64 x 2048 at 1536^2."""
+    coverage = sparse_coverage(_split(tiny_dataset, "paper"), every=2, reference=LidarSpec())
+    served, paper = coverage["served"], coverage["paper_1536"]
+    assert set(served) == set(paper) == {"ring_0-30", "ring_30-60", "ring_60-80", "ring_80-95"}
+    for ring, value in served.items():
+        assert value == pytest.approx(paper[ring], rel=0.25), ring
+    assert all(value < 0.15 for value in served.values())  # a few per cent, not the native 30-75 %
+
+
+def test_the_same_beams_are_served_in_every_frame(tiny_dataset: Path) -> None:
+    """Every sparse return comes from a kept (ring, sector) cell, the density is native's thinned by the subset,
+    and serving a frame twice gives the same map (deterministic)."""
+    native, paper = _split(tiny_dataset, "native"), _split(tiny_dataset, "paper")
+    subset = paper_density_subset(LidarSpec(channels=16, points_per_channel=128), 64)
+    for index in range(0, len(paper), 3):
+        sample_id = paper.sample_ids[index]
+        points, rings, spec = paper.lidar_points(sample_id)
+        kept = subset.mask(points, rings, spec)
+        assert kept.mean() == pytest.approx(subset.fraction, rel=0.5)
+        sparse = paper[index]["sparse_depth"]
+        torch.testing.assert_close(sparse, paper[index]["sparse_depth"])
+        on_native = native[index]["sparse_depth"]
+        # The subset's returns are a subset of the scan: where paper serves a range, native serves one too.
+        assert bool((on_native[sparse > 0] > 0).all())
+        assert 0 < int((sparse > 0).sum()) < int((on_native > 0).sum()) / 3
+    assert np.array_equal(subset.channels, paper_density_subset(spec, 64).channels)
+
+
+def test_a_bad_density_is_refused_naming_the_key(tiny_dataset: Path) -> None:
+    with pytest.raises(ConfigError, match=r"^data\.lidar\.density='sparse': expected one of native, paper$"):
+        AirFisheyeDataModule("completion", root=tiny_dataset, lidar={"density": "sparse"})
