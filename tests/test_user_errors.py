@@ -606,9 +606,12 @@ def test_loader_worker_errors_keep_their_message(
     index: int, expected: Callable[[Path], str | None], tmp_path: Path
 ) -> None:
     path = tmp_path / "rgb" / "000001.png"
-    loader = DataLoader(torch.utils.data.Subset(_BrokenFrames(path), [index]), num_workers=1)
-    with pytest.raises(Exception) as caught:
-        next(iter(loader))
+    batches = iter(DataLoader(torch.utils.data.Subset(_BrokenFrames(path), [index]), num_workers=1))
+    try:
+        with pytest.raises(Exception) as caught:
+            next(batches)
+    finally:  # the worker stops now: left to the collector, its join cost a later test 5 s
+        batches._shutdown_workers()
     assert user_message(caught.value) == expected(path)
 
 
