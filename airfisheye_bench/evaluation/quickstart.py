@@ -447,7 +447,7 @@ def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.
     lines += [
         "",
         f"From [`{source}`]({source}) (`{record['command']}` at commit "
-        f"`{record['commit'][:12]}`, on {record['machine']}; dataset `{dataset.get('name')}`, content "
+        f"`{record['commit']}`, on {record['machine']}; dataset `{dataset.get('name')}`, content "
         f"`{str(dataset.get('content_sha256', ''))[:8]}`). ± is the sample standard deviation over the training "
         "seeds: it is how much a re-run with another seed may differ.",
     ]

@@ -129,7 +129,7 @@ def results_tables(record: dict[str, Any]) -> str:
             for seed, run in entry["seeds"].items():
                 cells = [_fmt(c, run["metrics"][c]) if c in run["metrics"] else "–" for c in columns]
                 parts.append(
-                    f"| seed {seed} (commit `{run['commit'][:7]}`) | synthetic quickstart, test | "
+                    f"| seed {seed} (commit `{run['commit']}`) | synthetic quickstart, test | "
                     + " | ".join(cells)
                     + " |"
                 )
@@ -356,7 +356,7 @@ def rings_tables(record: dict[str, Any], coverage: dict[str, Any] | None) -> str
     if coverage is not None:
         sources += (
             " and [`figures/sparse_coverage.json`](figures/sparse_coverage.json) "
-            f"(`{coverage['command']}`, commit `{coverage['commit'][:7]}`)"
+            f"(`{coverage['command']}`, commit `{coverage['commit']}`)"
         )
     lines += ["", sources + "."]
     return "\n".join(lines)
