@@ -140,6 +140,18 @@ def test_spec_files_and_their_errors(tmp_path: Path) -> None:
         ouster_metadata_table({"beam_intrinsics": {}})
 
 
+def test_a_window_centre_is_part_of_the_spec() -> None:
+    spec = LidarSpec(
+        channels=2, points_per_channel=10, hfov_deg=36.0, vfov_deg=(-1.0, 1.0), azimuth_center_deg=90.0
+    )
+    np.testing.assert_allclose(np.degrees(spec.column_azimuths()), [73.8 + 3.6 * j for j in range(10)])
+    assert spec.to_dict()["azimuth_center_deg"] == 90.0 and "azimuth_center_deg" not in LidarSpec().to_dict()
+    with pytest.raises(ValueError, match="azimuth_center_deg=170 with hfov_deg=36"):
+        LidarSpec(hfov_deg=36.0, azimuth_center_deg=170.0)
+    with pytest.raises(ValueError, match="azimuth_center_deg=10 with hfov_deg=360"):
+        LidarSpec(hfov_deg=360.0, azimuth_center_deg=10.0)
+
+
 # ------------------------------------------------------------------ the ROS Velodyne driver's calibration YAML
 # github:ros-drivers/velodyne velodyne_pointcloud/params/VLP16db.yaml (commit 29abd0e), vert_correction of laser
 # IDs 0-15 in radians: the VLP-16's -15..15 deg in 2 deg steps, interleaved.
