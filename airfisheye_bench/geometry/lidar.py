@@ -12,9 +12,10 @@ Beam pattern (the single definition; the synthetic generator casts :meth:`LidarS
 * channel ``i`` (row ``i`` of ``I_LiDAR``) has elevation ``elevations_deg[i]`` (a sensor's channel table,
   ascending) or, for a uniform sensor, ``linspace(lower, upper, channels)[i]``: channel 0 is the lowest beam, so
   elevation increases with the row (the paper's "ascending order of phi along each column");
-* column ``j`` has azimuth ``-hfov/2 + (j + 0.5) * hfov / points_per_channel`` (plus the channel's
+* column ``j`` has azimuth ``centre - hfov/2 + (j + 0.5) * hfov / points_per_channel`` (plus the channel's
   ``azimuth_offsets_deg``, where the sensor's lasers do not fire in one vertical line): the horizontal FOV,
-  centred on the x axis, is split into equal cells whose centres are the beam azimuths. Azimuth increases with
+  centred on the x axis (``azimuth_center_deg`` = 0, or where a sensor's column window puts it), is split into
+  equal cells whose centres are the beam azimuths. Azimuth increases with
   the column (the paper's "ascending order of theta from left to right"), and a 360 deg sensor has no duplicated
   column;
 * a beam starts at the sensor's centre, or where ``beam_origins_m`` puts its channel's laser: ``(radial,
@@ -53,7 +54,7 @@ class LidarSpec:
         channels: Number of channels / rings ``N_C`` (rows of ``I_LiDAR``), at least 2.
         points_per_channel: Number of azimuth cells per channel ``N_PC`` (columns of ``I_LiDAR``): the points per
             revolution (or per ``hfov_deg``).
-        hfov_deg: Horizontal field of view in degrees, in ``(0, 360]``, centred on the LiDAR x axis.
+        hfov_deg: Horizontal field of view in degrees, in ``(0, 360]``, centred on ``azimuth_center_deg``.
         vfov_deg: ``(lower, upper)`` elevations of the lowest and highest channels in degrees, in ``[-90,
             90]``. With ``elevations_deg`` it is their first and last value (given or not).
         max_range: Maximum range in metres (beams that hit nothing closer give no return).
@@ -64,6 +65,9 @@ class LidarSpec:
         beam_origins_m: Per channel, where its beam starts: ``(radial, tangential, vertical)`` metres from the
             sensor's centre, along the beam's horizontal direction, to its left and up. ``None``: the centre.
         name: The preset's name, if the spec is one (kept in ``to_dict``).
+        azimuth_center_deg: Azimuth of the middle of a partial ``hfov_deg`` (degrees, counter-clockwise from x):
+            0, or where a sensor returns only a window of its columns (an Ouster ``column_window``). The field of
+            view may not cross azimuth +-180 deg (the layout's sectors would be split there); 0 at 360 deg.
 
     Example:
         >>> spec = LidarSpec(channels=16, points_per_channel=360, hfov_deg=360.0, vfov_deg=(-15.0, 15.0))
@@ -87,6 +91,7 @@ class LidarSpec:
     azimuth_offsets_deg: tuple[float, ...] | None = None
     beam_origins_m: tuple[tuple[float, float, float], ...] | None = None
     name: str | None = None
+    azimuth_center_deg: float = 0.0
 
     def __post_init__(self) -> None:
         # Coerce (YAML may give ints for floats, lists for tuples) and validate; frozen, hence object.__setattr__.
@@ -119,6 +124,14 @@ class LidarSpec:
         if not 0.0 < hfov <= 360.0:
             raise ValueError(f"LidarSpec.hfov_deg must be in (0, 360], got {self.hfov_deg!r}")
         object.__setattr__(self, "hfov_deg", hfov)
+        centre = _number(self.azimuth_center_deg, "azimuth_center_deg")
+        # A window across +-180 deg would split the layout's sectors (columns are counted from -pi): refused.
+        if centre and (hfov == 360.0 or abs(centre) + hfov / 2.0 > 180.0 + 1e-9):
+            raise ValueError(
+                f"LidarSpec.azimuth_center_deg={centre:g} with hfov_deg={hfov:g}: the field of view must lie "
+                "within azimuths [-180, 180] (and a 360 deg one is centred on 0)"
+            )
+        object.__setattr__(self, "azimuth_center_deg", centre)
         try:
             lower, upper = (_number(v, "vfov_deg") for v in self.vfov_deg)
         except (TypeError, ValueError) as err:
@@ -173,6 +186,11 @@ class LidarSpec:
         return math.radians(upper - lower) / (self.channels - 1)
 
     @property
+    def azimuth_edge(self) -> float:
+        """Azimuth where column 0 starts, ``centre - HFOV / 2``, in radians (the layout's sectors count from it)."""
+        return math.radians(self.azimuth_center_deg) - math.radians(self.hfov_deg) / 2.0
+
+    @property
     def horizontal_resolution(self) -> float:
         """Azimuth step between neighbouring columns, ``HFOV / N_PC``, in radians."""
         return math.radians(self.hfov_deg) / self.points_per_channel
@@ -197,9 +215,8 @@ class LidarSpec:
         return np.asarray(self.beam_origins_m, dtype=np.float64)
 
     def column_azimuths(self) -> np.ndarray:
-        """Azimuth of every column ``[N_PC]`` (float64 radians, ascending, centred on the x axis)."""
-        half = math.radians(self.hfov_deg) / 2.0
-        return -half + (np.arange(self.points_per_channel) + 0.5) * self.horizontal_resolution
+        """Azimuth of every column ``[N_PC]`` (float64 radians, ascending, centred on ``azimuth_center_deg``)."""
+        return self.azimuth_edge + (np.arange(self.points_per_channel) + 0.5) * self.horizontal_resolution
 
     def beam_directions(
         self, dtype: torch.dtype = torch.float32, device: torch.device | str | None = None
@@ -252,6 +269,8 @@ class LidarSpec:
         """Plain-Python description (for ``calib.yaml``); the optional tables only where they are set."""
         d = asdict(self)
         d["vfov_deg"] = list(self.vfov_deg)
+        if not self.azimuth_center_deg:  # written only where set: older calib.yaml files stay as they were
+            del d["azimuth_center_deg"]
         for key in _OPTIONAL:
             if d[key] is None:
                 del d[key]
@@ -270,6 +289,7 @@ class LidarSpec:
             "vfov_deg",
             "max_range",
             "preset",
+            "azimuth_center_deg",
             *_OPTIONAL,
         }
         unknown = set(d) - allowed

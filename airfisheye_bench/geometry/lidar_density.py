@@ -73,7 +73,7 @@ class BeamSubset:
         moves a return by at most one sector; a return without a ring (-1) is dropped.
         """
         _, azimuth, _ = spherical_coordinates(np.asarray(points, dtype=np.float64))
-        column = np.floor((azimuth + math.radians(spec.hfov_deg) / 2.0) / spec.horizontal_resolution)
+        column = np.floor((azimuth - spec.azimuth_edge) / spec.horizontal_resolution)
         column = column.astype(np.int64) % spec.points_per_channel
         rings = np.asarray(rings, dtype=np.int64)
         return (rings >= 0) & self.channels[rings.clip(0)] & self.columns[column]

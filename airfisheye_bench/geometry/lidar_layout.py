@@ -156,7 +156,7 @@ def column_range(spec: LidarSpec) -> tuple[int, int]:
     """
     if spec.hfov_deg == 360.0:
         return 0, spec.points_per_channel
-    edge, res = -math.radians(spec.hfov_deg) / 2.0, spec.horizontal_resolution
+    edge, res = spec.azimuth_edge, spec.horizontal_resolution
     first = math.floor((-math.pi - edge) / res)
     return first, math.floor((math.pi - edge) / res) - first + 1
 
@@ -171,7 +171,7 @@ def layout_from_angles(
     """
     ring = rings_from_elevation(r, el, spec) if rings is None else np.asarray(rings, dtype=np.int64).copy()
     ring[r <= 0] = -1
-    column = np.floor((az - (-math.radians(spec.hfov_deg) / 2.0)) / spec.horizontal_resolution)
+    column = np.floor((az - spec.azimuth_edge) / spec.horizontal_resolution)
     if spec.hfov_deg == 360.0:
         column = np.minimum(column, spec.points_per_channel - 1)  # azimuth +pi exactly: the last sector
     # Rank in azimuth within the ring; lexsort is stable, so equal azimuths keep the lower index first.

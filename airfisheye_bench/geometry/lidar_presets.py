@@ -127,15 +127,20 @@ _VLP32C_LASERS = (
 
 # ------------------------------------------------------------------------------------------------ Ouster
 # Ouster SDK design values for a gen1 OS-1-64 (ouster_client/src/types.cpp, gen1_altitude_angles and
-# gen1_azimuth_angles, beam 0 the top one; lidar_origin_to_beam_origin_mm = 15.806 for OS-1). Ouster computes
-# the azimuth as encoder - beam_azimuth_angles, so the offset here is their negative.
+# gen1_azimuth_angles, beam 0 the top one). Ouster computes the azimuth as encoder - beam_azimuth_angles, so the
+# offset here is their negative.
 _OS1_64_ALTITUDES = (
     16.611, 16.084, 15.557, 15.029, 14.502, 13.975, 13.447, 12.920, 12.393, 11.865, 11.338, 10.811, 10.283,
     9.756, 9.229, 8.701, 8.174, 7.646, 7.119, 6.592, 6.064, 5.537, 5.010, 4.482, 3.955, 3.428, 2.900, 2.373,
     1.846, 1.318, 0.791, 0.264,
 )  # fmt: skip
 _OS1_64_AZIMUTHS = (3.164, 1.055, -1.055, -3.164) * 16
-OUSTER_OS1_BEAM_ORIGIN_MM = 15.806
+# The SDK's lidar_origin_to_beam_origin_mm where a metadata file has none (firmware 1.14 and older):
+# default_lidar_origin_to_beam_origin in ouster_core/src/sensor_info.cpp, by the prefix of prod_line ("OS-1-64"),
+# 12.163 mm for any other ("default for gen 1").
+OUSTER_BEAM_ORIGIN_MM = {"OS-0-": 27.67, "OS-1-": 15.806, "OS-2-": 13.762}
+OUSTER_GEN1_BEAM_ORIGIN_MM = 12.163
+OUSTER_OS1_BEAM_ORIGIN_MM = OUSTER_BEAM_ORIGIN_MM["OS-1-"]
 
 # ------------------------------------------------------------------------------------------------ Pandar64
 # Hesai Pandar64 design elevations, line 1 (top) to 64: pandarGeneral_elev_angle_map in
@@ -236,48 +241,10 @@ LIDAR_PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
-def ouster_metadata_table(meta: dict[str, Any]) -> dict[str, Any]:
-    """``LidarSpec`` keyword arguments from an Ouster sensor's metadata JSON (already parsed).
-
-    Both layouts Ouster has written are read: the legacy flat one (``beam_altitude_angles``,
-    ``beam_azimuth_angles``, ``lidar_origin_to_beam_origin_mm``, ``data_format.columns_per_frame``, ``lidar_mode``
-    such as ``"1024x10"``) and the nested one of firmware 2.x / the SDK (``beam_intrinsics``,
-    ``lidar_data_format.columns_per_frame``, ``config_params.lidar_mode``). Ouster's azimuth is
-    ``encoder - beam_azimuth_angles`` (its frame has x to the back), so the offsets here are their negative.
-
-    Raises:
-        ValueError: Naming the missing or malformed field.
-
-    Example:
-        >>> meta = {"beam_intrinsics": {"beam_altitude_angles": [2.0, -2.0], "beam_azimuth_angles": [1.0, -1.0],
-        ...     "lidar_origin_to_beam_origin_mm": 15.806}, "lidar_data_format": {"columns_per_frame": 512}}
-        >>> kw = ouster_metadata_table(meta)
-        >>> kw["elevations_deg"], kw["azimuth_offsets_deg"], kw["points_per_channel"]
-        ((-2.0, 2.0), (1.0, -1.0), 512)
-    """
-    if not isinstance(meta, dict):
-        raise ValueError("an Ouster metadata JSON is an object")
-    beams = meta.get("beam_intrinsics", meta)
-    if not isinstance(beams, dict) or "beam_altitude_angles" not in beams:
-        raise ValueError("no beam_altitude_angles (nor beam_intrinsics.beam_altitude_angles) in the metadata")
-    altitudes = beams["beam_altitude_angles"]
-    azimuths = beams.get("beam_azimuth_angles")
-    if not isinstance(altitudes, list) or (azimuths is not None and len(azimuths) != len(altitudes)):
-        raise ValueError("beam_altitude_angles and beam_azimuth_angles must be lists of one angle per beam")
-    origin_mm = float(beams.get("lidar_origin_to_beam_origin_mm", 0.0))
-    out = laser_table(
-        altitudes,
-        None if azimuths is None else [-float(a) for a in azimuths],
-        [(origin_mm / 1000.0, 0.0, 0.0)] * len(altitudes),
-    )
-    fmt = meta.get("lidar_data_format", meta.get("data_format")) or {}
-    mode = (meta.get("config_params") or {}).get("lidar_mode", meta.get("lidar_mode"))
-    if "columns_per_frame" in fmt:
-        out["points_per_channel"] = int(fmt["columns_per_frame"])
-    elif isinstance(mode, str) and "x" in mode:
-        out["points_per_channel"] = int(mode.split("x")[0])
-    out["hfov_deg"] = 360.0
-    return out
-
-
-__all__ = ["LIDAR_PRESETS", "OUSTER_OS1_BEAM_ORIGIN_MM", "laser_table", "ouster_metadata_table"]
+__all__ = [
+    "LIDAR_PRESETS",
+    "OUSTER_BEAM_ORIGIN_MM",
+    "OUSTER_GEN1_BEAM_ORIGIN_MM",
+    "OUSTER_OS1_BEAM_ORIGIN_MM",
+    "laser_table",
+]

@@ -15,16 +15,25 @@ Example:
 from __future__ import annotations
 
 import json
+import logging
 import math
+import re
 from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS, laser_table, ouster_metadata_table
+from airfisheye_bench.geometry.lidar_presets import (
+    LIDAR_PRESETS,
+    OUSTER_BEAM_ORIGIN_MM,
+    OUSTER_GEN1_BEAM_ORIGIN_MM,
+    laser_table,
+)
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.yamlio import read_yaml
 
 SPEC_FILE_SUFFIXES = (".yaml", ".yml", ".json")
+
+log = logging.getLogger(__name__)
 
 
 def load_lidar_spec(value: LidarSpec | str | Path | dict[str, Any]) -> LidarSpec:
@@ -64,9 +73,9 @@ def read_lidar_spec_file(path: str | Path) -> LidarSpec:
         raise DatasetFormatError(path, "a LiDAR spec file holds a mapping")
     if "lasers" in data:
         return velodyne_calibration_spec(data, path)
+    if "beam_altitude_angles" in data or "beam_intrinsics" in data:
+        return ouster_metadata_spec(data, path)
     try:
-        if "beam_altitude_angles" in data or "beam_intrinsics" in data:
-            return LidarSpec(**ouster_metadata_table(data), name=path.stem)
         return LidarSpec.from_dict(data)
     except (TypeError, ValueError) as err:
         raise DatasetFormatError(path, str(err)) from None
@@ -181,4 +190,179 @@ def velodyne_calibration_spec(data: dict[str, Any], path: str | Path = "<calibra
         raise DatasetFormatError(path, str(err)) from None
 
 
-__all__ = ["SPEC_FILE_SUFFIXES", "load_lidar_spec", "read_lidar_spec_file", "velodyne_calibration_spec"]
+# ------------------------------------------------------------------ Ouster metadata JSON
+def ouster_metadata_spec(meta: dict[str, Any], path: str | Path = "<metadata>") -> LidarSpec:
+    """A spec from an Ouster sensor's metadata JSON (already parsed), read as the Ouster SDK reads it
+    (github:ouster-lidar/ouster-sdk ``ouster_core/src/metadata.cpp``, ``sensor_info.cpp``, ``xyzlut.cpp``).
+
+    Both layouts are read: the legacy flat one (``beam_altitude_angles``, ``beam_azimuth_angles``,
+    ``lidar_origin_to_beam_origin_mm``, ``data_format``, ``lidar_mode`` such as ``"1024x10"``, ``prod_line``) and
+    the nested one of firmware 2.x / the SDK (``beam_intrinsics``, ``lidar_data_format``, ``config_params``,
+    ``sensor_info``). As in the SDK:
+
+    * the beams are ``pixels_per_column``, else the product line's (``"OS-1-16-A0"``: 16). Firmware 1.13 lists a
+      16- or 32-beam sensor's angles at its 64 positions with ``(0, 0)`` for the beams it does not fire: those
+      placeholders are dropped (the SDK refuses such a file);
+    * without ``lidar_origin_to_beam_origin_mm`` (firmware 1.14 and older) the beams start at the product line's
+      default distance from the axis (OS-0 27.67, OS-1 15.806, OS-2 13.762 mm, else 12.163), logged;
+    * column ``m`` of ``columns_per_frame`` W fires at encoder angle ``2 pi m / W`` clockwise, turned by
+      ``lidar_to_sensor_transform`` (by default 180 deg: the sensor frame, x forward, which the SDK's xyz and the
+      ROS driver's ``os_sensor`` use); a beam's azimuth is that minus its ``beam_azimuth_angles``, so the offsets
+      here are their negatives. A ``column_window`` ``[first, last]`` (it may wrap) narrows the field of view to
+      its ``(last - first) % W + 1`` columns, centred where they point (``azimuth_center_deg``).
+
+    Raises:
+        DatasetFormatError: One line naming the file, the key and what is wrong.
+
+    Example:
+        >>> meta = {"beam_altitude_angles": [2.0, -2.0], "beam_azimuth_angles": [1.0, -1.0],
+        ...         "lidar_origin_to_beam_origin_mm": 15.806, "lidar_mode": "512x10"}
+        >>> spec = ouster_metadata_spec(meta)
+        >>> spec.elevations_deg, spec.azimuth_offsets_deg, spec.points_per_channel, spec.hfov_deg
+        ((-2.0, 2.0), (1.0, -1.0), 512, 360.0)
+    """
+    path = Path(path)
+    nested = "beam_intrinsics" in meta
+
+    def refuse(key: str, message: str) -> DatasetFormatError:
+        return DatasetFormatError(path, message, key=key)
+
+    def pick(nested_key: str, flat_key: str) -> tuple[str, Any]:
+        # The SDK's convert_legacy_to_nonlegacy moves a flat key to its nested place; read either, and name a missing
+        # one as the file's layout would.
+        for key in (nested_key, flat_key):
+            value: Any = meta
+            for part in key.split("."):
+                value = value.get(part) if isinstance(value, dict) else None
+            if value is not None:
+                return key, value
+        return (nested_key if nested else flat_key), None
+
+    def angles(*keys: str) -> tuple[str, list[float] | None]:
+        key, value = pick(*keys)
+        if value is not None and (
+            not isinstance(value, list)
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        ):
+            raise refuse(key, "must be a list of angles in degrees, one per beam")
+        return key, None if value is None else [float(v) for v in value]
+
+    alt_key, altitudes = angles("beam_intrinsics.beam_altitude_angles", "beam_altitude_angles")
+    az_key, azimuths = angles("beam_intrinsics.beam_azimuth_angles", "beam_azimuth_angles")
+    if altitudes is None:
+        raise refuse(alt_key, "is missing: one altitude per beam is needed")
+    if azimuths is not None and len(azimuths) != len(altitudes):
+        raise refuse(
+            alt_key, f"has {len(altitudes)} angles but {az_key} has {len(azimuths)}: one per beam each"
+        )
+    azimuths = azimuths or [0.0] * len(altitudes)
+
+    # How many beams fire: pixels_per_column, else the count in prod_line (the SDK's ProductInfo regex).
+    line_key, prod_line = pick("sensor_info.prod_line", "prod_line")
+    ppc_key, beams = pick("lidar_data_format.pixels_per_column", "data_format.pixels_per_column")
+    source = f"{ppc_key}={beams}"
+    if beams is None and isinstance(prod_line, str):
+        match = re.match(r"\w+-(?:\d+|DOME)?(?:-MAX)?-(\d+)", prod_line)
+        beams, source = (int(match[1]), f"{line_key} {prod_line!r}") if match else (None, "")
+    placeholders = [
+        i for i, (a, z) in enumerate(zip(altitudes, azimuths, strict=True)) if a == 0.0 and z == 0.0
+    ]
+    if isinstance(beams, int) and len(altitudes) != beams:
+        if len(altitudes) < beams:
+            raise refuse(
+                alt_key, f"has {len(altitudes)} angles for the {beams} beams of {source}: one per beam"
+            )
+        if len(altitudes) - len(placeholders) != beams:
+            raise refuse(
+                alt_key,
+                f"has {len(altitudes)} angles, {len(placeholders)} of them (0, 0) placeholders, for the {beams} "
+                f"beams of {source}: cannot tell which beams fire",
+            )
+        skip = set(placeholders)
+        altitudes = [a for i, a in enumerate(altitudes) if i not in skip]
+        azimuths = [a for i, a in enumerate(azimuths) if i not in skip]
+    duplicate = next((a for i, a in enumerate(altitudes) if a in altitudes[:i]), None)
+    if duplicate is not None:
+        raise refuse(alt_key, f"lists altitude {duplicate:g} twice: each beam needs its own (how many fire?)")
+
+    origin_key, origin_mm = pick(
+        "beam_intrinsics.lidar_origin_to_beam_origin_mm", "lidar_origin_to_beam_origin_mm"
+    )
+    if origin_mm is None:
+        # Firmware 1.14 and older wrote none: the SDK takes its product line's default, not the axis.
+        prefix = next((p for p in OUSTER_BEAM_ORIGIN_MM if str(prod_line).startswith(p)), None)
+        origin_mm = OUSTER_BEAM_ORIGIN_MM[prefix] if prefix else OUSTER_GEN1_BEAM_ORIGIN_MM
+        log.info(
+            "%s: no %s; the beams start %g mm from the axis, the Ouster SDK's default for %s",
+            path,
+            origin_key,
+            origin_mm,
+            f"{prefix}* sensors" if prefix else "a product line it does not know",
+        )
+    elif isinstance(origin_mm, bool) or not isinstance(origin_mm, (int, float)) or not 0 <= origin_mm < 1000:
+        raise refuse(origin_key, f"must be millimetres in [0, 1000), got {origin_mm!r}")
+
+    # Columns per turn: columns_per_frame, else the first number of lidar_mode ("1024x10").
+    cols_key, columns = pick("lidar_data_format.columns_per_frame", "data_format.columns_per_frame")
+    if columns is None:
+        cols_key, mode = pick("config_params.lidar_mode", "lidar_mode")
+        match = re.fullmatch(r"(\d+)x\d+", mode) if isinstance(mode, str) else None
+        if mode is not None and not match:
+            raise refuse(cols_key, f"must be columns x rate such as '1024x10', got {mode!r}")
+        columns = int(match[1]) if match else None
+    if columns is None:
+        raise refuse(cols_key, "is missing, and so is columns_per_frame: how many columns make a turn?")
+    if isinstance(columns, bool) or not isinstance(columns, int) or columns < 1:
+        raise refuse(cols_key, f"must be a positive integer, got {columns!r}")
+
+    window_key, window = pick("lidar_data_format.column_window", "data_format.column_window")
+    kwargs: dict[str, Any] = {"points_per_channel": columns, "hfov_deg": 360.0}
+    if window is not None:
+        if not (
+            isinstance(window, list)
+            and len(window) == 2
+            and all(isinstance(c, int) and not isinstance(c, bool) and 0 <= c < columns for c in window)
+        ):
+            raise refuse(window_key, f"must be [first, last] columns in [0, {columns - 1}], got {window!r}")
+        first, last = window
+        count = (last - first) % columns + 1  # the SDK's window length; last < first wraps through column 0
+        if count < columns:
+            t_key, t = pick("lidar_intrinsics.lidar_to_sensor_transform", "lidar_to_sensor_transform")
+            if t is not None and not (
+                isinstance(t, list) and len(t) == 16 and all(isinstance(v, (int, float)) for v in t)
+            ):
+                raise refuse(t_key, "must be 16 numbers (a 4 x 4 matrix, row-major)")
+            yaw = math.atan2(t[4], t[0]) if t is not None else math.pi  # the SDK's default: 180 deg about z
+            # xyzlut: column m points at encoder 2 pi - 2 pi m / W in the lidar frame, then lidar_to_sensor turns it.
+            centre = math.degrees(yaw - 2.0 * math.pi * (first + (count - 1) / 2.0) / columns)
+            centre = round((centre + 180.0) % 360.0 - 180.0, 9)  # a window centred ahead gives 0, not 1e-14
+            kwargs = {
+                "points_per_channel": count,
+                "hfov_deg": 360.0 * count / columns,
+                "azimuth_center_deg": centre,
+            }
+            if abs(centre) + kwargs["hfov_deg"] / 2.0 > 180.0 + 1e-9:
+                raise refuse(
+                    window_key,
+                    f"{window} points at {centre:.1f} +- {kwargs['hfov_deg'] / 2.0:.1f} deg, across +-180 deg "
+                    "(behind the sensor): a LidarSpec's field of view may not cross it",
+                )
+    try:
+        return LidarSpec(
+            **laser_table(
+                altitudes, [-a for a in azimuths], [(origin_mm / 1000.0, 0.0, 0.0)] * len(altitudes)
+            ),
+            **kwargs,
+            name=path.stem,
+        )
+    except ValueError as err:
+        raise DatasetFormatError(path, str(err)) from None
+
+
+__all__ = [
+    "SPEC_FILE_SUFFIXES",
+    "load_lidar_spec",
+    "ouster_metadata_spec",
+    "read_lidar_spec_file",
+    "velodyne_calibration_spec",
+]

@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import json
+import logging
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
-from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS, ouster_metadata_table
+from airfisheye_bench.geometry.lidar_layout import organize_scan, rings_from_elevation
+from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.io.errors import DatasetFormatError
-from airfisheye_bench.io.lidar_spec import load_lidar_spec
+from airfisheye_bench.io.lidar_spec import load_lidar_spec, ouster_metadata_spec
 
 
 @pytest.mark.parametrize("name", sorted(LIDAR_PRESETS))
@@ -136,8 +138,179 @@ def test_spec_files_and_their_errors(tmp_path: Path) -> None:
         load_lidar_spec(str(path))
     with pytest.raises(ValueError, match="unknown LiDAR preset 'vlp17'"):
         load_lidar_spec("vlp17")
-    with pytest.raises(ValueError, match="beam_altitude_angles"):
-        ouster_metadata_table({"beam_intrinsics": {}})
+    with pytest.raises(DatasetFormatError, match=r"key 'beam_intrinsics\.beam_altitude_angles': is missing"):
+        ouster_metadata_spec({"beam_intrinsics": {}})
+
+
+# ------------------------------------------------------------------ Ouster metadata as the SDK reads it
+# github:ouster-lidar/ouster-sdk at commit 46b7bceee7995914e2f3f3facf4d78418335b2d7 (release 1.0.1): the sample
+# metadata in tests/metadata/ and the values tests/bcompat_meta_json_test.cpp expects the SDK to parse from them.
+# 1_13_os1-991937000062-16A0_legacy.json (firmware 1.13, an OS-1-16-A0): 64 entries, (0, 0) where no beam fires.
+SDK_1_13_16A0_ALTITUDES = [0, 0, 0, 14.799, 0, 0, 0, 12.648, 0, 0, 0, 10.537, 0, 0, 0, 8.442, 0, 0, 0, 6.357, 0, 0, 0,
+    4.262, 0, 0, 0, 2.183, 0, 0, 0, 0.1, 0, 0, 0, -1.991, 0, 0, 0, -4.079, 0, 0, 0, -6.168, 0, 0, 0, -8.275, 0, 0, 0,
+    -10.373, 0, 0, 0, -12.489, 0, 0, 0, -14.658, 0, 0, 0, -16.858]  # fmt: skip
+SDK_1_13_16A0_AZIMUTHS = [0, 0, 0, -3.387, 0, 0, 0, -3.326, 0, 0, 0, -3.288, 0, 0, 0, -3.243, 0, 0, 0, -3.206, 0, 0,
+    0, -3.183, 0, 0, 0, -3.159, 0, 0, 0, -3.129, 0, 0, 0, -3.1, 0, 0, 0, -3.083, 0, 0, 0, -3.067, 0, 0, 0, -3.048, 0, 0,
+    0, -3.04, 0, 0, 0, -3.037, 0, 0, 0, -3.043, 0, 0, 0, -3.041]  # fmt: skip
+# 1_14_beta_os1-991937000062-16A0_legacy.json: the same unit on firmware 1.14, its 16 beams only.
+SDK_1_14_16A0_ALTITUDES = [14.799, 12.648, 10.537, 8.442, 6.357, 4.262, 2.183, 0.1, -1.991, -4.079, -6.168, -8.275,
+    -10.373, -12.489, -14.658, -16.858]  # fmt: skip
+SDK_1_14_16A0_AZIMUTHS = [-3.387, -3.326, -3.288, -3.243, -3.206, -3.183, -3.159, -3.129, -3.1, -3.083, -3.067,
+    -3.048, -3.04, -3.037, -3.043, -3.041]  # fmt: skip
+# 2_0_0_os1-992008000494-128_col_win_legacy.json: an OS-1-128 at 2048x10 returning columns 2014..2036 only (its
+# beams 0-3 here), with the SDK's default lidar_to_sensor_transform.
+SDK_COL_WIN = {
+    "prod_line": "OS-1-128",
+    "lidar_mode": "2048x10",
+    "beam_altitude_angles": [21.4764, 21.1679, 20.8583, 20.5477],
+    "beam_azimuth_angles": [4.2521, 1.4197, -1.4196, -4.252],
+    "lidar_origin_to_beam_origin_mm": 15.806,
+    "data_format": {"column_window": [2014, 2036], "columns_per_frame": 2048, "pixels_per_column": 4},
+    "lidar_to_sensor_transform": [-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 36.18, 0, 0, 0, 1],
+}
+
+
+def _write_json(path: Path, meta: dict) -> str:
+    path.write_text(json.dumps(meta))
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("prod_line", "origin_mm"),
+    [
+        ("OS-0-32-U0", 27.67),  # 1_14_6cccd_os-882002000138-32U0_legacy.json: bcompat expects 27.67
+        ("OS-1-16-A0", 15.806),  # 1_14_beta_os1-991937000062-16A0_legacy.json: bcompat expects 15.806
+        ("OS-2-32-U0", 13.762),  # ouster_core/src/sensor_info.cpp default_lidar_origin_to_beam_origin
+        ("OS-DOME-128", 12.163),  # any other product line: the SDK's "default for gen 1"
+    ],
+)
+def test_legacy_ouster_metadata_without_a_beam_origin_takes_the_sdk_default(
+    prod_line: str, origin_mm: float, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Firmware 1.12-1.14 wrote no lidar_origin_to_beam_origin_mm: the SDK uses its product line's default
+    (ouster-sdk 46b7bce, ``sensor_info.cpp`` ``default_lidar_origin_to_beam_origin``; ``bcompat_meta_json_test.cpp``
+    expects 27.67 for 1_14_6cccd_os-882002000138-32U0_legacy.json and 15.806 for the 1_14_beta 16A0 file)."""
+    meta = {"prod_line": prod_line, "lidar_mode": "1024x10", "beam_altitude_angles": SDK_1_14_16A0_ALTITUDES,
+            "beam_azimuth_angles": SDK_1_14_16A0_AZIMUTHS, "data_format": {"pixels_per_column": 16}}  # fmt: skip
+    with caplog.at_level(logging.INFO, logger="airfisheye_bench.io.lidar_spec"):
+        spec = load_lidar_spec(_write_json(tmp_path / "os.json", meta))
+    assert {o for o in spec.beam_origins_m} == {(origin_mm / 1000.0, 0.0, 0.0)}
+    assert "no lidar_origin_to_beam_origin_mm" in caplog.text and f"{origin_mm:g} mm" in caplog.text
+
+
+def test_firmware_1_13_placeholders_are_dropped(tmp_path: Path) -> None:
+    """ouster-sdk 46b7bce tests/metadata/1_13_os1-991937000062-16A0_legacy.json (64 entries, 48 of them (0, 0))
+    reads as the same unit's 1_14_beta_os1-991937000062-16A0_legacy.json (its 16 beams): beams 3, 7, ..., 63."""
+    legacy = {"prod_line": "OS-1-16-A0", "lidar_mode": "1024x10", "beam_altitude_angles": SDK_1_13_16A0_ALTITUDES,
+              "beam_azimuth_angles": SDK_1_13_16A0_AZIMUTHS}  # fmt: skip
+    newer = {**legacy, "beam_altitude_angles": SDK_1_14_16A0_ALTITUDES,
+             "beam_azimuth_angles": SDK_1_14_16A0_AZIMUTHS, "data_format": {"pixels_per_column": 16}}  # fmt: skip
+    spec = load_lidar_spec(_write_json(tmp_path / "os.json", legacy))
+    assert spec == load_lidar_spec(_write_json(tmp_path / "os.json", newer))
+    assert spec.channels == 16 and spec.vfov_deg == (-16.858, 14.799)
+    assert spec.azimuth_offsets_deg[-1] == 3.387  # beam 3 of 64, the top one: Ouster subtracts -3.387
+    # A 32-beam sensor (prod_line OS-1-32-A02) keeps the 32 non-placeholders, as 1_13_...-32A02_legacy.json lists.
+    assert ouster_metadata_spec({**legacy, "prod_line": "OS-1-32-A02"} | _odd_beams()).channels == 32
+
+
+def _odd_beams() -> dict:
+    alt = [0.0 if i % 2 == 0 else 16.0 - i * 0.5 for i in range(64)]
+    return {"beam_altitude_angles": alt, "beam_azimuth_angles": [0.0 if a == 0 else 1.0 for a in alt]}
+
+
+def _sdk_directions(meta: dict) -> np.ndarray:
+    """``[beams, window columns, 3]`` unit directions as ouster-sdk 46b7bce ``ouster_core/src/xyzlut.cpp``
+    ``make_xyz_lut`` computes them (encoder ``2 pi - 2 pi m / W``, azimuth ``-beam_azimuth_angles``), turned by
+    ``lidar_to_sensor_transform``'s rotation into the sensor frame, for the window's columns first..last."""
+    fmt = meta["data_format"]
+    w, (first, last) = fmt["columns_per_frame"], fmt["column_window"]
+    cols = (first + np.arange((last - first) % w + 1)) % w
+    encoder = 2.0 * np.pi - cols * (2.0 * np.pi / w)
+    az = -np.radians(meta["beam_azimuth_angles"])[:, None]
+    alt = np.radians(meta["beam_altitude_angles"])[:, None]
+    d = np.stack(np.broadcast_arrays(np.cos(encoder + az) * np.cos(alt), np.sin(encoder + az) * np.cos(alt),
+                                     np.sin(alt)), axis=-1)  # fmt: skip
+    rotation = np.asarray(meta["lidar_to_sensor_transform"], dtype=np.float64).reshape(4, 4)[:3, :3]
+    return d @ rotation.T
+
+
+@pytest.mark.parametrize(
+    "meta",
+    [
+        SDK_COL_WIN,  # 23 of 2048 columns, behind the sensor (-176 deg)
+        {**SDK_COL_WIN, "data_format": {**SDK_COL_WIN["data_format"], "column_window": [960, 1087]}},  # ahead
+        {  # a window through column 0 (it wraps), with the lidar frame as the sensor frame: centred ahead
+            **SDK_COL_WIN,
+            "data_format": {**SDK_COL_WIN["data_format"], "column_window": [1990, 57]},
+            "lidar_to_sensor_transform": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1],
+        },
+    ],
+)
+def test_a_column_window_is_the_field_of_view_the_sdk_computes(meta: dict, tmp_path: Path) -> None:
+    """The spec's beams are the SDK's for the window's columns (ouster-sdk 46b7bce xyzlut.cpp; the window of
+    tests/metadata/2_0_0_os1-992008000494-128_col_win_legacy.json, [2014, 2036] at 2048 columns, and two more)."""
+    spec = load_lidar_spec(_write_json(tmp_path / "os.json", meta))
+    first, last = meta["data_format"]["column_window"]
+    count = (last - first) % 2048 + 1
+    assert spec.points_per_channel == count and spec.hfov_deg == pytest.approx(360.0 * count / 2048)
+    # Ours: channels by ascending elevation (Ouster's beam 0 is the top one), columns by ascending azimuth (the
+    # SDK's columns turn clockwise): the same beams, both axes reversed.
+    ours = spec.beam_directions(dtype=torch.float64).numpy()
+    np.testing.assert_allclose(ours, _sdk_directions(meta)[::-1, ::-1], atol=1e-12)
+    # A return at each column's azimuth lands in that column of I_LiDAR (the sectors count from the window's edge).
+    az = spec.column_azimuths()
+    pts = np.stack([10.0 * np.cos(az), 10.0 * np.sin(az), np.full_like(az, 3.7)], axis=-1)
+    assert organize_scan(pts, spec).column.tolist() == list(range(count))
+    assert LidarSpec.from_dict(spec.to_dict()) == spec
+    if meta is SDK_COL_WIN:
+        assert spec.azimuth_center_deg == pytest.approx(180.0 - 360.0 * 2025 / 2048)  # -175.96 deg
+
+
+@pytest.mark.parametrize(
+    ("change", "key", "expected"),
+    [
+        # 1_12_os1-991937000062-16A0_legacy.json: 64 real angles for 16 beams (the SDK refuses it too)
+        ({"beam_altitude_angles": [16.5 - 0.5 * i for i in range(64)], "beam_azimuth_angles": [1.0] * 64},
+         "beam_altitude_angles", "has 64 angles, 0 of them (0, 0) placeholders, for the 16 beams of prod_line"),
+        # malformed/incorrect_nbeam_angles_legacy_113.json: 63 altitudes, 64 azimuths
+        ({"beam_altitude_angles": SDK_1_13_16A0_ALTITUDES[1:]}, "beam_altitude_angles",
+         "has 63 angles but beam_azimuth_angles has 64"),
+        ({"data_format": {"pixels_per_column": 32}}, "beam_altitude_angles",
+         "has 64 angles, 48 of them (0, 0) placeholders, for the 32 beams of data_format.pixels_per_column=32"),
+        ({"prod_line": None, "beam_altitude_angles": SDK_1_14_16A0_ALTITUDES * 2, "beam_azimuth_angles": [0.0] * 32},
+         "beam_altitude_angles", "lists altitude 14.799 twice"),
+        ({"lidar_mode": "fast"}, "lidar_mode", "must be columns x rate such as '1024x10', got 'fast'"),
+        ({"lidar_mode": None}, "lidar_mode", "is missing, and so is columns_per_frame"),
+        ({"lidar_origin_to_beam_origin_mm": "15.8"}, "lidar_origin_to_beam_origin_mm", "must be millimetres"),
+        ({"data_format": {"column_window": [0, 1024]}}, "data_format.column_window",
+         "must be [first, last] columns in [0, 1023], got [0, 1024]"),
+        ({"data_format": {"column_window": [1020, 3]}}, "data_format.column_window",
+         "[1020, 3] points at -179.8 +- 1.4 deg, across +-180 deg"),
+    ],
+)  # fmt: skip
+def test_a_bad_ouster_metadata_is_one_line_naming_the_key(
+    change: dict, key: str, expected: str, tmp_path: Path
+) -> None:
+    meta = {"prod_line": "OS-1-16-A0", "lidar_mode": "1024x10", "beam_altitude_angles": SDK_1_13_16A0_ALTITUDES,
+            "beam_azimuth_angles": SDK_1_13_16A0_AZIMUTHS, **change}  # fmt: skip
+    meta = {k: v for k, v in meta.items() if v is not None}
+    with pytest.raises(DatasetFormatError) as info:
+        load_lidar_spec(_write_json(tmp_path / "os.json", meta))
+    err = info.value
+    assert err.key == key and expected in err.message, str(err)
+    assert "\n" not in str(err) and "os.json" in str(err) and len(f"key '{key}': {err.message}") <= 200
+
+
+def test_a_window_centre_is_part_of_the_spec() -> None:
+    spec = LidarSpec(
+        channels=2, points_per_channel=10, hfov_deg=36.0, vfov_deg=(-1.0, 1.0), azimuth_center_deg=90.0
+    )
+    np.testing.assert_allclose(np.degrees(spec.column_azimuths()), [73.8 + 3.6 * j for j in range(10)])
+    assert spec.to_dict()["azimuth_center_deg"] == 90.0 and "azimuth_center_deg" not in LidarSpec().to_dict()
+    with pytest.raises(ValueError, match="azimuth_center_deg=170 with hfov_deg=36"):
+        LidarSpec(hfov_deg=36.0, azimuth_center_deg=170.0)
+    with pytest.raises(ValueError, match="azimuth_center_deg=10 with hfov_deg=360"):
+        LidarSpec(hfov_deg=360.0, azimuth_center_deg=10.0)
 
 
 # ------------------------------------------------------------------ the ROS Velodyne driver's calibration YAML

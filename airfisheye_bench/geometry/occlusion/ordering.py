@@ -131,7 +131,7 @@ def layout_numba(
         el,
         math.radians(spec.vfov_deg[0]),
         spec.vertical_resolution,
-        -math.radians(spec.hfov_deg) / 2.0,
+        spec.azimuth_edge,
         spec.horizontal_resolution,
         spec.channels,
         wrap_last,
