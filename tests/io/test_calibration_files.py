@@ -177,15 +177,52 @@ def test_kitti360_devkit_projection_agrees(tmp_path: Path) -> None:
     assert np.abs(ours - devkit).max() < 1e-9
 
 
-def test_camodocs_other_model_types_are_named(tmp_path: Path) -> None:
+def test_camodocal_kannala_brandt_projects_as_camodocal(tmp_path: Path) -> None:
+    """VINS-Fusion's KANNALA_BRANDT YAML against camodocal's EquidistantCamera::spaceToPlane, written out."""
+    path = fx.write_camodocal_kannala_brandt(tmp_path / "cam0_fisheye.yaml")
+    record = read_calibration(path)
+    assert (record.format, record.name, record.camera["model"]) == ("kitti360", "cam0", "kannala_brandt")
+    p = {line.split(":")[0].strip(): float(line.split(":")[1]) for line in path.read_text().splitlines()[7:]}
+    rng = np.random.default_rng(1)
+    points = rng.normal(size=(200, 3))  # the whole sphere: camodocal's acos reaches behind the camera too
+    # camodocal (src/camera_models/EquidistantCamera.cc, spaceToPlane; r() in EquidistantCamera.h):
+    theta = np.arccos(points[:, 2] / np.linalg.norm(points, axis=1))
+    phi = np.arctan2(points[:, 1], points[:, 0])
+    r = theta + p["k2"] * theta**3 + p["k3"] * theta**5 + p["k4"] * theta**7 + p["k5"] * theta**9
+    camodocal = np.stack([p["mu"] * r * np.cos(phi) + p["u0"], p["mv"] * r * np.sin(phi) + p["v0"]], -1)
+    uv, valid = load_camera(path).project(points)
+    assert valid.all()  # TUM-VI's polynomial increases up to 180 deg
+    assert np.abs(uv - camodocal).max() < 1e-9
+
+
+def test_camodocal_pinhole_and_refusals(tmp_path: Path) -> None:
     path = tmp_path / "cam.yaml"
     path.write_text(
-        "%YAML:1.0\n---\nmodel_type: KANNALA_BRANDT\ncamera_name: camera\nimage_width: 640\nimage_height: 480\n"
-    )
-    with pytest.raises(
-        CalibrationFileError, match=r"key 'model_type': 'KANNALA_BRANDT' is not supported; supported: MEI"
-    ):
+        "%YAML:1.0\n---\nmodel_type: PINHOLE\ncamera_name: camera\nimage_width: 752\nimage_height: 480\n"
+        "distortion_parameters:\n   k1: -2.9e-01\n   k2: 8.1e-02\n   p1: 1.9e-05\n   p2: 1.8e-05\n"
+        "projection_parameters:\n   fx: 4.616e+02\n   fy: 4.603e+02\n   cx: 3.630e+02\n   cy: 2.484e+02\n"
+    )  # the layout of VINS-Fusion's config/euroc/cam0_pinhole.yaml
+    assert read_calibration(path).camera == {
+        "model": "pinhole_radtan", "width": 752, "height": 480, "fx": 461.6, "fy": 460.3, "cx": 363.0, "cy": 248.4,
+        "k1": -0.29, "k2": 0.081, "p1": 1.9e-05, "p2": 1.8e-05, "k3": 0.0,
+    }  # fmt: skip
+    path.write_text("%YAML:1.0\n---\nmodel_type: SCARAMUZZA\nimage_width: 640\nimage_height: 480\n")
+    with pytest.raises(CalibrationFileError) as err:
         read_calibration(path)
+    assert str(err.value) == (
+        f"{path}: key 'model_type': 'SCARAMUZZA' is not supported; supported: MEI, KANNALA_BRANDT, PINHOLE"
+    )
+    # k2..k5 under distortion_parameters: camodocal itself would read 0 for each; refused, saying where they go.
+    kb = fx.write_camodocal_kannala_brandt(tmp_path / "kb.yaml").read_text()
+    kb = kb.replace("projection_parameters:\n", "distortion_parameters:\n").replace(
+        "   mu:", "projection_parameters:\n   mu:"
+    )
+    path.write_text(kb)
+    with pytest.raises(CalibrationFileError) as err:
+        read_calibration(path)
+    message = str(err.value)
+    assert "key 'distortion_parameters.k2'" in message and "move them there" in message
+    assert "\n" not in message and len(message) - len(str(path)) <= 200
 
 
 # ------------------------------------------------------------------------------------------------------- WoodScape
