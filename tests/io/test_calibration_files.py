@@ -454,12 +454,119 @@ def test_colmap_cameras_txt(tmp_path: Path) -> None:
         "model": "pinhole_radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 500.0, "cx": 319.5, "cy": 239.5,
         "k1": -0.1, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0,
     }  # fmt: skip
-    with pytest.raises(
-        CalibrationFileError, match=r"key '7.model': FOV is not supported; supported: SIMPLE_PINHOLE"
-    ):
-        read_calibration(path, camera=7)
+    assert read_calibration(path, camera=7).camera["model"] == "fov"
     with pytest.raises(CalibrationFileError, match=r"camera='0' is not in the file; it holds 1, 2, 7"):
         read_calibration(path, camera="0")  # COLMAP ids are names, never indices
+
+
+# COLMAP's maps, written out from src/colmap/sensor/models.h (github:colmap/colmap): ImgFromCam of each model, on
+# points in front of the camera (COLMAP's cheirality test), in COLMAP's pixels (the image corner is the origin).
+def _colmap_fisheye_from_normal(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r = np.hypot(x, y)  # FisheyeFromNormal
+    theta = np.arctan(r)
+    return x * theta / r, y * theta / r
+
+
+def _colmap_img_from_cam(model: str, p: list[float], points: np.ndarray) -> np.ndarray:
+    x, y = points[:, 0] / points[:, 2], points[:, 1] / points[:, 2]
+    if model in ("SIMPLE_FISHEYE", "FISHEYE"):
+        f1, f2, c1, c2 = (p[0], p[0], p[1], p[2]) if model == "SIMPLE_FISHEYE" else p[:4]
+        uu, vv = _colmap_fisheye_from_normal(x, y)
+        return np.stack([f1 * uu + c1, f2 * vv + c2], -1)
+    f1, f2, c1, c2 = p[:4]
+    if model == "THIN_PRISM_FISHEYE":
+        k1, k2, p1, p2, k3, k4, sx1, sy1 = p[4:]
+        u, v = _colmap_fisheye_from_normal(x, y)
+        u2, uv, v2 = u * u, u * v, v * v
+        r2 = u2 + v2
+        radial = k1 * r2 + k2 * r2**2 + k3 * r2**3 + k4 * r2**4
+        du = u * radial + 2 * p1 * uv + p2 * (r2 + 2 * u2) + sx1 * r2
+        dv = v * radial + 2 * p2 * uv + p1 * (r2 + 2 * v2) + sy1 * r2
+        return np.stack([f1 * (u + du) + c1, f2 * (v + dv) + c2], -1)
+    if model == "RAD_TAN_THIN_PRISM_FISHEYE":
+        u, v = _colmap_fisheye_from_normal(x, y)
+        theta2 = u * u + v * v
+        th_radial = 1 + sum(k * theta2 ** (i + 1) for i, k in enumerate(p[4:10]))
+        xd, yd = th_radial * u, th_radial * v
+        p0, p1, s0, s1, s2, s3 = p[10:]
+        r2 = xd * xd + yd * yd
+        xd, yd = (
+            xd + 2 * p1 * xd * yd + p0 * (r2 + 2 * xd * xd) + s0 * r2 + s1 * r2 * r2,
+            yd + 2 * p0 * xd * yd + p1 * (r2 + 2 * yd * yd) + s2 * r2 + s3 * r2 * r2,
+        )
+        return np.stack([f1 * xd + c1, f2 * yd + c2], -1)
+    if model == "FOV":  # Distortion, its general branch (omega^2 and radius^2 >= 1e-4 here)
+        omega = p[4]
+        radius = np.hypot(x, y)
+        factor = np.arctan(radius * 2 * np.tan(omega / 2)) / (radius * omega)
+        return np.stack([f1 * x * factor + c1, f2 * y * factor + c2], -1)
+    if model == "EUCM":
+        alpha, beta = p[4:]
+        u, v, w = points.T
+        den = alpha * np.sqrt(beta * (u * u + v * v) + w * w) + (1 - alpha) * w
+        return np.stack([f1 * u / den + c1, f2 * v / den + c2], -1)
+    raise AssertionError(model)
+
+
+@pytest.mark.parametrize(
+    ("model", "params", "ours"),
+    [
+        ("SIMPLE_FISHEYE", [280.0, 320.0, 240.0], "kannala_brandt"),
+        ("FISHEYE", [280.0, 282.0, 320.0, 240.0], "kannala_brandt"),
+        # Kannala-Brandt k1..k4 of TUM-VI's cam0, the thin-prism and tangential terms 0 (what a file may hold).
+        ("THIN_PRISM_FISHEYE", [190.98, 190.97, 255.43, 257.40, 0.00348, 0.000715, 0, 0, -0.00205, 0.000203, 0, 0],
+         "kannala_brandt"),
+        ("RAD_TAN_THIN_PRISM_FISHEYE", [190.98, 190.97, 255.43, 257.40, 0.00348, 0.000715, -0.00205, 0.000203,
+                                        0, 0, 0, 0, 0, 0, 0, 0], "kannala_brandt"),
+        ("FOV", [651.123, 655.123, 386.123, 511.123, 0.9], "fov"),  # COLMAP's models_test.cc parameters
+        ("FOV", [651.123, 655.123, 386.123, 511.123, -0.9], "fov"),  # the same lens: the map is even in omega
+        ("EUCM", [191.148, 191.132, 255.459, 257.382, 0.6291, 1.0418], "eucm"),  # TUM-VI cam0's, COLMAP's pixels
+    ],
+)  # fmt: skip
+def test_colmap_models_project_as_colmap(tmp_path: Path, model: str, params: list[float], ours: str) -> None:
+    path = tmp_path / "cameras.txt"
+    path.write_text(f"# Camera list\n3 {model} 640 480 {' '.join(repr(v) for v in params)}\n")
+    camera = load_camera(path)
+    assert camera.model == ours
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(500, 3))
+    points[:, 2] = np.abs(points[:, 2]) + 0.05  # in front of the camera, up to 87 deg off the axis
+    uv, valid = camera.project(points)
+    assert valid.all()
+    # Our pixel centres are at integers, COLMAP's at half-integers.
+    assert np.abs(uv + 0.5 - _colmap_img_from_cam(model, params, points)).max() < 1e-9
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        ("THIN_PRISM_FISHEYE 64 64 50 50 32 32 0.01 0 1e-4 0 0 0 0 2e-5",
+         "key '3.params': THIN_PRISM_FISHEYE with non-zero p1, sy1 is not supported (only its Kannala-Brandt part); "
+         "calibrate with OPENCV_FISHEYE instead"),
+        ("RAD_TAN_THIN_PRISM_FISHEYE 64 64 50 50 32 32 0 0 0 0 0 0.1 0 0 0 0 0 0",
+         "key '3.params': RAD_TAN_THIN_PRISM_FISHEYE with non-zero k5 is not supported"),
+        ("DIVISION 64 64 50 50 32 32 -0.1",
+         "key '3.model': DIVISION has no lens model here; supported: every model of COLMAP's models.h but "
+         "SIMPLE_DIVISION, DIVISION, EQUIRECTANGULAR"),
+        ("FISHEYE624 64 64 50 50 32 32", "key '3.model': FISHEYE624 is not a COLMAP camera model; supported:"),
+    ],
+)  # fmt: skip
+def test_colmap_refusals_are_one_short_line(tmp_path: Path, line: str, message: str) -> None:
+    path = tmp_path / "cameras.txt"
+    path.write_text(f"3 {line}\n")
+    with pytest.raises(CalibrationFileError) as err:
+        load_camera(path)
+    text = str(err.value)
+    assert message in text and "\n" not in text and len(text) - len(str(path)) <= 200
+
+
+def test_colmap_fov_of_omega_zero_is_the_pinhole(tmp_path: Path) -> None:
+    path = tmp_path / "cameras.txt"
+    path.write_text("1 FOV 640 480 500 501 320 240 0\n")
+    assert read_calibration(path).camera == {
+        "model": "pinhole_radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 501.0, "cx": 319.5, "cy": 239.5,
+        "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0,
+    }  # fmt: skip
 
 
 # -------------------------------------------------------------------------------------- the project's own + errors
