@@ -386,6 +386,44 @@ def test_opencv_live_filestorage(tmp_path: Path) -> None:
         assert [camera[n] for n in names] == D.reshape(-1).tolist()
 
 
+@pytest.mark.parametrize(
+    ("text", "name"),
+    [
+        # cv::FileStorage of calibrateCamera's own argument names, the size as a cv::Size.
+        ("%YAML:1.0\n---\nimageSize: [ 1280, 960 ]\ncameraMatrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n"
+         "   dt: d\n   data: [ 412.5, 0., 639.5, 0., 413., 479.5, 0., 0., 1. ]\ndistCoeffs: !!opencv-matrix\n"
+         "   rows: 1\n   cols: 4\n   dt: d\n   data: [ 0.012, -0.003, 5.e-04, -2.e-05 ]\n", "opencv.yml"),
+        # A script's JSON: K and D as plain lists, width and height.
+        (json.dumps({"width": 1280, "height": 960, "K": [[412.5, 0, 639.5], [0, 413.0, 479.5], [0, 0, 1]],
+                     "D": [[0.012], [-0.003], [5e-4], [-2e-5]]}), "fisheye.json"),
+        # The Python tutorial's names, K flat (row-major), image_size as [width, height].
+        ("image_size: [1280, 960]\nmtx: [412.5, 0, 639.5, 0, 413.0, 479.5, 0, 0, 1]\n"
+         "dist: [0.012, -0.003, 0.0005, -0.00002]\n", "calib.yaml"),
+    ],
+)  # fmt: skip
+def test_opencv_other_key_spellings(tmp_path: Path, text: str, name: str) -> None:
+    path = tmp_path / name
+    path.write_text(text)
+    record = read_calibration(path)
+    assert record.format == "opencv"
+    assert record.camera == {
+        "model": "kannala_brandt", "width": 1280, "height": 960, "fx": 412.5, "fy": 413.0, "cx": 639.5,
+        "cy": 479.5, "k1": 0.012, "k2": -0.003, "k3": 0.0005, "k4": -2e-05, "skew": 0.0,
+    }  # fmt: skip
+
+
+def test_opencv_without_an_image_size_names_the_key(tmp_path: Path) -> None:
+    path = tmp_path / "calib.yaml"
+    path.write_text(
+        "cameraMatrix: [[500, 0, 320], [0, 500, 240], [0, 0, 1]]\ndistCoeffs: [0.1, 0, 0, 0, 0]\n"
+    )
+    with pytest.raises(CalibrationFileError) as err:
+        read_calibration(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: key 'image_width': is missing: the image size is needed (image_width")
+    assert "\n" not in message and len(message) - len(str(path)) <= 200
+
+
 # ------------------------------------------------------------------------------------------------------------ ROS
 def test_ros_parsers_layout_plumb_bob(tmp_path: Path) -> None:
     path = tmp_path / "kodak.yaml"
@@ -590,14 +628,15 @@ def test_project_calib_yaml_camera_section(tmp_path: Path) -> None:
     assert record.format == "airfisheye" and record.camera == camera
 
 
-def test_unknown_format_lists_the_formats(tmp_path: Path) -> None:
+def test_unknown_format_is_one_short_line(tmp_path: Path) -> None:
     path = tmp_path / "what.yaml"
     path.write_text("focal_length: 3.2\nsensor: imx477\n")
     with pytest.raises(CalibrationFileError) as err:
         read_calibration(path)
     message = str(err.value)
     assert message.startswith(f"{path}: not a calibration file of a known format")
-    assert all(fmt.name in message for fmt in FORMATS)
+    assert all(fmt.name in message for fmt in FORMATS) and "docs/design.md" in message
+    assert "\n" not in message and len(message) - len(str(path)) <= 200
 
 
 def test_missing_file(tmp_path: Path) -> None:
