@@ -7,6 +7,7 @@ tools' formats; expected values are those of the source, converted by the docume
 from __future__ import annotations
 
 import json
+import logging
 import math
 from pathlib import Path
 
@@ -42,6 +43,9 @@ def test_basalt_tumvi(tmp_path: Path, camera_type: str, values: list[dict], mode
         assert (record.format, record.name) == ("basalt", str(index))
         assert record.camera == {"model": model, "width": 512, "height": 512, **values[index]}
         assert _rigid(record.extrinsics["T_imu_cam"])
+        np.testing.assert_allclose(
+            record.extrinsics["T_cam_imu"] @ record.extrinsics["T_imu_cam"], np.eye(4), atol=1e-12
+        )
     assert read_calibration(path, camera="1").camera["fx"] == values[1]["fx"]
 
 
@@ -137,6 +141,54 @@ def test_kalibr_missing_and_wrong_keys(tmp_path: Path) -> None:
     )
     with pytest.raises(CalibrationFileError, match=r"key 'cam0.intrinsics': expected 6 numbers, got 3"):
         read_calibration(path)
+
+
+def _camchain_with(tmp_path: Path, transforms: dict[str, np.ndarray]) -> Path:
+    """TUM-VI's cam0 (pinhole-equi) as a one-camera chain with the given 4x4 blocks."""
+    text = fx.write_kalibr_camchain(tmp_path / "camchain.yaml", "equi", cameras=1).read_text()
+    for key, T in transforms.items():
+        text += f"  {key}:\n" + "".join(f"  - {row}\n" for row in T.tolist())
+    path = tmp_path / "camchain-imucam.yaml"
+    path.write_text(text)
+    return path
+
+
+# A rigid transform: a quarter turn about x, then 30 deg about z, and an offset of a few centimetres.
+_R = np.array([[math.cos(0.5236), -math.sin(0.5236), 0], [math.sin(0.5236), math.cos(0.5236), 0], [0, 0, 1]])
+T_IMU_CAM = np.eye(4)
+T_IMU_CAM[:3, :3] = _R @ np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+T_IMU_CAM[:3, 3] = [0.045, -0.071, -0.046]
+
+
+@pytest.mark.parametrize("stored", ["T_imu_cam", "T_cam_imu"])
+def test_kalibr_extrinsics_either_direction(tmp_path: Path, stored: str, caplog) -> None:
+    T = T_IMU_CAM if stored == "T_imu_cam" else np.linalg.inv(T_IMU_CAM)
+    path = _camchain_with(tmp_path, {stored: T})
+    with caplog.at_level(logging.INFO, logger="airfisheye_bench.io.calibration_files"):
+        extrinsics = read_calibration(path).extrinsics
+    # Both directions, whichever the file stores: the stored one as written, the other its inverse.
+    assert set(extrinsics) == {"T_imu_cam", "T_cam_imu"} and np.array_equal(extrinsics[stored], T)
+    np.testing.assert_allclose(extrinsics["T_imu_cam"], T_IMU_CAM, atol=1e-12)
+    np.testing.assert_allclose(extrinsics["T_cam_imu"] @ extrinsics["T_imu_cam"], np.eye(4), atol=1e-12)
+    assert f"extrinsics {stored} read from key 'cam0.{stored}'" in caplog.text
+
+
+def test_kalibr_extrinsics_never_dropped_silently(tmp_path: Path, caplog) -> None:
+    path = _camchain_with(tmp_path, {"T_body_cam": T_IMU_CAM})
+    with caplog.at_level(logging.INFO, logger="airfisheye_bench.io.calibration_files"):
+        assert read_calibration(path).extrinsics == {}
+    warned = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warned) == 1 and "'cam0.T_body_cam' is not read" in warned[0].getMessage()
+    # Both directions stored: they must agree.
+    path = _camchain_with(tmp_path, {"T_cam_imu": np.linalg.inv(T_IMU_CAM), "T_imu_cam": T_IMU_CAM})
+    np.testing.assert_allclose(read_calibration(path).extrinsics["T_imu_cam"], T_IMU_CAM, atol=1e-12)
+    path = _camchain_with(tmp_path, {"T_cam_imu": T_IMU_CAM, "T_imu_cam": T_IMU_CAM})
+    with pytest.raises(CalibrationFileError, match=r"key 'cam0.T_imu_cam': disagrees with the inverse"):
+        read_calibration(path)
+    skewed = T_IMU_CAM.copy()
+    skewed[0, 0] += 0.1
+    with pytest.raises(CalibrationFileError, match=r"key 'cam0.T_imu_cam': expected a rigid 4x4 transform"):
+        read_calibration(_camchain_with(tmp_path, {"T_imu_cam": skewed}))
 
 
 # ------------------------------------------------------------------------------------------------ KITTI-360 (MEI)
