@@ -380,7 +380,9 @@ GENERATE = Command(
     "airfisheye-generate [preset=tiny] [out=DIR]",
     extra=_synth_key,
     extra_help="<field>=<value>, flight.<field>=<value>: a field of the preset's SynthConfig / FlightConfig; "
-    "camera.calibration=<file> [camera.camera=<name>] [camera.size=N] [camera.fit=pad|crop]: a calibrated lens",
+    "camera.calibration=<file> [camera.camera=<name>] [camera.size=N] [camera.fit=pad|crop]: a calibrated lens "
+    "(formats: OpenCV, ROS, Kalibr, basalt, COLMAP, camodocal / KITTI-360, WoodScape, OCamCalib; docs/design.md, "
+    "Calibration files)",
 )
 GENERATE_SUBCOMMANDS = {
     "verify": Command(

@@ -70,6 +70,20 @@ class TestEucmTumVI(CameraModelTester):
     camera_dict: ClassVar[dict] = CALIBRATIONS["tumvi512_cam0_eucm"]["camera"]
 
 
+class TestFovColmap(CameraModelTester):
+    # COLMAP's own FOV test parameters (src/colmap/sensor/models_test.cc, FOV.Nominal) on the image they centre.
+    camera_dict: ClassVar[dict] = {
+        "model": "fov",
+        "width": 772,
+        "height": 1022,
+        "fx": 651.123,
+        "fy": 655.123,
+        "cx": 386.123,
+        "cy": 511.123,
+        "omega": 0.9,
+    }
+
+
 class TestUnifiedKitti360Image02(CameraModelTester):
     camera_dict: ClassVar[dict] = CALIBRATIONS["kitti360_image_02"]["camera"]
 

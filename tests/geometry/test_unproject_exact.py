@@ -119,6 +119,13 @@ def _eucm(rng: np.random.Generator) -> dict:
     }
 
 
+def _fov(rng: np.random.Generator) -> dict:
+    # COLMAP FOV / ATAN: omega from nearly a pinhole to strong fisheyes; short focals put the limit of the
+    # half-space (omega r_d = pi / 2) inside the image, where pixels have no ray.
+    frame = _frame(rng)
+    return {"model": "fov", **frame, **_focal(rng, frame, 0.2, 0.8), "omega": rng.uniform(0.01, 1.6)}
+
+
 def _radial_poly(rng: np.random.Generator) -> dict:
     # WoodScape's front camera has k = (0.265, -0.025, 0.038, -0.0056) image widths per radian^i.
     frame = _frame(rng)
@@ -178,6 +185,7 @@ FAMILIES: dict[str, Callable[[np.random.Generator], dict]] = {
     "unified": _unified,
     "double_sphere": _double_sphere,
     "eucm": _eucm,
+    "fov": _fov,
     "ocam": _ocam,
     "radial_poly": _radial_poly,
     "pinhole_radtan": _pinhole_radtan,

@@ -276,3 +276,16 @@ def write_kitti360(path: Path, name: str = "image_02") -> Path:
         + "".join(f"   {k}: {p[k]:.16e}\n" for k in ("gamma1", "gamma2", "u0", "v0"))
     )
     return path
+
+
+def write_camodocal_kannala_brandt(path: Path, name: str = "cam0") -> Path:
+    """TUM-VI 512 cam0's pinhole-equi calibration (``TUMVI_EQUI[0]``) as camodocal's ``KANNALA_BRANDT`` YAML, laid
+    out as ``EquidistantCamera::Parameters::writeToYamlFile`` writes it (github:hengli/camodocal): Kalibr's k1..k4
+    are camodocal's k2..k5, fu, fv, pu, pv its mu, mv, u0, v0."""
+    (fu, fv, pu, pv), k = TUMVI_EQUI[0]["intrinsics"], TUMVI_EQUI[0]["distortion_coeffs"]
+    values = {"k2": k[0], "k3": k[1], "k4": k[2], "k5": k[3], "mu": fu, "mv": fv, "u0": pu, "v0": pv}
+    path.write_text(
+        f"%YAML:1.0\n---\nmodel_type: KANNALA_BRANDT\ncamera_name: {name}\nimage_width: 512\nimage_height: 512\n"
+        "projection_parameters:\n" + "".join(f"   {key}: {v:.16e}\n" for key, v in values.items())
+    )
+    return path

@@ -7,6 +7,7 @@ tools' formats; expected values are those of the source, converted by the docume
 from __future__ import annotations
 
 import json
+import logging
 import math
 from pathlib import Path
 
@@ -42,6 +43,9 @@ def test_basalt_tumvi(tmp_path: Path, camera_type: str, values: list[dict], mode
         assert (record.format, record.name) == ("basalt", str(index))
         assert record.camera == {"model": model, "width": 512, "height": 512, **values[index]}
         assert _rigid(record.extrinsics["T_imu_cam"])
+        np.testing.assert_allclose(
+            record.extrinsics["T_cam_imu"] @ record.extrinsics["T_imu_cam"], np.eye(4), atol=1e-12
+        )
     assert read_calibration(path, camera="1").camera["fx"] == values[1]["fx"]
 
 
@@ -139,6 +143,54 @@ def test_kalibr_missing_and_wrong_keys(tmp_path: Path) -> None:
         read_calibration(path)
 
 
+def _camchain_with(tmp_path: Path, transforms: dict[str, np.ndarray]) -> Path:
+    """TUM-VI's cam0 (pinhole-equi) as a one-camera chain with the given 4x4 blocks."""
+    text = fx.write_kalibr_camchain(tmp_path / "camchain.yaml", "equi", cameras=1).read_text()
+    for key, T in transforms.items():
+        text += f"  {key}:\n" + "".join(f"  - {row}\n" for row in T.tolist())
+    path = tmp_path / "camchain-imucam.yaml"
+    path.write_text(text)
+    return path
+
+
+# A rigid transform: a quarter turn about x, then 30 deg about z, and an offset of a few centimetres.
+_R = np.array([[math.cos(0.5236), -math.sin(0.5236), 0], [math.sin(0.5236), math.cos(0.5236), 0], [0, 0, 1]])
+T_IMU_CAM = np.eye(4)
+T_IMU_CAM[:3, :3] = _R @ np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+T_IMU_CAM[:3, 3] = [0.045, -0.071, -0.046]
+
+
+@pytest.mark.parametrize("stored", ["T_imu_cam", "T_cam_imu"])
+def test_kalibr_extrinsics_either_direction(tmp_path: Path, stored: str, caplog) -> None:
+    T = T_IMU_CAM if stored == "T_imu_cam" else np.linalg.inv(T_IMU_CAM)
+    path = _camchain_with(tmp_path, {stored: T})
+    with caplog.at_level(logging.INFO, logger="airfisheye_bench.io.calibration_files"):
+        extrinsics = read_calibration(path).extrinsics
+    # Both directions, whichever the file stores: the stored one as written, the other its inverse.
+    assert set(extrinsics) == {"T_imu_cam", "T_cam_imu"} and np.array_equal(extrinsics[stored], T)
+    np.testing.assert_allclose(extrinsics["T_imu_cam"], T_IMU_CAM, atol=1e-12)
+    np.testing.assert_allclose(extrinsics["T_cam_imu"] @ extrinsics["T_imu_cam"], np.eye(4), atol=1e-12)
+    assert f"extrinsics {stored} read from key 'cam0.{stored}'" in caplog.text
+
+
+def test_kalibr_extrinsics_never_dropped_silently(tmp_path: Path, caplog) -> None:
+    path = _camchain_with(tmp_path, {"T_body_cam": T_IMU_CAM})
+    with caplog.at_level(logging.INFO, logger="airfisheye_bench.io.calibration_files"):
+        assert read_calibration(path).extrinsics == {}
+    warned = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warned) == 1 and "'cam0.T_body_cam' is not read" in warned[0].getMessage()
+    # Both directions stored: they must agree.
+    path = _camchain_with(tmp_path, {"T_cam_imu": np.linalg.inv(T_IMU_CAM), "T_imu_cam": T_IMU_CAM})
+    np.testing.assert_allclose(read_calibration(path).extrinsics["T_imu_cam"], T_IMU_CAM, atol=1e-12)
+    path = _camchain_with(tmp_path, {"T_cam_imu": T_IMU_CAM, "T_imu_cam": T_IMU_CAM})
+    with pytest.raises(CalibrationFileError, match=r"key 'cam0.T_imu_cam': disagrees with the inverse"):
+        read_calibration(path)
+    skewed = T_IMU_CAM.copy()
+    skewed[0, 0] += 0.1
+    with pytest.raises(CalibrationFileError, match=r"key 'cam0.T_imu_cam': expected a rigid 4x4 transform"):
+        read_calibration(_camchain_with(tmp_path, {"T_imu_cam": skewed}))
+
+
 # ------------------------------------------------------------------------------------------------ KITTI-360 (MEI)
 @pytest.mark.parametrize("name", ["image_02", "image_03"])
 def test_kitti360_mei(tmp_path: Path, name: str) -> None:
@@ -177,15 +229,52 @@ def test_kitti360_devkit_projection_agrees(tmp_path: Path) -> None:
     assert np.abs(ours - devkit).max() < 1e-9
 
 
-def test_camodocs_other_model_types_are_named(tmp_path: Path) -> None:
+def test_camodocal_kannala_brandt_projects_as_camodocal(tmp_path: Path) -> None:
+    """VINS-Fusion's KANNALA_BRANDT YAML against camodocal's EquidistantCamera::spaceToPlane, written out."""
+    path = fx.write_camodocal_kannala_brandt(tmp_path / "cam0_fisheye.yaml")
+    record = read_calibration(path)
+    assert (record.format, record.name, record.camera["model"]) == ("kitti360", "cam0", "kannala_brandt")
+    p = {line.split(":")[0].strip(): float(line.split(":")[1]) for line in path.read_text().splitlines()[7:]}
+    rng = np.random.default_rng(1)
+    points = rng.normal(size=(200, 3))  # the whole sphere: camodocal's acos reaches behind the camera too
+    # camodocal (src/camera_models/EquidistantCamera.cc, spaceToPlane; r() in EquidistantCamera.h):
+    theta = np.arccos(points[:, 2] / np.linalg.norm(points, axis=1))
+    phi = np.arctan2(points[:, 1], points[:, 0])
+    r = theta + p["k2"] * theta**3 + p["k3"] * theta**5 + p["k4"] * theta**7 + p["k5"] * theta**9
+    camodocal = np.stack([p["mu"] * r * np.cos(phi) + p["u0"], p["mv"] * r * np.sin(phi) + p["v0"]], -1)
+    uv, valid = load_camera(path).project(points)
+    assert valid.all()  # TUM-VI's polynomial increases up to 180 deg
+    assert np.abs(uv - camodocal).max() < 1e-9
+
+
+def test_camodocal_pinhole_and_refusals(tmp_path: Path) -> None:
     path = tmp_path / "cam.yaml"
     path.write_text(
-        "%YAML:1.0\n---\nmodel_type: KANNALA_BRANDT\ncamera_name: camera\nimage_width: 640\nimage_height: 480\n"
-    )
-    with pytest.raises(
-        CalibrationFileError, match=r"key 'model_type': 'KANNALA_BRANDT' is not supported; supported: MEI"
-    ):
+        "%YAML:1.0\n---\nmodel_type: PINHOLE\ncamera_name: camera\nimage_width: 752\nimage_height: 480\n"
+        "distortion_parameters:\n   k1: -2.9e-01\n   k2: 8.1e-02\n   p1: 1.9e-05\n   p2: 1.8e-05\n"
+        "projection_parameters:\n   fx: 4.616e+02\n   fy: 4.603e+02\n   cx: 3.630e+02\n   cy: 2.484e+02\n"
+    )  # the layout of VINS-Fusion's config/euroc/cam0_pinhole.yaml
+    assert read_calibration(path).camera == {
+        "model": "pinhole_radtan", "width": 752, "height": 480, "fx": 461.6, "fy": 460.3, "cx": 363.0, "cy": 248.4,
+        "k1": -0.29, "k2": 0.081, "p1": 1.9e-05, "p2": 1.8e-05, "k3": 0.0,
+    }  # fmt: skip
+    path.write_text("%YAML:1.0\n---\nmodel_type: SCARAMUZZA\nimage_width: 640\nimage_height: 480\n")
+    with pytest.raises(CalibrationFileError) as err:
         read_calibration(path)
+    assert str(err.value) == (
+        f"{path}: key 'model_type': 'SCARAMUZZA' is not supported; supported: MEI, KANNALA_BRANDT, PINHOLE"
+    )
+    # k2..k5 under distortion_parameters: camodocal itself would read 0 for each; refused, saying where they go.
+    kb = fx.write_camodocal_kannala_brandt(tmp_path / "kb.yaml").read_text()
+    kb = kb.replace("projection_parameters:\n", "distortion_parameters:\n").replace(
+        "   mu:", "projection_parameters:\n   mu:"
+    )
+    path.write_text(kb)
+    with pytest.raises(CalibrationFileError) as err:
+        read_calibration(path)
+    message = str(err.value)
+    assert "key 'distortion_parameters.k2'" in message and "move them there" in message
+    assert "\n" not in message and len(message) - len(str(path)) <= 200
 
 
 # ------------------------------------------------------------------------------------------------------- WoodScape
@@ -349,6 +438,44 @@ def test_opencv_live_filestorage(tmp_path: Path) -> None:
         assert [camera[n] for n in names] == D.reshape(-1).tolist()
 
 
+@pytest.mark.parametrize(
+    ("text", "name"),
+    [
+        # cv::FileStorage of calibrateCamera's own argument names, the size as a cv::Size.
+        ("%YAML:1.0\n---\nimageSize: [ 1280, 960 ]\ncameraMatrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n"
+         "   dt: d\n   data: [ 412.5, 0., 639.5, 0., 413., 479.5, 0., 0., 1. ]\ndistCoeffs: !!opencv-matrix\n"
+         "   rows: 1\n   cols: 4\n   dt: d\n   data: [ 0.012, -0.003, 5.e-04, -2.e-05 ]\n", "opencv.yml"),
+        # A script's JSON: K and D as plain lists, width and height.
+        (json.dumps({"width": 1280, "height": 960, "K": [[412.5, 0, 639.5], [0, 413.0, 479.5], [0, 0, 1]],
+                     "D": [[0.012], [-0.003], [5e-4], [-2e-5]]}), "fisheye.json"),
+        # The Python tutorial's names, K flat (row-major), image_size as [width, height].
+        ("image_size: [1280, 960]\nmtx: [412.5, 0, 639.5, 0, 413.0, 479.5, 0, 0, 1]\n"
+         "dist: [0.012, -0.003, 0.0005, -0.00002]\n", "calib.yaml"),
+    ],
+)  # fmt: skip
+def test_opencv_other_key_spellings(tmp_path: Path, text: str, name: str) -> None:
+    path = tmp_path / name
+    path.write_text(text)
+    record = read_calibration(path)
+    assert record.format == "opencv"
+    assert record.camera == {
+        "model": "kannala_brandt", "width": 1280, "height": 960, "fx": 412.5, "fy": 413.0, "cx": 639.5,
+        "cy": 479.5, "k1": 0.012, "k2": -0.003, "k3": 0.0005, "k4": -2e-05, "skew": 0.0,
+    }  # fmt: skip
+
+
+def test_opencv_without_an_image_size_names_the_key(tmp_path: Path) -> None:
+    path = tmp_path / "calib.yaml"
+    path.write_text(
+        "cameraMatrix: [[500, 0, 320], [0, 500, 240], [0, 0, 1]]\ndistCoeffs: [0.1, 0, 0, 0, 0]\n"
+    )
+    with pytest.raises(CalibrationFileError) as err:
+        read_calibration(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: key 'image_width': is missing: the image size is needed (image_width")
+    assert "\n" not in message and len(message) - len(str(path)) <= 200
+
+
 # ------------------------------------------------------------------------------------------------------------ ROS
 def test_ros_parsers_layout_plumb_bob(tmp_path: Path) -> None:
     path = tmp_path / "kodak.yaml"
@@ -417,12 +544,119 @@ def test_colmap_cameras_txt(tmp_path: Path) -> None:
         "model": "pinhole_radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 500.0, "cx": 319.5, "cy": 239.5,
         "k1": -0.1, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0,
     }  # fmt: skip
-    with pytest.raises(
-        CalibrationFileError, match=r"key '7.model': FOV is not supported; supported: SIMPLE_PINHOLE"
-    ):
-        read_calibration(path, camera=7)
+    assert read_calibration(path, camera=7).camera["model"] == "fov"
     with pytest.raises(CalibrationFileError, match=r"camera='0' is not in the file; it holds 1, 2, 7"):
         read_calibration(path, camera="0")  # COLMAP ids are names, never indices
+
+
+# COLMAP's maps, written out from src/colmap/sensor/models.h (github:colmap/colmap): ImgFromCam of each model, on
+# points in front of the camera (COLMAP's cheirality test), in COLMAP's pixels (the image corner is the origin).
+def _colmap_fisheye_from_normal(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r = np.hypot(x, y)  # FisheyeFromNormal
+    theta = np.arctan(r)
+    return x * theta / r, y * theta / r
+
+
+def _colmap_img_from_cam(model: str, p: list[float], points: np.ndarray) -> np.ndarray:
+    x, y = points[:, 0] / points[:, 2], points[:, 1] / points[:, 2]
+    if model in ("SIMPLE_FISHEYE", "FISHEYE"):
+        f1, f2, c1, c2 = (p[0], p[0], p[1], p[2]) if model == "SIMPLE_FISHEYE" else p[:4]
+        uu, vv = _colmap_fisheye_from_normal(x, y)
+        return np.stack([f1 * uu + c1, f2 * vv + c2], -1)
+    f1, f2, c1, c2 = p[:4]
+    if model == "THIN_PRISM_FISHEYE":
+        k1, k2, p1, p2, k3, k4, sx1, sy1 = p[4:]
+        u, v = _colmap_fisheye_from_normal(x, y)
+        u2, uv, v2 = u * u, u * v, v * v
+        r2 = u2 + v2
+        radial = k1 * r2 + k2 * r2**2 + k3 * r2**3 + k4 * r2**4
+        du = u * radial + 2 * p1 * uv + p2 * (r2 + 2 * u2) + sx1 * r2
+        dv = v * radial + 2 * p2 * uv + p1 * (r2 + 2 * v2) + sy1 * r2
+        return np.stack([f1 * (u + du) + c1, f2 * (v + dv) + c2], -1)
+    if model == "RAD_TAN_THIN_PRISM_FISHEYE":
+        u, v = _colmap_fisheye_from_normal(x, y)
+        theta2 = u * u + v * v
+        th_radial = 1 + sum(k * theta2 ** (i + 1) for i, k in enumerate(p[4:10]))
+        xd, yd = th_radial * u, th_radial * v
+        p0, p1, s0, s1, s2, s3 = p[10:]
+        r2 = xd * xd + yd * yd
+        xd, yd = (
+            xd + 2 * p1 * xd * yd + p0 * (r2 + 2 * xd * xd) + s0 * r2 + s1 * r2 * r2,
+            yd + 2 * p0 * xd * yd + p1 * (r2 + 2 * yd * yd) + s2 * r2 + s3 * r2 * r2,
+        )
+        return np.stack([f1 * xd + c1, f2 * yd + c2], -1)
+    if model == "FOV":  # Distortion, its general branch (omega^2 and radius^2 >= 1e-4 here)
+        omega = p[4]
+        radius = np.hypot(x, y)
+        factor = np.arctan(radius * 2 * np.tan(omega / 2)) / (radius * omega)
+        return np.stack([f1 * x * factor + c1, f2 * y * factor + c2], -1)
+    if model == "EUCM":
+        alpha, beta = p[4:]
+        u, v, w = points.T
+        den = alpha * np.sqrt(beta * (u * u + v * v) + w * w) + (1 - alpha) * w
+        return np.stack([f1 * u / den + c1, f2 * v / den + c2], -1)
+    raise AssertionError(model)
+
+
+@pytest.mark.parametrize(
+    ("model", "params", "ours"),
+    [
+        ("SIMPLE_FISHEYE", [280.0, 320.0, 240.0], "kannala_brandt"),
+        ("FISHEYE", [280.0, 282.0, 320.0, 240.0], "kannala_brandt"),
+        # Kannala-Brandt k1..k4 of TUM-VI's cam0, the thin-prism and tangential terms 0 (what a file may hold).
+        ("THIN_PRISM_FISHEYE", [190.98, 190.97, 255.43, 257.40, 0.00348, 0.000715, 0, 0, -0.00205, 0.000203, 0, 0],
+         "kannala_brandt"),
+        ("RAD_TAN_THIN_PRISM_FISHEYE", [190.98, 190.97, 255.43, 257.40, 0.00348, 0.000715, -0.00205, 0.000203,
+                                        0, 0, 0, 0, 0, 0, 0, 0], "kannala_brandt"),
+        ("FOV", [651.123, 655.123, 386.123, 511.123, 0.9], "fov"),  # COLMAP's models_test.cc parameters
+        ("FOV", [651.123, 655.123, 386.123, 511.123, -0.9], "fov"),  # the same lens: the map is even in omega
+        ("EUCM", [191.148, 191.132, 255.459, 257.382, 0.6291, 1.0418], "eucm"),  # TUM-VI cam0's, COLMAP's pixels
+    ],
+)  # fmt: skip
+def test_colmap_models_project_as_colmap(tmp_path: Path, model: str, params: list[float], ours: str) -> None:
+    path = tmp_path / "cameras.txt"
+    path.write_text(f"# Camera list\n3 {model} 640 480 {' '.join(repr(v) for v in params)}\n")
+    camera = load_camera(path)
+    assert camera.model == ours
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(500, 3))
+    points[:, 2] = np.abs(points[:, 2]) + 0.05  # in front of the camera, up to 87 deg off the axis
+    uv, valid = camera.project(points)
+    assert valid.all()
+    # Our pixel centres are at integers, COLMAP's at half-integers.
+    assert np.abs(uv + 0.5 - _colmap_img_from_cam(model, params, points)).max() < 1e-9
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        ("THIN_PRISM_FISHEYE 64 64 50 50 32 32 0.01 0 1e-4 0 0 0 0 2e-5",
+         "key '3.params': THIN_PRISM_FISHEYE with non-zero p1, sy1 is not supported (only its Kannala-Brandt part); "
+         "calibrate with OPENCV_FISHEYE instead"),
+        ("RAD_TAN_THIN_PRISM_FISHEYE 64 64 50 50 32 32 0 0 0 0 0 0.1 0 0 0 0 0 0",
+         "key '3.params': RAD_TAN_THIN_PRISM_FISHEYE with non-zero k5 is not supported"),
+        ("DIVISION 64 64 50 50 32 32 -0.1",
+         "key '3.model': DIVISION has no lens model here; supported: every model of COLMAP's models.h but "
+         "SIMPLE_DIVISION, DIVISION, EQUIRECTANGULAR"),
+        ("FISHEYE624 64 64 50 50 32 32", "key '3.model': FISHEYE624 is not a COLMAP camera model; supported:"),
+    ],
+)  # fmt: skip
+def test_colmap_refusals_are_one_short_line(tmp_path: Path, line: str, message: str) -> None:
+    path = tmp_path / "cameras.txt"
+    path.write_text(f"3 {line}\n")
+    with pytest.raises(CalibrationFileError) as err:
+        load_camera(path)
+    text = str(err.value)
+    assert message in text and "\n" not in text and len(text) - len(str(path)) <= 200
+
+
+def test_colmap_fov_of_omega_zero_is_the_pinhole(tmp_path: Path) -> None:
+    path = tmp_path / "cameras.txt"
+    path.write_text("1 FOV 640 480 500 501 320 240 0\n")
+    assert read_calibration(path).camera == {
+        "model": "pinhole_radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 501.0, "cx": 319.5, "cy": 239.5,
+        "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0,
+    }  # fmt: skip
 
 
 # -------------------------------------------------------------------------------------- the project's own + errors
@@ -446,14 +680,15 @@ def test_project_calib_yaml_camera_section(tmp_path: Path) -> None:
     assert record.format == "airfisheye" and record.camera == camera
 
 
-def test_unknown_format_lists_the_formats(tmp_path: Path) -> None:
+def test_unknown_format_is_one_short_line(tmp_path: Path) -> None:
     path = tmp_path / "what.yaml"
     path.write_text("focal_length: 3.2\nsensor: imx477\n")
     with pytest.raises(CalibrationFileError) as err:
         read_calibration(path)
     message = str(err.value)
     assert message.startswith(f"{path}: not a calibration file of a known format")
-    assert all(fmt.name in message for fmt in FORMATS)
+    assert all(fmt.name in message for fmt in FORMATS) and "docs/design.md" in message
+    assert "\n" not in message and len(message) - len(str(path)) <= 200
 
 
 def test_missing_file(tmp_path: Path) -> None:

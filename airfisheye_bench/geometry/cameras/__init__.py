@@ -6,6 +6,7 @@ See docs/design.md, "Fisheye camera", for every model's parameters and the code 
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.double_sphere import DoubleSphere
 from airfisheye_bench.geometry.cameras.eucm import EUCM
+from airfisheye_bench.geometry.cameras.fov import Fov
 from airfisheye_bench.geometry.cameras.kannala_brandt import KannalaBrandt
 from airfisheye_bench.geometry.cameras.ocam import Ocam
 from airfisheye_bench.geometry.cameras.pinhole_radtan import PinholeRadtan
@@ -27,6 +28,7 @@ __all__ = [
     "DoubleSphere",
     "Equidistant",
     "Equisolid",
+    "Fov",
     "KannalaBrandt",
     "Ocam",
     "Orthographic",

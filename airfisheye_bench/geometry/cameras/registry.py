@@ -9,6 +9,7 @@ from typing import Any
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.double_sphere import DoubleSphere
 from airfisheye_bench.geometry.cameras.eucm import EUCM
+from airfisheye_bench.geometry.cameras.fov import Fov
 from airfisheye_bench.geometry.cameras.kannala_brandt import KannalaBrandt
 from airfisheye_bench.geometry.cameras.ocam import Ocam
 from airfisheye_bench.geometry.cameras.pinhole_radtan import PinholeRadtan
@@ -23,6 +24,7 @@ CAMERA_MODELS: dict[str, type[CameraModel]] = {
     Unified.model: Unified,
     DoubleSphere.model: DoubleSphere,
     EUCM.model: EUCM,
+    Fov.model: Fov,
     Ocam.model: Ocam,
     RadialPoly.model: RadialPoly,
     PinholeRadtan.model: PinholeRadtan,

@@ -86,7 +86,8 @@ def detect_format(path: str | Path) -> tuple[CalibrationFormat, Any]:
 
     Raises:
         MissingFileError: no such file.
-        CalibrationFileError: not a format of :data:`FORMATS` (the message lists them).
+        CalibrationFileError: not a format of :data:`FORMATS` (one line naming them; their layouts are in
+            ``docs/design.md``, "Calibration files").
     """
     path = Path(path)
     try:
@@ -99,8 +100,12 @@ def detect_format(path: str | Path) -> tuple[CalibrationFormat, Any]:
     for fmt in FORMATS:
         if fmt.detect(text, doc):
             return fmt, (fmt.document(text, doc) if fmt.document is not None else doc)
-    known = "; ".join(f"{fmt.name}: {fmt.summary}" for fmt in FORMATS)
-    raise CalibrationFileError(path, f"not a calibration file of a known format. Supported: {known}")
+    # One line: the formats' layouts are docs/design.md's table ("Calibration files"), not this message.
+    names = ", ".join(fmt.name for fmt in FORMATS)
+    raise CalibrationFileError(
+        path,
+        f"not a calibration file of a known format ({names}; their keys: docs/design.md, Calibration files)",
+    )
 
 
 def read_calibration(

@@ -16,6 +16,7 @@ from typing import Any
 __all__ = [
     "double_sphere",
     "eucm",
+    "fov",
     "kannala_brandt",
     "ocam",
     "pinhole_radtan",
@@ -108,6 +109,13 @@ def eucm(
     values = (fx, fy, cx, cy, alpha, beta)
     names = ("fx", "fy", "cx", "cy", "alpha", "beta")
     return {**_base("eucm", width, height), **{n: float(v) for n, v in zip(names, values, strict=True)}}
+
+
+def fov(width: int, height: int, fx: float, fy: float, cx: float, cy: float, omega: float) -> dict[str, Any]:
+    """FOV / ATAN (Devernay and Faugeras 2001; COLMAP ``FOV``): ``r_d = atan(2 r tan(omega / 2)) / omega``."""
+    values = (fx, fy, cx, cy, omega)
+    names = ("fx", "fy", "cx", "cy", "omega")
+    return {**_base("fov", width, height), **{n: float(v) for n, v in zip(names, values, strict=True)}}
 
 
 def ocam(

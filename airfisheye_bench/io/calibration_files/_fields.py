@@ -14,6 +14,7 @@ Example:
 from __future__ import annotations
 
 import json
+import logging
 import math
 import re
 from collections.abc import Callable, Mapping
@@ -34,8 +35,11 @@ __all__ = [
     "Fields",
     "parse_structured",
     "quaternion_pose",
+    "rigid_both_ways",
     "select_camera",
 ]
+
+log = logging.getLogger(__name__)
 
 _MISSING = object()
 _INDEX = re.compile(r"^(\w[\w\-]*)\[(\d+)\]$")
@@ -53,8 +57,9 @@ class CalibrationRecord:
         camera: The camera as the flat dict of the camera contract (``{"model": ..., "width": ..., "height": ...,
             <params>}``), in the project's pixel convention (the centre of pixel (row i, col j) at (u=j, v=i)).
         extrinsics: Rigid transforms the file gives for this camera, ``[4, 4]`` float64 by name (``T_a_b`` maps
-            points of frame b to frame a): ``T_vehicle_cam`` (WoodScape), ``T_imu_cam`` (basalt), ``T_cam_imu`` and
-            ``T_cn_cnm1`` (Kalibr).
+            points of frame b to frame a): ``T_vehicle_cam`` (WoodScape); ``T_cam_imu`` and ``T_imu_cam`` (Kalibr,
+            basalt), ``T_cn_cnm1`` and ``T_cnm1_cn`` (Kalibr): both directions, whichever one the file stores (the
+            other is its inverse; which was read is logged).
     """
 
     path: Path
@@ -257,6 +262,20 @@ def quaternion_pose(qxyzw: list[float], translation: list[float]) -> np.ndarray:
     ]
     pose[:3, 3] = [float(v) for v in translation]
     return pose
+
+
+def rigid_both_ways(f: Fields, key: str, T: np.ndarray, a: str, b: str) -> dict[str, np.ndarray]:
+    """``{"T_a_b": T, "T_b_a": T^-1}`` from the file's ``T_a_b`` at ``key``, so that a reader finds either direction
+    whichever one the file stores; logs which was read. ``T`` must be rigid (its inverse uses ``R^T``)."""
+    R = T[:3, :3]
+    rigid = np.allclose(R.T @ R, np.eye(3), atol=1e-4) and abs(np.linalg.det(R) - 1.0) < 1e-4
+    if not rigid or not np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0]):
+        raise f.error(key, "expected a rigid 4x4 transform [[R, t], [0, 0, 0, 1]] with R a rotation")
+    inverse = np.eye(4)
+    inverse[:3, :3] = R.T
+    inverse[:3, 3] = -R.T @ T[:3, 3]
+    log.info("%s: extrinsics T_%s_%s read from key %r; T_%s_%s is its inverse", f.path, a, b, key, b, a)
+    return {f"T_{a}_{b}": T, f"T_{b}_{a}": inverse}
 
 
 def _is_number(value: Any) -> bool:

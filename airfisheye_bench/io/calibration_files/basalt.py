@@ -1,5 +1,5 @@
 """basalt's calibration JSON (cereal): ``value0.intrinsics[i]`` = ``{camera_type, intrinsics: {...}}``,
-``value0.resolution[i]`` = ``[width, height]``, ``value0.T_imu_cam[i]`` = ``{px, py, pz, qx, qy, qz, qw}``.
+``value0.resolution[i]`` = ``[width, height]``, ``value0.T_imu_cam[i]`` = ``{px, py, pz, qx, qy, qz, qw}`` (read as ``T_imu_cam`` and its inverse ``T_cam_imu``).
 
 Layout and names: github:VladyslavUsenko/basalt-headers ``include/basalt/serialization/headers_serialization.h``
 (the cereal ``save``/``load`` of each camera) and ``include/basalt/camera/*.hpp`` (``getName()``):
@@ -47,6 +47,7 @@ from airfisheye_bench.io.calibration_files._fields import (
     CameraEntry,
     Fields,
     quaternion_pose,
+    rigid_both_ways,
 )
 
 __all__ = ["FORMAT", "PARAMETERS"]
@@ -98,7 +99,7 @@ def _read(f: Fields, index: int) -> tuple[dict[str, Any], dict[str, np.ndarray]]
         pkey = f"value0.T_imu_cam[{index}]"
         q = [f.number(f"{pkey}.{n}") for n in ("qx", "qy", "qz", "qw")]
         t = [f.number(f"{pkey}.{n}") for n in ("px", "py", "pz")]
-        extrinsics["T_imu_cam"] = quaternion_pose(q, t)
+        extrinsics = rigid_both_ways(f, pkey, quaternion_pose(q, t), "imu", "cam")
     return camera, extrinsics
 
 

@@ -5,24 +5,33 @@ model); the text layout: COLMAP's documentation, "Output format". COLMAP's image
 *corner*: the centre of the upper-left pixel is (0.5, 0.5) (documentation, "Frequently asked questions"), so the
 principal point moves by half a pixel: ``cx = cx_colmap - 0.5``, ``cy = cy_colmap - 0.5``.
 
-=========================  =====================================  =========================================
-COLMAP model               parameters                             model here
-=========================  =====================================  =========================================
-SIMPLE_PINHOLE             f, cx, cy                              pinhole_radtan
-PINHOLE                    fx, fy, cx, cy                         pinhole_radtan
-SIMPLE_RADIAL              f, cx, cy, k                           pinhole_radtan (k1 = k)
-RADIAL                     f, cx, cy, k1, k2                      pinhole_radtan
-OPENCV                     fx, fy, cx, cy, k1, k2, p1, p2         pinhole_radtan
-FULL_OPENCV                fx, fy, cx, cy, k1, k2, p1, p2,        pinhole_radtan (k4..k6 must be 0)
-                           k3, k4, k5, k6
-OPENCV_FISHEYE             fx, fy, cx, cy, k1, k2, k3, k4         kannala_brandt
-SIMPLE_RADIAL_FISHEYE      f, cx, cy, k                           kannala_brandt (k1 = k)
-RADIAL_FISHEYE             f, cx, cy, k1, k2                      kannala_brandt (k1, k2)
-=========================  =====================================  =========================================
+==========================  ==========================================  =========================================
+COLMAP model                parameters                                  model here
+==========================  ==========================================  =========================================
+SIMPLE_PINHOLE              f, cx, cy                                   pinhole_radtan
+PINHOLE                     fx, fy, cx, cy                              pinhole_radtan
+SIMPLE_RADIAL               f, cx, cy, k                                pinhole_radtan (k1 = k)
+RADIAL                      f, cx, cy, k1, k2                           pinhole_radtan
+OPENCV                      fx, fy, cx, cy, k1, k2, p1, p2              pinhole_radtan
+FULL_OPENCV                 fx, fy, cx, cy, k1, k2, p1, p2, k3..k6      pinhole_radtan (k4..k6 must be 0)
+OPENCV_FISHEYE              fx, fy, cx, cy, k1, k2, k3, k4              kannala_brandt
+SIMPLE_RADIAL_FISHEYE       f, cx, cy, k                                kannala_brandt (k1 = k)
+RADIAL_FISHEYE              f, cx, cy, k1, k2                           kannala_brandt (k1, k2)
+SIMPLE_FISHEYE, FISHEYE     f, cx, cy / fx, fy, cx, cy                  kannala_brandt (k = 0: equidistant)
+THIN_PRISM_FISHEYE          fx, fy, cx, cy, k1, k2, p1, p2, k3, k4,     kannala_brandt (p1, p2, sx1, sy1 must
+                            sx1, sy1                                    be 0)
+RAD_TAN_THIN_PRISM_FISHEYE  fx, fy, cx, cy, k0..k5, p0, p1, s0..s3      kannala_brandt (k1..k4 = k0..k3; k4, k5,
+                                                                        p0, p1, s0..s3 must be 0)
+FOV                         fx, fy, cx, cy, omega                       fov (omega = 0: pinhole_radtan)
+EUCM                        fx, fy, cx, cy, alpha, beta                 eucm
+==========================  ==========================================  =========================================
 
-COLMAP's ``RADIAL_FISHEYE`` distorts ``theta = atan(r)`` into ``theta (1 + k1 theta^2 + k2 theta^4)``: the
-Kannala-Brandt polynomial. ``FOV``, ``THIN_PRISM_FISHEYE``, ``RAD_TAN_THIN_PRISM_FISHEYE`` and the division
-models are not supported. Cameras are named by their ``CAMERA_ID``.
+COLMAP's fisheye models all distort ``theta = atan(r)`` (``FisheyeFromNormal``): ``RADIAL_FISHEYE`` into ``theta (1
++ k1 theta^2 + k2 theta^4)``, ``THIN_PRISM_FISHEYE`` adds tangential and thin-prism terms to that, and
+``RAD_TAN_THIN_PRISM_FISHEYE`` a radial polynomial to theta^13: without those extra terms each is the
+Kannala-Brandt polynomial. With them they are no model here, and refused naming the terms (their 2-D distortion
+has no exact inverse here yet). ``FOV``'s map is even in omega (``|omega|`` is read). ``SIMPLE_DIVISION``,
+``DIVISION`` and ``EQUIRECTANGULAR`` are refused. Cameras are named by their ``CAMERA_ID``.
 
 Example:
     >>> doc = _document("# Camera list\\n1 OPENCV_FISHEYE 1280 960 400 401 640 480 0.1 0.01 0 0\\n", None)
@@ -37,12 +46,12 @@ import re
 from functools import partial
 from typing import Any
 
-from airfisheye_bench.io.calibration_files._camera_dicts import kannala_brandt, pinhole_radtan
+from airfisheye_bench.io.calibration_files._camera_dicts import eucm, fov, kannala_brandt, pinhole_radtan
 from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
 
-__all__ = ["FORMAT", "PARAMETERS"]
+__all__ = ["FORMAT", "PARAMETERS", "REFUSED"]
 
-#: COLMAP model -> its parameter names (models.h order).
+#: COLMAP model -> its parameter names (models.h ``InitializeParamsInfo`` order), for the models read.
 PARAMETERS = {
     "SIMPLE_PINHOLE": ("f", "cx", "cy"),
     "PINHOLE": ("fx", "fy", "cx", "cy"),
@@ -53,6 +62,29 @@ PARAMETERS = {
     "OPENCV_FISHEYE": ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"),
     "SIMPLE_RADIAL_FISHEYE": ("f", "cx", "cy", "k"),
     "RADIAL_FISHEYE": ("f", "cx", "cy", "k1", "k2"),
+    "SIMPLE_FISHEYE": ("f", "cx", "cy"),
+    "FISHEYE": ("fx", "fy", "cx", "cy"),
+    "THIN_PRISM_FISHEYE": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "sx1", "sy1"),
+    "RAD_TAN_THIN_PRISM_FISHEYE": (
+        "fx", "fy", "cx", "cy", "k0", "k1", "k2", "k3", "k4", "k5", "p0", "p1", "s0", "s1", "s2", "s3",
+    ),
+    "FOV": ("fx", "fy", "cx", "cy", "omega"),
+    "EUCM": ("fx", "fy", "cx", "cy", "alpha", "beta"),
+}  # fmt: skip
+#: COLMAP's models that have no model here.
+REFUSED = ("SIMPLE_DIVISION", "DIVISION", "EQUIRECTANGULAR")
+#: Kannala-Brandt models -> (names of the polynomial's k1..k4, terms that must be zero).
+_KB_FAMILY = {
+    "OPENCV_FISHEYE": (("k1", "k2", "k3", "k4"), ()),
+    "SIMPLE_RADIAL_FISHEYE": (("k",), ()),
+    "RADIAL_FISHEYE": (("k1", "k2"), ()),
+    "SIMPLE_FISHEYE": ((), ()),
+    "FISHEYE": ((), ()),
+    "THIN_PRISM_FISHEYE": (("k1", "k2", "k3", "k4"), ("p1", "p2", "sx1", "sy1")),
+    "RAD_TAN_THIN_PRISM_FISHEYE": (
+        ("k0", "k1", "k2", "k3"),
+        ("k4", "k5", "p0", "p1", "s0", "s1", "s2", "s3"),
+    ),
 }
 _LINE = re.compile(r"^\s*(\d+)\s+([A-Z][A-Z0-9_]*)\s+(\d+)\s+(\d+)((?:\s+\S+)*)\s*$")
 
@@ -88,7 +120,11 @@ def _cameras(fields: Fields) -> dict[str, CameraEntry]:
 def _read(f: Fields, camera_id: str) -> tuple[dict[str, Any], dict]:
     model = f.str(f"{camera_id}.model")
     if model not in PARAMETERS:
-        raise f.error(f"{camera_id}.model", f"{model} is not supported; supported: {', '.join(PARAMETERS)}")
+        what = "has no lens model here" if model in REFUSED else "is not a COLMAP camera model"
+        raise f.error(
+            f"{camera_id}.model",
+            f"{model} {what}; supported: every model of COLMAP's models.h but {', '.join(REFUSED)}",
+        )
     names = PARAMETERS[model]
     values = f.numbers(f"{camera_id}.params", len(names))
     p = dict(zip(names, values, strict=True))
@@ -97,35 +133,38 @@ def _read(f: Fields, camera_id: str) -> tuple[dict[str, Any], dict]:
     width, height = f.whole(f"{camera_id}.width"), f.whole(f"{camera_id}.height")
     # COLMAP's pixel centres are at half-integers (the image corner is the origin); ours at integers.
     fx, fy, cx, cy = p["fx"], p["fy"], p["cx"] - 0.5, p["cy"] - 0.5
-    if model in ("OPENCV_FISHEYE", "SIMPLE_RADIAL_FISHEYE", "RADIAL_FISHEYE"):
-        k = [p.get("k1", p.get("k", 0.0)), p.get("k2", 0.0), p.get("k3", 0.0), p.get("k4", 0.0)]
+    if model in _KB_FAMILY:
+        k_names, zero = _KB_FAMILY[model]
+        extra = [name for name in zero if p[name] != 0]
+        if extra:
+            raise f.error(
+                f"{camera_id}.params",
+                f"{model} with non-zero {', '.join(extra)} is not supported (only its Kannala-Brandt part); "
+                "calibrate with OPENCV_FISHEYE instead",
+            )
+        k = [p[name] for name in k_names] + [0.0] * (4 - len(k_names))
         return kannala_brandt(width, height, fx, fy, cx, cy, k), {}
-    rational = [p.get(name, 0.0) for name in ("k4", "k5", "k6")]
-    if any(rational):
+    if model == "FOV":
+        if p["omega"] == 0:  # COLMAP's limit: the undistorted pinhole
+            return pinhole_radtan(width, height, fx, fy, cx, cy), {}
+        return fov(width, height, fx, fy, cx, cy, abs(p["omega"])), {}
+    if model == "EUCM":
+        return eucm(width, height, fx, fy, cx, cy, p["alpha"], p["beta"]), {}
+    rational = [name for name in ("k4", "k5", "k6") if p.get(name, 0.0) != 0]
+    if rational:
         raise f.error(
             f"{camera_id}.params",
-            "FULL_OPENCV with non-zero k4, k5, k6 (the rational model) is not supported; supported: k1, k2, p1, p2, k3",
+            f"FULL_OPENCV with non-zero {', '.join(rational)} (the rational model) is not supported; use OPENCV",
         )
     k1 = p.get("k1", p.get("k", 0.0))
-    return pinhole_radtan(
-        width,
-        height,
-        fx,
-        fy,
-        cx,
-        cy,
-        k1,
-        p.get("k2", 0.0),
-        p.get("p1", 0.0),
-        p.get("p2", 0.0),
-        p.get("k3", 0.0),
-    ), {}
+    radtan = [p.get(name, 0.0) for name in ("k2", "p1", "p2", "k3")]
+    return pinhole_radtan(width, height, fx, fy, cx, cy, k1, *radtan), {}
 
 
 FORMAT = CalibrationFormat(
     name="colmap",
-    summary="COLMAP cameras.txt (OPENCV_FISHEYE, RADIAL_FISHEYE, SIMPLE_RADIAL_FISHEYE, OPENCV, FULL_OPENCV, "
-    "PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL; principal point moved by -0.5 px)",
+    summary="COLMAP cameras.txt (every model of models.h but SIMPLE_DIVISION, DIVISION, EQUIRECTANGULAR; "
+    "principal point moved by -0.5 px)",
     source="github:colmap/colmap src/colmap/sensor/models.h; COLMAP documentation (Output format; FAQ: the centre "
     "of the upper-left pixel is (0.5, 0.5))",
     detect=_detect,

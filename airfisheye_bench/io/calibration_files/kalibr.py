@@ -3,7 +3,9 @@
 Each block (github:ethz-asl/kalibr ``aslam_offline_calibration/kalibr/python/kalibr_common/ConfigReader.py``,
 ``AslamCamera`` and ``CameraParameters``; the wiki's "Supported models"): ``camera_model``, ``intrinsics``,
 ``distortion_model``, ``distortion_coeffs``, ``resolution`` ``[width, height]``, and optionally ``T_cam_imu``
-and ``T_cn_cnm1`` (4x4).
+and ``T_cn_cnm1`` (4x4). Chains that other tools write store ``T_imu_cam`` / ``T_cnm1_cn`` instead: either direction
+is read and the record holds both (the other inverted), logging which key was read; any other ``T_*`` key is named
+in a warning rather than dropped silently.
 
 ==============  =========================================  ==================  =================================
 camera_model    intrinsics                                 distortion_model    model here
@@ -31,6 +33,7 @@ Example:
 
 from __future__ import annotations
 
+import logging
 from functools import partial
 from typing import Any
 
@@ -43,9 +46,16 @@ from airfisheye_bench.io.calibration_files._camera_dicts import (
     pinhole_radtan,
     unified,
 )
-from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
+from airfisheye_bench.io.calibration_files._fields import (
+    CalibrationFormat,
+    CameraEntry,
+    Fields,
+    rigid_both_ways,
+)
 
-__all__ = ["FORMAT", "SUPPORTED"]
+__all__ = ["EXTRINSICS", "FORMAT", "SUPPORTED"]
+
+log = logging.getLogger(__name__)
 
 #: (camera_model, distortion_model) pairs this reader takes.
 SUPPORTED = (
@@ -57,6 +67,13 @@ SUPPORTED = (
     ("ds", "none"),
     ("eucm", "none"),
 )
+#: Extrinsics keys read, either direction (Kalibr writes T_cam_imu and T_cn_cnm1; other tools' chains the inverses).
+EXTRINSICS = {
+    "T_cam_imu": ("cam", "imu"),
+    "T_imu_cam": ("imu", "cam"),
+    "T_cn_cnm1": ("cn", "cnm1"),
+    "T_cnm1_cn": ("cnm1", "cn"),
+}
 _INTRINSICS = {"pinhole": 4, "omni": 5, "ds": 6, "eucm": 6}
 _COEFFICIENTS = {"equidistant": 4, "radtan": 4, "none": 0}
 
@@ -114,19 +131,28 @@ def _read(f: Fields, prefix: str) -> tuple[dict[str, Any], dict[str, np.ndarray]
     else:
         alpha, beta, fx, fy, cx, cy = values
         camera = eucm(width, height, fx, fy, cx, cy, alpha, beta)
-    extrinsics = {
-        key: f.matrix(prefix + key, (4, 4)) for key in ("T_cam_imu", "T_cn_cnm1") if prefix + key in _flat(f)
-    }
-    return camera, extrinsics
+    return camera, _extrinsics(f, prefix)
 
 
-def _flat(f: Fields) -> set[str]:
-    """Dotted keys one level below the top (``cam0.T_cam_imu``) and at the top."""
-    keys = set(f.data)
-    for name, block in f.data.items():
-        if isinstance(block, dict):
-            keys |= {f"{name}.{k}" for k in block}
-    return keys
+def _extrinsics(f: Fields, prefix: str) -> dict[str, np.ndarray]:
+    """The block's transforms in both directions, whichever the file stores; an unknown ``T_*`` key is warned about,
+    never dropped silently; both directions stored must agree."""
+    block = f.get(prefix[:-1]) if prefix else f.data
+    out: dict[str, np.ndarray] = {}
+    for key in (k for k in block if isinstance(k, str) and k.startswith("T_")):
+        if key not in EXTRINSICS:
+            log.warning(
+                "%s: key %r is not read (extrinsics read: %s)", f.path, prefix + key, ", ".join(EXTRINSICS)
+            )
+            continue
+        read = rigid_both_ways(f, prefix + key, f.matrix(prefix + key, (4, 4)), *EXTRINSICS[key])
+        for name, T in read.items():
+            if name in out and not np.allclose(out[name], T, atol=1e-6):
+                raise f.error(
+                    prefix + key, f"disagrees with the inverse of the block's other direction ({name})"
+                )
+            out.setdefault(name, T)
+    return out
 
 
 FORMAT = CalibrationFormat(

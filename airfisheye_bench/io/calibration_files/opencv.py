@@ -3,7 +3,10 @@
 
 Layout (``samples/cpp/tutorial_code/calib3d/camera_calibration/camera_calibration.cpp``, ``saveCameraParams``;
 ``samples/cpp/calibration.cpp`` writes the same keys without ``fisheye_model``): ``image_width``, ``image_height``,
-``camera_matrix`` (3x3 K), ``distortion_coefficients`` (a 1xN or Nx1 matrix), ``fisheye_model`` (0 or 1).
+``camera_matrix`` (3x3 K), ``distortion_coefficients`` (a 1xN or Nx1 matrix), ``fisheye_model`` (0 or 1). Scripts'
+spellings are read too (:data:`MATRIX_KEYS`, :data:`DISTORTION_KEYS`; the size as ``imageSize`` / ``image_size``
+``[width, height]``, or ``width`` and ``height``), their matrices also as plain lists (nested, or flat row-major);
+without an image size the file is refused naming the key.
 
 - ``fisheye_model: 1``, or no ``fisheye_model`` and 4 coefficients: ``cv::fisheye`` (``kannala_brandt``, k1..k4;
   K[0, 1] = alpha * fx, alpha being ``cv::fisheye``'s skew).
@@ -43,7 +46,7 @@ import numpy as np
 from airfisheye_bench.io.calibration_files._camera_dicts import kannala_brandt, pinhole_radtan
 from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
 
-__all__ = ["FORMAT", "camera_from_matrices"]
+__all__ = ["DISTORTION_KEYS", "FORMAT", "MATRIX_KEYS", "camera_from_matrices"]
 
 _RADTAN_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tauX", "tauY")
 
@@ -97,39 +100,86 @@ def camera_from_matrices(
     return pinhole_radtan(width, height, fx, fy, cx, cy, *D[:5])
 
 
+#: Spellings of the camera matrix and of the coefficients, OpenCV's samples' first: ``calibrateCamera``'s own
+#: argument names (``cameraMatrix``, ``distCoeffs``, written by many scripts), ``K`` / ``D`` (``cv::fisheye`` scripts),
+#: and the Python tutorial's ``mtx`` / ``dist``.
+MATRIX_KEYS = ("camera_matrix", "cameraMatrix", "K", "mtx")
+DISTORTION_KEYS = ("distortion_coefficients", "distCoeffs", "dist_coeffs", "D", "dist")
+#: Image size keys: a ``[width, height]`` pair (``cv::Size`` as FileStorage writes it), else separate width / height.
+SIZE_KEYS = ("imageSize", "image_size")
+WIDTH_HEIGHT_KEYS = (("image_width", "image_height"), ("width", "height"))
+
+
+def _keys(doc: Any) -> tuple[str, str] | None:
+    """The (matrix, coefficients) keys of a document, ``None`` when it has no such pair."""
+    if not isinstance(doc, dict):
+        return None
+    k_key = next((k for k in MATRIX_KEYS if k in doc), None)
+    d_key = next((d for d in DISTORTION_KEYS if d in doc), None)
+    return (k_key, d_key) if k_key and d_key else None
+
+
 def _detect(text: str, doc: Any) -> bool:
-    return isinstance(doc, dict) and "camera_matrix" in doc and "distortion_coefficients" in doc
+    return _keys(doc) is not None
 
 
 def _cameras(fields: Fields) -> dict[str, CameraEntry]:
     return {"0": _read}
 
 
+def _matrix(f: Fields, key: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """An ``!!opencv-matrix`` (or its JSON form), or plain nested / flat lists as scripts write them."""
+    value = f.get(key)
+    if isinstance(value, dict):
+        return f.opencv_matrix(key, shape)
+    if isinstance(value, list) and value and all(isinstance(row, list) for row in value):
+        rows = [f.check_numbers(key, row) for row in value]
+        if len({len(row) for row in rows}) != 1:
+            raise f.error(key, "expected a matrix: rows of one length")
+        matrix = np.asarray(rows, np.float64)
+    else:
+        matrix = np.asarray(f.check_numbers(key, value), np.float64)[None]
+    if shape is not None and matrix.shape != shape:
+        if matrix.size != shape[0] * shape[1]:
+            raise f.error(
+                key, f"expected a {shape[0]}x{shape[1]} matrix, got {matrix.shape[0]}x{matrix.shape[1]}"
+            )
+        matrix = matrix.reshape(shape)  # a flat list, row-major
+    return matrix
+
+
+def _size(f: Fields) -> tuple[int, int]:
+    for key in SIZE_KEYS:
+        if key in f.data:
+            return f.size(key)
+    for w_key, h_key in WIDTH_HEIGHT_KEYS:
+        if w_key in f.data or h_key in f.data:
+            return f.whole(w_key), f.whole(h_key)
+    raise f.error(
+        "image_width",
+        "is missing: the image size is needed (image_width and image_height, or image_size: [width, height])",
+    )
+
+
 def _read(f: Fields) -> tuple[dict[str, Any], dict]:
-    width = f.whole("image_width")
-    height = f.whole("image_height")
-    K = f.opencv_matrix("camera_matrix", (3, 3))
-    D = f.opencv_matrix("distortion_coefficients")
+    k_key, d_key = _keys(f.data)
+    width, height = _size(f)
+    K = _matrix(f, k_key, (3, 3))
+    D = _matrix(f, d_key)
     if 1 not in D.shape:
-        raise f.error(
-            "distortion_coefficients", f"expected a 1xN or Nx1 matrix, got {D.shape[0]}x{D.shape[1]}"
-        )
+        raise f.error(d_key, f"expected a 1xN or Nx1 matrix, got {D.shape[0]}x{D.shape[1]}")
     coefficients = D.reshape(-1).tolist()
     flag = f.get("fisheye_model", None)
     if flag is not None and flag not in (0, 1):  # True and False compare equal to 1 and 0
         raise f.error("fisheye_model", f"expected 0 or 1, got {flag!r}")
     fisheye = bool(flag) if flag is not None else len(coefficients) == 4
-    return (
-        camera_from_matrices(
-            f, width, height, K, coefficients, fisheye, "camera_matrix", "distortion_coefficients"
-        ),
-        {},
-    )
+    return camera_from_matrices(f, width, height, K, coefficients, fisheye, k_key, d_key), {}
 
 
 FORMAT = CalibrationFormat(
     name="opencv",
-    summary="OpenCV FileStorage YAML/JSON (camera_matrix, distortion_coefficients, image_width, image_height; "
+    summary="OpenCV FileStorage YAML/JSON (camera_matrix | cameraMatrix | K | mtx, distortion_coefficients | "
+    "distCoeffs | dist_coeffs | D | dist, image_width + image_height | imageSize | image_size | width + height; "
     "4 coefficients or fisheye_model: 1 = kannala_brandt, 5 = pinhole_radtan)",
     source="OpenCV samples/cpp/calibration.cpp and tutorial_code/calib3d/camera_calibration/camera_calibration.cpp "
     "(saveCameraParams); cv::fisheye and cv::calibrateCamera docs for the coefficient order",
