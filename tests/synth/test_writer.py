@@ -444,3 +444,18 @@ def test_gimbal_pitch_is_stratified_so_every_split_spans_the_range():
         ]
         assert min(values) >= lo and max(values) <= hi
         assert max(values) - min(values) > 0.4 * (hi - lo)
+
+
+def test_the_cache_generates_with_a_worker_per_core_up_to_eight(tmp_path, monkeypatch):
+    monkeypatch.setitem(PRESETS, "micro", MICRO)
+    seen: dict = {}
+
+    def generate(*args, **kwargs):
+        seen.update(kwargs)
+        raise RuntimeError("stop before generating")
+
+    monkeypatch.setattr(cache, "generate_dataset", generate)
+    monkeypatch.setattr(cache.os, "cpu_count", lambda: 16)
+    with pytest.raises(RuntimeError, match="stop before generating"):
+        cache.ensure_dataset("micro", root=tmp_path, progress=False)
+    assert seen["workers"] == 8
