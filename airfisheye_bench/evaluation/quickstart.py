@@ -145,6 +145,10 @@ def git_commit(repo: str | Path) -> str:
     return sha + ("+dirty" if dirty else "")
 
 
+#: Environment variables that choose the CPU kernels of torch, oneDNN, MKL and numpy; a run records those it had.
+CPU_KERNEL_SWITCHES = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "MKL_CBWR", "NPY_DISABLE_CPU_FEATURES")
+
+
 def train_missing(
     runs: Sequence[QuickstartRun],
     repo: str | Path,
@@ -181,6 +185,9 @@ def train_missing(
             "wall_s": round(seconds, 1),
             "omp_num_threads": env.get("OMP_NUM_THREADS"),
         }
+        kernels = {k: env[k] for k in CPU_KERNEL_SWITCHES if k in env}
+        if kernels:  # the run's CPU kernels were limited: a result depends on them as well as on the seed
+            record["cpu_kernels"] = kernels
         atomic_write_text(run.record, json.dumps(record, indent=2) + "\n")
         log(f"[{k}/{len(runs)}] {run.task} seed {run.seed}: {seconds / 60:.1f} min")
 
@@ -285,6 +292,8 @@ def summarize(
             "commit": record["commit"],
             "command": record["command"],
         }
+        if record.get("cpu_kernels"):
+            entry["seeds"][str(run.seed)]["cpu_kernels"] = record["cpu_kernels"]
         breakdown = {
             k: v
             for k, v in results.get("breakdown", {}).items()

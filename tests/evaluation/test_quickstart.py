@@ -65,6 +65,25 @@ def test_readme_table_shows_the_spread_and_round_trips(record: dict) -> None:
         quickstart.replace_table("no table here", table)
 
 
+def test_a_run_records_the_cpu_kernels_it_was_limited_to(tmp_path: Path, monkeypatch) -> None:
+    """A result moves with the CPU's kernels as well as the seed: a run made with them switched says so."""
+    (run,) = quickstart.plan(tmp_path / "runs", ["seg"], [0])
+    monkeypatch.setenv("ATEN_CPU_CAPABILITY", "avx2")
+    monkeypatch.delenv("MKL_CBWR", raising=False)
+    seen: dict = {}
+
+    def runner(argv: list[str], cwd: Path, env: dict[str, str]) -> None:
+        seen.update(env)
+        run.out.mkdir(parents=True)
+        run.results.write_text(json.dumps({"task": "seg", "metrics": {"mIoU": 0.2}, "dataset": {}}))
+
+    quickstart.train_missing([run], ROOT, runner=runner, log=lambda _: None, threads=1)
+    assert seen["ATEN_CPU_CAPABILITY"] == "avx2" and seen["OMP_NUM_THREADS"] == "1"
+    assert json.loads(run.record.read_text())["cpu_kernels"] == {"ATEN_CPU_CAPABILITY": "avx2"}
+    record = quickstart.summarize([run], {}, "python scripts/quickstart_benchmark.py", "0123456789abcdef")
+    assert record["tasks"]["seg"]["seeds"]["0"]["cpu_kernels"] == {"ATEN_CPU_CAPABILITY": "avx2"}
+
+
 def test_plan_refuses_an_unknown_task(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="unknown quick-start task"):
         quickstart.plan(tmp_path, ["segmentation"], [0])
