@@ -18,20 +18,39 @@ WARNING_LINE = re.compile(r"^\S+\.py:\d+: ", re.MULTILINE)
 LOG_LINE = re.compile(r"^\[[\d\- :,]+\]\[[\w.]+\]\[\w+\] - (.*)$", re.MULTILINE)
 
 
-def test_a_fresh_train_prints_each_message_once(tiny_dataset: Path, tmp_path: Path) -> None:
-    run = tmp_path / "run"
+@pytest.fixture(scope="module")
+def fresh_train(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
+    """A fresh ``python train.py`` run in its own process (the console is what is tested): its console output and
+    run directory, shared by the tests below."""
+    run = tmp_path_factory.mktemp("console") / "run"
     train = run_command(TRAIN, [*tiny_run_overrides("seg", tiny_dataset), f"hydra.run.dir={run}"])
     output = train.stdout + train.stderr
     assert train.returncode == 0, output[-3000:]
+    return output, run
+
+
+def test_a_fresh_train_prints_no_warning_that_is_not_the_users_business(
+    fresh_train: tuple[str, Path],
+) -> None:
+    output, _ = fresh_train
     assert not WARNING_LINE.findall(output), output
     assert "INFO: " not in output  # Lightning's own console handler: its messages came twice
     assert "litlogger" not in output  # Lightning's advertisement of its cloud logger
+
+
+def test_a_fresh_train_prints_each_message_once(fresh_train: tuple[str, Path]) -> None:
+    output, run = fresh_train
     logged = LOG_LINE.findall((run / "train.log").read_text())
     assert any("Seed set to" in m for m in logged)  # Lightning's messages reach the log file too
     for message in logged:
         assert output.count(message) == 1, message
-    # Not a terminal (captured): a progress line per epoch, on the console and in train.log; the test metrics
-    # as a compact table in train.log, the per-ring, per-class values only in results.json.
+
+
+def test_a_fresh_train_logs_an_epoch_line_and_a_compact_test_table(fresh_train: tuple[str, Path]) -> None:
+    """Not a terminal (captured): a progress line per epoch, on the console and in train.log; the test metrics as a
+    compact table in train.log, the per-ring, per-class values only in results.json."""
+    output, run = fresh_train
+    logged = LOG_LINE.findall((run / "train.log").read_text())
     epoch_lines = [m for m in logged if m.startswith("epoch 1/1: train/loss")]
     assert len(epoch_lines) == 1 and "val/mIoU" in epoch_lines[0], logged
     log_text = (run / "train.log").read_text()
