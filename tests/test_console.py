@@ -18,7 +18,7 @@ WARNING_LINE = re.compile(r"^\S+\.py:\d+: ", re.MULTILINE)
 LOG_LINE = re.compile(r"^\[[\d\- :,]+\]\[[\w.]+\]\[\w+\] - (.*)$", re.MULTILINE)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # once per worker: xdist may tear a module fixture down between batches
 def fresh_train(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
     """A fresh ``python train.py`` run in its own process (the console is what is tested): its console output and
     run directory, shared by the tests below."""
