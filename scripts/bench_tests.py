@@ -30,6 +30,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from airfisheye_bench.evaluation.quickstart import git_commit, machine
+
 ROOT = Path(__file__).resolve().parents[1]
 SUITES = {"default": [], "slow": ["-m", "slow"]}
 BEGIN, END = "<!-- test-suite:begin", "<!-- test-suite:end -->"
@@ -137,16 +139,6 @@ def update_docs(doc: Path, section: str) -> None:
     tmp.replace(doc)
 
 
-def _commit(tree: Path) -> str:
-    head = subprocess.run(
-        ["git", "rev-parse", "HEAD"], cwd=tree, capture_output=True, text=True
-    ).stdout.strip()
-    dirty = subprocess.run(
-        ["git", "status", "--porcelain"], cwd=tree, capture_output=True, text=True
-    ).stdout.strip()
-    return head + ("+dirty" if dirty else "")
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--coverage", action="store_true", help="run both suites under coverage.py")
@@ -155,22 +147,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--no-docs", action="store_true", help="print only; write neither JSON nor docs")
     args = parser.parse_args(argv)
-    import platform
-
-    cpu = next(
-        (
-            line.split(":", 1)[1].strip()
-            for line in Path("/proc/cpuinfo").read_text().splitlines()
-            if "model name" in line
-        ),
-        platform.processor(),
-    )
     record = {
-        "commit": _commit(ROOT),
+        "commit": git_commit(ROOT),
         "command": shlex.join(
             ["python", "scripts/bench_tests.py", *(argv if argv is not None else sys.argv[1:])]
         ),
-        "machine": f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "machine": machine(),
         "coverage": args.coverage,
         "trees": {},
     }
