@@ -109,9 +109,10 @@ def arm_datasets(
     source: str = "fisheye",
     size: int | None = None,
     max_depth: float = 120.0,
+    lidar_density: str = "native",
 ) -> dict[str, AirFisheyeDataset]:
     """``{arm: dataset}``: one split of a release served for completion with each sparse input (evaluation form:
-    no augmentation, each method at its default options)."""
+    no augmentation, each method at its default options; ``lidar_density`` as ``data.lidar.density``)."""
     return {
         arm: AirFisheyeDataset(
             root,
@@ -121,6 +122,7 @@ def arm_datasets(
             camera=CameraConfig(size=size),
             occlusion=arm,
             max_depth=max_depth,
+            lidar_density=lidar_density,
         )
         for arm in arms
     }
