@@ -28,7 +28,7 @@ LiDAR (``sparse_depth``): the scan's rings come from where they are known (docs/
 or the generator's ``lidar_beam``, the firing order of KITTI ``.bin``, else the channel table), then returns closer
 than ``lidar_min_range`` and returns no channel explains are removed and counted (``lidar_counts``; logged for
 the first frame a process serves), and with ``lidar_density="paper"`` only the returns of a fixed subset of beams
-are kept, before the occlusion correction.
+are served, of those the occlusion correction kept on the whole scan at the paper's pixel scale.
 """
 
 from __future__ import annotations
@@ -47,8 +47,14 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset
-from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options, lidar_depth_map
+from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset, paper_scale_camera
+from airfisheye_bench.geometry.occlusion import (
+    ORACLE,
+    Occlusion,
+    check_sparse_input_options,
+    lidar_depth_map,
+    occlusion_mask,
+)
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.io import DatasetFormatError, EmptySplitError
@@ -95,7 +101,8 @@ class AirFisheyeDataset(Dataset):
         format_options: That format's options (``data.format_options``; unset ones take their defaults).
         lidar_density: ``native`` serves every return; ``paper`` a fixed subset of the scan's beams with which the
             served image gets the returns per pixel of the paper's sensor on its 1536^2 image
-            (:mod:`~airfisheye_bench.geometry.lidar_density`), before the occlusion correction.
+            (:mod:`~airfisheye_bench.geometry.lidar_density`), of the returns the occlusion correction kept on the
+            whole scan at the paper's pixel scale (``paper_scale_camera``).
 
     Example:
         >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
@@ -394,14 +401,17 @@ class AirFisheyeDataset(Dataset):
         if isinstance(method, str) and method == ORACLE:  # the truly visible points, projected without a test
             visible = oracle_visible(self.reader, sample_id, keep)
             points, rings, method = points[visible], rings[visible], Occlusion("none")
-        if (
-            self.lidar_density == "paper"
-        ):  # a sparser sensor's returns, so the correction sees what it would get
+        T = _augmented(self.T_cam_lidar(sample_id), params)
+        if self.lidar_density == "paper":
             camera = self.camera
             subset = paper_density_subset(spec, max(camera.width, camera.height), camera.coverage_deg)
+            if (method.method if isinstance(method, Occlusion) else method) != "none":
+                # The correction decides on the whole scan at the paper's pixel scale, as the paper's pipeline
+                # would; the subset of its kept returns is served (docs/design.md, "Sparse input density").
+                visible = occlusion_mask(points, T, paper_scale_camera(camera), spec, method, rings)
+                points, rings, method = points[visible], rings[visible], Occlusion("none")
             served = subset.mask(points, rings, spec)
             points, rings = points[served], rings[served]
-        T = _augmented(self.T_cam_lidar(sample_id), params)
         depth = lidar_depth_map(
             points,
             T,
