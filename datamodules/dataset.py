@@ -149,6 +149,7 @@ class AirFisheyeDataset(Dataset):
         ):  # checked once here; every frame is projected with it as it is
             occlusion = Occlusion(occlusion, occlusion_options or {})
         self.occlusion = occlusion
+        self._visible_cache: dict[str, np.ndarray] = {}  # _paper_scale_visible's masks by frame
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -408,7 +409,7 @@ class AirFisheyeDataset(Dataset):
             if (method.method if isinstance(method, Occlusion) else method) != "none":
                 # The correction decides on the whole scan at the paper's pixel scale, as the paper's pipeline
                 # would; the subset of its kept returns is served (docs/design.md, "Sparse input density").
-                visible = occlusion_mask(points, T, paper_scale_camera(camera), spec, method, rings)
+                visible = self._paper_scale_visible(sample_id, points, T, spec, method, rings, params)
                 points, rings, method = points[visible], rings[visible], Occlusion("none")
             served = subset.mask(points, rings, spec)
             points, rings = points[served], rings[served]
@@ -423,6 +424,18 @@ class AirFisheyeDataset(Dataset):
             rings=rings,
         )
         return torch.from_numpy(depth)[None]
+
+    def _paper_scale_visible(self, sample_id, points, T, spec, method, rings, params) -> np.ndarray:
+        """The correction's mask on the whole scan at the paper's pixel scale (1-2 s a frame at 1536^2 for the
+        image-based methods). Without a rotation it is the same every epoch (a flip mirrors the kept points
+        afterwards), so it is kept per frame for the life of the worker: a few MB for a few hundred frames."""
+        cacheable = params is None or params.angle_rad == 0.0
+        if cacheable and sample_id in self._visible_cache:
+            return self._visible_cache[sample_id]
+        visible = np.asarray(occlusion_mask(points, T, paper_scale_camera(self.camera), spec, method, rings))
+        if cacheable:
+            self._visible_cache[sample_id] = visible
+        return visible
 
     def _point_depth(self, sample_id: str, params) -> torch.Tensor:
         """The depth target of a source that gives it as LiDAR points (``depth_points``), ``[1, H, W]``: projected
