@@ -341,6 +341,8 @@ class PredictOptions:
     allow_camera_mismatch: bool = option(
         "predict frames of another size or lens anyway, resized to the model's"
     )
+    erp_yaw_deg: float = option("input_format=erp: the view turned left of the panorama's centre (degrees)")
+    erp_pitch_deg: float = option("input_format=erp: the view tilted down (degrees)")
     sparse: str | None = option("completion: folder of <frame>.npy (m) or 16-bit <frame>.png (m * 256) maps")
     depth_format: str = option("depth and completion: png16 (round(m * 256)) | npy (float32 metres)")
     batch_size: int = option("frames per model call")

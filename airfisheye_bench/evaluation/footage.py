@@ -172,8 +172,8 @@ def read_sparse(folder: Path, name: str, shape: tuple[int, int]) -> torch.Tensor
                 problem = "holds negative or non-finite values (range in metres, 0 where there is no point)"
     if problem is not None:
         raise InputFileError(
-            f"{path}: {problem}; a sparse range map is the model's image size, {shape[1]}x{shape[0]}, as 16-bit "
-            "PNG (range * 256) or float .npy (metres)"
+            f"{path}: {problem}; a sparse range map is the model's image ({shape[1]} wide, {shape[0]} high), as "
+            "16-bit PNG (range * 256) or float .npy (metres)"
         )
     return depth
 

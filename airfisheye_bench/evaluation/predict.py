@@ -19,8 +19,9 @@ sibling of ``out``, renamed to ``out`` when the last frame is done: a failure le
 another size is refused with one line naming both, before the first prediction; ``camera=<calibration file>``
 states the footage's lens, which must then be the model's at the footage's size (the frames are resized to the
 model's: the same lens, scaled). ``allow_camera_mismatch=true`` predicts anyway, resizing every frame to the
-model's size (warned once). Pixels outside the model's lens are zeroed in the input, as in training, and carry no
-prediction.
+model's size (warned once). ``input_format=erp`` reads equirectangular panoramas and renders each into the model's
+lens first (``erp_yaw_deg``, ``erp_pitch_deg``: where it looks). Pixels outside the model's lens are black in the
+input, as in training, and carry no prediction (:mod:`~airfisheye_bench.evaluation.footage_inputs`).
 
 **Completion** needs the LiDAR: ``sparse=<folder>`` of one range map per frame, named as the frame, in the model's
 camera and size (``<name>.npy`` in metres or 16-bit ``<name>.png`` of range * 256); without it a completion model is
@@ -29,6 +30,7 @@ refused: images alone do not give its input.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import shutil
@@ -41,17 +43,15 @@ from typing import Any
 
 import numpy as np
 import torch
-from PIL import Image
 from tqdm.auto import tqdm
 
 from airfisheye_bench.atomic import atomic_write_text, check_writable
 from airfisheye_bench.errors import ConfigError, MissingFileError, OutputExistsError
-from airfisheye_bench.evaluation.footage import Footage, open_footage, read_sparse
+from airfisheye_bench.evaluation.footage import open_footage, read_sparse
+from airfisheye_bench.evaluation.footage_inputs import INPUT_FORMATS, frame_preparer
 from airfisheye_bench.evaluation.predictors import TTA_MODES
 from airfisheye_bench.evaluation.submission import write_prediction
 from airfisheye_bench.evaluation.trained import TrainedModel, load_trained
-from airfisheye_bench.geometry.cameras import CameraModel
-from airfisheye_bench.io.calibration_files import camera_label, camera_mismatch, load_camera
 from airfisheye_bench.progress import console_is_terminal, progress_line
 from airfisheye_bench.specs import DEPTH_PNG_SCALE, get_task
 from airfisheye_bench.viz import (
@@ -69,8 +69,6 @@ log = logging.getLogger(__name__)
 
 #: ``depth_format`` -> the suffix of a depth prediction file.
 DEPTH_FORMATS = {"png16": ".png", "npy": ".npy"}
-#: ``input_format``: fisheye frames (of the model's lens) or equirectangular panoramas.
-INPUT_FORMATS = ("fisheye", "erp")
 #: Label of pixels without a prediction (outside the lens), as the datasets' ignore label.
 NO_LABEL = 255
 
@@ -110,6 +108,8 @@ def predict_footage(
     camera: str | None = None,
     camera_name: str | None = None,
     allow_camera_mismatch: bool = False,
+    erp_yaw_deg: float = 0.0,
+    erp_pitch_deg: float = 0.0,
     sparse: str | Path | None = None,
     depth_format: str = "png16",
     batch_size: int = 4,
@@ -123,11 +123,13 @@ def predict_footage(
     Args:
         ckpt_path: A run directory, a ``.ckpt`` file or an ``.onnx`` model of ``airfisheye-export``.
         input: A folder of images or a video file (:func:`~airfisheye_bench.evaluation.footage.open_footage`).
-        out: The folder to write; must not exist (``None``: ``predictions/<input name>`` in the working folder).
+        out: The folder to write; must not exist (``None``: ``predictions/<input stem>`` in the working folder).
         input_format: ``fisheye`` or ``erp`` (equirectangular panoramas, re-rendered into the model's lens).
         camera: A calibration file of the footage's lens (``None``: taken to be the model's, at its size).
         camera_name: Which camera of a calibration file that holds several.
         allow_camera_mismatch: Predict frames the model's camera cannot serve, resized to its size.
+        erp_yaw_deg: ``erp``: the model's camera looks this far left of the panorama's centre (degrees).
+        erp_pitch_deg: ``erp``: and this far down (degrees).
         sparse: Completion: the folder of the frames' sparse range maps.
         depth_format: ``png16`` (``round(range * 256)``) or ``npy`` (float32 metres).
         batch_size: Frames per model call.
@@ -141,12 +143,13 @@ def predict_footage(
             ``allow_camera_mismatch``), a completion model without ``sparse``, or an existing ``out``; nothing is
             written then.
     """
-    _check_options(input_format, depth_format, batch_size, tta, device, camera)
-    out = Path(out).expanduser() if out is not None else Path("predictions") / Path(input).expanduser().name
+    _check_options(input_format, depth_format, batch_size, tta, device)
+    source = Path(input).expanduser()
+    out = Path(out).expanduser() if out is not None else Path("predictions") / (source.stem or source.name)
     if out.exists():
         raise OutputExistsError(f"out={out} already exists; choose a new folder for the predictions")
     check_writable(out / "predict.json", "out")
-    footage = open_footage(input)
+    footage = open_footage(source)
     sparse_dir = Path(sparse).expanduser() if sparse is not None else None
     if sparse_dir is not None and not sparse_dir.is_dir():
         raise MissingFileError(
@@ -154,33 +157,45 @@ def predict_footage(
         )
     model = load_trained(ckpt_path, device=device, threads=threads, tta=tta)
     _check_inputs(model, sparse_dir)
-    prepare = _preparer(model, footage, input_format, camera, camera_name, allow_camera_mismatch)
+    prepare = frame_preparer(
+        model.camera,
+        footage,
+        input_format,
+        camera,
+        camera_name,
+        allow_camera_mismatch,
+        erp_yaw_deg,
+        erp_pitch_deg,
+    )
 
     started = time.monotonic()
     writer = _Writer(model, out, DEPTH_FORMATS[depth_format])
     names: list[str] = []
-    with writer:
-        bar = _Progress(footage.count, progress)
+    with writer, _Progress(footage.count, progress) as bar:
         for chunk in _batches(footage.frames(), batch_size):
-            images = [prepare(name, rgb) for name, rgb in chunk]
+            images = [prepare(rgb) for _, rgb in chunk]
             batch = {"image": torch.stack([_normalise(model, image) for image in images])}
             if "sparse_depth" in model.inputs:
                 shape = (model.camera.height, model.camera.width)
                 assert sparse_dir is not None  # _check_inputs
-                batch["sparse_depth"] = torch.stack(
-                    [read_sparse(sparse_dir, name, shape) for name, _ in chunk]
-                )
+                sparse_maps = torch.stack([read_sparse(sparse_dir, name, shape) for name, _ in chunk])
+                # As served in training: no LiDAR point outside the lens.
+                batch["sparse_depth"] = sparse_maps.masked_fill(~model.camera.valid_mask(), 0.0)
             predictions = model.predictor(batch).cpu()
             for i, (name, _) in enumerate(chunk):
                 sparse_map = batch["sparse_depth"][i, 0] if "sparse_depth" in batch else None
                 writer.add(name, images[i], predictions[i], sparse_map)
                 names.append(name)
             bar.update(len(chunk))
-        bar.close()
         writer.finish(
             {
                 "input": str(footage.path),
                 "input_format": input_format,
+                **(
+                    {"erp_yaw_deg": erp_yaw_deg, "erp_pitch_deg": erp_pitch_deg}
+                    if input_format == "erp"
+                    else {}
+                ),
                 "footage_camera": camera,
                 "allow_camera_mismatch": allow_camera_mismatch,
                 "resized_frames": prepare.resized,
@@ -194,7 +209,7 @@ def predict_footage(
 
 # ------------------------------------------------------------------------------------------------ checks
 def _check_options(
-    input_format: str, depth_format: str, batch_size: int, tta: str | None, device: str, camera: str | None
+    input_format: str, depth_format: str, batch_size: int, tta: str | None, device: str
 ) -> None:
     if input_format not in INPUT_FORMATS:
         raise ConfigError(f"input_format={input_format}: expected one of {', '.join(INPUT_FORMATS)}")
@@ -206,10 +221,6 @@ def _check_options(
         raise ConfigError(f"tta={tta}: expected null or flip")
     if device not in ("auto", "cpu", "cuda"):
         raise ConfigError(f"device={device}: expected one of auto, cpu, cuda")
-    if camera is not None and input_format == "erp":
-        raise ConfigError(
-            "camera= is the lens of fisheye footage; an equirectangular panorama (input_format=erp) has none, drop it"
-        )
 
 
 def _check_inputs(model: TrainedModel, sparse: Path | None) -> None:
@@ -226,99 +237,6 @@ def _check_inputs(model: TrainedModel, sparse: Path | None) -> None:
 
 
 # --------------------------------------------------------------------------------------- frames to inputs
-class _Preparer:
-    """Turns a frame into the model's input image (``uint8 [H, W, 3]`` of the model's camera), counting resizes."""
-
-    def __init__(self, model: TrainedModel) -> None:
-        self.size = (model.camera.width, model.camera.height)
-        self.outside = ~model.camera.valid_mask().numpy()
-        self.resized = 0
-
-    def __call__(self, name: str, rgb: np.ndarray) -> np.ndarray:
-        if (rgb.shape[1], rgb.shape[0]) != self.size:
-            rgb = np.asarray(Image.fromarray(rgb).resize(self.size, Image.Resampling.BILINEAR))
-            self.resized += 1
-        rgb = rgb.copy()
-        rgb[self.outside] = 0  # the served images are black outside the lens
-        return rgb
-
-
-def _preparer(
-    model: TrainedModel,
-    footage: Footage,
-    input_format: str,
-    camera: str | None,
-    camera_name: str | None,
-    allow: bool,
-) -> _Preparer:
-    """Check that the model's camera serves every frame (headers only) and return the frame preparer."""
-    if input_format == "erp":
-        raise ConfigError(
-            "input_format=erp: equirectangular panoramas are not supported yet; render them into the model's "
-            f"lens ({camera_label(model.camera)}) first"
-        )
-    problem = _camera_problem(model.camera, footage, camera, camera_name)
-    if problem is not None:
-        message, fix = problem
-        if not allow:
-            raise ConfigError(f"{message}; {fix}")
-        log.warning(
-            "%s (allow_camera_mismatch=true: frames are resized to %dx%d, the model's size)",
-            message,
-            model.camera.width,
-            model.camera.height,
-        )
-    return _Preparer(model)
-
-
-def _camera_problem(
-    model_camera: CameraModel, footage: Footage, camera: str | None, camera_name: str | None
-) -> tuple[str, str] | None:
-    """The first reason the model's camera cannot serve the footage, and how to fix it; ``None`` when it can.
-
-    Without ``camera`` the footage is taken to be of the model's lens: its frames must be the model's size. With
-    ``camera`` the frames must be that lens's size, and the lens, scaled to the model's size, the model's camera.
-    """
-    size = (model_camera.width, model_camera.height)
-    resize = f"allow_camera_mismatch=true to predict anyway (frames resized to {size[0]}x{size[1]})"
-    lens = None
-    if camera is not None:
-        try:
-            lens = load_camera(camera, camera_name, option="camera_name")
-        except FileNotFoundError:
-            raise MissingFileError(f"camera={camera}: no such calibration file") from None
-        except ValueError as err:
-            raise ConfigError(f"camera={camera}: {err}") from None
-        mismatch = camera_mismatch(model_camera, _scaled(lens, size))
-        if mismatch is not None:
-            return (f"camera={camera} is not the lens the model was trained for: {mismatch}", resize)
-    expected = (lens.width, lens.height) if lens is not None else size
-    owner = f"camera={camera}" if lens is not None else f"the model's camera ({camera_label(model_camera)})"
-    for name, (width, height) in footage.sizes():
-        if (width, height) != expected:
-            panorama = (
-                " (a 2:1 frame: an equirectangular panorama? input_format=erp)" if width == 2 * height else ""
-            )
-            fix = (
-                resize
-                if lens is not None
-                else f"give camera=<its calibration file> if it is this lens at another size, or {resize}"
-            )
-            return (
-                f"input frame {name} is {width}x{height} but {owner} takes {expected[0]}x{expected[1]} images"
-                f"{panorama}",
-                fix,
-            )
-    return None
-
-
-def _scaled(lens: CameraModel, size: tuple[int, int]) -> CameraModel:
-    """``lens`` seen at ``size`` when its aspect ratio allows, else ``lens`` (which then differs in size)."""
-    if lens.width * size[1] != lens.height * size[0]:
-        return lens
-    return lens.resized(*size)
-
-
 def _normalise(model: TrainedModel, rgb: np.ndarray) -> torch.Tensor:
     """``uint8 [H, W, 3]`` -> ``float32 [3, H, W]``, ``(rgb / 255 - mean) / std``."""
     image = torch.from_numpy(rgb).permute(2, 0, 1).float().div_(255.0)
@@ -352,10 +270,12 @@ class _Writer:
         self.suffix = ".png" if self.labels else depth_suffix
         self.folder = "labels" if self.labels else "depth"
         self.outside = ~model.camera.valid_mask()
-        self.legend = self._legend()
+        self._legends: dict[int, np.ndarray] = {}
         self._tmp: Path | None = None
+        self._made: list[Path] = []
 
     def __enter__(self) -> _Writer:
+        self._made = [p for p in self.out.parents if not p.exists()]  # removed again on failure
         self.out.parent.mkdir(parents=True, exist_ok=True)
         self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", dir=self.out.parent))
         return self
@@ -377,15 +297,20 @@ class _Writer:
             tiles.append(colorize_depth(sparse, self.model.max_depth))
         tiles.append(color)
         titles = ["input", *(["sparse input"] if sparse is not None else []), "prediction"]
-        panel = make_panel([tiles], titles=titles, legends=[self.legend(len(tiles))])
+        panel = make_panel([tiles], titles=titles, legends=[self._legend(len(tiles))])
         save_png(self._tmp / "preview" / f"{name}.png", panel)
 
-    def _legend(self):
-        width_of = lambda tiles: tiles * (self.model.camera.width + 2) - 2  # noqa: E731  (make_panel's gap)
-        if self.labels:
-            classes = list(zip(self.model.class_names or [], self.model.palette.tolist(), strict=False))
-            return lambda tiles: class_legend(width_of(tiles), classes)
-        return lambda tiles: depth_colorbar(width_of(tiles), self.model.max_depth)
+    def _legend(self, tiles: int) -> np.ndarray:
+        """The class key or the range colour bar under a preview of ``tiles`` tiles (drawn once per width)."""
+        if tiles not in self._legends:
+            width = tiles * (self.model.camera.width + 2) - 2  # make_panel's gap of 2
+            if self.labels:
+                names = self.model.class_names or []
+                classes = list(zip(names, self.model.palette.tolist(), strict=False))
+                self._legends[tiles] = class_legend(width, classes)
+            else:
+                self._legends[tiles] = depth_colorbar(width, self.model.max_depth)
+        return self._legends[tiles]
 
     def finish(self, record: dict[str, Any]) -> None:
         """Write ``predict.json`` and publish the folder."""
@@ -406,7 +331,7 @@ class _Writer:
                     )
                 ),
                 "color": "the prediction colourised",
-                "preview": "input | prediction",
+                "preview": "input | prediction (completion: input | sparse input | prediction)",
             },
             **({"class_names": self.model.class_names} if self.labels else {}),
             **record,
@@ -416,9 +341,13 @@ class _Writer:
         self._tmp = None
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if self._tmp is not None:
-            shutil.rmtree(self._tmp, ignore_errors=True)
-            self._tmp = None
+        if self._tmp is None:
+            return
+        shutil.rmtree(self._tmp, ignore_errors=True)
+        self._tmp = None
+        for folder in self._made:  # deepest first; only the empty folders this run made
+            with contextlib.suppress(OSError):
+                folder.rmdir()
 
 
 class _Progress:
@@ -441,6 +370,9 @@ class _Progress:
             where = f"predict frame {self.done}/{self.total or '?'}"
             log.info(progress_line(where, {"frames/s": self.done / max(seconds, 1e-9)}, seconds))
 
-    def close(self) -> None:
+    def __enter__(self) -> _Progress:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
         if self.bar is not None:
             self.bar.close()
