@@ -31,7 +31,7 @@ from airfisheye_bench.geometry.equirect import EquirectToFisheye
 from airfisheye_bench.geometry.transforms import gimbal_rotation
 from airfisheye_bench.io.calibration_files import camera_label, camera_mismatch, load_camera
 
-__all__ = ["INPUT_FORMATS", "FramePreparer", "frame_preparer"]
+__all__ = ["INPUT_FORMATS", "ErpPreparer", "FramePreparer", "erp_supersample", "frame_preparer"]
 
 log = logging.getLogger(__name__)
 

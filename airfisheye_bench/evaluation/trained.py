@@ -84,7 +84,7 @@ def load_trained(
         ConfigError: the run's data config is not one this model's camera can be found from.
     """
     path = Path(path).expanduser()
-    if path.suffix == ".onnx":
+    if path.suffix.lower() == ".onnx":
         return _from_onnx(path, threads, tta)
     checkpoint = resolve_checkpoint(path)
     module = load_task(checkpoint)
@@ -102,6 +102,8 @@ def load_trained(
     datamodule = run_datamodule(apply_data_overrides(run.data, task=module.task))
     device = device if device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu")
     classes = list(module.class_names) if get_task(module.task).uses_classes else None
+    # The checkpoint's colours, else the dataset's (as the export's metadata).
+    palette = (module.hparams.get("palette") or datamodule.palette[: len(classes)]) if classes else None
     return TrainedModel(
         predictor=CheckpointPredictor(module, checkpoint, device=device, tta=tta),
         task=module.task,
@@ -109,7 +111,7 @@ def load_trained(
         mean=tuple(datamodule.normalization["mean"]),
         std=tuple(datamodule.normalization["std"]),
         class_names=classes,
-        palette=np.asarray(module.palette)[: len(classes)] if classes else None,
+        palette=np.asarray(palette, np.uint8) if palette is not None else None,
         max_depth=float(module.max_depth),
         path=checkpoint,
     )
