@@ -28,7 +28,7 @@ LiDAR (``sparse_depth``): the scan's rings come from where they are known (docs/
 or the generator's ``lidar_beam``, the firing order of KITTI ``.bin``, else the channel table), then returns closer
 than ``lidar_min_range`` and returns no channel explains are removed and counted (``lidar_counts``; logged for
 the first frame a process serves), and with ``lidar_density="paper"`` only the returns of a fixed subset of beams
-are kept, before the occlusion correction.
+are served, of those the occlusion correction kept on the whole scan at the paper's pixel scale.
 """
 
 from __future__ import annotations
@@ -48,8 +48,14 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye
 from airfisheye_bench.geometry.gimbal import Gimbal, View
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset
-from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options, lidar_depth_map
+from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset, paper_scale_camera
+from airfisheye_bench.geometry.occlusion import (
+    ORACLE,
+    Occlusion,
+    check_sparse_input_options,
+    lidar_depth_map,
+    occlusion_mask,
+)
 from airfisheye_bench.geometry.remap_table import reserve_tables
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
@@ -99,7 +105,8 @@ class AirFisheyeDataset(Dataset):
         format_options: That format's options (``data.format_options``; unset ones take their defaults).
         lidar_density: ``native`` serves every return; ``paper`` a fixed subset of the scan's beams with which the
             served image gets the returns per pixel of the paper's sensor on its 1536^2 image
-            (:mod:`~airfisheye_bench.geometry.lidar_density`), before the occlusion correction.
+            (:mod:`~airfisheye_bench.geometry.lidar_density`), of the returns the occlusion correction kept on the
+            whole scan at the paper's pixel scale (``paper_scale_camera``).
         gimbal: A virtual gimbal for this split (``Gimbal.parse(data.gimbal).for_split(training)``): each sample's
             camera is turned to its view before the remap (``source=cubemap``), and the LiDAR with it; ``None``: the
             recorded orientation.
@@ -155,6 +162,7 @@ class AirFisheyeDataset(Dataset):
         ):  # checked once here; every frame is projected with it as it is
             occlusion = Occlusion(occlusion, occlusion_options or {})
         self.occlusion = occlusion
+        self._visible_cache: dict[str, np.ndarray] = {}  # _paper_scale_visible's masks by frame
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -461,14 +469,17 @@ class AirFisheyeDataset(Dataset):
         if isinstance(method, str) and method == ORACLE:  # the truly visible points, projected without a test
             visible = oracle_visible(self.reader, sample_id, keep)
             points, rings, method = points[visible], rings[visible], Occlusion("none")
-        if (
-            self.lidar_density == "paper"
-        ):  # a sparser sensor's returns, so the correction sees what it would get
+        T = _augmented(_turned(self.T_cam_lidar(sample_id), turn), params)
+        if self.lidar_density == "paper":
             camera = self.camera
             subset = paper_density_subset(spec, max(camera.width, camera.height), camera.coverage_deg)
+            if (method.method if isinstance(method, Occlusion) else method) != "none":
+                # The correction decides on the whole scan at the paper's pixel scale, as the paper's pipeline
+                # would; the subset of its kept returns is served (docs/design.md, "Sparse input density").
+                visible = self._paper_scale_visible(sample_id, points, T, spec, method, rings, params, turn)
+                points, rings, method = points[visible], rings[visible], Occlusion("none")
             served = subset.mask(points, rings, spec)
             points, rings = points[served], rings[served]
-        T = _augmented(_turned(self.T_cam_lidar(sample_id), turn), params)
         depth = lidar_depth_map(
             points,
             T,
@@ -480,6 +491,22 @@ class AirFisheyeDataset(Dataset):
             rings=rings,
         )
         return torch.from_numpy(depth)[None]
+
+    def _paper_scale_visible(
+        self, sample_id, points, T, spec, method, rings, params, turn=None
+    ) -> np.ndarray:
+        """The correction's mask on the whole scan at the paper's pixel scale (1-2 s a frame at 1536^2 for the
+        image-based methods). Without a rotation it is the same every epoch (a flip mirrors the kept points
+        afterwards), so it is kept per frame for the life of the worker: a few MB for a few hundred frames. A
+        gimbal view that varies per sample is a rotation too."""
+        varying_view = turn is not None and (self.gimbal is None or self.gimbal.fixed is None)
+        cacheable = (params is None or params.angle_rad == 0.0) and not varying_view
+        if cacheable and sample_id in self._visible_cache:
+            return self._visible_cache[sample_id]
+        visible = np.asarray(occlusion_mask(points, T, paper_scale_camera(self.camera), spec, method, rings))
+        if cacheable:
+            self._visible_cache[sample_id] = visible
+        return visible
 
     def _point_depth(self, sample_id: str, params, turn: np.ndarray | None = None) -> torch.Tensor:
         """The depth target of a source that gives it as LiDAR points (``depth_points``), ``[1, H, W]``: projected
