@@ -66,6 +66,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from airfisheye_bench.geometry import portable
 from airfisheye_bench.geometry._arrays import ArrayLike, as_tensor, back, check_last_dim
 from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.remap_table import (
@@ -140,16 +141,21 @@ def erp_rays(
 ) -> torch.Tensor:
     """Unit rays through every pixel centre of an ``height x width`` panorama, ``[H, W, 3]`` (panorama frame).
 
+    The same bits on every CPU (the sines and cosines of :mod:`~airfisheye_bench.geometry.portable`), so a generator
+    may write what it casts along them.
+
     Example:
         >>> rays = erp_rays(2, 4)
         >>> rays.shape, bool(torch.allclose(rays.norm(dim=-1), torch.ones(2, 4)))
         (torch.Size([2, 4, 3]), True)
     """
     h, w = _check_erp_size((height, width))
-    lon = (torch.arange(w, dtype=torch.float64) + 0.5) * (2.0 * math.pi / w) - math.pi
-    lat = math.pi / 2.0 - (torch.arange(h, dtype=torch.float64) + 0.5) * (math.pi / h)
-    rays = lonlat_to_direction(lon[None, :], lat[:, None])
-    return rays.to(dtype=dtype, device=device)
+    lon = (np.arange(w, dtype=np.float64) + 0.5) * (2.0 * math.pi / w) - math.pi
+    lat = math.pi / 2.0 - (np.arange(h, dtype=np.float64) + 0.5) * (math.pi / h)
+    sin_lon, cos_lon = portable.sin(lon)[None, :], portable.cos(lon)[None, :]
+    sin_lat, cos_lat = portable.sin(lat)[:, None], portable.cos(lat)[:, None]
+    rays = np.stack(np.broadcast_arrays(cos_lat * sin_lon, -sin_lat, cos_lat * cos_lon), -1)
+    return torch.from_numpy(rays).to(dtype=dtype, device=device)
 
 
 class EquirectToFisheye:
