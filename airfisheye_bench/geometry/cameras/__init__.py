@@ -19,6 +19,7 @@ from airfisheye_bench.geometry.cameras.radial import (
 )
 from airfisheye_bench.geometry.cameras.radial_poly import RadialPoly
 from airfisheye_bench.geometry.cameras.registry import CAMERA_MODELS, camera_from_dict
+from airfisheye_bench.geometry.cameras.thin_prism import RadTanThinPrismFisheye, ThinPrismFisheye
 from airfisheye_bench.geometry.cameras.unified import Unified
 
 __all__ = [
@@ -33,9 +34,11 @@ __all__ = [
     "Ocam",
     "Orthographic",
     "PinholeRadtan",
+    "RadTanThinPrismFisheye",
     "RadialCamera",
     "RadialPoly",
     "Stereographic",
+    "ThinPrismFisheye",
     "Unified",
     "camera_from_dict",
 ]

@@ -15,6 +15,7 @@ from airfisheye_bench.geometry.cameras.ocam import Ocam
 from airfisheye_bench.geometry.cameras.pinhole_radtan import PinholeRadtan
 from airfisheye_bench.geometry.cameras.radial import RADIAL_MODELS
 from airfisheye_bench.geometry.cameras.radial_poly import RadialPoly
+from airfisheye_bench.geometry.cameras.thin_prism import RadTanThinPrismFisheye, ThinPrismFisheye
 from airfisheye_bench.geometry.cameras.unified import Unified
 
 #: Every camera model by its registry name (the ``model`` entry of ``to_dict``).
@@ -25,6 +26,8 @@ CAMERA_MODELS: dict[str, type[CameraModel]] = {
     DoubleSphere.model: DoubleSphere,
     EUCM.model: EUCM,
     Fov.model: Fov,
+    ThinPrismFisheye.model: ThinPrismFisheye,
+    RadTanThinPrismFisheye.model: RadTanThinPrismFisheye,
     Ocam.model: Ocam,
     RadialPoly.model: RadialPoly,
     PinholeRadtan.model: PinholeRadtan,
