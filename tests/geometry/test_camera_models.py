@@ -128,6 +128,27 @@ class TestRadTanThinPrismFisheyeColmap(CameraModelTester):
     }  # fmt: skip
 
 
+class TestDivisionColmapBarrel(CameraModelTester):
+    # COLMAP's DIVISION test parameters (models_test.cc, Division.Nominal), k < 0: the region is the whole sphere.
+    camera_dict: ClassVar[dict] = {
+        "model": "division",
+        "width": 772,
+        "height": 1022,
+        "fx": 651.123,
+        "fy": 655.123,
+        "cx": 386.123,
+        "cy": 511.123,
+        "k": -0.1,
+    }
+    full_sphere = True
+
+
+class TestDivisionColmapPincushion(CameraModelTester):
+    # COLMAP's k > 0 test parameters: in front of the camera, to the fold t = 1 / sqrt(k) (58 deg), outside the
+    # image here (the random calibrations of test_unproject_exact.py put it inside).
+    camera_dict: ClassVar[dict] = {**TestDivisionColmapBarrel.camera_dict, "k": 0.1}
+
+
 class TestUnifiedKitti360Image02(CameraModelTester):
     camera_dict: ClassVar[dict] = CALIBRATIONS["kitti360_image_02"]["camera"]
 

@@ -129,6 +129,13 @@ def _fov(rng: np.random.Generator) -> dict:
     return {"model": "fov", **frame, **_focal(rng, frame, 0.2, 0.8), "omega": rng.uniform(0.01, 1.6)}
 
 
+def _division(rng: np.random.Generator) -> dict:
+    # COLMAP (SIMPLE_)DIVISION: barrel k < 0 reaches past 90 deg (1 + k t^2 < 0) and, with short focals, past
+    # 180 deg of field inside the image; pincushion k > 0 folds at t = 1 / sqrt(k), inside the image for the largest.
+    frame = _frame(rng)
+    return {"model": "division", **frame, **_focal(rng, frame, 0.2, 0.8), "k": rng.uniform(-1.2, 0.35)}
+
+
 def _thin_prism_fisheye(rng: np.random.Generator) -> dict:
     # COLMAP THIN_PRISM_FISHEYE: Kannala-Brandt's ranges, with tangential and thin-prism terms up to COLMAP's own
     # test values (p 1e-3, sx1 -0.02): they fold the map before the polynomial turns, on some inside the image.
@@ -217,6 +224,7 @@ FAMILIES: dict[str, Callable[[np.random.Generator], dict]] = {
     "double_sphere": _double_sphere,
     "eucm": _eucm,
     "fov": _fov,
+    "division": _division,
     "thin_prism_fisheye": _thin_prism_fisheye,
     "rad_tan_thin_prism_fisheye": _rad_tan_thin_prism_fisheye,
     "ocam": _ocam,

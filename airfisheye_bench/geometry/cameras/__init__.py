@@ -4,6 +4,7 @@ See docs/design.md, "Fisheye camera", for every model's parameters and the code 
 """
 
 from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.division import Division
 from airfisheye_bench.geometry.cameras.double_sphere import DoubleSphere
 from airfisheye_bench.geometry.cameras.eucm import EUCM
 from airfisheye_bench.geometry.cameras.fov import Fov
@@ -26,6 +27,7 @@ __all__ = [
     "CAMERA_MODELS",
     "EUCM",
     "CameraModel",
+    "Division",
     "DoubleSphere",
     "Equidistant",
     "Equisolid",

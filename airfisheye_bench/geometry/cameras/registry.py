@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.division import Division
 from airfisheye_bench.geometry.cameras.double_sphere import DoubleSphere
 from airfisheye_bench.geometry.cameras.eucm import EUCM
 from airfisheye_bench.geometry.cameras.fov import Fov
@@ -26,6 +27,7 @@ CAMERA_MODELS: dict[str, type[CameraModel]] = {
     DoubleSphere.model: DoubleSphere,
     EUCM.model: EUCM,
     Fov.model: Fov,
+    Division.model: Division,
     ThinPrismFisheye.model: ThinPrismFisheye,
     RadTanThinPrismFisheye.model: RadTanThinPrismFisheye,
     Ocam.model: Ocam,
