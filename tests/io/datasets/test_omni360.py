@@ -1,0 +1,319 @@
+"""``data.format=omni360``: AirSim360 / Omni360-X read from fixtures written in the dataset's exact layouts and
+encodings (tests/io/datasets/omni360_fixture.py; sources: github:Insta360-Research-Team/AirSim360
+``data/demo_sample/``)."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.io.benchmark_classes import BENCHMARK_ID
+from airfisheye_bench.io.datasets import open_dataset
+from airfisheye_bench.io.datasets.omni360 import Omni360Source
+from airfisheye_bench.io.datasets.omni360_files import natural_key, read_depth
+from airfisheye_bench.io.datasets.omni360_labels import OMNI360_TO_BENCHMARK, read_class_list
+from airfisheye_bench.io.errors import DatasetFormatError
+from tests.io.datasets.omni360_fixture import (
+    CLASS_IDS,
+    NAMES,
+    SKY_DEPTH,
+    render,
+    write_exr_depth,
+    write_h5_depth,
+    write_omni360_fixture,
+)
+
+HEIGHT = 16
+FRAMES = 5
+
+
+@pytest.fixture(scope="module")
+def fixture_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_omni360_fixture(tmp_path_factory.mktemp("omni360") / "root", height=HEIGHT, frames=FRAMES)
+
+
+@pytest.fixture
+def writable_root(fixture_root: Path, tmp_path: Path) -> Path:
+    return Path(shutil.copytree(fixture_root, tmp_path / "root"))
+
+
+def source(root: Path, **options) -> Omni360Source:
+    src = open_dataset(root, "omni360", options)
+    assert isinstance(src, Omni360Source)
+    return src
+
+
+# ------------------------------------------------------------------------------------------------ reading
+@pytest.mark.parametrize("scene", ["NYC", "Demo"])
+def test_each_modality_reads_as_written(fixture_root: Path, scene: str) -> None:
+    """RGB (an RGBA panorama loses its alpha), depth from HDF5 / EXR / npy (the far plane as 0), labels through the
+    scene's own ids."""
+    src = source(fixture_root)
+    for n in (0, FRAMES - 1):  # Demo's last frame has .npy depth, its others EXR
+        sid = f"{scene}/panorama_{n}"
+        rgb, depth, label, _ = render(HEIGHT, 2 * HEIGHT, n)
+        np.testing.assert_array_equal(src.equirect(sid, "rgb"), rgb)
+        expected = np.where(depth >= SKY_DEPTH, 0.0, depth).astype(np.float32)
+        np.testing.assert_array_equal(src.equirect(sid, "depth"), expected)
+        names = src.spec.train_class_names
+        seg = src.equirect(sid, "seg")
+        for k, name in enumerate(NAMES):
+            want = names.index(name) if name in CLASS_IDS[scene] else 255  # Demo: sky unlisted (alpha 0)
+            assert (seg[label == k] == want).all(), (sid, name)
+
+
+def test_instances_are_argb_tuples(fixture_root: Path) -> None:
+    src = source(fixture_root)
+    ids = src.instance("NYC/panorama_1")
+    _, _, label, obj = render(HEIGHT, 2 * HEIGHT, 1)
+    assert set(np.unique(ids >> 24)) == {
+        CLASS_IDS["NYC"][n] for n in NAMES if (label == NAMES.index(n)).any()
+    }
+    walls = obj >= 2  # one object per wall: one id each
+    for k in np.unique(obj[walls]):
+        assert len(np.unique(ids[obj == k])) == 1
+    assert len({int(ids[obj == k][0]) for k in np.unique(obj[walls])}) == len(np.unique(obj[walls]))
+
+
+def test_depth_encodings(tmp_path: Path) -> None:
+    """HDF5 float32 and the legacy uint16 with ``depth_range_m``; EXR's R channel; ``.npy``; the far plane and
+    non-finite values as no depth; negative depth refused."""
+    import h5py
+
+    depth = np.array([[1.0, 2.5], [999.0, np.inf]], np.float32)
+    write_h5_depth(tmp_path / "a.h5", depth)
+    np.testing.assert_array_equal(read_depth(tmp_path / "a.h5"), [[1.0, 2.5], [999.0, 0.0]])
+    with h5py.File(tmp_path / "legacy.h5", "w") as h5:
+        h5.create_dataset("depth", data=np.array([[0, 65535], [32768, 13107]], np.uint16))
+        h5["depth"].attrs["depth_range_m"] = 500.0
+    np.testing.assert_allclose(
+        read_depth(tmp_path / "legacy.h5"), [[0.0, 500.0], [32768 / 65535 * 500.0, 100.0]], rtol=1e-6
+    )
+    write_exr_depth(tmp_path / "d.exr", np.array([[3.0, 1000.0], [1500.0, 0.25]], np.float32))
+    np.testing.assert_array_equal(read_depth(tmp_path / "d.exr"), [[3.0, 0.0], [0.0, 0.25]])
+    np.save(tmp_path / "d.npy", np.array([[[4.0, 9.0]], [[np.nan, 9.0]]], np.float32))  # [H, W, C]: channel 0
+    np.testing.assert_array_equal(read_depth(tmp_path / "d.npy"), [[4.0], [0.0]])
+    np.save(tmp_path / "neg.npy", np.array([[-1.0]], np.float32))
+    with pytest.raises(DatasetFormatError, match=r"neg.npy: negative depth"):
+        read_depth(tmp_path / "neg.npy")
+    with h5py.File(tmp_path / "key.h5", "w") as h5:
+        h5.create_dataset("distance", data=depth)
+    with pytest.raises(DatasetFormatError, match=r"key.h5: no dataset /depth \(it has \['distance'\]\)"):
+        read_depth(tmp_path / "key.h5")
+    with h5py.File(tmp_path / "norange.h5", "w") as h5:
+        h5.create_dataset("depth", data=np.zeros((2, 2), np.uint16))
+    with pytest.raises(
+        DatasetFormatError, match=r"norange.h5: key '/depth': uint16 depth without its depth_range_m"
+    ):
+        read_depth(tmp_path / "norange.h5")
+    (tmp_path / "bad.exr").write_bytes(b"not an exr")
+    with pytest.raises(DatasetFormatError, match=r"bad.exr: unreadable EXR"):
+        read_depth(tmp_path / "bad.exr")
+
+
+def test_an_exr_without_the_package_is_one_line(fixture_root: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "OpenEXR", None)  # import OpenEXR now raises ImportError
+    src = source(fixture_root)
+    with pytest.raises(
+        DatasetFormatError, match=r"Depth_0.exr: reading EXR needs the Python package OpenEXR"
+    ) as err:
+        src.equirect("Demo/panorama_0", "depth")
+    assert 'pip install -e ".[omni360]"' in str(err.value) and "\n" not in str(err.value)
+
+
+# ---------------------------------------------------------------------------------------- stems and layout
+def test_stems_match_across_folders_in_both_namings(fixture_root: Path) -> None:
+    src = source(fixture_root)
+    assert src.scenes() == ["Demo", "NYC"]
+    assert src.erp_size == (HEIGHT, 2 * HEIGHT) and src.spec.equirect_size == (HEIGHT, 2 * HEIGHT)
+    paths = {m: src.path_of("NYC/panorama_4", m, "equirect") for m in ("rgb", "depth", "seg")}
+    assert paths["rgb"].parent.name == "nyc_Raw_Part2" and paths["rgb"].name == "panorama_4.png"
+    assert paths["depth"].relative_to(fixture_root).as_posix() == "NYC/nyc_Depth/Depth_4.h5"
+    assert paths["seg"].relative_to(fixture_root).as_posix() == "NYC/nyc_seg_panorama/panorama_4.png"
+    assert src.path_of("Demo/panorama_0", "depth", "equirect").name == "Depth_0.exr"
+    assert src.path_of("Demo/panorama_4", "depth", "equirect").name == "panorama_4.npy"
+
+
+def test_frames_are_in_natural_order_and_a_scene_folder_is_a_root(writable_root: Path) -> None:
+    assert sorted(["p_10", "p_9", "p_1"], key=natural_key) == ["p_1", "p_9", "p_10"]
+    demo = writable_root / "Demo"
+    for name in ("panorama", "semantic", "instance"):
+        shutil.copy(demo / name / "panorama_1.png", demo / name / "panorama_10.png")
+    shutil.copy(demo / "depth" / "Depth_1.exr", demo / "depth" / "Depth_10.exr")
+    src = source(demo, split_period=100)  # one scene: the root itself
+    assert src.scenes() == ["Demo"]
+    frames = [s.split("/")[1] for s in src.split("train") + src.split("val") + src.split("test")]
+    assert frames == [f"panorama_{n}" for n in (0, 1, 2, 3, 4, 10)]
+
+
+def test_scenes_are_selected(fixture_root: Path) -> None:
+    src = source(fixture_root, scenes=["NYC"])
+    assert src.scenes() == ["NYC"] and all(s.startswith("NYC/") for s in src.split("train"))
+    with pytest.raises(ConfigError, match=r"scenes: no scene \['Atlantis'\] .*\['Demo', 'NYC'\]"):
+        source(fixture_root, scenes=["Atlantis"])
+
+
+# ------------------------------------------------------------------------------------------------ classes
+def test_class_lists_are_read_as_the_demo_reader_reads_them(tmp_path: Path) -> None:
+    path = tmp_path / "semantic_lists_x.txt"
+    path.write_text("# comment\nSky 1\n\nRoad   asphalt road   2\nheader\n", encoding="utf-8")
+    assert read_class_list(path).names == {1: "Sky", 2: "Road"}
+    path.write_text("Sky 1\nRoad two\n", encoding="utf-8")
+    with pytest.raises(
+        DatasetFormatError, match=r"semantic_lists_x.txt: key 'line 2': expected '<name> ... <id>'"
+    ):
+        read_class_list(path)
+    path.write_text("Sky 1\nRoad 1\n", encoding="utf-8")
+    with pytest.raises(DatasetFormatError, match=r"key 'line 2': id 1 is listed twice"):
+        read_class_list(path)
+
+
+def test_dataset_classes_are_every_scenes_names_through_each_scenes_ids(fixture_root: Path) -> None:
+    src = source(fixture_root)
+    # Demo's list first (scenes sorted, each by id), then the names only NYC has.
+    assert src.spec.train_class_names == ["Building", "Road", "Grass", "Fence", "Tree_01", "Statue", "Sky"]
+    assert src.spec.label_lut()[:7].tolist() == list(range(7))  # the source maps the ids itself
+
+
+def test_benchmark_classes_through_the_table_and_the_option(fixture_root: Path) -> None:
+    with pytest.raises(
+        DatasetFormatError, match=r"semantic_lists_demo.txt: class names \['Statue'\] have no benchmark"
+    ):
+        source(fixture_root, classes="benchmark")
+    src = source(fixture_root, classes="benchmark", benchmark_map={"Statue": None, "Grass": "ground"})
+    assert src.spec.train_class_names[:3] == ["sky", "road", "sidewalk"]
+    _, _, label, _ = render(HEIGHT, 2 * HEIGHT, 0)
+    seg = src.equirect("NYC/panorama_0", "seg")
+    expected = {"Sky": "sky", "Road": "road", "Grass": "ground", "Fence": "barrier", "Tree_01": "tree"}
+    for name, target in expected.items():
+        assert (seg[label == NAMES.index(name)] == BENCHMARK_ID[target]).all(), name
+    assert (seg[label == NAMES.index("Statue")] == 255).all()
+    assert OMNI360_TO_BENCHMARK["building"] == "building"
+    with pytest.raises(ConfigError, match=r"benchmark_map.Statu: no scene's class list names 'Statu'"):
+        source(fixture_root, classes="benchmark", benchmark_map={"Statu": None})
+    with pytest.raises(ConfigError, match=r"benchmark_map.Statue='person': expected a benchmark class"):
+        source(fixture_root, classes="benchmark", benchmark_map={"Statue": "person"})
+    with pytest.raises(
+        ConfigError, match=r"benchmark_map maps names onto the benchmark's classes: set classes=benchmark"
+    ):
+        source(fixture_root, benchmark_map={"Statue": None})
+
+
+def test_a_label_id_missing_from_the_list_names_the_file(writable_root: Path) -> None:
+    png = writable_root / "NYC" / "nyc_seg_panorama" / "panorama_2.png"
+    rgba = np.asarray(Image.open(png)).copy()
+    rgba[0, :3, 3] = 99
+    Image.fromarray(rgba, "RGBA").save(png)
+    with pytest.raises(
+        DatasetFormatError,
+        match=r"panorama_2.png: class ids \[99\] in the alpha channel are not in nyc_semantic_list.txt",
+    ):
+        source(writable_root).equirect("NYC/panorama_2", "seg")
+    Image.fromarray(rgba[..., :3], "RGB").save(png)
+    with pytest.raises(
+        DatasetFormatError,
+        match=r"panorama_2.png: expected a PNG with an alpha channel \(the class id\), got mode RGB",
+    ):
+        source(writable_root).equirect("NYC/panorama_2", "seg")
+
+
+def test_labels_come_from_the_instance_pngs_without_a_semantic_folder(writable_root: Path) -> None:
+    shutil.rmtree(writable_root / "NYC" / "nyc_seg_panorama")
+    src = source(writable_root, scenes=["NYC"])
+    assert src.path_of("NYC/panorama_0", "seg", "equirect").parent.name == "nyc_instance_panorama"
+    _, _, label, _ = render(HEIGHT, 2 * HEIGHT, 0)
+    seg = src.equirect("NYC/panorama_0", "seg")
+    assert (seg[label == NAMES.index("Fence")] == src.spec.train_class_names.index("Fence")).all()
+
+
+# ------------------------------------------------------------------------------------------------- splits
+def test_splits_are_frame_blocks_per_scene(fixture_root: Path) -> None:
+    src = source(fixture_root)
+    assert src.split("train") == [f"{s}/panorama_{n}" for s in ("Demo", "NYC") for n in (0, 1, 2)]
+    assert src.split("val") == ["Demo/panorama_3", "NYC/panorama_3"]
+    assert src.split("test") == ["Demo/panorama_4", "NYC/panorama_4"]
+    assert src.spec.splits.by == "frame_blocks"
+    strided = source(fixture_root, frame_stride=2)  # frames 0, 2, 4 of each scene
+    assert strided.split("val") == ["Demo/panorama_2", "NYC/panorama_2"]
+    assert "split_period=10" in src.split_rule("val") and "at least 3 frames" in src.split_rule("val")
+
+
+def test_splits_by_scene(fixture_root: Path) -> None:
+    src = source(fixture_root, split_scenes={"train": ["NYC"], "val": ["Demo"], "test": ["Demo"]})
+    assert src.split("train") == [f"NYC/panorama_{n}" for n in range(FRAMES)]
+    assert src.split("test") == src.split("val") == [f"Demo/panorama_{n}" for n in range(FRAMES)]
+    assert src.spec.splits.by == "scene"
+    with pytest.raises(ConfigError, match=r"split_scenes: scene 'NYC' is in train and val"):
+        source(fixture_root, split_scenes={"train": ["NYC"], "val": ["NYC"]})
+    with pytest.raises(ConfigError, match=r"split_scenes.test: no scene 'Mars'"):
+        source(fixture_root, split_scenes={"test": ["Mars"]})
+
+
+# ------------------------------------------------------------------------------------------------- errors
+def test_missing_folders_and_files_name_them(writable_root: Path, tmp_path: Path) -> None:
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DatasetFormatError, match=r"empty: no Omni360 scene: expected <scene>/panorama/"):
+        source(tmp_path / "empty")
+    (writable_root / "NYC" / "nyc_Depth" / "Depth_2.h5").unlink()
+    src = source(writable_root)
+    with pytest.raises(
+        DatasetFormatError,
+        match=r"nyc_Depth: no depth file for panorama_2.png \(looked for panorama_2.h5, .*Depth_2.npy\)",
+    ):
+        src.equirect("NYC/panorama_2", "depth")
+    shutil.rmtree(writable_root / "Demo" / "depth")
+    (writable_root / "NYC" / "nyc_semantic_list.txt").unlink()
+    src = source(writable_root)
+    assert src.modalities == ("rgb",)
+    assert "Demo: no depth folder (depth/ or <prefix>_Depth/)" in src.missing_reason("depth")
+    assert "NYC: no class list" in src.missing_reason("seg")
+    assert "use data.source=equirect" in src.missing_reason("fisheye")
+    with pytest.raises(DatasetFormatError, match=r"use data\.source=equirect"):
+        src.fisheye("NYC/panorama_0", "rgb")
+    Image.new("RGB", (10, 5)).save(writable_root / "NYC" / "nyc_Raw_Part1" / "panorama_1.png")
+    with pytest.raises(DatasetFormatError, match=r"panorama_1.png: rgb is 10x5, the panoramas are 32x16"):
+        source(writable_root).equirect("NYC/panorama_1", "rgb")
+
+
+def test_ambiguous_layouts_are_refused(writable_root: Path) -> None:
+    shutil.copytree(writable_root / "NYC" / "nyc_Depth", writable_root / "NYC" / "nyc2_Depth")
+    with pytest.raises(DatasetFormatError, match=r"NYC: two depth folders \(nyc2_Depth, nyc_Depth\)"):
+        source(writable_root)
+    shutil.rmtree(writable_root / "NYC" / "nyc2_Depth")
+    shutil.copy(
+        writable_root / "NYC" / "nyc_Raw_Part1" / "panorama_0.png", writable_root / "NYC" / "nyc_Raw_Part2"
+    )
+    with pytest.raises(DatasetFormatError, match=r"panorama_0.png: frame panorama_0 is stored twice"):
+        source(writable_root)
+
+
+def test_bad_options(fixture_root: Path) -> None:
+    for options, message in (
+        ({"classes": "cityscapes"}, r"classes='cityscapes': expected one of dataset, benchmark"),
+        ({"split_period": 2}, r"split_period=2: expected an integer >= 3"),
+        ({"frame_stride": 0}, r"frame_stride=0: expected an integer >= 1"),
+        ({"lidar": "vlp17"}, r"lidar='vlp17': expected one of"),
+        ({"pitch_deg": "down"}, r"pitch_deg='down': expected a number of degrees"),
+        ({"camera": "front"}, r"unknown keys \['camera'\]"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            source(fixture_root, **options)
+
+
+def test_the_calibration_is_the_default_lens_at_the_panoramas_centre(fixture_root: Path) -> None:
+    src = source(fixture_root, pitch_deg=30.0)
+    calib = src.calib("NYC/panorama_0")
+    assert (
+        calib.camera["model"] == "equidistant" and calib.camera["width"] == calib.camera["height"] == HEIGHT
+    )
+    assert calib.camera["fov_deg"] == 190.0 and calib.face_size is None
+    # The optical axis looks 30 deg below the horizon of the panorama (camera z -> pano frame, y down).
+    axis = src.pano_rotation @ np.array([0.0, 0.0, 1.0])
+    np.testing.assert_allclose(axis, [0.0, np.sin(np.radians(30)), np.cos(np.radians(30))], atol=1e-12)
+    np.testing.assert_allclose(calib.T_cam_lidar_static, src.T_cam_lidar("NYC/panorama_0"), atol=1e-12)
