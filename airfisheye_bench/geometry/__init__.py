@@ -1,8 +1,9 @@
-"""Geometry: camera models, cubemap-to-fisheye remapping, rigid transforms, LiDAR projection and occlusion."""
+"""Geometry: camera models, cubemap- and panorama-to-fisheye remapping, rigid transforms, LiDAR projection and occlusion."""
 
 from airfisheye_bench.geometry.camera import LENS_MODELS, FisheyeCamera, incidence_angle
 from airfisheye_bench.geometry.cameras import CAMERA_MODELS, CameraModel, camera_from_dict
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, CubemapToFisheye, face_rays, face_rotation
+from airfisheye_bench.geometry.equirect import EquirectToFisheye
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import organize_scan
 from airfisheye_bench.geometry.occlusion import (
@@ -17,6 +18,7 @@ from airfisheye_bench.geometry.transforms import (
     CAM_FROM_FLU,
     check_rigid,
     euler_to_matrix,
+    gimbal_rotation,
     invert_rigid,
     make_transform,
     matrix_to_quaternion,
@@ -33,6 +35,7 @@ __all__ = [
     "OCCLUSION_METHODS",
     "CameraModel",
     "CubemapToFisheye",
+    "EquirectToFisheye",
     "FisheyeCamera",
     "LidarProjection",
     "LidarSpec",
@@ -41,6 +44,7 @@ __all__ = [
     "euler_to_matrix",
     "face_rays",
     "face_rotation",
+    "gimbal_rotation",
     "incidence_angle",
     "invert_rigid",
     "lidar_depth_map",

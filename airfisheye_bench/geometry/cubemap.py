@@ -25,20 +25,25 @@ On CPU a fused numba kernel applies the table in one pass; on other devices ``in
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
-from collections import OrderedDict
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from airfisheye_bench.atomic import atomic_write
-from airfisheye_bench.geometry import _kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.cameras import CameraModel
+from airfisheye_bench.geometry.remap_table import (
+    MODES,
+    RemapTable,
+    apply_table,
+    check_rotation,
+    clear_table_cache,
+    interleaved_view,
+    load_or_build,
+    pack_table,
+    rotation_key,
+)
 
 FACE_NAMES: tuple[str, ...] = ("front", "left", "right", "up", "down")
 
@@ -51,8 +56,6 @@ _FACE_AXES = {
     "down": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),
 }
 _R_CAM_FACE = np.stack([np.array(_FACE_AXES[name], dtype=np.float64).T for name in FACE_NAMES])
-
-MODES = ("nearest", "bilinear")
 
 
 def face_rotation(name: str) -> np.ndarray:
@@ -113,22 +116,6 @@ def direction_to_face(
     return torch.where(bad, -1, face), xf / zf * half + centre, yf / zf * half + centre
 
 
-@dataclass(frozen=True)
-class RemapTable:
-    """A weighted-gather lookup table.
-
-    Attributes:
-        pixels: ``[P]`` int64 flat indices (``row * W + col``) of the output pixels that are filled.
-        index: ``[P, T]`` int32 flat indices into the stacked faces ``[5 * S * S]`` (``face * S * S + row * S + col``).
-            Pixel-major, so one pixel's taps are adjacent in memory.
-        weight: ``[P, T]`` float32 weights, summing to one over ``T`` for every pixel.
-    """
-
-    pixels: torch.Tensor
-    index: torch.Tensor
-    weight: torch.Tensor
-
-
 class CubemapToFisheye:
     """Remap stacked cube faces to a fisheye image with lookup tables built once and cached.
 
@@ -139,6 +126,9 @@ class CubemapToFisheye:
             (antialiasing when the faces are much finer than the output). ``nearest`` always takes the texel
             nearest to the pixel centre's ray.
         cache_dir: Optional directory for an on-disk cache of the tables, keyed by all parameters.
+        rotation: Optional orientation of the output camera relative to the cube, ``R_cube_cam`` (3x3: maps the
+            output camera's directions into the cube's camera frame; ``geometry.transforms.gimbal_rotation`` builds
+            one from gimbal angles). ``None`` is the identity: the output looks along the front face.
 
     Example:
         >>> from airfisheye_bench.geometry import FisheyeCamera
@@ -156,6 +146,7 @@ class CubemapToFisheye:
         face_size: int,
         supersample: int = 1,
         cache_dir: str | os.PathLike | None = None,
+        rotation: ArrayLike | None = None,
     ) -> None:
         if not isinstance(camera, CameraModel):
             raise ValueError(
@@ -168,13 +159,17 @@ class CubemapToFisheye:
         self.face_size = int(face_size)
         self.supersample = int(supersample)
         self.cache_dir = Path(cache_dir) if cache_dir is not None else None
+        self.rotation = check_rotation(rotation)
 
     def table(self, mode: str) -> RemapTable:
         """The (cached) lookup table for ``mode``."""
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         key = (self.camera.key(), self.face_size, mode, self.supersample if mode == "bilinear" else 1)
-        return _TABLES.get(key, lambda: self._load_or_build(key, mode))
+        rot = rotation_key(self.rotation)
+        if rot is not None:  # an unrotated table keeps the key (and disk name) it always had
+            key = (*key, rot)
+        return load_or_build(key, "cubemap-lut", self.cache_dir, lambda: self._build(mode))
 
     @property
     def valid_mask(self) -> torch.Tensor:
@@ -198,34 +193,22 @@ class CubemapToFisheye:
         faces5 = x.reshape(-1, 5, channels, self.face_size, self.face_size)
         size = (faces5.shape[0], channels, self.camera.height * self.camera.width)
         out = torch.full(size, fill, dtype=x.dtype, device=x.device)
-        if x.device.type == "cpu":
-            _apply_cpu(faces5, lut, out)
-        else:
-            out[..., lut.pixels.to(x.device)] = _apply_torch(_planar(faces5), lut)
+        # Three-channel faces stored channels-last (torch.from_numpy(hwc).permute(0, 3, 1, 2), no copy) are blended
+        # in place by the interleaved kernel.
+        apply_table(lambda: _planar(faces5), interleaved_view(faces5.transpose(1, 2)), lut, out)
         out = out.view(*batch_shape, channels, self.camera.height, self.camera.width)
         return out.numpy() if was_numpy else out
 
     __call__ = remap
 
     # ------------------------------------------------------------------ table construction
-    def _load_or_build(self, key: tuple, mode: str) -> RemapTable:
-        path = None
-        if self.cache_dir is not None:
-            digest = hashlib.sha1(json.dumps(key, default=str).encode()).hexdigest()[:16]
-            path = self.cache_dir / f"cubemap-lut-{digest}.npz"
-            if path.exists():
-                with np.load(path, allow_pickle=False) as z:
-                    return RemapTable(*(torch.from_numpy(z[name]) for name in ("pixels", "index", "weight")))
-        lut = self._build(mode)
-        if path is not None:
-            _save_atomic(path, lut)
-        return lut
-
     def _build(self, mode: str) -> RemapTable:
         cam, s = self.camera, self.face_size
         inside = cam.valid_mask().reshape(-1)
         # float32 locates a texel to ~1e-4 px even on 2048^2 faces; the camera model itself ran in float64.
         rays = cam.ray_grid(torch.float32).reshape(-1, 3)[inside]
+        if self.rotation is not None:
+            rays = rays @ torch.from_numpy(self.rotation).to(rays.dtype).T
         face, u, v = direction_to_face(rays, s)
         on_face = face >= 0
         pixels = inside.nonzero().squeeze(1)[on_face]
@@ -233,11 +216,11 @@ class CubemapToFisheye:
             index = _flat_index(
                 face[on_face], v[on_face].round().clamp(0, s - 1), u[on_face].round().clamp(0, s - 1), s
             )
-            return _table(pixels, index[None], torch.ones(1, len(pixels)))
+            return pack_table(pixels, index[None], torch.ones(1, len(pixels)))
         k = self.supersample
         if k == 1:
             index, weight = _bilinear_taps(face[on_face], u[on_face], v[on_face], s)
-            return _table(pixels, index, weight)
+            return pack_table(pixels, index, weight)
         offsets = (torch.arange(k, dtype=torch.float64) + 0.5) / k - 0.5
         uv = cam.pixel_grid().reshape(-1, 2)[pixels]
         indices, weights = [], []
@@ -247,12 +230,14 @@ class CubemapToFisheye:
                 # Sub-samples outside the valid region get no weight (the pixel is only partly inside).
                 sub_inside = cam.project(sub_rays)[1] & torch.isfinite(sub_rays).all(-1)
                 sub_rays = sub_rays.nan_to_num(0.0, 0.0, 0.0)
+                if self.rotation is not None:
+                    sub_rays = sub_rays @ torch.from_numpy(self.rotation).T
                 idx, w = _bilinear_taps(*direction_to_face(sub_rays, s), s)
                 indices.append(idx)
                 weights.append(w * sub_inside)
         weight = torch.cat(weights)
         weight = weight / weight.sum(0, keepdim=True).clamp_min(1e-12)
-        return _table(pixels, torch.cat(indices), weight)
+        return pack_table(pixels, torch.cat(indices), weight)
 
 
 def _bilinear_taps(
@@ -300,54 +285,10 @@ def _bilinear_taps(
     return torch.stack(indices), weight / weight.sum(0, keepdim=True).clamp_min(1e-12)
 
 
-def _table(pixels: torch.Tensor, index: torch.Tensor, weight: torch.Tensor) -> RemapTable:
-    """Pack ``[T, P]`` indices and weights into a pixel-major :class:`RemapTable`."""
-    return RemapTable(pixels, index.T.to(torch.int32).contiguous(), weight.T.to(torch.float32).contiguous())
-
-
 def _planar(faces: torch.Tensor) -> torch.Tensor:
     """``[B, 5, C, S, S]`` -> ``[B, C, 5 * S * S]`` (a copy of contiguous blocks, no element shuffling)."""
     b, _, c, s, _ = faces.shape
     return faces.transpose(1, 2).reshape(b, c, 5 * s * s)
-
-
-def _apply_cpu(faces: torch.Tensor, lut: RemapTable, out: torch.Tensor) -> None:
-    """Apply ``lut`` with a fused numba kernel, writing into ``out [B, C, H*W]``.
-
-    Nearest tables copy values exactly (any dtype). Three-channel faces stored channels-last (e.g.
-    ``torch.from_numpy(hwc).permute(0, 3, 1, 2)``, no copy) are blended in place by the interleaved kernel.
-    """
-    b, _, c, s, _ = faces.shape
-    pixels, index, weight = lut.pixels.numpy(), lut.index.numpy(), lut.weight.numpy()
-    if index.shape[1] == 1:
-        _kernels.copy_nearest(_planar(faces).numpy(), pixels, index[:, 0].copy(), out.numpy())
-        return
-    is_int = not faces.is_floating_point()
-    lo, hi = (
-        (float(torch.iinfo(faces.dtype).min), float(torch.iinfo(faces.dtype).max)) if is_int else (0.0, 0.0)
-    )
-    args = (pixels, index, weight, out.numpy(), is_int, np.float32(lo), np.float32(hi))
-    interleaved = faces.permute(0, 1, 3, 4, 2)
-    if c == 3 and interleaved.is_contiguous():
-        _kernels.blend_interleaved3(interleaved.reshape(b, 5 * s * s, 3).numpy(), *args)
-    else:
-        _kernels.blend_planar(_planar(faces).numpy(), *args)
-
-
-def _apply_torch(src: torch.Tensor, lut: RemapTable) -> torch.Tensor:
-    """Device-agnostic: planar ``[B, C, L]`` -> ``[B, C, P]``, ``out[..., p] = sum_t w[p, t] * src[..., index[p, t]]``."""
-    index = lut.index.T.to(device=src.device, dtype=torch.int64)
-    if index.shape[0] == 1:
-        return src.index_select(2, index[0])
-    weight = lut.weight.T.to(src.device)
-    work = src if src.is_floating_point() else src.float()
-    acc = work.index_select(2, index[0]) * weight[0].to(work.dtype)
-    for t in range(1, index.shape[0]):
-        acc.addcmul_(work.index_select(2, index[t]), weight[t].to(work.dtype))
-    if src.is_floating_point():
-        return acc.to(src.dtype)
-    info = torch.iinfo(src.dtype)
-    return (acc + 0.5).floor_().clamp_(info.min, info.max).to(src.dtype)
 
 
 def _flat_index(face: torch.Tensor, row: torch.Tensor, col: torch.Tensor, s: int) -> torch.Tensor:
@@ -370,48 +311,6 @@ def _as_faces(faces: ArrayLike, face_size: int) -> tuple[torch.Tensor, bool]:
 def _check_face_size(face_size: int) -> None:
     if int(face_size) != face_size or face_size < 2:
         raise ValueError(f"face_size must be an integer >= 2, got {face_size}")
-
-
-def _save_atomic(path: Path, lut: RemapTable) -> None:
-    def write(tmp: Path) -> None:
-        with tmp.open("wb") as f:  # a file object: np.savez would append ".npz" to the temporary's name
-            np.savez(f, pixels=lut.pixels.numpy(), index=lut.index.numpy(), weight=lut.weight.numpy())
-
-    atomic_write(path, write)
-
-
-class _LRU:
-    """A tiny LRU cache of lookup tables shared by every ``CubemapToFisheye`` in the process."""
-
-    def __init__(self, maxsize: int) -> None:
-        self.maxsize = maxsize
-        self._items: OrderedDict[tuple, RemapTable] = OrderedDict()
-
-    def get(self, key: tuple, build) -> RemapTable:
-        if key in self._items:
-            self._items.move_to_end(key)
-            return self._items[key]
-        value = build()
-        self._items[key] = value
-        while len(self._items) > self.maxsize:
-            self._items.popitem(last=False)
-        return value
-
-    def clear(self) -> None:
-        self._items.clear()
-
-
-_TABLES = _LRU(maxsize=16)
-
-
-def clear_table_cache() -> None:
-    """Forget the lookup tables held in memory (files in the disk cache stay): the next ``table()`` call of any
-    :class:`CubemapToFisheye` loads or builds its table again, as in a fresh process (benchmarks, tests).
-
-    Example:
-        >>> clear_table_cache()
-    """
-    _TABLES.clear()
 
 
 __all__ = [

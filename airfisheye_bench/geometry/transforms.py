@@ -131,6 +131,28 @@ def euler_to_matrix(roll: ArrayLike | float, pitch: ArrayLike | float, yaw: Arra
     return back(R, was_numpy)
 
 
+def gimbal_rotation(yaw_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: float = 0.0) -> np.ndarray:
+    """``R_src_cam`` (float64 3x3) of a virtual camera on a gimbal, both frames in OpenCV camera axes.
+
+    The angles are in degrees, in the FLU convention of :func:`euler_to_matrix` (``Rz(yaw) Ry(pitch) Rx(roll)``
+    about the source's forward, left and up axes): a positive yaw turns the view to the left (counter-clockwise seen
+    from above), a positive pitch tilts it down (the synthetic rig's ``gimbal_pitch_deg``), a positive roll turns
+    the camera about its optical axis so that its left side rises (clockwise seen from behind). The result maps the virtual camera's
+    directions into the source's camera frame (the cube's, or a panorama's, docs/design.md "Equirectangular
+    panoramas"): it is the ``rotation`` of ``CubemapToFisheye`` and ``EquirectToFisheye``.
+
+    Example:
+        >>> R = gimbal_rotation(pitch_deg=90.0)
+        >>> np.round(R @ np.array([0.0, 0.0, 1.0]), 6) + 0.0  # the optical axis now points down (camera +y)
+        array([0., 1., 0.])
+        >>> np.round(gimbal_rotation(yaw_deg=90.0) @ np.array([0.0, 0.0, 1.0]), 6) + 0.0  # to the left (-x)
+        array([-1.,  0.,  0.])
+    """
+    angles = np.radians(np.array([roll_deg, pitch_deg, yaw_deg], dtype=np.float64))
+    R_flu = euler_to_matrix(*(float(a) for a in angles))
+    return CAM_FROM_FLU @ R_flu @ CAM_FROM_FLU.T
+
+
 def quaternion_to_matrix(q: ArrayLike) -> ArrayLike:
     """Rotation matrix from unit quaternions ``[..., 4]`` ordered ``w, x, y, z`` (normalised first)."""
     qt, was_numpy = as_tensor(q, "q")

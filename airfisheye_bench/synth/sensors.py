@@ -5,6 +5,8 @@ them from the sensor poses and packs the results:
 
 * **Cube faces** — ``geometry.cubemap.face_rays`` (five 90-deg pinholes in the camera frame) rotated by
   ``R_world_cam`` at the camera timestamp: RGB, raw ids and range (0 = sky).
+* **Panorama** — :func:`render_erp`: an equirectangular panorama of the camera pose (``geometry.equirect.erp_rays``
+  in the camera frame), cast directly, not resampled from the faces: the reference an ERP source is checked against.
 * **Fisheye** — either ray-cast directly through the lens (``FisheyeCamera.ray_grid``: exact, the yardstick for
   the cubemap remap) or remapped from the faces with ``CubemapToFisheye`` (like the real release). Pixels outside
   the image circle are ``rgb = 0``, ``seg = 255`` (ignore), ``depth = 0``.
@@ -28,6 +30,7 @@ import numpy as np
 import torch
 
 from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera, face_rays, portable
+from airfisheye_bench.geometry.equirect import erp_rays
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.synth.classes import IGNORE_ID
 
@@ -237,6 +240,34 @@ def render_fisheye(scene, lighting, T_world_cam: np.ndarray, camera: FisheyeCame
         rgb.reshape(h, w, 3).cpu().numpy(),
         seg.reshape(h, w).cpu().numpy(),
         depth.reshape(h, w).cpu().numpy(),
+    )
+
+
+def render_erp(
+    scene, lighting, T_world_cam: np.ndarray, height: int, width: int | None = None, max_dist: float = 1000.0
+):
+    """Ray-cast an equirectangular panorama centred on the camera: ``(rgb uint8 [H,W,3], seg uint8 [H,W],
+    depth float32 [H,W])``, depth the range (0 = sky).
+
+    The panorama's frame is the camera frame of ``T_world_cam`` (the cube faces' frame): longitude 0 on the equator
+    is the optical axis, the top row looks along camera ``-y`` (docs/design.md, "Equirectangular panoramas"). Cast
+    directly from the scene, independent of the cube faces of the same pose.
+
+    Example:
+        >>> from airfisheye_bench.synth.scene import Scene, Lighting
+        >>> scene = Scene.generate("suburban", seed=0, size_m=100.0)
+        >>> T = np.eye(4); T[:3, :3] = [[0, 0, 1], [-1, 0, 0], [0, -1, 0]]; T[2, 3] = 20.0  # level, looking north
+        >>> rgb, seg, depth = render_erp(scene, Lighting(), T, height=8)
+        >>> rgb.shape, bool((depth[-1] > 0).all()), bool((depth[0] == 0).all())  # ground below, sky above
+        ((8, 16, 3), True, True)
+    """
+    width = 2 * height if width is None else width
+    rays = erp_rays(height, width, dtype=torch.float64, device=scene.device).reshape(-1, 3)
+    rgb, raw, depth = _cast_camera(scene, lighting, T_world_cam, rays, max_dist)
+    return (
+        rgb.reshape(height, width, 3).cpu().numpy(),
+        raw.reshape(height, width).cpu().numpy(),
+        depth.reshape(height, width).cpu().numpy(),
     )
 
 

@@ -9,7 +9,9 @@ import pytest
 import torch
 
 from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye, FisheyeCamera, face_rays, face_rotation
-from airfisheye_bench.geometry.cubemap import _apply_torch, clear_table_cache, direction_to_face
+from airfisheye_bench.geometry.cubemap import clear_table_cache, direction_to_face
+from airfisheye_bench.geometry.remap_table import _apply_torch
+from airfisheye_bench.geometry.transforms import gimbal_rotation
 
 
 def direction_faces(face_size: int) -> torch.Tensor:
@@ -194,3 +196,19 @@ def test_bad_inputs() -> None:
         CubemapToFisheye(FisheyeCamera(32, 32), 8, supersample=0)
     with pytest.raises(ValueError, match="FisheyeCamera"):
         CubemapToFisheye("cam", 8)
+
+
+@pytest.mark.parametrize("angles", [(0.0, 45.0, 0.0), (30.0, 20.0, 10.0), (-20.0, -30.0, 0.0)])
+def test_rotated_camera_sees_the_rotated_rays(angles: tuple[float, float, float]) -> None:
+    """A virtual gimbal: with ``rotation = R_cube_cam`` each pixel sees its ray turned into the cube's frame."""
+    camera, face_size = FisheyeCamera(64, 64, fov_deg=150.0), 32
+    rotation = gimbal_rotation(*angles)
+    remap = CubemapToFisheye(camera, face_size, rotation=rotation)
+    assert remap.table("bilinear") is not CubemapToFisheye(camera, face_size).table("bilinear")
+    mask = remap.valid_mask
+    expected = camera.ray_grid(torch.float64) @ torch.from_numpy(rotation).T
+    d = remap(direction_faces(face_size)).permute(1, 2, 0)[mask]
+    err = torch.acos((d / d.norm(dim=-1, keepdim=True) * expected[mask]).sum(-1).clamp(-1, 1))
+    assert err.max() <= 0.25 * 2.0 / face_size
+    # A camera tilted 45 deg down with a 150 deg field of view stays off the missing back face.
+    assert int(mask.sum()) == int(camera.valid_mask().sum())
