@@ -34,7 +34,7 @@ def read_exr_channel(path: str | Path, names: Sequence[str]) -> np.ndarray:
     """
     path = Path(path)
     try:
-        import OpenEXR
+        import OpenEXR  # optional (the omni360 extra): only EXR files need it
     except ImportError:
         raise DatasetFormatError(
             path,

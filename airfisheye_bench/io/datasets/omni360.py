@@ -43,9 +43,10 @@ import numpy as np
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.camera import FisheyeCamera
+from airfisheye_bench.geometry.equirect_lidar import lidar_from_equirect
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
-from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, euler_to_matrix, make_transform
+from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, gimbal_rotation, make_transform
 from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES
 from airfisheye_bench.io.calib import Calibration
 from airfisheye_bench.io.datasets.omni360_files import (
@@ -71,6 +72,7 @@ from airfisheye_bench.io.datasets.omni360_labels import (
     read_class_list,
 )
 from airfisheye_bench.io.errors import DatasetFormatError
+from airfisheye_bench.io.scan import Scan
 from airfisheye_bench.io.spec import DatasetSpec, SplitsSpec
 from airfisheye_bench.io.splits import frame_blocks
 
@@ -160,7 +162,7 @@ class Omni360Source:
         self.split_period, self.frame_stride = int(split_period), int(frame_stride)
         self.lidar_preset = lidar
         #: ``R_pano_cam``: the served camera's directions -> the panorama's frame.
-        self.pano_rotation = _gimbal(float(yaw_deg), float(pitch_deg))
+        self.pano_rotation = gimbal_rotation(yaw_deg=float(yaw_deg), pitch_deg=float(pitch_deg))
         self._scenes = self._select(find_scenes(self.root), scenes)
         self._split_scenes = self._check_split_scenes(split_scenes)
         self._frames = {s.name: list(s.frames)[:: self.frame_stride] for s in self._scenes.values()}
@@ -254,7 +256,7 @@ class Omni360Source:
                 files={s: s for s in SPLITS}, by="scene" if self._split_scenes is not None else "frame_blocks"
             ),
             sensors={"equirect": {"height": self.erp_size[0], "width": self.erp_size[1]}},
-            contents=("equirect",),
+            contents=("equirect", "lidar") if "depth" in self.modalities else ("equirect",),
             description="AirSim360 / Omni360-X (github:Insta360-Research-Team/AirSim360), read in place",
         )
 
@@ -356,10 +358,12 @@ class Omni360Source:
         return table.lut[alpha]
 
     def fisheye(self, sample_id: str, modality: str) -> np.ndarray:
-        raise DatasetFormatError(self._scene(sample_id).folder, self.missing_reason("fisheye"))
+        folder = self._scene(sample_id).folder
+        raise DatasetFormatError(folder, f"{self.missing_reason('fisheye')}; use data.source=equirect")
 
     def cubemap(self, sample_id: str, modality: str) -> np.ndarray:
-        raise DatasetFormatError(self._scene(sample_id).folder, self.missing_reason("cubemap"))
+        folder = self._scene(sample_id).folder
+        raise DatasetFormatError(folder, f"{self.missing_reason('cubemap')}; use data.source=equirect")
 
     # ------------------------------------------------------------------------------------------------ files
     def path_of(self, sample_id: str, modality: str, source: str) -> Path:
@@ -389,13 +393,28 @@ class Omni360Source:
     def missing_reason(self, content: str) -> str:
         if content in ("fisheye", "cubemap"):
             return (
-                f"{self.root}: Omni360 frames are equirectangular panoramas, remapped on the fly to the served lens: "
-                "use data.source=equirect"
+                f"{self.root}: Omni360 frames are equirectangular panoramas (no {content}), remapped on the fly to the "
+                "served lens"
             )
-        lacking = self._lacking(content)
+        lacking = self._lacking("depth" if content == "lidar" else content)
         if lacking is not None:
-            return lacking
+            return f"{lacking} (the LiDAR is cast from it)" if content == "lidar" else lacking
         return f"{self.root}: the Omni360 reader serves no {content}"
+
+    # ------------------------------------------------------------------------------------------------ LiDAR
+    def lidar_scan(self, sample_id: str) -> Scan:
+        """The scan of ``format_options.lidar`` cast into the frame's depth panorama (:meth:`cast_scan`)."""
+        return self.cast_scan(sample_id, self.lidar_spec())
+
+    def cast_scan(self, sample_id: str, spec: LidarSpec) -> Scan:
+        """A scan of ``spec`` cast into the frame's depth panorama from its centre, in the LiDAR's FLU frame, its
+        rings known; beams without depth (sky) or beyond ``spec.max_range`` return nothing (counted)."""
+        depth = self.equirect(sample_id, "depth")
+        R_pano_lidar = self.pano_rotation @ CAM_FROM_FLU
+        points, rings = lidar_from_equirect(depth, spec, R_pano_lidar)
+        beams = spec.channels * spec.points_per_channel
+        path = self.path_of(sample_id, "depth", "equirect")
+        return Scan(points, None, rings, False, beams - len(points), path, "omni360_depth")
 
     # ---------------------------------------------------------------------------------------------- helpers
     def _scene(self, sample_id: str) -> Scene:
@@ -413,10 +432,3 @@ class Omni360Source:
         if (kind, key) not in self._cache:
             self._cache[(kind, key)] = load()
         return self._cache[(kind, key)]
-
-
-def _gimbal(yaw_deg: float, pitch_deg: float) -> np.ndarray:
-    """``R_pano_cam`` of a camera turned by a gimbal (FLU yaw left, pitch down). Stand-in for the ERP sampler's
-    ``gimbal_rotation``, replaced by it once that lands."""
-    R_flu = euler_to_matrix(0.0, np.radians(pitch_deg), np.radians(yaw_deg))
-    return CAM_FROM_FLU @ np.asarray(R_flu, np.float64) @ CAM_FROM_FLU.T

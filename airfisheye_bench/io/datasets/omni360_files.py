@@ -221,7 +221,9 @@ def read_panorama(path: Path) -> np.ndarray:
     """``uint8 [H, W, 3]`` RGB (an alpha channel, as renderers often write, is dropped)."""
     with _open(path) as img:
         try:
-            return np.asarray(img.convert("RGB") if img.mode != "RGB" else img)
+            return np.array(
+                img.convert("RGB") if img.mode != "RGB" else img
+            )  # writable: torch takes it as is
         except OSError as err:
             raise DatasetFormatError(path, f"unreadable image ({err})") from None
 
@@ -286,7 +288,7 @@ def read_depth(path: Path) -> np.ndarray:
 
 def _read_h5(path: Path) -> np.ndarray:
     try:
-        import h5py
+        import h5py  # optional (the omni360 extra): only HDF5 depth needs it
     except ImportError:
         raise DatasetFormatError(
             path,
