@@ -50,8 +50,11 @@ KNOWN_CONTENTS = (
     "poses",
     "imu",
 )
-#: The stored images a loader can serve from: the raw cube faces (remapped on the fly) or pre-rendered fisheye.
-IMAGE_SOURCES = ("cubemap", "fisheye")
+#: The stored images a loader can serve from: the raw cube faces or equirectangular panoramas (remapped on the fly), or
+#: pre-rendered fisheye.
+IMAGE_SOURCES = ("cubemap", "fisheye", "equirect")
+#: The image sources remapped on the fly to any lens.
+REMAP_SOURCES = ("cubemap", "equirect")
 RGB_ENCODINGS = ("png", "jpg")
 SEG_ENCODINGS = ("png",)
 DEPTH_ENCODINGS = ("png16", "npy", "pfm")

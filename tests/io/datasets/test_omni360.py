@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 from PIL import Image
 
 from airfisheye_bench.errors import ConfigError
@@ -24,6 +25,7 @@ from tests.io.datasets.omni360_fixture import (
     NAMES,
     SKY_DEPTH,
     render,
+    scene_hit,
     write_exr_depth,
     write_h5_depth,
     write_omni360_fixture,
@@ -273,7 +275,7 @@ def test_missing_folders_and_files_name_them(writable_root: Path, tmp_path: Path
     assert src.modalities == ("rgb",)
     assert "Demo: no depth folder (depth/ or <prefix>_Depth/)" in src.missing_reason("depth")
     assert "NYC: no class list" in src.missing_reason("seg")
-    assert "use data.source=equirect" in src.missing_reason("fisheye")
+    assert "equirectangular panoramas (no fisheye)" in src.missing_reason("fisheye")
     with pytest.raises(DatasetFormatError, match=r"use data\.source=equirect"):
         src.fisheye("NYC/panorama_0", "rgb")
     Image.new("RGB", (10, 5)).save(writable_root / "NYC" / "nyc_Raw_Part1" / "panorama_1.png")
@@ -317,3 +319,152 @@ def test_the_calibration_is_the_default_lens_at_the_panoramas_centre(fixture_roo
     axis = src.pano_rotation @ np.array([0.0, 0.0, 1.0])
     np.testing.assert_allclose(axis, [0.0, np.sin(np.radians(30)), np.cos(np.radians(30))], atol=1e-12)
     np.testing.assert_allclose(calib.T_cam_lidar_static, src.T_cam_lidar("NYC/panorama_0"), atol=1e-12)
+
+
+# -------------------------------------------------------------------------------------------------- LiDAR
+def test_the_lidar_texel_is_the_remaps_nearest_texel() -> None:
+    """:func:`erp_texel` (the LiDAR's look-up) takes the texel ``EquirectToFisheye``'s nearest mode takes, for rays
+    all over the sphere (a 250 deg lens looking up and to the side reaches both poles and the seam)."""
+    from airfisheye_bench.geometry import FisheyeCamera
+    from airfisheye_bench.geometry.equirect import EquirectToFisheye
+    from airfisheye_bench.geometry.equirect_lidar import erp_texel
+    from airfisheye_bench.geometry.transforms import gimbal_rotation
+
+    h, w = 24, 48
+    camera = FisheyeCamera(96, 96, fov_deg=250.0)
+    rotation = gimbal_rotation(yaw_deg=150.0, pitch_deg=-60.0)
+    index = np.arange(h * w, dtype=np.float64).reshape(1, h, w)
+    remapped = EquirectToFisheye(camera, (h, w), rotation=rotation)(index, mode="nearest", fill=-1)[0]
+    valid = camera.valid_mask().numpy()
+    rays = camera.ray_grid(torch.float64).numpy()[valid]
+    row, col = erp_texel(rays @ rotation.T, h, w)
+    np.testing.assert_array_equal(remapped[valid], row * w + col)
+
+
+@pytest.mark.parametrize("preset", ["paper", "vlp16"])
+def test_the_cast_scan_takes_the_range_of_the_texel_each_beam_falls_in(
+    fixture_root: Path, preset: str
+) -> None:
+    """Every point of the cast scan (FLU, on the camera's gimbal: pitched 20 deg down and turned 30 deg left here)
+    lies along its beam at the range the depth panorama holds in the texel its direction falls in (that texel found
+    here from the ERP convention written out, :func:`erp_ray`'s inverse); its rings are the spec's channels."""
+    from airfisheye_bench.geometry.lidar import LidarSpec
+    from airfisheye_bench.geometry.transforms import CAM_FROM_FLU
+
+    src = source(fixture_root, pitch_deg=20.0, yaw_deg=30.0, lidar=preset)
+    spec = LidarSpec.from_preset(preset)
+    scan = src.lidar_scan("NYC/panorama_1")
+    beams = spec.channels * spec.points_per_channel
+    assert scan.rings is not None and scan.rings.max() < spec.channels and len(scan.points) > beams // 2
+    assert scan.no_returns == beams - len(scan.points)
+    d = (scan.points @ CAM_FROM_FLU.T) @ src.pano_rotation.T  # the beams in the panorama's frame
+    lon, lat = np.arctan2(d[:, 0], d[:, 2]), np.arctan2(-d[:, 1], np.hypot(d[:, 0], d[:, 2]))
+    h, w = HEIGHT, 2 * HEIGHT
+    col = np.floor(w * (lon + np.pi) / (2 * np.pi)).astype(int) % w
+    row = np.clip(np.floor(h * (np.pi / 2 - lat) / np.pi).astype(int), 0, h - 1)
+    depth = src.equirect("NYC/panorama_1", "depth")
+    np.testing.assert_allclose(np.linalg.norm(scan.points, axis=1), depth[row, col], rtol=1e-6)
+    # The yaw turns the view left: the beam ahead (the optical axis) meets the panorama left of its middle.
+    ahead = src.pano_rotation @ np.array([0.0, 0.0, 1.0])
+    assert np.degrees(np.arctan2(ahead[0], ahead[2])) == pytest.approx(-30.0)
+    # data.lidar.preset's sensor is cast instead of the source's own (the datamodule asks for it).
+    other = src.cast_scan("NYC/panorama_1", LidarSpec.from_preset("hdl32e"))
+    assert other.rings.max() < 32 and len(other.points) != len(scan.points)
+    np.testing.assert_allclose(src.T_cam_lidar("NYC/panorama_1")[:3, :3], CAM_FROM_FLU)
+
+
+# ------------------------------------------------------------------------------------------------- serving
+@pytest.fixture(scope="module")
+def fine_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """64 x 128 panoramas: texels of 2.8 deg, fine enough to compare the served maps with the analytic scene."""
+    return write_omni360_fixture(tmp_path_factory.mktemp("omni360_fine") / "root", height=64, frames=3)
+
+
+def _dataset(root: Path, task: str, size: int = 48, **options):
+    from datamodules import AirFisheyeDataset, CameraConfig
+
+    kwargs = {k: options.pop(k) for k in ("occlusion", "source", "source_fallback") if k in options}
+    return AirFisheyeDataset(
+        root,
+        "train",
+        task,
+        camera=CameraConfig(size=size),
+        dataset_format="omni360",
+        format_options={"scenes": ["NYC"], **options},
+        **{"source": "equirect", **kwargs},
+    )
+
+
+def test_the_served_fisheye_sees_the_scene_through_the_gimbal(fine_root: Path) -> None:
+    """Depth and labels of the served 190 deg fisheye, pitched 30 deg down and turned 40 deg right, agree with the
+    analytic scene along each pixel's ray (turned into the panorama by gimbal_rotation)."""
+    from airfisheye_bench.geometry.transforms import gimbal_rotation
+
+    ds = _dataset(fine_root, "depth", pitch_deg=30.0, yaw_deg=-40.0)
+    seg = _dataset(fine_root, "seg", pitch_deg=30.0, yaw_deg=-40.0)
+    sample, labels = ds[0], seg[0]["label"].numpy()
+    valid = sample["valid_mask"].numpy()
+    assert valid.sum() > 0.7 * valid.size and ds.camera.model == "equidistant" and ds.camera.fov_deg == 190.0
+    rays = ds.camera.ray_grid(torch.float64).numpy()[valid] @ gimbal_rotation(yaw_deg=-40.0, pitch_deg=30.0).T
+    truth, name, _ = scene_hit(rays, frame=0)
+    served = sample["depth"][0].numpy()[valid]
+    near = np.isfinite(truth) & (truth <= ds.max_depth)
+    rel = np.abs(served[near] - truth[near]) / truth[near]
+    assert np.median(rel) < 0.02 and np.mean(rel < 0.1) > 0.9
+    assert np.mean(served[~np.isfinite(truth)] == 0) > 0.9  # the sky: no depth
+    classes = ds.spec.train_class_names
+    expected = np.array([classes.index(n) for n in NAMES])[name]
+    assert np.mean(labels[valid] == expected) > 0.93
+
+
+def test_sparse_depth_lands_on_the_dense_depth_and_needs_no_occlusion_correction(fixture_root: Path) -> None:
+    """The whole chain (cast beams, T_cam_lidar, projection): LiDAR ranges agree with the remapped depth where they
+    land; with no parallax every occlusion method serves the same map (none is applied)."""
+    maps = {}
+    for method in ("ordering", "zbuffer", "none", "oracle"):
+        sample = _dataset(fixture_root, "completion", size=64, occlusion=method)[0]
+        maps[method] = sample["sparse_depth"][0]
+    sparse, dense = maps["ordering"], sample["depth"][0]
+    hit = (sparse > 0) & (dense > 0)
+    assert hit.sum() > 200
+    rel = ((sparse[hit] - dense[hit]).abs() / dense[hit]).numpy()
+    assert np.median(rel) < 0.02 and np.mean(rel < 0.1) > 0.9
+    for method in ("zbuffer", "none", "oracle"):
+        assert torch.equal(maps[method], sparse), method
+
+
+def test_the_image_source_and_the_contents_a_task_needs(writable_root: Path) -> None:
+    with pytest.raises(
+        ConfigError, match=r"equirectangular panoramas \(no cubemap\).*; use data\.source=equirect"
+    ):
+        _dataset(writable_root, "seg", source="cubemap")
+    # A source of a mixture that data.source does not fit remaps the raw recording it has.
+    assert _dataset(writable_root, "seg", source="cubemap", source_fallback=True).source == "equirect"
+    shutil.rmtree(writable_root / "NYC" / "nyc_Depth")
+    with pytest.raises(ConfigError, match=r"NYC: no depth folder .*; task=depth needs it"):
+        _dataset(writable_root, "depth")
+    assert _dataset(writable_root, "seg").spec.contents == ("equirect",)  # no depth: no LiDAR either
+    with pytest.raises(
+        ConfigError, match=r"NYC: no depth folder .* \(the LiDAR is cast from it\); task=completion"
+    ):
+        _dataset(writable_root, "completion")
+
+
+def test_inspect_checks_every_file_through_the_source(writable_root: Path) -> None:
+    from airfisheye_bench.io.inspect_source import inspect_source
+
+    for deep in (False, True):
+        report = inspect_source(writable_root, "omni360", deep=deep)
+        assert report.ok, report.summary()
+        assert report.splits == {"train": 6, "val": 2, "test": 2} and report.samples == 10
+    (writable_root / "NYC" / "nyc_Depth" / "Depth_3.h5").unlink()
+    label = writable_root / "Demo" / "semantic" / "panorama_1.png"
+    rgba = np.asarray(Image.open(label)).copy()
+    rgba[2, 2, 3] = 77
+    Image.fromarray(rgba, "RGBA").save(label)
+    shallow = inspect_source(writable_root, "omni360")
+    deep = inspect_source(writable_root, "omni360", deep=True)
+    assert dict(shallow.problems)[str(writable_root / "NYC" / "nyc_Depth" / "panorama_3.h5")] == "missing"
+    problems = dict(deep.problems)
+    assert "no depth file for panorama_3.png" in problems[str(writable_root / "NYC" / "nyc_Depth")]
+    assert "class ids [77] in the alpha channel are not in semantic_lists_demo.txt" in problems[str(label)]
