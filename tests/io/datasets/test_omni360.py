@@ -450,13 +450,22 @@ def test_the_image_source_and_the_contents_a_task_needs(writable_root: Path) -> 
         _dataset(writable_root, "completion")
 
 
-def test_inspect_checks_every_file_through_the_source(writable_root: Path) -> None:
+def test_inspect_checks_every_file_through_the_source(
+    writable_root: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """``airfisheye-inspect root=<root> format=omni360 [deep=true]``."""
+    from airfisheye_bench.cli import inspect
     from airfisheye_bench.io.inspect_source import inspect_source
 
     for deep in (False, True):
         report = inspect_source(writable_root, "omni360", deep=deep)
         assert report.ok, report.summary()
         assert report.splits == {"train": 6, "val": 2, "test": 2} and report.samples == 10
+    assert (
+        inspect([f"root={writable_root}", "format=omni360", "format_options={scenes:[NYC]}", "deep=true"])
+        == 0
+    )
+    assert "splits: train 3, val 1, test 1" in capsys.readouterr().out
     (writable_root / "NYC" / "nyc_Depth" / "Depth_3.h5").unlink()
     label = writable_root / "Demo" / "semantic" / "panorama_1.png"
     rgba = np.asarray(Image.open(label)).copy()
@@ -468,3 +477,109 @@ def test_inspect_checks_every_file_through_the_source(writable_root: Path) -> No
     problems = dict(deep.problems)
     assert "no depth file for panorama_3.png" in problems[str(writable_root / "NYC" / "nyc_Depth")]
     assert "class ids [77] in the alpha channel are not in semantic_lists_demo.txt" in problems[str(label)]
+
+
+# ------------------------------------------------------------------------------------------- end to end
+@pytest.fixture(scope="module")
+def train_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """32 x 64 panoramas, 5 frames per scene: 6 training frames, 2 val, 2 test."""
+    return write_omni360_fixture(tmp_path_factory.mktemp("omni360_train") / "root", height=32, frames=5)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("task", ["seg", "depth", "completion"])
+def test_train_runs_every_task_on_omni360(task: str, train_root: Path, tmp_path: Path) -> None:
+    """``python train.py task=<task> data=omni360 data.root=<fixture> trainer=debug ...`` writes its metrics."""
+    import json
+
+    from omegaconf import open_dict
+
+    from airfisheye_bench.training import train
+    from tests.helpers.configs import compose_train
+    from tests.helpers.runs import tiny_run_overrides
+
+    overrides = tiny_run_overrides(task, train_root, size=64 if task == "depth" else 32)  # AdaBins needs 64
+    cfg = compose_train([*overrides, "data=omni360", "data.format_options.pitch_deg=20", "logger=csv"])
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(tmp_path)
+    results = train(cfg)
+    record = json.loads((tmp_path / "results.json").read_text())
+    primary = cfg.task.primary_metric
+    assert record["task"] == task and record["split"] == "test"
+    assert np.isfinite(record["metrics"][primary])
+    assert record["metrics"][primary] == pytest.approx(results["metrics"][primary])
+    assert record["config"]["data"]["source"] == "equirect"
+
+
+@pytest.mark.integration
+def test_the_synthetic_preset_and_omni360_in_one_run(train_root: Path, tmp_path: Path) -> None:
+    """``data=omni360 data.root=<fixture> data.sources=[synthetic,omni360]``: the synthetic preset's cube faces
+    and the panoramas are remapped to one lens, each source scored apart (depth: no class map needed)."""
+    import json
+
+    from omegaconf import open_dict
+
+    from airfisheye_bench.training import train
+    from tests.helpers.configs import compose_train
+    from tests.helpers.runs import tiny_run_overrides
+
+    base = [o for o in tiny_run_overrides("depth", train_root, size=64) if not o.startswith("data.root=")]
+    cfg = compose_train(
+        [
+            *base,
+            "data=omni360",
+            f"data.root={train_root}",
+            "data.sources=[synthetic,omni360]",
+            "data.source_options={synthetic:{preset:tiny}}",
+            "logger=csv",
+        ]
+    )
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(tmp_path)
+    train(cfg)
+    record = json.loads((tmp_path / "results.json").read_text())
+    tiny, omni = record["sources"]["synthetic"], record["sources"]["omni360"]
+    assert omni["dataset"]["format"] == "omni360" and omni["dataset"]["root"] == str(train_root)
+    assert tiny["dataset"]["preset"] == "tiny"
+    assert omni["dataset"]["camera"]["width"] == tiny["dataset"]["camera"]["width"] == 64
+    for part in (tiny, omni):
+        assert np.isfinite(part["metrics"]["rmse"]) and part["dataset"]["frames"] > 0
+
+
+@pytest.mark.integration
+def test_bad_inputs_on_the_command_line_are_one_line(writable_root: Path, tmp_path: Path) -> None:
+    """A missing depth folder for task=depth, a missing depth file, names the benchmark table does not know."""
+    from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
+
+    def run(*args: str):
+        base = [
+            "data=omni360",
+            f"data.root={writable_root}",
+            "trainer=debug",
+            "data.camera.size=32",
+            "data.batch_size=2",
+            "data.num_workers=0",
+            "data.persistent_workers=false",
+        ]
+        return run_in_process(
+            TRAIN, [*base, *args, f"hydra.run.dir={tmp_path / str(len(list(tmp_path.iterdir())))}"]
+        )
+
+    outcome = run("task=seg", "data.format_options.classes=benchmark")
+    assert_one_line_error(
+        outcome, "semantic_lists_demo.txt", "['Statue']", "data.format_options.benchmark_map"
+    )
+    outcome = run(
+        "task=seg", "data.format_options.classes=benchmark", "data.format_options.benchmark_map={Statu:null}"
+    )
+    assert_one_line_error(
+        outcome, "data.format_options.benchmark_map.Statu", "no scene's class list names 'Statu'"
+    )
+    shutil.rmtree(writable_root / "Demo" / "depth")
+    outcome = run("task=depth")
+    assert_one_line_error(outcome, str(writable_root / "Demo"), "no depth folder", "task=depth needs it")
+    (writable_root / "NYC" / "nyc_Depth" / "Depth_4.h5").unlink()  # the test frame: every run loads it
+    outcome = run("task=completion", "data.format_options.scenes=[NYC]", "model.encoder_name=resnet18")
+    assert_one_line_error(
+        outcome, str(writable_root / "NYC" / "nyc_Depth"), "no depth file for panorama_4.png"
+    )
