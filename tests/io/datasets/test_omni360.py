@@ -583,3 +583,23 @@ def test_bad_inputs_on_the_command_line_are_one_line(writable_root: Path, tmp_pa
     assert_one_line_error(
         outcome, str(writable_root / "NYC" / "nyc_Depth"), "no depth file for panorama_4.png"
     )
+
+
+def test_the_config_lists_every_option_with_its_default() -> None:
+    from tests.helpers.configs import compose_train
+
+    cfg = compose_train(["task=seg", "data=omni360"])
+    assert cfg.data.format == "omni360" and cfg.data.source == "equirect" and cfg.data.root is None
+    assert dict(cfg.data.format_options) == Omni360Source.OPTIONS
+
+
+def test_design_md_prints_the_class_table_of_the_code() -> None:
+    from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES
+
+    text = (Path(__file__).resolve().parents[3] / "docs" / "design.md").read_text(encoding="utf-8")
+    section = text.split("### AirSim360 / Omni360-X", 1)[1].split("\n### ", 1)[0]
+    for c in BENCHMARK_CLASSES:
+        names = ", ".join(f"`{n}`" for n, t in OMNI360_TO_BENCHMARK.items() if t == c.name)
+        assert f"| {c.id} | {c.name} | {names} |" in section, c.name
+    ignored = ", ".join(f"`{n}`" for n, t in OMNI360_TO_BENCHMARK.items() if t is None)
+    assert f"| 255 | ignored | {ignored} |" in section
