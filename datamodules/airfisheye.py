@@ -19,6 +19,7 @@ from torch.utils.data import DataLoader
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry.gimbal import Gimbal
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
@@ -85,6 +86,9 @@ class AirFisheyeDataModule(L.LightningDataModule):
             than one source"). The top-level ``root``, ``format``, ``preset`` are then what names inherit.
         source_options: Each source's settings by name (``format``, ``root``, ``format_options``, ``preset``,
             ``dataset_seed``, ``splits``, ``source``, ``class_map``, ``weight``).
+        gimbal: A virtual gimbal turning the served camera relative to the remapped source
+            (:mod:`~airfisheye_bench.geometry.gimbal`: a view ``[yaw, pitch(, roll)]`` in degrees, a list of views,
+            or ranges ``{pitch_deg: [0, 45], ...}`` drawn per training sample); evaluation splits get fixed views.
 
     Example:
         >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
@@ -121,6 +125,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         format_options: dict[str, Any] | None = None,
         sources: list[str] | None = None,
         source_options: dict[str, dict[str, Any]] | None = None,
+        gimbal: Any = None,
     ) -> None:
         super().__init__()
         if batch_size < 1:
@@ -176,6 +181,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
             dataset_format=format,
             format_options=dict(format_options or {}),
         )
+        try:
+            self.gimbal = Gimbal.parse(gimbal)
+        except ValueError as err:
+            raise ConfigError(str(err)) from None
         self.batch_size = batch_size
         self.eval_batch_size = eval_batch_size or batch_size
         self.loader_kwargs = dict(
@@ -207,6 +216,9 @@ class AirFisheyeDataModule(L.LightningDataModule):
     def _open_split(
         self, index: int, augment: FisheyeAugment | None
     ) -> AirFisheyeDataset | MultiSourceDataset:
+        # Training draws a view per sample and epoch; validation and test serve fixed views.
+        gimbal = self.gimbal.for_split(training=index == 0) if self.gimbal is not None else None
+        kwargs = {**self.dataset_kwargs, "gimbal": gimbal}
         if self.sources:
             lidar = {name: spec for name, (_, spec) in self.source_lidar.items()}
             return open_split(
@@ -216,13 +228,11 @@ class AirFisheyeDataModule(L.LightningDataModule):
                 self.split_names,
                 self.seed,
                 augment,
-                self.dataset_kwargs,
+                kwargs,
                 lidar,
             )
         name = self.split_names[index]
-        return AirFisheyeDataset(
-            self.dataset_root(), name, augment=augment, seed=self.seed, **self.dataset_kwargs
-        )
+        return AirFisheyeDataset(self.dataset_root(), name, augment=augment, seed=self.seed, **kwargs)
 
     def train_dataloader(self) -> DataLoader:
         dataset = self._dataset(0)

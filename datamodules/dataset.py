@@ -30,9 +30,10 @@ LiDAR (``sparse_depth``): the scan's rings come from where they are known (docs/
 or the generator's ``lidar_beam``, the firing order of KITTI ``.bin``, else the channel table), then returns closer
 than ``lidar_min_range`` and returns no channel explains are removed and counted (``lidar_counts``; logged for
 the first frame a process serves), and with ``lidar_density="paper"`` only the returns of a fixed subset of beams
-are kept, before the occlusion correction. A source that simulates its LiDAR from depth (``cast_scan(sample_id,
-spec)``) casts the served sensor; one whose LiDAR sees from the camera's centre (``parallax_free``) has no point the
-camera cannot see, and its scans are projected without occlusion correction.
+are served, of those the occlusion correction kept on the whole scan at the paper's pixel scale. A source that
+simulates its LiDAR from depth (``cast_scan(sample_id, spec)``) casts the served sensor; one whose LiDAR sees from
+the camera's centre (``parallax_free``) has no point the camera cannot see, and its scans are projected without
+occlusion correction.
 """
 
 from __future__ import annotations
@@ -50,9 +51,17 @@ from torch.utils.data import Dataset
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, EquirectToFisheye
+from airfisheye_bench.geometry.gimbal import Gimbal, View
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset
-from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options, lidar_depth_map
+from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset, paper_scale_camera
+from airfisheye_bench.geometry.occlusion import (
+    ORACLE,
+    Occlusion,
+    check_sparse_input_options,
+    lidar_depth_map,
+    occlusion_mask,
+)
+from airfisheye_bench.geometry.remap_table import reserve_tables
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.io import DatasetFormatError, EmptySplitError
@@ -68,6 +77,8 @@ log = logging.getLogger(__name__)
 
 #: The task-dependent keys a sample can hold, in the order they are loaded.
 SAMPLE_KEYS = ("label", "depth", "sparse_depth")
+#: Memory the lookup tables of a virtual gimbal's views may take per process; views beyond it are rebuilt in turn.
+GIMBAL_TABLE_BUDGET_BYTES = 1 << 30
 
 
 class AirFisheyeDataset(Dataset):
@@ -100,7 +111,11 @@ class AirFisheyeDataset(Dataset):
         format_options: That format's options (``data.format_options``; unset ones take their defaults).
         lidar_density: ``native`` serves every return; ``paper`` a fixed subset of the scan's beams with which the
             served image gets the returns per pixel of the paper's sensor on its 1536^2 image
-            (:mod:`~airfisheye_bench.geometry.lidar_density`), before the occlusion correction.
+            (:mod:`~airfisheye_bench.geometry.lidar_density`), of the returns the occlusion correction kept on the
+            whole scan at the paper's pixel scale (``paper_scale_camera``).
+        gimbal: A virtual gimbal for this split (``Gimbal.parse(data.gimbal).for_split(training)``): each sample's
+            camera is turned to its view before the remap (``source=cubemap`` or ``equirect``), and the LiDAR with it;
+            ``None``: the recorded orientation.
         source_fallback: When the dataset has no ``source`` recording but the other raw one (``cubemap`` <->
             ``equirect``), remap that one instead (logged): a source of a mixture that ``data.source`` does not fit
             (a synthetic preset beside panoramas).
@@ -130,6 +145,7 @@ class AirFisheyeDataset(Dataset):
         dataset_format: str = "airfisheye",
         format_options: Mapping | None = None,
         lidar_density: str = "native",
+        gimbal: Gimbal | None = None,
         source_fallback: bool = False,
     ) -> None:
         task_spec = get_task(task)
@@ -139,6 +155,11 @@ class AirFisheyeDataset(Dataset):
             raise ValueError(f"source must be one of {IMAGE_SOURCES}, got {source!r}")
         if not max_depth > 0:
             raise ValueError(f"max_depth must be positive, got {max_depth}")
+        if gimbal is not None and source not in REMAP_SOURCES:
+            raise ConfigError(
+                "data.gimbal turns the camera of a remap source: it needs data.source=cubemap or equirect "
+                "(pre-rendered fisheye images have a fixed orientation)"
+            )
         self.reader = open_dataset(root, dataset_format, dict(format_options or {}))
         self.spec = self.reader.spec
         self.split = split
@@ -156,6 +177,7 @@ class AirFisheyeDataset(Dataset):
         ):  # checked once here; every frame is projected with it as it is
             occlusion = Occlusion(occlusion, occlusion_options or {})
         self.occlusion = occlusion
+        self._visible_cache: dict[str, np.ndarray] = {}  # _paper_scale_visible's masks by frame
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -219,12 +241,11 @@ class AirFisheyeDataset(Dataset):
         self._outside_frame = outside if outside is not None and outside.any() else None
         self.face_size = first_calib.face_size
         self.label_lut = torch.from_numpy(self.spec.label_lut())
-        self._remap: CubemapToFisheye | EquirectToFisheye | None = None
-        if source == "cubemap":
-            self._remap = CubemapToFisheye(self.camera, self.face_size)
-        elif source == "equirect":
-            rotation = getattr(self.reader, "pano_rotation", None)
-            self._remap = EquirectToFisheye(self.camera, self.spec.equirect_size, rotation=rotation)
+        self.gimbal = gimbal
+        self._remaps: dict[View, CubemapToFisheye | EquirectToFisheye] = {}
+        fixed = gimbal.fixed if gimbal is not None else None
+        # The remap of the split's one orientation (recorded, or the gimbal's fixed view); per-sample views get theirs.
+        self._remap = self._remap_for(fixed or (0.0, 0.0, 0.0)) if source in REMAP_SOURCES else None
         self._mean = torch.tensor(IMAGENET_MEAN).view(3, 1, 1)
         self._std = torch.tensor(IMAGENET_STD).view(3, 1, 1)
 
@@ -233,15 +254,70 @@ class AirFisheyeDataset(Dataset):
 
     @cached_property
     def valid_mask(self) -> torch.Tensor:
-        """``[H, W]`` pixels that carry data (inside the image circle, on a cube face, on the calibrated sensor)."""
-        valid = self._remap.valid_mask if self._remap is not None else self.camera.valid_mask()
+        """``[H, W]`` pixels that carry data (inside the image circle, on a cube face, on the calibrated sensor), at
+        the split's one orientation (a sample of a varying gimbal serves its own view's in ``valid_mask``)."""
+        return self._valid(self._remap)
+
+    def _valid(self, remap: CubemapToFisheye | EquirectToFisheye | None) -> torch.Tensor:
+        valid = remap.valid_mask if remap is not None else self.camera.valid_mask()
         return valid & ~self._outside_frame if self._outside_frame is not None else valid
 
     def warm_up(self) -> None:
-        """Build the remap lookup tables now, so DataLoader workers inherit them instead of rebuilding them."""
-        if self._remap is not None:
+        """Build the remap lookup tables now, so DataLoader workers inherit them instead of rebuilding them.
+
+        With a virtual gimbal, every view's tables when they fit :data:`GIMBAL_TABLE_BUDGET_BYTES` (the rest are
+        built when first served, in the process that serves them).
+        """
+        if self._remap is None:
+            return
+        views = [None]
+        if self.gimbal is not None and self.gimbal.fixed is None:
+            pixels = int(self.camera.valid_mask().sum())
+            per_view = pixels * (
+                4 * 8 + 8 + 2 * 8
+            )  # bilinear taps and weights, nearest index, two pixel lists
+            fits = max(1, GIMBAL_TABLE_BUDGET_BYTES // per_view)
+            count = self.gimbal.view_count()
+            reserve_tables(2 * min(count, fits) + 2)
+            if count <= fits:
+                views = self.gimbal.all_views()
+                log.info("data.gimbal: building the lookup tables of %d views (%s)", count, self.split)
+            else:
+                log.warning(
+                    "data.gimbal: %d views, the tables of %d fit in %d MB; the others are built when served "
+                    "(tens of ms each at this size): a coarser data.gimbal.step_deg keeps them all",
+                    count,
+                    fits,
+                    GIMBAL_TABLE_BUDGET_BYTES >> 20,
+                )
+        for view in views:
+            remap = self._remap if view is None else self._remap_for(view)
             for mode in ("bilinear", "nearest"):
-                self._remap.table(mode)
+                remap.table(mode)
+
+    def _remap_for(self, view: View) -> CubemapToFisheye | EquirectToFisheye:
+        """The remap of the camera turned to ``view`` (one object per view; its tables live in the process cache).
+
+        A panorama's camera is its source's recorded one, ``R_pano_cam0`` (``pano_rotation``), turned by the view.
+        """
+        if view not in self._remaps:
+            turn = Gimbal.rotation(view)
+            if self.source == "cubemap":
+                self._remaps[view] = CubemapToFisheye(self.camera, self.face_size, rotation=turn)
+            else:
+                recorded = getattr(self.reader, "pano_rotation", None)
+                rotation = recorded if turn is None else turn if recorded is None else recorded @ turn
+                self._remaps[view] = EquirectToFisheye(
+                    self.camera, self.spec.equirect_size, rotation=rotation
+                )
+        return self._remaps[view]
+
+    def sample_view(self, index: int) -> View | None:
+        """The gimbal view of sample ``index`` in the current epoch (``None`` without a gimbal)."""
+        if self.gimbal is None:
+            return None
+        draw = draw_seed(self.seed, self._epoch.get(), index) if self.gimbal.training else None
+        return self.gimbal.view(index, draw)
 
     def __getitem__(self, index: int) -> dict | None:
         sample_id = self.sample_ids[index]
@@ -263,17 +339,22 @@ class AirFisheyeDataset(Dataset):
         if self.augment is not None:
             generator = torch.Generator().manual_seed(draw_seed(self.seed, self._epoch.get(), index))
             params = self.augment.sample(generator)
-        valid = self.valid_mask
-        rgb = self._dense(sample_id, "rgb")  # uint8 [3, H, W]
+        view = self.sample_view(index)
+        remap = self._remap if view is None else self._remap_for(view)
+        valid = self.valid_mask if remap is self._remap else self._valid(remap)
+        turn = None if view is None else Gimbal.rotation(view)  # R_src_cam: the LiDAR turns with the camera
+        rgb = self._dense(sample_id, "rgb", remap)  # uint8 [3, H, W]
         out: dict = {"sample_id": sample_id}
         if "label" in self.sample_keys:
-            out["label"] = self._label(sample_id)
+            out["label"] = self._label(sample_id, remap)
         if "depth" in self.sample_keys and self._depth_from_points:
-            out["depth"] = self._point_depth(sample_id, params)  # projected at the served, augmented camera
+            out["depth"] = self._point_depth(
+                sample_id, params, turn
+            )  # projected at the served, augmented camera
         elif "depth" in self.sample_keys:
-            out["depth"] = self._clip_depth(self._dense(sample_id, "depth"))  # float32 [1, H, W]
+            out["depth"] = self._clip_depth(self._dense(sample_id, "depth", remap))  # float32 [1, H, W]
         if "sparse_depth" in self.sample_keys:
-            out["sparse_depth"] = self._sparse_depth(sample_id, params)
+            out["sparse_depth"] = self._sparse_depth(sample_id, params, turn)
         if self._outside_frame is not None:  # a padded calibration: the bands beyond its sensor show nothing
             rgb = rgb.masked_fill(self._outside_frame, 0)
             if "label" in out:
@@ -321,9 +402,9 @@ class AirFisheyeDataset(Dataset):
             out["depth"] = moved[-1:]
         return rgb, valid, out
 
-    def _label(self, sample_id: str) -> torch.Tensor:
+    def _label(self, sample_id: str, remap: CubemapToFisheye | EquirectToFisheye | None) -> torch.Tensor:
         """Training-class ids ``[H, W]`` (raw ids mapped through ``dataset.yaml``; unknown raw ids are an error)."""
-        raw = self._dense(sample_id, "seg")[0]
+        raw = self._dense(sample_id, "seg", remap)[0]
         unknown = self.spec.unknown_label_ids(raw.numpy())
         if unknown:
             raise DatasetFormatError(
@@ -331,17 +412,20 @@ class AirFisheyeDataset(Dataset):
             )
         return self.label_lut[raw.long()]
 
-    def _dense(self, sample_id: str, modality: str) -> torch.Tensor:
-        """One dense modality at the served camera: ``[C, H, W]`` (uint8 RGB / raw labels, float32 depth)."""
-        if self._remap is not None:
+    def _dense(
+        self, sample_id: str, modality: str, remap: CubemapToFisheye | EquirectToFisheye | None
+    ) -> torch.Tensor:
+        """One dense modality at the served camera (through ``remap``: the sample's view): ``[C, H, W]`` (uint8 RGB
+        / raw labels, float32 depth)."""
+        if remap is not None:
             faces = (
                 self._faces(sample_id, modality)
                 if self.source == "cubemap"
                 else self._panorama(sample_id, modality)
             )
             if modality == "rgb":
-                return self._remap(faces, "bilinear")
-            out = self._remap(faces, "nearest", fill=self.spec.ignore_index if modality == "seg" else 0)
+                return remap(faces, "bilinear")
+            out = remap(faces, "nearest", fill=self.spec.ignore_index if modality == "seg" else 0)
             if modality == "depth":  # only the texels the fisheye sees matter
                 self._check_finite(out, sample_id, modality)
             return out
@@ -428,7 +512,7 @@ class AirFisheyeDataset(Dataset):
             points = deskew(sample_id, points)
         return points, rings[kept.keep], spec, kept.keep
 
-    def _sparse_depth(self, sample_id: str, params) -> torch.Tensor:
+    def _sparse_depth(self, sample_id: str, params, turn: np.ndarray | None = None) -> torch.Tensor:
         points, rings, spec, keep = self.filtered_scan(sample_id)
         method = self.occlusion
         if self.parallax_free:  # every return is seen by the camera: nothing to correct
@@ -438,14 +522,17 @@ class AirFisheyeDataset(Dataset):
         ):  # the truly visible points, projected without a test
             visible = oracle_visible(self.reader, sample_id, keep)
             points, rings, method = points[visible], rings[visible], Occlusion("none")
-        if (
-            self.lidar_density == "paper"
-        ):  # a sparser sensor's returns, so the correction sees what it would get
+        T = _augmented(_turned(self.T_cam_lidar(sample_id), turn), params)
+        if self.lidar_density == "paper":
             camera = self.camera
             subset = paper_density_subset(spec, max(camera.width, camera.height), camera.coverage_deg)
+            if (method.method if isinstance(method, Occlusion) else method) != "none":
+                # The correction decides on the whole scan at the paper's pixel scale, as the paper's pipeline
+                # would; the subset of its kept returns is served (docs/design.md, "Sparse input density").
+                visible = self._paper_scale_visible(sample_id, points, T, spec, method, rings, params, turn)
+                points, rings, method = points[visible], rings[visible], Occlusion("none")
             served = subset.mask(points, rings, spec)
             points, rings = points[served], rings[served]
-        T = _augmented(self.T_cam_lidar(sample_id), params)
         depth = lidar_depth_map(
             points,
             T,
@@ -458,7 +545,23 @@ class AirFisheyeDataset(Dataset):
         )
         return torch.from_numpy(depth)[None]
 
-    def _point_depth(self, sample_id: str, params) -> torch.Tensor:
+    def _paper_scale_visible(
+        self, sample_id, points, T, spec, method, rings, params, turn=None
+    ) -> np.ndarray:
+        """The correction's mask on the whole scan at the paper's pixel scale (1-2 s a frame at 1536^2 for the
+        image-based methods). Without a rotation it is the same every epoch (a flip mirrors the kept points
+        afterwards), so it is kept per frame for the life of the worker: a few MB for a few hundred frames. A
+        gimbal view that varies per sample is a rotation too."""
+        varying_view = turn is not None and (self.gimbal is None or self.gimbal.fixed is None)
+        cacheable = (params is None or params.angle_rad == 0.0) and not varying_view
+        if cacheable and sample_id in self._visible_cache:
+            return self._visible_cache[sample_id]
+        visible = np.asarray(occlusion_mask(points, T, paper_scale_camera(self.camera), spec, method, rings))
+        if cacheable:
+            self._visible_cache[sample_id] = visible
+        return visible
+
+    def _point_depth(self, sample_id: str, params, turn: np.ndarray | None = None) -> torch.Tensor:
         """The depth target of a source that gives it as LiDAR points (``depth_points``), ``[1, H, W]``: projected
         at the served camera with the sample's augmentation, as ``sparse_depth`` (no resampling of a sparse map),
         its own occlusion removed, always motion-compensated (it is the ground truth)."""
@@ -466,7 +569,7 @@ class AirFisheyeDataset(Dataset):
         spec = self.lidar_spec or self.reader.calib(sample_id).lidar_spec()
         depth = lidar_depth_map(
             target.points,
-            _augmented(np.asarray(self.reader.T_cam_lidar(sample_id), np.float64), params),
+            _augmented(_turned(np.asarray(self.reader.T_cam_lidar(sample_id), np.float64), turn), params),
             self.camera,
             spec,
             method=Occlusion(target.occlusion, target.occlusion_options),
@@ -497,6 +600,15 @@ class AirFisheyeDataset(Dataset):
 
     def _path(self, sample_id: str, modality: str) -> Path:
         return self.reader.path_of(sample_id, modality, self.source)
+
+
+def _turned(T_cam_lidar: np.ndarray, turn: np.ndarray | None) -> np.ndarray:
+    """``T_cam_lidar`` of the camera turned by a gimbal view (``turn = R_src_cam``; ``None``: not turned)."""
+    if turn is None:
+        return T_cam_lidar
+    T = np.eye(4)
+    T[:3, :3] = turn.T  # source-camera directions -> the turned camera's
+    return T @ T_cam_lidar
 
 
 def _augmented(T_cam_lidar: np.ndarray, params) -> np.ndarray:

@@ -6,6 +6,12 @@ Measures, on one thread:
     ``cv2.remap`` on the same data (OpenCV's fastest layout: the faces as one padded atlas with fixed-point
     ``CV_16SC2`` maps, so cv2 does a single remap per modality, as py360convert does).
 
+With ``--erp``, the equirectangular source beside the cube at the same output size (``EquirectToFisheye`` from a
+``2S x 4S`` panorama, the cube faces' angular resolution at their centres, against ``CubemapToFisheye`` from five
+``S^2`` faces): the bilinear and nearest table builds (the camera's ray grid built beforehand, so only the table is
+timed), the same two for a new orientation (what a per-sample gimbal view costs without a cached table), and the
+RGB / label / depth remaps.
+
 And, with ``--models``, one row per camera-model family (each a published calibration scaled to an
 ``out x out`` sensor, ``tests/geometry/golden/calibrations.json``): the time to build the camera's ray grid and
 valid mask (back-projection of every pixel: closed forms or vectorised Newton), the bilinear lookup table from
@@ -13,6 +19,7 @@ scratch, and one RGB remap with it.
 
 Usage:
     python scripts/bench_remap.py [--face 1024] [--out 1536] [--repeat 7]
+    python scripts/bench_remap.py --erp [--face 1024 512] [--out 1536 512] [--repeat 7]
     python scripts/bench_remap.py --models [--face 1024] [--out 1536] [--repeat 3]
 
 OpenCV comes from the optional ``bench`` extra (``pip install -e ".[bench]"``).
@@ -28,7 +35,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry import CameraModel, CubemapToFisheye, FisheyeCamera, camera_from_dict
+from airfisheye_bench.geometry import (
+    CameraModel,
+    CubemapToFisheye,
+    EquirectToFisheye,
+    FisheyeCamera,
+    camera_from_dict,
+    gimbal_rotation,
+)
 from airfisheye_bench.geometry.cubemap import clear_table_cache, direction_to_face
 
 CALIBRATIONS = Path(__file__).resolve().parents[1] / "tests" / "geometry" / "golden" / "calibrations.json"
@@ -102,6 +116,76 @@ def bench(face: int, out: int, repeat: int) -> dict[str, float]:
     return {"lut_ms": lut_ms, "ours": ours, "cv2": cv, "cv2_atlas_ms": cv_with_atlas}
 
 
+def bench_sources(face: int, out: int, repeat: int) -> dict[str, dict[str, float]]:
+    """Cube faces and an equirectangular panorama to one fisheye, side by side: table builds and remaps (ms)."""
+    torch.set_num_threads(1)
+    rng = np.random.default_rng(0)
+    h, w = 2 * face, 4 * face
+    data = {
+        "cube": (
+            rng.integers(0, 256, (5, face, face, 3), dtype=np.uint8),
+            rng.integers(0, 23, (5, face, face, 1), dtype=np.uint8),
+            rng.uniform(1, 120, (5, face, face, 1)).astype(np.float32),
+        ),
+        "erp": (
+            rng.integers(0, 256, (h, w, 3), dtype=np.uint8),
+            rng.integers(0, 23, (h, w, 1), dtype=np.uint8),
+            rng.uniform(1, 120, (h, w, 1)).astype(np.float32),
+        ),
+    }
+    camera = FisheyeCamera(out, out)
+    camera.valid_mask()  # the ray grid is the camera's, shared by both sources: not timed
+    make = {
+        "cube": lambda rotation=None: CubemapToFisheye(camera, face, rotation=rotation),
+        "erp": lambda rotation=None: EquirectToFisheye(camera, (h, w), rotation=rotation),
+    }
+    result = {}
+    for source in ("cube", "erp"):
+        builds = {"bilinear": [], "nearest": [], "rotated bilinear": [], "rotated nearest": []}
+        for i in range(max(1, repeat // 2)):
+            clear_table_cache()
+            remap = make[source]()
+            rotated = make[source](gimbal_rotation(yaw_deg=7.0 + i, pitch_deg=31.0 + i))
+            for name, r, mode in (
+                ("bilinear", remap, "bilinear"),
+                ("nearest", remap, "nearest"),
+                ("rotated bilinear", rotated, "bilinear"),
+                ("rotated nearest", rotated, "nearest"),
+            ):
+                t0 = time.perf_counter()
+                r.table(mode)
+                builds[name].append((time.perf_counter() - t0) * 1e3)
+        # The decoded HWC arrays viewed channels-first without a copy, as the datamodule passes them.
+        axes = (0, 3, 1, 2) if source == "cube" else (2, 0, 1)
+        rgb, label, depth = (torch.from_numpy(x).permute(*axes) for x in data[source])
+        remap = make[source]()
+        result[source] = {
+            **{name: min(times) for name, times in builds.items()},
+            "rgb": timeit(lambda remap=remap, rgb=rgb: remap(rgb, "bilinear"), repeat),
+            "label": timeit(lambda remap=remap, label=label: remap(label, "nearest", fill=255), repeat),
+            "depth": timeit(lambda remap=remap, depth=depth: remap(depth, "nearest"), repeat),
+        }
+    return result
+
+
+def print_sources(faces: list[int], outs: list[int], repeat: int) -> None:
+    print(
+        "| source | output | table build bilinear / nearest (ms) | new orientation bilinear / nearest (ms) "
+        "| RGB / label / depth (ms) | remap total (ms) |"
+    )
+    print("|---|---|---|---|---|---|")
+    for face, out in zip(faces, outs, strict=True):
+        r = bench_sources(face, out, repeat)
+        for source, label in (("cube", f"cube 5x{face}^2"), ("erp", f"ERP {2 * face}x{4 * face}")):
+            x = r[source]
+            print(
+                f"| {label} | {out}^2 | {x['bilinear']:.0f} / {x['nearest']:.0f} "
+                f"| {x['rotated bilinear']:.0f} / {x['rotated nearest']:.0f} "
+                f"| {x['rgb']:.1f} / {x['label']:.1f} / {x['depth']:.1f} | {x['rgb'] + x['label'] + x['depth']:.1f} |",
+                flush=True,
+            )
+
+
 def model_cameras(out: int) -> dict[str, CameraModel]:
     """One camera per model family on an ``out x out`` sensor: the published calibrations, scaled."""
     cal = {k: v["camera"] for k, v in json.loads(CALIBRATIONS.read_text())["cameras"].items()}
@@ -171,7 +255,11 @@ def main() -> None:
     parser.add_argument("--out", type=int, nargs="+", default=[1536, 512])
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--models", action="store_true", help="one row per camera-model family instead")
+    parser.add_argument("--erp", action="store_true", help="the panorama source beside the cube instead")
     args = parser.parse_args()
+    if args.erp:
+        print_sources(args.face, args.out, args.repeat)
+        return
     if args.models:
         bench_models(args.face[0], args.out[0], args.repeat)
         return

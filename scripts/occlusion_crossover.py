@@ -25,6 +25,7 @@ from typing import Any
 import torch
 
 from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.crossover import (
     CROSSOVER_ARMS,
@@ -57,6 +58,12 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         help="with --preset: the rig flown with this real sensor (e.g. hdl64e), as data.lidar.preset",
     )
     parser.add_argument("--size", type=int, nargs="+", help="served sizes (with --ckpt: one)")
+    parser.add_argument(
+        "--density",
+        default="native",
+        choices=("native", "paper"),
+        help="without --ckpt: data.lidar.density (paper: the paper sensor's returns per pixel at every size)",
+    )
     parser.add_argument("--split", default="test")
     parser.add_argument(
         "--arms",
@@ -107,6 +114,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         payload.update(
             checkpoint=str(checkpoint), trained_with=run.data.get("occlusion"), model=dict(run.model)
         )
+        payload["provenance"] = provenance("scripts/occlusion_crossover.py", argv)
         max_depth = float(run.data.get("max_depth", 120.0))
         plan = [datasets]
     else:
@@ -115,9 +123,17 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             if args.root
             else ensure_dataset(args.preset, progress=False, lidar_preset=args.lidar_preset)
         )
-        payload.update(dataset=str(root), source=args.source, lidar_preset=args.lidar_preset)
+        payload.update(
+            dataset=str(root), source=args.source, lidar_preset=args.lidar_preset, lidar_density=args.density
+        )
+        payload["provenance"] = provenance(
+            "scripts/occlusion_crossover.py", argv, root, f"airfisheye-synthetic-{args.preset}"
+        )
         predictor, max_depth = None, 120.0
-        plan = [arm_datasets(root, args.split, args.arms, args.source, size) for size in args.size or [None]]
+        plan = [
+            arm_datasets(root, args.split, args.arms, args.source, size, lidar_density=args.density)
+            for size in args.size or [None]
+        ]
     for datasets in plan:
         first = next(iter(datasets.values()))
         result = crossover(

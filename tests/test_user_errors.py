@@ -491,6 +491,21 @@ SCHEMA_TABLE = [
         ["data.occlusion=hpr", "data.occlusion_options={radius:0.5}"],
         "data.occlusion_options={'radius': 0.5}: radius must be a number > 1",
     ),
+    (
+        "train",
+        ["data.gimbal={pitch_deg:[45,0]}"],
+        "data.gimbal={'pitch_deg': [45, 0]}: pitch_deg=[45, 0]: expected a number of degrees or [low, high]",
+    ),
+    (
+        "train",
+        ["data.gimbal=[0,30,0,1]"],
+        "data.gimbal=[0, 30, 0, 1]: view [0, 30, 0, 1]: expected [yaw, pitch] or",
+    ),
+    (
+        "train",
+        ["data.gimbal=[0,30]", "data.source=fisheye"],
+        "data.gimbal=[0, 30]: needs data.source=cubemap",
+    ),
     ("train", ["data.format=kitti"], "data.format='kitti': expected one of airfisheye"),
     (
         "train",

@@ -21,6 +21,13 @@ skipped, so an interrupted ablation resumes; a failed run stops the script.
     python scripts/occlusion_ablation.py --out runs/ablation_occlusion --collect-only --json ablation.json
 
 Everything after ``--`` is passed to ``train.py`` as is (Hydra overrides).
+
+With ``--record DIR`` each finished run also leaves its record in ``DIR`` (``<method>_seed<s>.json``,
+:mod:`airfisheye_bench.benchmarks.ablation_records`: commit, command, data identity, validation curve, per-frame
+scores on every region, the method-neutral ``changed`` one included), ``--commit-records`` commits it to git at
+once, and ``--collect-only --record DIR`` summarises the records alone, with the test flight as the unit and a
+Holm correction over the family. A run is refused when the checkout has uncommitted changes (a result is never
+trained from code that no commit holds); ``--allow-dirty`` is for trying the tool.
 """
 
 from __future__ import annotations
@@ -30,14 +37,18 @@ import json
 import math
 import subprocess
 import sys
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.evaluation.crossover import run_region_scores
+from airfisheye_bench.benchmarks import ablation_records
+from airfisheye_bench.benchmarks.provenance import provenance
+from airfisheye_bench.evaluation.crossover import run_frame_scores, run_region_scores
 from airfisheye_bench.evaluation.paired import paired_differences, paired_table
+from airfisheye_bench.evaluation.quickstart import git_commit
 from airfisheye_bench.geometry import occlusion
 from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
 
@@ -97,14 +108,88 @@ def plan(out: Path, methods: Sequence[str], seeds: Sequence[int]) -> list[Run]:
     return [Run(m, int(s), out / m / f"seed{int(s)}") for s in seeds for m in methods]
 
 
-def execute(runs: Sequence[Run], overrides: Sequence[str], runner: Callable[[list[str]], None]) -> None:
-    """Train every run that has no ``results.json`` yet."""
+def execute(
+    runs: Sequence[Run],
+    overrides: Sequence[str],
+    runner: Callable[[list[str]], None],
+    after: Callable[[Run], None] | None = None,
+    allow_dirty: bool = True,
+) -> None:
+    """Train every run that has no ``results.json`` yet; ``after(run)`` once each has finished (or was found
+    finished). Each run's commit (taken when it starts), command and wall time go to ``<run>/provenance.json``."""
     for k, run in enumerate(runs, 1):
         if run.results.is_file():
             print(f"[{k}/{len(runs)}] {run.method} seed {run.seed}: done already", file=sys.stderr)
-            continue
-        print(f"[{k}/{len(runs)}] {run.method} seed {run.seed}", file=sys.stderr)
-        runner(run.argv(overrides))
+        else:
+            commit = git_commit(REPO)
+            if commit.endswith("+dirty") and not allow_dirty:
+                raise SystemExit(
+                    f"{REPO}: uncommitted changes; a study run must train from a commit (commit them, or "
+                    "--allow-dirty to try the tool)"
+                )
+            print(f"[{k}/{len(runs)}] {run.method} seed {run.seed}", file=sys.stderr)
+            argv = run.argv(overrides)
+            command = " ".join(["python", *(Path(a).name if a == argv[1] else a for a in argv[1:])])
+            started = time.time()  # the commit and the start are taken before train.py runs
+            runner(argv)
+            record = {"commit": commit, "command": command, "wall_s": round(time.time() - started, 1)}
+            atomic_write_text(run.out / "provenance.json", json.dumps(record, indent=2) + "\n")
+        if after is not None:
+            after(run)
+
+
+def write_record(
+    run: Run,
+    folder: Path,
+    commit_it: bool = False,
+    frame_scorer: Callable[[Path], dict[str, Any]] = run_frame_scores,
+) -> Path | None:
+    """Score a finished run per frame (``frames.json`` in the run) and write its record into ``folder``
+    (:func:`~airfisheye_bench.benchmarks.ablation_records.build_record`); with ``commit_it``, commit it."""
+    target = folder / f"{run.method}_seed{run.seed}.json"
+    if target.is_file() or not run.results.is_file():
+        return None
+    frames_path = run.out / "frames.json"
+    if not frames_path.is_file():
+        print(f"frames: {run.method} seed {run.seed}", file=sys.stderr)
+        atomic_write_text(frames_path, json.dumps(frame_scorer(run.out), indent=1) + "\n")
+    frames = json.loads(frames_path.read_text(encoding="utf-8"))
+    results = json.loads(run.results.read_text(encoding="utf-8"))
+    prov_path = run.out / "provenance.json"
+    prov = json.loads(prov_path.read_text(encoding="utf-8")) if prov_path.is_file() else {}
+    prov.setdefault("commit", "unknown")
+    prov["scored_by"] = git_commit(REPO)
+    primary = f"val/{results.get('primary_metric', 'rmse')}"
+    curve = ablation_records.validation_curve(run.out / "metrics.csv", primary)
+    record = ablation_records.build_record(
+        run.method, run.seed, prov, results, frames, curve, prov.pop("wall_s", None)
+    )
+    folder.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(target, json.dumps(record, indent=1, allow_nan=False) + "\n")
+    if commit_it:
+        _git_commit_file(target, f"Occlusion ablation: the record of {run.method} seed {run.seed}")
+    return target
+
+
+def _git_commit_file(path: Path, message: str) -> None:
+    """Commit ``path`` alone (other staged or unstaged changes stay as they are); retried while git is busy."""
+    for attempt in range(10):
+        added = subprocess.run(
+            ["git", "add", "--", str(path)], cwd=path.parent, capture_output=True, text=True
+        )
+        done = added.returncode == 0 and (
+            subprocess.run(
+                ["git", "commit", "-q", "-m", message, "--only", "--", str(path)],
+                cwd=path.parent,
+                capture_output=True,
+                text=True,
+            ).returncode
+            == 0
+        )
+        if done:
+            return
+        time.sleep(2 + attempt)
+    print(f"could not commit {path}: commit it by hand", file=sys.stderr)
 
 
 def run_subprocess(argv: list[str]) -> None:
@@ -231,6 +316,13 @@ def parse_args(argv: Sequence[str] | None) -> tuple[argparse.Namespace, list[str
         "--radius", type=int, default=DEFAULT_RADIUS_PX, help="dilation of the affected pixels"
     )
     parser.add_argument("--near", type=float, default=DEFAULT_NEAR_M, help="near-range bound in metres")
+    parser.add_argument("--record", type=Path, help="folder of the per-run records (and their summary)")
+    parser.add_argument(
+        "--commit-records", action="store_true", help="git-commit each record as it is written"
+    )
+    parser.add_argument(
+        "--allow-dirty", action="store_true", help="train even with uncommitted changes (not for results)"
+    )
     return parser.parse_args(argv), overrides
 
 
@@ -238,10 +330,16 @@ def main(
     argv: Sequence[str] | None = None,
     runner: Callable[[list[str]], None] = run_subprocess,
     scorer: Callable[[Path], dict[str, Any]] | None = None,
+    frame_scorer: Callable[[Path], dict[str, Any]] = run_frame_scores,
 ) -> dict[str, Any]:
     args, overrides = parse_args(argv)
     methods = args.methods or list(occlusion.SPARSE_INPUTS)
     runs = plan(args.out, methods, args.seeds)
+    if args.record is not None:
+        if not args.collect_only:
+            after = lambda run: write_record(run, args.record, args.commit_records, frame_scorer)  # noqa: E731
+            execute(runs, overrides, runner, after=after, allow_dirty=args.allow_dirty)
+        return summarise_records(args, argv)
     if not args.collect_only:
         execute(runs, overrides, runner)
         if not args.no_regions:
@@ -268,5 +366,26 @@ def main(
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)  # NaN (one seed) -> null
+        atomic_write_text(args.json, json.dumps(clean, indent=2, allow_nan=False) + "\n")
+    return payload
+
+
+def summarise_records(args: argparse.Namespace, argv: Sequence[str] | None) -> dict[str, Any]:
+    """The records' summary (:func:`~airfisheye_bench.benchmarks.ablation_records.summarise`), printed and, with
+    ``--json``, written with its provenance."""
+    records = ablation_records.load_records(args.record)
+    if not records:
+        raise SystemExit(f"no run records under {args.record}: nothing to summarise")
+    summary = ablation_records.summarise(records)
+    print(ablation_records.summary_tables(summary))
+    payload = {
+        "provenance": provenance("scripts/occlusion_ablation.py", argv),
+        "records": sorted(f"{r['method']}_seed{r['seed']}.json" for r in records),
+        "record_commits": sorted({r["provenance"]["commit"] for r in records}),
+        "datasets": sorted({(r.get("dataset") or {}).get("content_sha256", "unknown") for r in records}),
+        **summary,
+    }
+    if args.json is not None:
+        clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)  # NaN -> null
         atomic_write_text(args.json, json.dumps(clean, indent=2, allow_nan=False) + "\n")
     return payload

@@ -80,6 +80,19 @@ def _occlusion_options_problem(value: Any, method: Any) -> str | None:
     return None
 
 
+def _gimbal_problem(value: Any, source: Any) -> str | None:
+    """``data.gimbal``: the forms of ``geometry.gimbal`` (its own parser), on a remap source."""
+    from airfisheye_bench.geometry.gimbal import Gimbal  # imports torch: only when checked
+
+    try:
+        Gimbal.parse(value)
+    except ValueError as err:
+        return str(err).removeprefix("data.gimbal: ")
+    if source == "fisheye":
+        return "needs data.source=cubemap or equirect (pre-rendered fisheye images have a fixed orientation)"
+    return None
+
+
 def _lidar_densities() -> tuple[str, ...]:
     from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES  # imports torch: only when checked
 
@@ -317,6 +330,13 @@ RULES: dict[str, ValueRule] = {
         uses=("data.occlusion",),
         nullable=True,
         hint="see docs/design.md, LiDAR and occlusion",
+    ),
+    "data.gimbal": ValueRule(
+        "custom",
+        check=_gimbal_problem,
+        uses=("data.source",),
+        nullable=True,
+        hint="docs/design.md, Virtual gimbal",
     ),
     "data.lidar.density": ValueRule(
         "choice",

@@ -35,7 +35,9 @@ from airfisheye_bench.metrics.regions import (
     REGIONS,
     RegionCompletionMetrics,
     affected_pixels,
+    dilate,
     input_difference,
+    near_pixels,
 )
 from airfisheye_bench.runs import resolve_checkpoint, run_config
 from airfisheye_bench.tasks.checkpoint import load_task
@@ -44,14 +46,17 @@ from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
 
 __all__ = [
     "CROSSOVER_ARMS",
+    "FRAME_REGIONS",
     "aligned_batches",
     "arm_datasets",
     "arm_datasets_from_config",
     "crossover",
     "crossover_table",
     "difference_table",
+    "frame_scores",
     "input_differences",
     "paired_frames_table",
+    "run_frame_scores",
     "run_region_scores",
     "spread_frames",
     "window_radius_share",
@@ -109,9 +114,10 @@ def arm_datasets(
     source: str = "fisheye",
     size: int | None = None,
     max_depth: float = 120.0,
+    lidar_density: str = "native",
 ) -> dict[str, AirFisheyeDataset]:
     """``{arm: dataset}``: one split of a release served for completion with each sparse input (evaluation form:
-    no augmentation, each method at its default options)."""
+    no augmentation, each method at its default options; ``lidar_density`` as ``data.lidar.density``)."""
     return {
         arm: AirFisheyeDataset(
             root,
@@ -121,6 +127,7 @@ def arm_datasets(
             camera=CameraConfig(size=size),
             occlusion=arm,
             max_depth=max_depth,
+            lidar_density=lidar_density,
         )
         for arm in arms
     }
@@ -345,3 +352,88 @@ def difference_table(result: Mapping[str, Any]) -> str:
             f"| {100 * row['frac_of_valid']:.3f} % of {row['valid']:,} |"
         )
     return "\n".join(lines)
+
+
+#: The regions of :func:`frame_scores`: ``changed`` is method-neutral (the pixels any input changes).
+FRAME_REGIONS = ("all", "changed", "affected", "near")
+
+
+def frame_scores(
+    predict: Callable[[dict], Tensor],
+    datasets: Mapping[str, Dataset],
+    arm: str,
+    radius: int = DEFAULT_RADIUS_PX,
+    near_m: float = DEFAULT_NEAR_M,
+    max_depth: float = 120.0,
+    batch_size: int = 4,
+) -> list[dict[str, Any]]:
+    """One model tested on ``arm``'s input, scored per frame on every region of :data:`FRAME_REGIONS`.
+
+    ``changed`` favours no method: the valid pixels where *any* arm of ``datasets`` (all of
+    :data:`CROSSOVER_ARMS` for a study) serves another sparse value than ``none``, dilated by ``radius``. It holds
+    every method's changes, its wrong removals included, where ``affected`` (``none`` against the oracle only)
+    holds all of the oracle's and part of the others'.
+
+    Returns:
+        One row per frame: ``{"sample_id", "regions": {region: {"rmse", "mae", "abs_rel", "pixels"}}}`` (a region
+        without a valid pixel in the frame is left out of its row).
+    """
+    _check_arms(datasets)
+    if arm not in datasets:
+        raise ValueError(f"arm {arm!r} is not among the datasets' arms {list(datasets)}")
+    rows: list[dict[str, Any]] = []
+    for batches in aligned_batches(datasets, batch_size):
+        none, oracle = batches["none"]["sparse_depth"], batches[ORACLE]["sparse_depth"]
+        target = batches["none"]["depth"]
+        base = batches["none"]["valid_mask"].bool()
+        base = (base[:, 0] if base.ndim == 4 else base).expand(target.shape[0], *target.shape[-2:])
+        changed = torch.zeros_like(base)
+        for batch in batches.values():
+            changed |= (batch["sparse_depth"] != none)[:, 0]
+        masks = {
+            "all": base,
+            "changed": dilate(changed, radius) & base,
+            "affected": affected_pixels(none, oracle, radius, base),
+            "near": near_pixels(target, near_m) & base,
+        }
+        with torch.no_grad():
+            prediction = predict(batches[arm])
+        per_region = {}
+        for region, mask in masks.items():
+            errors, num_valid = completion_errors(prediction, target, max_depth, mask=mask)
+            per_region[region] = (errors, num_valid)
+        for b, sample_id in enumerate(batches[arm]["sample_id"]):
+            row: dict[str, Any] = {"sample_id": str(sample_id), "regions": {}}
+            for region, (errors, num_valid) in per_region.items():
+                if int(num_valid[b]) > 0:
+                    row["regions"][region] = {m: float(errors[m][b]) for m in FRAME_METRICS}
+                    row["regions"][region]["pixels"] = int(num_valid[b])
+            rows.append(row)
+    return rows
+
+
+def run_frame_scores(
+    run_dir: str | Path,
+    split: str = "test",
+    radius: int = DEFAULT_RADIUS_PX,
+    near_m: float = DEFAULT_NEAR_M,
+    batch_size: int = 4,
+) -> dict[str, Any]:
+    """A trained run's best checkpoint on its own input (its ``data.occlusion``), per frame and region
+    (:func:`frame_scores`, with every arm served for the ``changed`` region).
+
+    Returns:
+        ``{"arm", "checkpoint", "radius_px", "near_m", "frames": [rows]}``.
+    """
+    checkpoint = resolve_checkpoint(run_dir)
+    run = run_config(checkpoint)
+    if run is None:
+        raise MissingFileError(f"{checkpoint}: no config.yaml of its run next to it (its data is unknown)")
+    module = load_task(checkpoint)
+    arm = str(run.data.occlusion)
+    datasets = arm_datasets_from_config(run.data, split, CROSSOVER_ARMS)
+    max_depth = float(run.data.get("max_depth", 120.0))
+    rows = frame_scores(
+        CheckpointPredictor(module, checkpoint), datasets, arm, radius, near_m, max_depth, batch_size
+    )
+    return {"arm": arm, "checkpoint": str(checkpoint), "radius_px": radius, "near_m": near_m, "frames": rows}

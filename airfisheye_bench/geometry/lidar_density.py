@@ -45,6 +45,7 @@ __all__ = [
     "evenly_spaced",
     "paper_camera",
     "paper_density_subset",
+    "paper_scale_camera",
 ]
 
 #: ``data.lidar.density``: ``native`` (every return of the scan) or ``paper`` (the paper's returns per pixel).
@@ -125,6 +126,30 @@ def paper_density_subset(
 def paper_camera() -> FisheyeCamera:
     """The paper's fisheye: equidistant, 190 deg, 1536 x 1536."""
     return FisheyeCamera(PAPER_IMAGE_SIZE, PAPER_IMAGE_SIZE, PAPER_FOV_DEG)
+
+
+def paper_scale_camera(camera: CameraModel) -> CameraModel:
+    """The same lens with the paper image's pixels per degree (1536 px over 190 deg), where an occlusion correction
+    decides what the paper's pipeline would keep; ``camera`` itself when it is already that fine.
+
+    A correction run on the thinned scan at a small size would see occluders through a few coarse rings and
+    pixels and change a fraction of what it changes at the paper's scale (docs/design.md, "Sparse input
+    density"); deciding on the whole scan at the paper's scale and serving the kept returns of the subset gives
+    the input that the paper's image would have, at the paper's density per pixel.
+
+    Example:
+        >>> from airfisheye_bench.geometry.camera import FisheyeCamera
+        >>> big = paper_scale_camera(FisheyeCamera(128, 128, 190.0))
+        >>> big.width, big.height
+        (1536, 1536)
+        >>> paper_scale_camera(FisheyeCamera(2048, 2048, 190.0)).width
+        2048
+    """
+    size = max(camera.width, camera.height)
+    factor = (PAPER_IMAGE_SIZE / PAPER_FOV_DEG) / (size / camera.coverage_deg)
+    if factor <= 1.0:
+        return camera
+    return camera.resized(round(camera.width * factor), round(camera.height * factor))
 
 
 def beam_pixels(

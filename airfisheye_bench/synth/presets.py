@@ -10,6 +10,8 @@ preset         frames  faces      fisheye     LiDAR         use
 ``paper``       26000   1024^2     1024^2      64 x 2048     the paper's scale (12 trajectories)
 ``occlusion``     240   none       512^2 (ray) 64 x 2048     occlusion study: wide camera-LiDAR baseline,
                                                               low flights, realistic scans
+``occlusion_ablation``  240  none  512^2 (ray) 64 x 2048     the same rig, 40 flights of 6 frames: 10 test
+                                                              flights over the four locations (trained ablation)
 =============  ======  =========  ==========  ============  ==========================================
 
 "ray" marks presets whose pre-rendered fisheye is ray-cast directly through the lens model (exact, the
@@ -25,6 +27,9 @@ dropped returns; see ``synth.sensors.ScanModel``). It has no cube faces (the fis
 served with ``data.source=fisheye``), which keeps it at about one second per frame: its 240 frames generate in
 about four minutes on 2 busy cores. Few frames per flight (10) and many locations (24, so 4 held-out test
 locations), because occlusion varies much more from place to place than between neighbouring frames.
+``occlusion_ablation`` is the same rig with more, shorter flights (40 of 6 frames, split 24 : 6 : 10): a trained
+ablation's intervals take one mean per test flight, so it needs many test flights (10, two or three per
+location) more than many frames per flight.
 
 Only the ``occlusion`` preset changes the scan model: the others keep ``lidar_phase=fixed`` and no jitter or
 dropout, so their datasets stay byte-identical to those of earlier versions (the scan fields are left out of
@@ -318,6 +323,14 @@ PRESETS: dict[str, SynthConfig] = {
         ),
     ),
 }
+# The trained ablation's rig (docs/results.md, section 4): the occlusion rig with 10 test flights instead of 4.
+PRESETS["occlusion_ablation"] = dataclasses.replace(
+    PRESETS["occlusion"],
+    name="occlusion_ablation",
+    num_trajectories=40,
+    total_frames=240,
+    split_ratios=(0.6, 0.15, 0.25),
+)
 
 
 def get_preset(name: str) -> SynthConfig:

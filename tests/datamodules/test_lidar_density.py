@@ -11,7 +11,8 @@ import torch
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import paper_density_subset
+from airfisheye_bench.geometry.lidar_density import paper_density_subset, paper_scale_camera
+from airfisheye_bench.geometry.occlusion import lidar_depth_map, occlusion_mask
 from datamodules import AirFisheyeDataModule
 from datamodules.coverage import sparse_coverage
 
@@ -55,3 +56,22 @@ def test_the_same_beams_are_served_in_every_frame(tiny_dataset: Path) -> None:
 def test_a_bad_density_is_refused_naming_the_key(tiny_dataset: Path) -> None:
     with pytest.raises(ConfigError, match=r"^data\.lidar\.density='sparse': expected one of native, paper$"):
         AirFisheyeDataModule("completion", root=tiny_dataset, lidar={"density": "sparse"})
+
+
+@pytest.mark.parametrize("method", ["ordering", "zbuffer"])
+def test_the_correction_decides_on_the_whole_scan_at_the_paper_scale(tiny_dataset: Path, method: str) -> None:
+    """With density=paper the served input is the subset's share of what the method keeps on the whole scan in the
+    same lens at 1536 px over 190 deg, not what it keeps of the subset at 64^2."""
+    dm = AirFisheyeDataModule(
+        "completion", root=tiny_dataset, camera={"size": 64}, lidar={"density": "paper"}, occlusion=method
+    )
+    ds = dm.split_dataset("val")  # tiny's val location has hidden points in view (test_oracle_input)
+    assert paper_scale_camera(ds.camera).width == round(64 * 1536 / 190 * ds.camera.coverage_deg / 64)
+    for index, sample_id in enumerate(ds.sample_ids):
+        points, rings, spec = ds.lidar_points(sample_id)
+        T = ds.T_cam_lidar(sample_id)
+        subset = paper_density_subset(spec, 64, ds.camera.coverage_deg)
+        visible = occlusion_mask(points, T, paper_scale_camera(ds.camera), spec, method, rings)
+        served = visible & subset.mask(points, rings, spec)
+        expected = lidar_depth_map(points[served], T, ds.camera, spec, "none", max_depth=ds.max_depth)
+        torch.testing.assert_close(ds[index]["sparse_depth"][0], torch.from_numpy(expected))

@@ -15,6 +15,7 @@ from airfisheye_bench.evaluation.crossover import (
     crossover,
     crossover_table,
     difference_table,
+    frame_scores,
     input_differences,
     paired_frames_table,
     spread_frames,
@@ -121,3 +122,39 @@ def test_spread_frames() -> None:
     assert spread_frames(3, 1) == [0]
     with pytest.raises(ValueError):
         spread_frames(3, 0)
+
+
+def test_frame_scores_hold_every_arm_s_changes_and_agree_with_the_cross_over(datasets, predictor) -> None:
+    rows = frame_scores(predictor, datasets, "ordering", radius=1, near_m=30.0, batch_size=2)
+    assert [r["sample_id"] for r in rows] == list(datasets["none"].sample_ids)
+    result = crossover(predictor, datasets, radius=1, near_m=30.0, batch_size=1)
+    # The whole image and the none-vs-oracle region are the cross-over's, frame by frame (per-image means).
+    for region in ("all", "affected", "near"):
+        frames = [r["regions"][region]["rmse"] for r in rows if region in r["regions"]]
+        assert sum(frames) / len(frames) == pytest.approx(
+            result["arms"]["ordering"][region]["rmse"], rel=1e-6
+        )
+    # The neutral region holds the affected one (the oracle is an arm) and every other arm's changes.
+    for row in rows:
+        pixels = {region: v["pixels"] for region, v in row["regions"].items()}
+        assert pixels.get("changed", 0) >= pixels.get("affected", 0)
+        assert pixels["all"] >= pixels.get("changed", 0)
+
+    # With only none and the oracle served, `changed` is `affected`; each arm added can only grow it.
+    def changed(arms) -> list[int]:
+        subset = {a: datasets[a] for a in arms}
+        return [
+            r["regions"].get("changed", {}).get("pixels", 0)
+            for r in frame_scores(predictor, subset, "none", 1)
+        ]
+
+    pair = changed(("none", ORACLE))
+    assert pair == [r["regions"].get("affected", {}).get("pixels", 0) for r in rows]
+    for arm in CROSSOVER_ARMS:
+        grown = changed(dict.fromkeys(("none", ORACLE, arm)))
+        assert all(
+            p <= g <= c["regions"].get("changed", {}).get("pixels", 0)
+            for p, g, c in zip(pair, grown, rows, strict=True)
+        )
+    with pytest.raises(ValueError, match="not among"):
+        frame_scores(predictor, {a: datasets[a] for a in ("none", ORACLE)}, "ordering")

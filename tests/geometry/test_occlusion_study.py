@@ -185,3 +185,100 @@ def test_ablation_trains_each_method_and_seed_once_and_summarises(
 def test_ablation_rejects_unknown_methods(ablation: ModuleType, tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="unknown"):
         ablation.plan(tmp_path, ["nope"], [0])
+
+
+def _fake_train_with_curve(rmse_of: dict[tuple[str, int], float]):
+    """``train.py``'s stand-in for the recorded ablation: results.json and a validation curve."""
+
+    def run(argv: list[str]) -> None:
+        args = dict(a.split("=", 1) for a in argv[2:])
+        out = Path(args["hydra.run.dir"])
+        out.mkdir(parents=True)
+        rmse = rmse_of[(args["data.occlusion"], int(args["seed"]))]
+        (out / "results.json").write_text(
+            json.dumps(
+                {"primary_metric": "rmse", "metrics": {"rmse": rmse}, "dataset": {"content_sha256": "c0"}}
+            )
+        )
+        (out / "metrics.csv").write_text("epoch,val/rmse,train/loss\n0,9.0,\n0,,3.0\n1,8.5,\n")
+
+    return run
+
+
+def _fake_frames(offset_of: dict[tuple[str, int], float]):
+    """Per-frame scores: frame k of flight f has RMSE 10 + f + offset (the arm and seed's), 3 frames a flight."""
+
+    def score(out: Path) -> dict:
+        method, seed = out.parent.name, int(out.name.removeprefix("seed"))
+        rows = []
+        for f in range(4):
+            for k in range(3):
+                value = 10.0 + f + offset_of[(method, seed)] + (0.1 * k if method == "ordering" else 0.0)
+                regions = {
+                    r: {"rmse": value, "mae": value / 2, "abs_rel": 0.1, "pixels": 5}
+                    for r in ("all", "changed")
+                }
+                rows.append({"sample_id": f"town/traj{f:02d}/{k:06d}", "regions": regions})
+        return {"arm": method, "checkpoint": str(out / "checkpoints" / "epoch_001.ckpt"), "frames": rows}
+
+    return score
+
+
+def test_recorded_ablation_writes_one_record_a_run_and_summarises_by_flight(
+    ablation: ModuleType, tmp_path: Path
+) -> None:
+    offsets = {("none", 0): 0.0, ("none", 1): 0.4, ("ordering", 0): -1.0, ("ordering", 1): -0.2}
+    record = tmp_path / "records"
+    argv = ["--out", str(tmp_path / "runs"), "--methods", "none,ordering", "--seeds", "0", "1"]
+    argv += ["--record", str(record), "--allow-dirty", "--json", str(tmp_path / "summary.json")]
+    payload = ablation.main(
+        argv, runner=_fake_train_with_curve({k: 5.0 for k in offsets}), frame_scorer=_fake_frames(offsets)
+    )
+
+    assert sorted(p.name for p in record.iterdir()) == [
+        f"{m}_seed{s}.json" for m in ("none", "ordering") for s in (0, 1)
+    ]
+    one = json.loads((record / "ordering_seed1.json").read_text())
+    assert one["provenance"]["command"].startswith(
+        "python train.py task=completion data.occlusion=ordering seed=1"
+    )
+    assert one["epochs_trained"] == 2 and [c["val/rmse"] for c in one["validation_curve"]] == [9.0, 8.5]
+    assert one["dataset"] == {"content_sha256": "c0"} and one["checkpoint"] == "epoch_001.ckpt"
+
+    # ordering - none per frame: seed 0: -1 + 0.1 k, seed 1: -0.6 + 0.1 k -> per flight (k = 0..2, both seeds):
+    # -0.7 in every flight: n = 4 flights (not 12 frames, not 2 seeds), zero spread.
+    d = payload["paired"]["ordering"]["all/rmse"]
+    assert d["n"] == 4 and d["per_flight"] == pytest.approx({f"town/traj{f:02d}": -0.7 for f in range(4)})
+    assert d["per_seed"] == pytest.approx([-0.9, -0.5]) and d["seed_spread"]["std"] == pytest.approx(
+        0.2828427
+    )
+    assert payload["family_size"] == len(payload["paired"]["ordering"])
+    assert all("p_holm" in e for e in payload["paired"]["ordering"].values())
+    assert json.loads((tmp_path / "summary.json").read_text())["records"][0] == "none_seed0.json"
+
+    # The records alone are the study: the run folders can go.
+    import shutil
+
+    shutil.rmtree(tmp_path / "runs")
+    again = ablation.main(
+        [
+            "--out",
+            str(tmp_path / "runs"),
+            "--methods",
+            "none,ordering",
+            "--record",
+            str(record),
+            "--collect-only",
+        ]
+    )
+    assert again["paired"]["ordering"]["all/rmse"]["mean"] == pytest.approx(-0.7)
+
+
+def test_a_recorded_run_refuses_uncommitted_code(
+    ablation: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(ablation, "git_commit", lambda repo: "0123abc+dirty")
+    argv = ["--out", str(tmp_path), "--methods", "none", "--seeds", "0", "--record", str(tmp_path / "r")]
+    with pytest.raises(SystemExit, match="uncommitted changes"):
+        ablation.main(argv, runner=lambda argv: None)
+    assert not (tmp_path / "none").exists()

@@ -100,12 +100,14 @@ def test_existing_presets_keep_their_identity_and_the_occlusion_preset_round_tri
     for name, cfg in PRESETS.items():
         d = cfg.to_dict()
         assert SynthConfig.from_dict(d) == cfg, name
-        if name != "occlusion":  # ideal scans: the scan fields are not recorded, so the identity is unchanged
+        if not name.startswith("occlusion"):  # ideal scans: the scan fields are not recorded (identity unchanged)
             assert cfg.scan_model().ideal and not any(k.startswith("lidar_phase") for k in d), name
     occ = get_preset("occlusion")
     assert not occ.scan_model().ideal and occ.lidar_points_per_channel == 2048 and occ.fisheye_size == 512
     offset = np.asarray(occ.flight.rig.lidar_offset_in_gimbal_m)  # LiDAR relative to the camera (FLU)
     assert 0.5 <= abs(offset[1]) <= 1.0 and 0.5 <= offset[2] <= 1.0  # beside, and above: the camera is below
+    ablation = get_preset("occlusion_ablation")  # the same rig, more and shorter flights
+    assert ablation.replace(name="occlusion", num_trajectories=24, split_ratios=occ.split_ratios) == occ
 
 
 # ----------------------------------------------------------------------------------------------- dataset

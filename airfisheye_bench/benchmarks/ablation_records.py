@@ -1,0 +1,218 @@
+"""The trained occlusion ablation's per-run records, and their summary with the flight as the unit.
+
+Each finished run of :mod:`airfisheye_bench.benchmarks.occlusion_ablation` leaves one small JSON under the record
+folder (``docs/figures/occlusion_ablation/<method>_seed<s>.json``): the commit and command it was trained with,
+the data's identity, its test metrics, its validation curve (to show it had flattened) and its best checkpoint's
+per-frame scores on every region of :data:`~airfisheye_bench.evaluation.crossover.FRAME_REGIONS`. The study is
+the set of these files: :func:`summarise` reads nothing else, so it never depends on a run folder that was not
+committed, and it grows run by run across sessions.
+
+The summary (:func:`summarise`):
+
+* per arm, each metric's mean and sample standard deviation over the seeds (a seed's value: the mean over its
+  test frames, as the task metric);
+* per arm against ``none``, paired by seed and frame: per test flight, the mean over its frames and the seeds of
+  ``arm - none``; the mean over the flights with a t-interval over the flights (``n`` = flights), its p-value,
+  Holm-adjusted over the whole family (every arm x metric reported) and the Bonferroni interval at the family's
+  level (:mod:`airfisheye_bench.evaluation.clustered`); beside it, the mean difference per seed, whose spread is
+  what the training noise alone does.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.evaluation.clustered import cluster_difference, flight_of, holm
+
+__all__ = [
+    "FAMILY_METRICS",
+    "build_record",
+    "load_records",
+    "summarise",
+    "summary_tables",
+    "validation_curve",
+]
+
+RECORD_FORMAT = "airfisheye-ablation-run/1"
+#: The paired comparisons of the family (``region/metric``), Holm-corrected together across the arms.
+FAMILY_METRICS = ("all/rmse", "changed/rmse", "near/rmse", "all/mae", "changed/mae")
+
+
+def validation_curve(metrics_csv: str | Path, metric: str) -> list[dict[str, float]]:
+    """``[{"epoch", metric}]`` of a run's ``metrics.csv`` (the validation rows, in order)."""
+    path = Path(metrics_csv)
+    if not path.is_file():
+        return []
+    with path.open(newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    return [
+        {"epoch": int(float(r["epoch"])), metric: float(r[metric])}
+        for r in rows
+        if r.get(metric) not in (None, "")
+    ]
+
+
+def build_record(
+    method: str,
+    seed: int,
+    provenance: Mapping[str, Any],
+    results: Mapping[str, Any],
+    frames: Mapping[str, Any],
+    curve: Sequence[Mapping[str, float]],
+    wall_s: float | None,
+) -> dict[str, Any]:
+    """One run's record (see the module docstring)."""
+    return {
+        "format": RECORD_FORMAT,
+        "method": method,
+        "seed": int(seed),
+        "provenance": dict(provenance),
+        "dataset": results.get("dataset"),
+        "metrics": results.get("metrics"),
+        "checkpoint": Path(str(frames.get("checkpoint", ""))).name,
+        "epochs_trained": (max(int(c["epoch"]) for c in curve) + 1) if curve else None,
+        "validation_curve": list(curve),
+        "wall_s": wall_s,
+        "radius_px": frames.get("radius_px"),
+        "near_m": frames.get("near_m"),
+        "frames": frames["frames"],
+    }
+
+
+def load_records(folder: str | Path) -> list[dict[str, Any]]:
+    """Every run record under ``folder`` (sorted by method and seed)."""
+    records = []
+    for path in sorted(Path(folder).glob("*.json")):
+        record = json.loads(path.read_text(encoding="utf-8"))
+        if record.get("format") == RECORD_FORMAT:
+            records.append(record)
+    return sorted(records, key=lambda r: (r["method"], r["seed"]))
+
+
+def _frame_values(record: Mapping[str, Any], name: str) -> dict[str, float]:
+    region, metric = name.split("/")
+    return {
+        row["sample_id"]: float(row["regions"][region][metric])
+        for row in record["frames"]
+        if region in row["regions"]
+    }
+
+
+def _mean_std(values: Sequence[float]) -> dict[str, float]:
+    n = len(values)
+    mean = sum(values) / n
+    std = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1)) if n > 1 else math.nan
+    return {"mean": mean, "std": std, "n": n}
+
+
+def summarise(
+    records: Iterable[Mapping[str, Any]], reference: str = "none", metrics: Sequence[str] = FAMILY_METRICS
+) -> dict[str, Any]:
+    """Per-arm means over the seeds and flight-clustered paired differences against ``reference``, Holm-adjusted
+    across every (arm, metric) of the family. Only seeds that the arm and the reference both have are paired."""
+    by_arm: dict[str, dict[int, Mapping[str, Any]]] = {}
+    for record in records:
+        by_arm.setdefault(record["method"], {})[int(record["seed"])] = record
+    arms: dict[str, Any] = {}
+    for arm, runs in by_arm.items():
+        per_metric = {}
+        for name in metrics:
+            seed_means = []
+            for record in runs.values():
+                values = _frame_values(record, name)
+                if values:
+                    seed_means.append(sum(values.values()) / len(values))
+            if seed_means:
+                per_metric[name] = _mean_std(seed_means)
+        arms[arm] = {
+            "seeds": sorted(runs),
+            "epochs_trained": [runs[s].get("epochs_trained") for s in sorted(runs)],
+            "metrics": per_metric,
+        }
+    differences: dict[str, dict[str, Any]] = {}
+    if reference in by_arm:
+        ref = by_arm[reference]
+        for arm, runs in by_arm.items():
+            if arm == reference:
+                continue
+            seeds = sorted(set(runs) & set(ref))
+            if not seeds:
+                continue
+            differences[arm] = {}
+            for name in metrics:
+                per_flight: dict[str, list[float]] = {}
+                per_seed: list[float] = []
+                for seed in seeds:
+                    a, r = _frame_values(runs[seed], name), _frame_values(ref[seed], name)
+                    shared = sorted(set(a) & set(r))
+                    if not shared:
+                        continue
+                    frame_diffs: dict[str, list[float]] = {}
+                    for sample_id in shared:
+                        frame_diffs.setdefault(flight_of(sample_id), []).append(a[sample_id] - r[sample_id])
+                    for flight, d in frame_diffs.items():
+                        per_flight.setdefault(flight, []).append(sum(d) / len(d))
+                    per_seed.append(sum(a[s] - r[s] for s in shared) / len(shared))
+                if per_flight:
+                    flights = {f: sum(v) / len(v) for f, v in sorted(per_flight.items())}
+                    differences[arm][name] = {"seeds": seeds, "per_flight": flights, "per_seed": per_seed}
+    family = sum(len(m) for m in differences.values())
+    for by_metric in differences.values():
+        for entry in by_metric.values():
+            entry.update(cluster_difference(entry["per_flight"], family_size=family))
+            entry["seed_spread"] = _mean_std(entry["per_seed"])
+    adjusted = holm({f"{arm}|{name}": e["p"] for arm, m in differences.items() for name, e in m.items()})
+    for key, p in adjusted.items():
+        arm, name = key.split("|")
+        differences[arm][name]["p_holm"] = p
+    return {"reference": reference, "family_size": family, "arms": arms, "paired": differences}
+
+
+def summary_tables(summary: Mapping[str, Any], metrics: Sequence[str] = FAMILY_METRICS) -> str:
+    """Markdown: the arms' means ± seed std, then the paired differences with their intervals."""
+    head = "| input | seeds | epochs | " + " | ".join(metrics) + " |"
+    lines = [head, "|---|---|---|" + "---:|" * len(metrics)]
+    for arm, entry in summary["arms"].items():
+        cells = []
+        for name in metrics:
+            stat = entry["metrics"].get(name)
+            cells.append(
+                "-"
+                if stat is None
+                else f"{stat['mean']:.3f}"
+                if math.isnan(stat["std"])
+                else f"{stat['mean']:.3f} ± {stat['std']:.3f}"
+            )
+        seeds = ",".join(str(s) for s in entry["seeds"])
+        epochs = ",".join(str(e) for e in entry["epochs_trained"])
+        lines.append(f"| `{arm}` | {seeds} | {epochs} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        f"Against `{summary['reference']}`, mean over test flights [95 % t-interval over flights; "
+        f"Bonferroni interval over the family of {summary['family_size']}] (Holm-adjusted p):",
+        "",
+        "| input − none | flights | " + " | ".join(metrics) + " |",
+        "|---|---|" + "---:|" * len(metrics),
+    ]
+    for arm, by_metric in summary["paired"].items():
+        cells, n = [], 0
+        for name in metrics:
+            d = by_metric.get(name)
+            if d is None:
+                cells.append("-")
+                continue
+            n = max(n, d["n"])
+            lo, hi = d["ci"]
+            flo, fhi = d["ci_family"]
+            cells.append(
+                f"{d['mean']:+.3f} [{lo:+.3f}, {hi:+.3f}; {flo:+.3f}, {fhi:+.3f}] (p {d['p_holm']:.2g})"
+                if not math.isnan(lo)
+                else f"{d['mean']:+.3f}"
+            )
+        lines.append(f"| `{arm}` | {n} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

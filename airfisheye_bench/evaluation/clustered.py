@@ -1,0 +1,194 @@
+"""Paired differences with the flight as the unit, and a Holm correction over a family of them.
+
+The frames of one flight are not independent: neighbouring frames look at the same buildings, so an arm that
+does well on one of them does well on its neighbours. A trained ablation is therefore summarised with one number
+per test flight (:func:`flight_means`: the mean over the flight's frames, then over the seeds) and a Student-t
+interval over the flights (:func:`cluster_difference`): ``n`` is the number of flights, not of frames. Comparing
+several arms on several metrics is a family of tests; :func:`holm` adjusts their p-values (Holm 1979, the
+step-down Bonferroni: it controls the family-wise error rate at ``alpha`` with no assumption on how the tests
+depend on each other), and :func:`cluster_difference` also gives the Bonferroni interval at the family's level,
+the interval that goes with a Bonferroni-level decision.
+
+The t distribution is computed here (scipy is not a dependency): the two-sided p-value from the regularised
+incomplete beta function, ``p = I_{df/(df+t^2)}(df/2, 1/2)``, evaluated by its continued fraction (Numerical
+Recipes, 3rd ed., section 6.4, ``betacf``), and quantiles by bisection on it; the tests compare both with
+``scipy.stats.t`` where scipy is installed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+__all__ = [
+    "cluster_difference",
+    "flight_means",
+    "flight_of",
+    "holm",
+    "regularized_beta",
+    "t_quantile",
+    "t_two_sided_p",
+]
+
+
+def flight_of(sample_id: str) -> str:
+    """The flight (``<location>/<trajectory>``) of a sample id ``<location>/<trajectory>/<frame>``.
+
+    Example:
+        >>> flight_of("town/traj03/000004")
+        'town/traj03'
+    """
+    parts = str(sample_id).split("/")
+    if len(parts) < 2:
+        raise ValueError(f"sample id {sample_id!r} is not <location>/<trajectory>/<frame>")
+    return "/".join(parts[:-1])
+
+
+def regularized_beta(a: float, b: float, x: float) -> float:
+    """``I_x(a, b)``, the regularised incomplete beta function (continued fraction, modified Lentz).
+
+    Example:
+        >>> round(regularized_beta(2.0, 3.0, 0.4), 12)  # 1 - sum_{k<2} C(4,k) 0.4^k 0.6^(4-k)
+        0.5248
+    """
+    if not 0.0 <= x <= 1.0:
+        raise ValueError(f"x must be in [0, 1], got {x}")
+    if x in (0.0, 1.0):
+        return x
+    log_front = math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(x) + b * math.log1p(-x)
+    if x > (a + 1.0) / (a + b + 2.0):  # the fraction converges fast below this point: use the symmetry
+        return 1.0 - regularized_beta(b, a, 1.0 - x)
+    tiny, eps = 1e-300, 1e-15
+    c, d = 1.0, 1.0 - (a + b) * x / (a + 1.0)
+    d = 1.0 / (d if abs(d) > tiny else tiny)
+    h = d
+    for m in range(1, 500):
+        for numerator in (
+            m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m)),
+            -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1)),
+        ):
+            d = 1.0 + numerator * d
+            d = 1.0 / (d if abs(d) > tiny else tiny)
+            c = 1.0 + numerator / c
+            c = c if abs(c) > tiny else tiny
+            h *= d * c
+        if abs(d * c - 1.0) < eps:
+            break
+    return math.exp(log_front) * h / a
+
+
+def t_two_sided_p(t: float, df: int) -> float:
+    """``P(|T| >= |t|)`` for Student's t with ``df`` degrees of freedom.
+
+    Example:
+        >>> round(t_two_sided_p(2.262, 9), 4)  # the 97.5 % quantile at df 9
+        0.05
+    """
+    if df < 1:
+        raise ValueError(f"degrees of freedom must be >= 1, got {df}")
+    if math.isnan(t):
+        return math.nan
+    if math.isinf(t):
+        return 0.0
+    return regularized_beta(df / 2.0, 0.5, df / (df + t * t))
+
+
+def t_quantile(q: float, df: int) -> float:
+    """The ``q`` quantile of Student's t (bisection on :func:`t_two_sided_p`; ``0 < q < 1``).
+
+    Example:
+        >>> round(t_quantile(0.975, 9), 3), round(t_quantile(0.025, 4), 3)
+        (2.262, -2.776)
+    """
+    if not 0.0 < q < 1.0:
+        raise ValueError(f"q must be in (0, 1), got {q}")
+    if q == 0.5:
+        return 0.0
+    tail = 2.0 * min(q, 1.0 - q)  # the two-sided p-value of the quantile's magnitude
+    lo, hi = 0.0, 1.0
+    while t_two_sided_p(hi, df) > tail:
+        hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if t_two_sided_p(mid, df) > tail:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-12 * max(1.0, hi):
+            break
+    magnitude = 0.5 * (lo + hi)
+    return magnitude if q > 0.5 else -magnitude
+
+
+def cluster_difference(
+    diffs: Mapping[str, float] | Sequence[float], family_size: int = 1, level: float = 0.95
+) -> dict[str, Any]:
+    """Mean of per-cluster differences with its t-interval over the clusters, p-value, and family interval.
+
+    Args:
+        diffs: One difference per cluster (flight), e.g. from :func:`flight_means`.
+        family_size: How many comparisons the family holds (for the Bonferroni interval ``ci_family``).
+        level: Confidence level of one interval.
+
+    Returns:
+        ``{"n", "mean", "std", "ci", "ci_family", "p", "clusters"}`` (NaN bounds and p for one cluster).
+
+    Example:
+        >>> d = cluster_difference({"a": 1.0, "b": 2.0, "c": 3.0}, family_size=4)
+        >>> d["n"], d["mean"], [round(x, 4) for x in d["ci"]], round(d["p"], 4)
+        (3, 2.0, [-0.4841, 4.4841], 0.0742)
+    """
+    values = list(diffs.values()) if isinstance(diffs, Mapping) else list(diffs)
+    clusters = list(diffs) if isinstance(diffs, Mapping) else list(range(len(values)))
+    n = len(values)
+    if n == 0:
+        raise ValueError("no clusters")
+    mean = sum(values) / n
+    out: dict[str, Any] = {"n": n, "mean": mean, "clusters": clusters, "level": level, "family_size": family_size}
+    if n < 2:
+        return {**out, "std": math.nan, "ci": [math.nan] * 2, "ci_family": [math.nan] * 2, "p": math.nan}
+    std = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1))
+    se = std / math.sqrt(n)
+    alpha = 1.0 - level
+    half = t_quantile(1.0 - alpha / 2.0, n - 1) * se
+    half_family = t_quantile(1.0 - alpha / (2.0 * max(family_size, 1)), n - 1) * se
+    p = t_two_sided_p(mean / se, n - 1) if se > 0 else (0.0 if mean != 0 else 1.0)
+    return {
+        **out,
+        "std": std,
+        "ci": [mean - half, mean + half],
+        "ci_family": [mean - half_family, mean + half_family],
+        "p": p,
+    }
+
+
+def holm(pvalues: Mapping[str, float]) -> dict[str, float]:
+    """Holm's step-down adjusted p-values (``min(1, max over the smaller ones of (m - rank) p)``); NaN stays NaN
+    and does not count in the family.
+
+    Example:
+        >>> holm({"a": 0.01, "b": 0.04, "c": 0.03})
+        {'a': 0.03, 'b': 0.06, 'c': 0.06}
+    """
+    finite = sorted((p, k) for k, p in pvalues.items() if not math.isnan(p))
+    m = len(finite)
+    adjusted: dict[str, float] = {k: math.nan for k in pvalues}
+    running = 0.0
+    for rank, (p, key) in enumerate(finite):
+        running = max(running, min(1.0, (m - rank) * p))
+        adjusted[key] = round(running, 15)
+    return {k: adjusted[k] for k in pvalues}
+
+
+def flight_means(per_frame: Mapping[str, float]) -> dict[str, float]:
+    """``{flight: mean over its frames}`` of per-frame values keyed by sample id.
+
+    Example:
+        >>> flight_means({"town/traj00/000001": 1.0, "town/traj00/000002": 3.0, "town/traj01/000001": 5.0})
+        {'town/traj00': 2.0, 'town/traj01': 5.0}
+    """
+    sums: dict[str, list[float]] = {}
+    for sample_id, value in per_frame.items():
+        sums.setdefault(flight_of(sample_id), []).append(float(value))
+    return {flight: sum(v) / len(v) for flight, v in sorted(sums.items())}
