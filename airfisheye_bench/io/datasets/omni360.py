@@ -8,16 +8,15 @@ Read from github:Insta360-Research-Team/AirSim360 (``data/demo_sample/``: ``READ
 "AirSim360 / Omni360-X"):
 
 - **Panoramas, not a fisheye.** ``spec.contents`` has ``equirect``: the datamodule remaps every panorama on the fly to
-  the served lens (``data.source=equirect``) with :class:`~airfisheye_bench.geometry.equirect.EquirectToFisheye`,
-  looking along ``R_pano_cam`` (``yaw_deg``, ``pitch_deg``: the gimbal angles of
-  :func:`~airfisheye_bench.geometry.transforms.gimbal_rotation`; 0, 0 looks at the panorama's middle column on the
-  horizon). The calibrated camera is the default lens: equidistant, 190 deg, as many pixels across as the panorama
-  has rows.
+  the served lens (``data.source=equirect``) with :class:`~airfisheye_bench.geometry.equirect.EquirectToFisheye`.
+  The recorded camera (``pano_rotation``, ``R_pano_cam0``) looks at the panorama's middle column on the horizon;
+  ``data.gimbal`` turns it (docs/design.md, "Virtual gimbal"). The calibrated camera is the default lens:
+  equidistant, 190 deg, as many pixels across as the panorama has rows.
 - **Depth** is range already (the distance from the optical centre along the ray): served as stored, the far plane
   (1000 m, sky) and non-finite values as 0.
 - **LiDAR** is cast from the depth panorama by a :class:`~airfisheye_bench.geometry.lidar.LidarSpec`
-  (``format_options.lidar``, or ``data.lidar.preset``: :meth:`Omni360Source.cast_scan`), its FLU axes the camera's
-  (x along the optical axis), at the camera's centre: each beam takes the range of the texel its direction falls in
+  (``format_options.lidar``, or ``data.lidar.preset``: :meth:`Omni360Source.cast_scan`), its FLU axes the recorded
+  camera's (x along its optical axis), at the camera's centre: each beam takes the range of the texel its direction falls in
   (:func:`~airfisheye_bench.geometry.equirect_lidar.lidar_from_equirect`; no interpolation across depth edges). A
   sensor at the camera's centre sees no parallax, so no point it returns is hidden from the camera:
   ``parallax_free`` tells the datamodule to project these scans without an occlusion correction, whatever
@@ -46,7 +45,7 @@ from airfisheye_bench.geometry.camera import FisheyeCamera
 from airfisheye_bench.geometry.equirect_lidar import lidar_from_equirect
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
-from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, gimbal_rotation, make_transform
+from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, make_transform
 from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES
 from airfisheye_bench.io.calib import Calibration
 from airfisheye_bench.io.datasets.omni360_files import (
@@ -101,8 +100,6 @@ class Omni360Source:
         split_scenes: ``{train: [scenes], val: [...], test: [...]}``: split by whole scenes instead (scenes it does
             not name are not used; val and test may share scenes, train shares none).
         frame_stride: Use every n-th frame of a scene.
-        yaw_deg, pitch_deg: The served camera's gimbal in the panorama (positive yaw turns left, positive pitch
-            tilts down; :func:`~airfisheye_bench.geometry.transforms.gimbal_rotation`).
         lidar: The LiDAR preset cast into the depth panorama (:data:`~airfisheye_bench.geometry.lidar_presets.
             LIDAR_PRESETS`).
 
@@ -119,8 +116,6 @@ class Omni360Source:
         "split_period": 10,
         "split_scenes": None,
         "frame_stride": 1,
-        "yaw_deg": 0.0,
-        "pitch_deg": 0.0,
         "lidar": "paper",
     }
     #: The LiDAR is cast at the camera's centre: nothing it returns is hidden from the camera (module docstring).
@@ -135,8 +130,6 @@ class Omni360Source:
         split_period: int = 10,
         split_scenes: Mapping[str, list[str]] | None = None,
         frame_stride: int = 1,
-        yaw_deg: float = 0.0,
-        pitch_deg: float = 0.0,
         lidar: str = "paper",
     ) -> None:
         self.root = Path(root)
@@ -153,16 +146,14 @@ class Omni360Source:
         for key, value, least in (("split_period", split_period, 3), ("frame_stride", frame_stride, 1)):
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ConfigError(f"data.format_options.{key}={value!r}: expected an integer >= {least}")
-        for key, value in (("yaw_deg", yaw_deg), ("pitch_deg", pitch_deg)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-                raise ConfigError(f"data.format_options.{key}={value!r}: expected a number of degrees")
         if lidar not in LIDAR_PRESETS:
             raise ConfigError(f"data.format_options.lidar={lidar!r}: expected one of {sorted(LIDAR_PRESETS)}")
         self.classes = classes
         self.split_period, self.frame_stride = int(split_period), int(frame_stride)
         self.lidar_preset = lidar
-        #: ``R_pano_cam``: the served camera's directions -> the panorama's frame.
-        self.pano_rotation = gimbal_rotation(yaw_deg=float(yaw_deg), pitch_deg=float(pitch_deg))
+        #: ``R_pano_cam0``: the recorded camera's directions -> the panorama's frame. A panorama records no camera:
+        #: it looks at the middle column on the horizon (data.gimbal turns the served one from there).
+        self.pano_rotation = np.eye(3)
         self._scenes = self._select(find_scenes(self.root), scenes)
         self._split_scenes = self._check_split_scenes(split_scenes)
         self._frames = {s.name: list(s.frames)[:: self.frame_stride] for s in self._scenes.values()}
@@ -291,7 +282,8 @@ class Omni360Source:
     # ------------------------------------------------------------------------------------------ calibration
     def calib(self, sample_id: str) -> Calibration:
         """The default lens (equidistant, 190 deg, ``H x H`` for an ``H``-row panorama) at the panorama's centre;
-        body = the panorama's FLU axes (its middle column ahead, its top up), the LiDAR on the camera's gimbal."""
+        body = the panorama's FLU axes (its middle column ahead, its top up), the LiDAR on the recorded camera's
+        axes."""
         self._scene(sample_id)
         height = self.erp_size[0]
         camera = FisheyeCamera(height, height, fov_deg=FOV_DEG, model="equidistant")

@@ -301,7 +301,7 @@ def test_bad_options(fixture_root: Path) -> None:
         ({"split_period": 2}, r"split_period=2: expected an integer >= 3"),
         ({"frame_stride": 0}, r"frame_stride=0: expected an integer >= 1"),
         ({"lidar": "vlp17"}, r"lidar='vlp17': expected one of"),
-        ({"pitch_deg": "down"}, r"pitch_deg='down': expected a number of degrees"),
+        ({"pitch_deg": 30}, r"unknown keys \['pitch_deg'\]"),  # data.gimbal turns the camera
         ({"camera": "front"}, r"unknown keys \['camera'\]"),
     ):
         with pytest.raises(ConfigError, match=message):
@@ -309,16 +309,19 @@ def test_bad_options(fixture_root: Path) -> None:
 
 
 def test_the_calibration_is_the_default_lens_at_the_panoramas_centre(fixture_root: Path) -> None:
-    src = source(fixture_root, pitch_deg=30.0)
+    from airfisheye_bench.geometry.transforms import CAM_FROM_FLU
+
+    src = source(fixture_root)
     calib = src.calib("NYC/panorama_0")
     assert (
         calib.camera["model"] == "equidistant" and calib.camera["width"] == calib.camera["height"] == HEIGHT
     )
     assert calib.camera["fov_deg"] == 190.0 and calib.face_size is None
-    # The optical axis looks 30 deg below the horizon of the panorama (camera z -> pano frame, y down).
-    axis = src.pano_rotation @ np.array([0.0, 0.0, 1.0])
-    np.testing.assert_allclose(axis, [0.0, np.sin(np.radians(30)), np.cos(np.radians(30))], atol=1e-12)
+    # The recorded camera looks at the middle column on the horizon: the body's (the panorama's FLU) forward.
+    np.testing.assert_array_equal(src.pano_rotation, np.eye(3))
+    np.testing.assert_allclose(calib.T_body_cam[:3, :3] @ [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], atol=1e-12)
     np.testing.assert_allclose(calib.T_cam_lidar_static, src.T_cam_lidar("NYC/panorama_0"), atol=1e-12)
+    np.testing.assert_allclose(src.T_cam_lidar("NYC/panorama_0")[:3, :3], CAM_FROM_FLU)
 
 
 # -------------------------------------------------------------------------------------------------- LiDAR
@@ -341,36 +344,49 @@ def test_the_lidar_texel_is_the_remaps_nearest_texel() -> None:
     np.testing.assert_array_equal(remapped[valid], row * w + col)
 
 
+def _texels(directions: np.ndarray, h: int, w: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The texel a panorama-frame direction falls in, from the ERP convention written out (:func:`erp_ray`'s
+    inverse), not through the project's code; and whether the direction is clear of a texel edge (a beam on one,
+    as VLP-16's at 67.5 deg azimuth on a 32-column panorama, goes either way by rounding)."""
+    lon = np.arctan2(directions[:, 0], directions[:, 2])
+    lat = np.arctan2(-directions[:, 1], np.hypot(directions[:, 0], directions[:, 2]))
+    u, v = w * (lon + np.pi) / (2 * np.pi), h * (np.pi / 2 - lat) / np.pi
+    clear = (np.abs(u - np.rint(u)) > 1e-9) & (np.abs(v - np.rint(v)) > 1e-9)
+    return np.clip(np.floor(v).astype(int), 0, h - 1), np.floor(u).astype(int) % w, clear
+
+
 @pytest.mark.parametrize("preset", ["paper", "vlp16"])
 def test_the_cast_scan_takes_the_range_of_the_texel_each_beam_falls_in(
     fixture_root: Path, preset: str
 ) -> None:
-    """Every point of the cast scan (FLU, on the camera's gimbal: pitched 20 deg down and turned 30 deg left here)
-    lies along its beam at the range the depth panorama holds in the texel its direction falls in (that texel found
-    here from the ERP convention written out, :func:`erp_ray`'s inverse); its rings are the spec's channels."""
+    """Every point of the cast scan (FLU, x along the recorded camera's axis: the panorama's middle column) lies
+    along its beam at the range the depth panorama holds in the texel its direction falls in; its rings are the
+    spec's channels; a LiDAR turned in the panorama (here 30 deg left, 20 deg down) casts along its own beams."""
+    from airfisheye_bench.geometry.equirect_lidar import lidar_from_equirect
     from airfisheye_bench.geometry.lidar import LidarSpec
-    from airfisheye_bench.geometry.transforms import CAM_FROM_FLU
+    from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, gimbal_rotation
 
-    src = source(fixture_root, pitch_deg=20.0, yaw_deg=30.0, lidar=preset)
+    src = source(fixture_root, lidar=preset)
     spec = LidarSpec.from_preset(preset)
     scan = src.lidar_scan("NYC/panorama_1")
     beams = spec.channels * spec.points_per_channel
     assert scan.rings is not None and scan.rings.max() < spec.channels and len(scan.points) > beams // 2
     assert scan.no_returns == beams - len(scan.points)
-    d = (scan.points @ CAM_FROM_FLU.T) @ src.pano_rotation.T  # the beams in the panorama's frame
-    lon, lat = np.arctan2(d[:, 0], d[:, 2]), np.arctan2(-d[:, 1], np.hypot(d[:, 0], d[:, 2]))
-    h, w = HEIGHT, 2 * HEIGHT
-    col = np.floor(w * (lon + np.pi) / (2 * np.pi)).astype(int) % w
-    row = np.clip(np.floor(h * (np.pi / 2 - lat) / np.pi).astype(int), 0, h - 1)
     depth = src.equirect("NYC/panorama_1", "depth")
-    np.testing.assert_allclose(np.linalg.norm(scan.points, axis=1), depth[row, col], rtol=1e-6)
-    # The yaw turns the view left: the beam ahead (the optical axis) meets the panorama left of its middle.
-    ahead = src.pano_rotation @ np.array([0.0, 0.0, 1.0])
+    row, col, clear = _texels(scan.points @ CAM_FROM_FLU.T, HEIGHT, 2 * HEIGHT)
+    assert clear.mean() > 0.95  # the paper sensor's lowest ring, -45 deg, lies on a texel edge
+    ranges = np.linalg.norm(scan.points, axis=1)
+    np.testing.assert_allclose(ranges[clear], depth[row, col][clear], rtol=1e-6)
+    R_pano_lidar = gimbal_rotation(yaw_deg=30.0, pitch_deg=20.0) @ CAM_FROM_FLU
+    points, rings = lidar_from_equirect(depth, spec, R_pano_lidar)
+    row, col, clear = _texels(points @ R_pano_lidar.T, HEIGHT, 2 * HEIGHT)
+    np.testing.assert_allclose(np.linalg.norm(points, axis=1)[clear], depth[row, col][clear], rtol=1e-6)
+    ahead = R_pano_lidar @ np.array([1.0, 0.0, 0.0])  # the LiDAR's x axis, 30 deg left of the middle column
     assert np.degrees(np.arctan2(ahead[0], ahead[2])) == pytest.approx(-30.0)
+    assert len(points) != len(scan.points) and rings.max() < spec.channels
     # data.lidar.preset's sensor is cast instead of the source's own (the datamodule asks for it).
     other = src.cast_scan("NYC/panorama_1", LidarSpec.from_preset("hdl32e"))
     assert other.rings.max() < 32 and len(other.points) != len(scan.points)
-    np.testing.assert_allclose(src.T_cam_lidar("NYC/panorama_1")[:3, :3], CAM_FROM_FLU)
 
 
 # ------------------------------------------------------------------------------------------------- serving
@@ -380,10 +396,14 @@ def fine_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_omni360_fixture(tmp_path_factory.mktemp("omni360_fine") / "root", height=64, frames=3)
 
 
-def _dataset(root: Path, task: str, size: int = 48, **options):
+def _dataset(root: Path, task: str, size: int = 48, view: list[float] | None = None, **options):
+    """One split (``train``) of the NYC scene through a ``size``^2 fisheye, the camera turned to ``view``."""
+    from airfisheye_bench.geometry.gimbal import Gimbal
     from datamodules import AirFisheyeDataset, CameraConfig
 
     kwargs = {k: options.pop(k) for k in ("occlusion", "source", "source_fallback") if k in options}
+    if view is not None:
+        kwargs["gimbal"] = Gimbal.parse(view).for_split(training=False)
     return AirFisheyeDataset(
         root,
         "train",
@@ -396,12 +416,12 @@ def _dataset(root: Path, task: str, size: int = 48, **options):
 
 
 def test_the_served_fisheye_sees_the_scene_through_the_gimbal(fine_root: Path) -> None:
-    """Depth and labels of the served 190 deg fisheye, pitched 30 deg down and turned 40 deg right, agree with the
-    analytic scene along each pixel's ray (turned into the panorama by gimbal_rotation)."""
+    """Depth and labels of the served 190 deg fisheye, turned by ``data.gimbal=[-40, 30]`` (40 deg right, 30 deg
+    down), agree with the analytic scene along each pixel's ray (turned into the panorama by gimbal_rotation)."""
     from airfisheye_bench.geometry.transforms import gimbal_rotation
 
-    ds = _dataset(fine_root, "depth", pitch_deg=30.0, yaw_deg=-40.0)
-    seg = _dataset(fine_root, "seg", pitch_deg=30.0, yaw_deg=-40.0)
+    ds = _dataset(fine_root, "depth", view=[-40.0, 30.0])
+    seg = _dataset(fine_root, "seg", view=[-40.0, 30.0])
     sample, labels = ds[0], seg[0]["label"].numpy()
     valid = sample["valid_mask"].numpy()
     assert valid.sum() > 0.7 * valid.size and ds.camera.model == "equidistant" and ds.camera.fov_deg == 190.0
@@ -417,12 +437,16 @@ def test_the_served_fisheye_sees_the_scene_through_the_gimbal(fine_root: Path) -
     assert np.mean(labels[valid] == expected) > 0.93
 
 
-def test_sparse_depth_lands_on_the_dense_depth_and_needs_no_occlusion_correction(fixture_root: Path) -> None:
-    """The whole chain (cast beams, T_cam_lidar, projection): LiDAR ranges agree with the remapped depth where they
-    land; with no parallax every occlusion method serves the same map (none is applied)."""
+@pytest.mark.parametrize("view", [None, [25.0, 35.0]])
+def test_sparse_depth_lands_on_the_dense_depth_and_needs_no_occlusion_correction(
+    fixture_root: Path, view: list[float] | None
+) -> None:
+    """The whole chain (cast beams, T_cam_lidar, a gimbal view turning the camera and the LiDAR with it,
+    projection): LiDAR ranges agree with the remapped depth where they land; with no parallax every occlusion method
+    serves the same map (none is applied)."""
     maps = {}
     for method in ("ordering", "zbuffer", "none", "oracle"):
-        sample = _dataset(fixture_root, "completion", size=64, occlusion=method)[0]
+        sample = _dataset(fixture_root, "completion", size=64, view=view, occlusion=method)[0]
         maps[method] = sample["sparse_depth"][0]
     sparse, dense = maps["ordering"], sample["depth"][0]
     hit = (sparse > 0) & (dense > 0)
@@ -499,7 +523,7 @@ def test_train_runs_every_task_on_omni360(task: str, train_root: Path, tmp_path:
     from tests.helpers.runs import tiny_run_overrides
 
     overrides = tiny_run_overrides(task, train_root, size=64 if task == "depth" else 32)  # AdaBins needs 64
-    cfg = compose_train([*overrides, "data=omni360", "data.format_options.pitch_deg=20", "logger=csv"])
+    cfg = compose_train([*overrides, "data=omni360", "data.gimbal=[0,20]", "logger=csv"])
     with open_dict(cfg):
         cfg.paths.output_dir = str(tmp_path)
     results = train(cfg)
