@@ -24,6 +24,7 @@ SMALL = {
     "transcode": (commands.transcode, commands.TRANSCODE, ["src=/a", "dst=/b"]),
     "leaderboard": (commands.leaderboard, commands.LEADERBOARD, ["runs=/nowhere"]),
     "export": (commands.export, commands.EXPORT, ["ckpt_path=/a", "out=/b.onnx"]),
+    "predict": (commands.predict, commands.PREDICT, ["ckpt_path=/a", "input=/b"]),
     "generate": (commands.generate, commands.GENERATE, []),
     **{
         f"generate {name}": (commands.generate, sub, ["root=/nowhere"] if name != "bench" else [])
@@ -148,7 +149,8 @@ def test_help_and_bad_options_do_not_import_torch() -> None:
     probe = (
         "import sys\n"
         "from airfisheye_bench.cli import commands\n"
-        "for command in (commands.inspect, commands.transcode, commands.leaderboard, commands.export):\n"
+        "for command in (commands.inspect, commands.transcode, commands.leaderboard, commands.export,\n"
+        "                commands.predict):\n"
         "    command(['--help'])\n"
         "commands.generate(['verify', '--help'])\n"
         "try:\n"

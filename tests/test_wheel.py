@@ -28,6 +28,7 @@ SCRIPTS = {
     "airfisheye-transcode": ("src", "dst", "jpeg_quality", "link"),
     "airfisheye-export": ("ckpt_path", "out", "quantize", "data.<key>"),
     "airfisheye-leaderboard": ("runs", "out", "paper", "html"),
+    "airfisheye-predict": ("ckpt_path", "input", "out", "allow_camera_mismatch"),
 }
 
 

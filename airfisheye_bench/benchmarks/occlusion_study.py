@@ -56,7 +56,10 @@ import yaml
 from PIL import Image, ImageDraw
 
 from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.benchmarks.hidden_detection import detection_counts, detection_table, hidden_detection
+from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
+from airfisheye_bench.evaluation.clustered import flight_of
 from airfisheye_bench.geometry import FisheyeCamera, LidarSpec, lidar_depth_map, occlusion, project_lidar
 from airfisheye_bench.io.spec import DatasetSpec
 from airfisheye_bench.synth.cache import ensure_dataset
@@ -294,6 +297,9 @@ def run_size(
     rows: dict[str, list[dict[str, float]]] = {}
     hidden: dict[str, int] = {}
     by_location: dict[str, dict[str, list[dict[str, float]]]] = {}  # environment -> row -> frames
+    by_flight: dict[
+        str, dict[str, list[dict[str, int]]]
+    ] = {}  # flight -> row -> hidden-point detection counts
     projected = 0
     for k, index in enumerate(indices):
         frame = load_frame(datasets, index)
@@ -303,9 +309,12 @@ def run_size(
         hidden[frame.sample_id] = counts["hidden_projected"]
         projected += counts["projected"]
         location = frame.sample_id.split("/", 1)[0]
-        for name, counts in result.items():
-            rows.setdefault(name, []).append(counts)
-            by_location.setdefault(location, {}).setdefault(name, []).append(counts)
+        flight = by_flight.setdefault(flight_of(frame.sample_id), {})
+        for name, row in result.items():
+            rows.setdefault(name, []).append(row)
+            by_location.setdefault(location, {}).setdefault(name, []).append(row)
+            if name != ORACLE:
+                flight.setdefault(name, []).append(detection_counts(row, counts["hidden_projected"]))
         if (k + 1) % 25 == 0:
             print(f"  {ds.camera.width}px: {k + 1}/{len(indices)} frames", file=sys.stderr)
     summary = {
@@ -322,6 +331,8 @@ def run_size(
             loc: {name: summarize(frames)["pooled"] for name, frames in loc_rows.items()}
             for loc, loc_rows in by_location.items()
         },
+        # Hidden points as the positive class, per flight, with intervals over the flights.
+        "hidden_detection": hidden_detection(by_flight, [name for name, _, _ in rows_to_measure]),
     }
     return summary, hidden
 
@@ -485,6 +496,11 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     print(markdown_table(results))
     print()
     print(location_table(results))
+    for size, result in results.items():
+        print(
+            f"\nHidden points as the positive class at {size} px, over {result['hidden_detection']['flights']} flights:\n"
+        )
+        print(detection_table(result["hidden_detection"]))
     payload: dict[str, Any] = {
         "dataset": str(root),
         "split": args.split,
@@ -494,6 +510,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         "max_depth": args.max_depth,
         "wrong_rel": WRONG_REL,
         "command": "python scripts/occlusion_study.py " + " ".join(sys.argv[1:] if argv is None else argv),
+        "provenance": provenance("scripts/occlusion_study.py", argv, root, root.name),
         "results": results,
     }
     if args.figure is not None:

@@ -12,6 +12,6 @@ folder, installed from the wheel as well as from a checkout.
 from __future__ import annotations
 
 from airfisheye_bench.cli.apps import evaluate, train
-from airfisheye_bench.cli.commands import export, generate, inspect, leaderboard, transcode
+from airfisheye_bench.cli.commands import export, generate, inspect, leaderboard, predict, transcode
 
-__all__ = ["evaluate", "export", "generate", "inspect", "leaderboard", "train", "transcode"]
+__all__ = ["evaluate", "export", "generate", "inspect", "leaderboard", "predict", "train", "transcode"]

@@ -1,4 +1,4 @@
-"""The small commands: inspect, transcode, leaderboard, export and the synthetic generator.
+"""The small commands: inspect, transcode, leaderboard, export, predict and the synthetic generator.
 
 Each takes ``key=value`` arguments composed onto ``configs/<command>.yaml`` (:mod:`airfisheye_bench.cli.options`:
 typed, struct mode, one ``--help``) and calls its library function. A bad argument ends in one line naming the key
@@ -326,6 +326,56 @@ def export(argv: Sequence[str] | None = None) -> int:
         log_export(report, mlflow_run, mlflow_uri)
     if report.quantization is not None and not report.quantization.ok:
         return 3
+    return 0
+
+
+# ------------------------------------------------------------------------------------------------ predict
+@dataclass
+class PredictOptions:
+    ckpt_path: str = option("the model: a run directory, a .ckpt file or an .onnx file of airfisheye-export")
+    input: str = option("the footage: a folder of images or a video file (the video extra)")
+    out: str | None = option("the folder to write, must not exist (null: predictions/<input name>)")
+    input_format: str = option("fisheye (frames of the model's lens) | erp (equirectangular panoramas)")
+    camera: str | None = option("the footage's lens: a calibration file (null: the model's lens at its size)")
+    camera_name: str | None = option("which camera of a calibration file that holds several")
+    allow_camera_mismatch: bool = option(
+        "predict frames of another size or lens anyway, resized to the model's"
+    )
+    erp_yaw_deg: float = option("input_format=erp: the view turned left of the panorama's centre (degrees)")
+    erp_pitch_deg: float = option("input_format=erp: the view tilted down (degrees)")
+    sparse: str | None = option("completion: folder of <frame>.npy (m) or 16-bit <frame>.png (m * 256) maps")
+    depth_format: str = option("depth and completion: png16 (round(m * 256)) | npy (float32 metres)")
+    batch_size: int = option("frames per model call")
+    device: str = option("checkpoint inference: auto (cuda if available) | cpu | cuda")
+    threads: int | None = option("ONNX Runtime intra-op threads (null: its default)")
+    tta: str | None = option("test-time augmentation: null | flip")
+    progress: bool = option("show a progress bar (log lines when not in a terminal)")
+
+
+PREDICT = Command(
+    "predict",
+    PredictOptions,
+    "Run a trained model on your own footage: label or depth maps, colourised, and input | prediction previews.",
+    "airfisheye-predict ckpt_path=<run dir, .ckpt or .onnx> input=<folder or video>",
+)
+
+
+@report_user_errors
+def predict(argv: Sequence[str] | None = None) -> int:
+    """``airfisheye-predict ckpt_path=<run dir | .ckpt | .onnx> input=<folder | video> [out=DIR] [...]``
+    (:func:`~airfisheye_bench.evaluation.predict.predict_footage`); exit status 2 on a user error, nothing written.
+    """
+    parsed = _run(PREDICT, argv)
+    if parsed is None:
+        return 0
+
+    from airfisheye_bench.evaluation.predict import predict_footage  # at run time: see the module docstring
+
+    # This command's warnings and progress lines; the libraries' INFO lines are not the user's business here.
+    logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    logging.getLogger("airfisheye_bench.evaluation.predict").setLevel(logging.INFO)
+    report = predict_footage(**parsed.options)
+    print(report.summary())
     return 0
 
 

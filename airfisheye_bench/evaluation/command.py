@@ -40,6 +40,7 @@ from airfisheye_bench.evaluation.predictors import (
     Predictor,
 )
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
+from airfisheye_bench.evaluation.trained import run_datamodule
 from airfisheye_bench.io.calibration_files import camera_mismatch
 from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.io.results import dataset_identity, format_results_table, write_results
@@ -50,7 +51,7 @@ from airfisheye_bench.specs import UnknownTaskError, get_task, task_names
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.tracking import log_to_run, resolve_run
 from airfisheye_bench.viz import save_png, task_panel
-from datamodules.config import apply_data_overrides, instantiate_datamodule, parse_data_overrides
+from datamodules.config import apply_data_overrides, parse_data_overrides
 from datamodules.coverage import input_coverage
 
 log = logging.getLogger(__name__)
@@ -208,16 +209,8 @@ def _datamodule(
         data = apply_data_overrides(source_data, parse_data_overrides(overrides), task=task)
     else:  # configs/evaluate.yaml's data group, overrides already composed in by Hydra
         data = apply_data_overrides(cfg.data, task=task)
-    check_common_values(OmegaConf.create({"data": data}))  # the run's values with the command line's on top
-    # One dataset at a time: a run's per-source scores at the end of training are in its results.json.
-    if data.get("sources"):
-        raise ConfigError(
-            f"data.sources={list(data.sources)}: evaluation scores one dataset; add data.sources=null with that "
-            "source's data.root (and data.format) or data.preset (docs/design.md: More than one source)"
-        )
-    data.num_workers = 0  # the evaluation loop makes its own loader (cfg.num_workers)
-    data.persistent_workers = False
-    return instantiate_datamodule(data), OmegaConf.to_container(data)
+    datamodule = run_datamodule(data)
+    return datamodule, OmegaConf.to_container(data)
 
 
 def _check_camera(cfg: DictConfig, model_camera: dict[str, Any], served) -> None:

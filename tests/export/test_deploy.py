@@ -24,6 +24,7 @@ from airfisheye_bench.cli import export as export_command
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import OutputError
 from airfisheye_bench.export import verify_onnx
+from airfisheye_bench.geometry.cameras import CAMERA_MODELS, camera_from_dict
 from airfisheye_bench.io.deployment import (
     COMMON_KEYS,
     KEY_WEIGHTS,
@@ -38,6 +39,7 @@ from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.training import build
 from datamodules.config import apply_data_overrides, instantiate_datamodule
+from tests.geometry.test_unproject_exact import random_cameras
 from tests.helpers.commands import exit_status
 from tests.helpers.configs import compose_train
 from tests.helpers.runs import tiny_run_overrides
@@ -375,6 +377,15 @@ def test_metadata_encodes_exactly_the_task_keys() -> None:
     decoded = parse_deployment_metadata({**meta, "other.key": "ignored"})
     assert decoded["camera"]["fov_deg"] == 190.0 and decoded["min_depth"] == 1e-3
     assert "other.key" not in decoded and "key" not in decoded
+
+
+@pytest.mark.parametrize("family", sorted(CAMERA_MODELS))
+def test_metadata_carries_every_camera_model(family: str) -> None:
+    """The served camera of any model goes into the metadata and comes back the same camera."""
+    camera = random_cameras(family, 1)[0]
+    decoded = parse_deployment_metadata(_depth_meta(camera=camera.to_dict()))
+    assert decoded["image_size"] == [camera.height, camera.width]
+    assert camera_from_dict(decoded["camera"]) == camera
 
 
 def test_metadata_rejects_wrong_task_fields() -> None:

@@ -84,6 +84,71 @@ class TestFovColmap(CameraModelTester):
     }
 
 
+class TestThinPrismFisheyeColmap(CameraModelTester):
+    # COLMAP's own THIN_PRISM_FISHEYE test parameters (models_test.cc, ThinPrismFisheye.Nominal).
+    camera_dict: ClassVar[dict] = {
+        "model": "thin_prism_fisheye",
+        "width": 772,
+        "height": 1022,
+        "fx": 651.123,
+        "fy": 655.123,
+        "cx": 386.123,
+        "cy": 511.123,
+        **dict(zip(("k1", "k2", "p1", "p2", "k3", "k4", "sx1", "sy1"),
+                   (-0.471, 0.223, -0.001, 0.001, 0.001, 0.02, -0.02, 0.001), strict=True)),
+    }  # fmt: skip
+
+
+class TestThinPrismFisheyeFov(CameraModelTester):
+    # A 195 deg image circle on TUM-VI cam0's Kannala-Brandt lens with tangential and thin-prism terms.
+    camera_dict: ClassVar[dict] = {
+        **{k: v for k, v in CALIBRATIONS["tumvi512_cam0_kb"]["camera"].items() if k != "skew"},
+        "model": "thin_prism_fisheye",
+        "p1": 5e-4,
+        "p2": -3e-4,
+        "sx1": 2e-3,
+        "sy1": -1e-3,
+        "fov_deg": 195.0,
+    }
+
+
+class TestRadTanThinPrismFisheyeColmap(CameraModelTester):
+    # COLMAP's own RAD_TAN_THIN_PRISM_FISHEYE test parameters (models_test.cc, RadTanThinPrismFisheye.Nominal).
+    camera_dict: ClassVar[dict] = {
+        "model": "rad_tan_thin_prism_fisheye",
+        "width": 772,
+        "height": 1022,
+        "fx": 651.123,
+        "fy": 655.123,
+        "cx": 386.123,
+        "cy": 511.123,
+        **dict(zip(("k0", "k1", "k2", "k3", "k4", "k5", "p0", "p1", "s0", "s1", "s2", "s3"),
+                   (-0.0232, 0.0924, -0.0591, 0.003, 0.0048, -0.0009, 0.0002, 0.0005, -0.0009, -0.0001, 0.00007,
+                    -0.00017), strict=True)),
+    }  # fmt: skip
+
+
+class TestDivisionColmapBarrel(CameraModelTester):
+    # COLMAP's DIVISION test parameters (models_test.cc, Division.Nominal), k < 0: the region is the whole sphere.
+    camera_dict: ClassVar[dict] = {
+        "model": "division",
+        "width": 772,
+        "height": 1022,
+        "fx": 651.123,
+        "fy": 655.123,
+        "cx": 386.123,
+        "cy": 511.123,
+        "k": -0.1,
+    }
+    full_sphere = True
+
+
+class TestDivisionColmapPincushion(CameraModelTester):
+    # COLMAP's k > 0 test parameters: in front of the camera, to the fold t = 1 / sqrt(k) (58 deg), outside the
+    # image here (the random calibrations of test_unproject_exact.py put it inside).
+    camera_dict: ClassVar[dict] = {**TestDivisionColmapBarrel.camera_dict, "k": 0.1}
+
+
 class TestUnifiedKitti360Image02(CameraModelTester):
     camera_dict: ClassVar[dict] = CALIBRATIONS["kitti360_image_02"]["camera"]
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from types import ModuleType
 
@@ -57,7 +58,16 @@ def test_main_tiny(
         for key in ("kept", "tp", "hidden_kept", "sparse_wrong", "sparse_gt"):
             assert sum(loc[name][key] for loc in per_location.values()) == row[key], (name, key)
 
-    assert "| 32² | ordering |" in capsys.readouterr().out
+    # Hidden points as the positive class, per flight: doing nothing detects none of them.
+    detection = summary["hidden_detection"]
+    flights = detection["per_flight"]["none"]
+    assert (
+        detection["flights"] == len({sid.rsplit("/", 1)[0] for sid in summary["sample_ids"]}) == len(flights)
+    )
+    assert all(s["recall"] == 0.0 for s in flights.values() if not math.isnan(s["recall"]))
+    assert set(detection["scores"]) == {name for name, _, _ in study.variants()}
+    printed = capsys.readouterr().out
+    assert "| 32² | ordering |" in printed and "hidden points = positive" in printed
     size = payload["figure"]["size"]
     width, height = Image.open(figure).size
     panels = len(OCCLUSION_METHODS)  # `none` first, then each other method
@@ -282,3 +292,20 @@ def test_a_recorded_run_refuses_uncommitted_code(
     with pytest.raises(SystemExit, match="uncommitted changes"):
         ablation.main(argv, runner=lambda argv: None)
     assert not (tmp_path / "none").exists()
+
+
+def test_hidden_detection_pools_counts_per_flight_and_compares_methods_pairwise() -> None:
+    from airfisheye_bench.benchmarks.hidden_detection import hidden_detection
+
+    # Two frames per flight: counts pool within the flight before the scores (not a mean of frame ratios).
+    frame = {"a": {"tp": 3, "fp": 1, "fn": 0}, "b": {"tp": 1, "fp": 0, "fn": 3}}
+    by_flight = {
+        f"town/traj{f:02d}": {m: [c, {"tp": 1, "fp": 1, "fn": 1}] for m, c in frame.items()} for f in range(3)
+    }
+    result = hidden_detection(by_flight, ["a", "b"])
+    a = result["per_flight"]["a"]["town/traj00"]  # pooled tp 4, fp 2, fn 1
+    assert a["precision"] == pytest.approx(4 / 6) and a["recall"] == pytest.approx(4 / 5)
+    assert result["scores"]["a"]["f1"]["n"] == 3 and result["flights"] == 3
+    d = result["paired_f1"]["a - b"]  # the same gap in every flight: no spread, p = 0
+    assert d["n"] == 3 and d["mean"] == pytest.approx(16 / 22 - 4 / 9)  # b: precision 2/3, recall 2/6
+    assert d["p_holm"] == 0.0

@@ -46,6 +46,29 @@ def test_served_pixels_look_along_the_calibrated_rays(tmp_path: Path, fit: str) 
         assert torch.allclose(rays[both], expected[both], atol=1e-9), camera.model
 
 
+@pytest.mark.parametrize(
+    "line",
+    [
+        "THIN_PRISM_FISHEYE 772 1022 651.123 655.123 386.123 511.123 -0.471 0.223 -0.001 0.001 0.001 0.02 -0.02 0.001",
+        "RAD_TAN_THIN_PRISM_FISHEYE 772 1022 651.123 655.123 386.123 511.123 -0.0232 0.0924 -0.0591 0.003 0.0048 "
+        "-0.0009 0.0002 0.0005 -0.0009 -0.0001 0.00007 -0.00017",
+        "DIVISION 772 1022 651.123 655.123 386.123 511.123 -0.1",
+    ],
+)
+def test_colmap_models_are_served_along_their_rays(tmp_path: Path, line: str) -> None:
+    """COLMAP's thin-prism and division models (models_test.cc's parameters) served at 96 x 96, padded."""
+    path = tmp_path / "cameras.txt"
+    path.write_text(f"1 {line}\n")
+    camera = load_camera(path)
+    served = serve_camera(camera, 96, "pad")
+    assert served.camera.model == camera.model and served.scale == pytest.approx(96 / 1022)
+    grid = served.camera.pixel_grid()
+    rays, expected = served.camera.unproject(grid), camera.unproject(served.to_source(grid))
+    on_sensor = served.frame_mask()
+    assert torch.isfinite(rays[on_sensor]).all()
+    torch.testing.assert_close(rays[on_sensor], expected[on_sensor], rtol=0, atol=1e-9)
+
+
 def test_non_square_pad_and_crop(tmp_path: Path) -> None:
     camera = _woodscape(tmp_path)
     pad, crop = serve_camera(camera, 512, "pad"), serve_camera(camera, 512, "crop")

@@ -8,7 +8,9 @@ distortions that fold. On a dense grid over each image (pixel centres and the ha
 - a pixel has a whole unit ray or none (NaN in all three coordinates), and ``valid_mask`` only where it has one;
 - a ray projects validly (its region; only ``fov_deg`` may exclude it) and back onto its pixel within 1e-6 px;
 - for the radial models, the ray's incidence lies where the forward radius ``r(theta)`` is increasing, found here
-  independently on a fine grid: the ray is the pixel's only one, not a second root of a polynomial.
+  independently on a fine grid: the ray is the pixel's only one, not a second root of a polynomial;
+- for COLMAP's thin-prism models, on the disc of ``theta`` where the distortion is one-to-one: its Jacobian
+  determinant, by central differences of COLMAP's ``Distortion`` written out independently, is positive there.
 
 And from the other side, directions over the sphere that project validly into the image come back within 1e-9 rad.
 Finally the OCamCalib file of the issue's kind (``OCAM_LONG_INVPOL``) through the file reader.
@@ -28,6 +30,7 @@ import torch
 from airfisheye_bench.geometry.cameras import CAMERA_MODELS, CameraModel, camera_from_dict
 from airfisheye_bench.io.calibration_files import read_calibration
 from tests.geometry.camera_tester import angle_between, sphere_directions
+from tests.helpers import colmap_models as colmap
 from tests.io import calibration_fixtures as fx
 
 #: Random calibrations per family.
@@ -126,6 +129,41 @@ def _fov(rng: np.random.Generator) -> dict:
     return {"model": "fov", **frame, **_focal(rng, frame, 0.2, 0.8), "omega": rng.uniform(0.01, 1.6)}
 
 
+def _division(rng: np.random.Generator) -> dict:
+    # COLMAP (SIMPLE_)DIVISION: barrel k < 0 reaches past 90 deg (1 + k t^2 < 0) and, with short focals, past
+    # 180 deg of field inside the image; pincushion k > 0 folds at t = 1 / sqrt(k), inside the image for the largest.
+    frame = _frame(rng)
+    return {"model": "division", **frame, **_focal(rng, frame, 0.2, 0.8), "k": rng.uniform(-1.2, 0.35)}
+
+
+def _thin_prism_fisheye(rng: np.random.Generator) -> dict:
+    # COLMAP THIN_PRISM_FISHEYE: Kannala-Brandt's ranges, with tangential and thin-prism terms up to COLMAP's own
+    # test values (p 1e-3, sx1 -0.02): they fold the map before the polynomial turns, on some inside the image.
+    frame = _frame(rng)
+    k = rng.uniform([-0.1, -0.05, -0.02, -0.005], [0.1, 0.05, 0.02, 0.005])
+    d = {"model": "thin_prism_fisheye", **frame, **_focal(rng, frame, 0.25, 0.45)}
+    d.update(zip(("k1", "k2", "k3", "k4"), k.tolist(), strict=True))
+    d.update(zip(("p1", "p2"), rng.uniform(-3e-3, 3e-3, 2).tolist(), strict=True))
+    d.update(zip(("sx1", "sy1"), rng.uniform(-0.03, 0.03, 2).tolist(), strict=True))
+    if rng.random() < 0.3:  # an image circle, inside the disc where the distortion is one-to-one
+        limit = camera_from_dict(d).theta_limit
+        d["fov_deg"] = min(rng.uniform(150.0, 230.0), 2 * math.degrees(limit))
+    return d
+
+
+def _rad_tan_thin_prism_fisheye(rng: np.random.Generator) -> dict:
+    # COLMAP RAD_TAN_THIN_PRISM_FISHEYE (Project Aria's Fisheye624): radial terms to theta^13 about COLMAP's test
+    # values (an Aria camera's), tangential and thin-prism terms up to 1e-3 (Aria's are ~1e-4). Some of these turn
+    # back or fold inside the image.
+    frame = _frame(rng)
+    colmap_test = np.array([-0.0232, 0.0924, -0.0591, 0.003, 0.0048, -0.0009])
+    k = colmap_test + rng.uniform(-1.0, 1.0, 6) * np.array([0.05, 0.05, 0.03, 0.01, 0.004, 0.001])
+    d = {"model": "rad_tan_thin_prism_fisheye", **frame, **_focal(rng, frame, 0.2, 0.45)}
+    d.update(zip(("k0", "k1", "k2", "k3", "k4", "k5"), k.tolist(), strict=True))
+    d.update(zip(("p0", "p1", "s0", "s1", "s2", "s3"), rng.uniform(-1e-3, 1e-3, 6).tolist(), strict=True))
+    return d
+
+
 def _radial_poly(rng: np.random.Generator) -> dict:
     # WoodScape's front camera has k = (0.265, -0.025, 0.038, -0.0056) image widths per radian^i.
     frame = _frame(rng)
@@ -186,6 +224,9 @@ FAMILIES: dict[str, Callable[[np.random.Generator], dict]] = {
     "double_sphere": _double_sphere,
     "eucm": _eucm,
     "fov": _fov,
+    "division": _division,
+    "thin_prism_fisheye": _thin_prism_fisheye,
+    "rad_tan_thin_prism_fisheye": _rad_tan_thin_prism_fisheye,
     "ocam": _ocam,
     "radial_poly": _radial_poly,
     "pinhole_radtan": _pinhole_radtan,
@@ -255,6 +296,11 @@ def check_exact(cam: CameraModel) -> dict[str, float]:
         assert not len(theta) or float(theta.max()) <= limit + step
         if cam.model == "ocam":  # and where the radius is not negative (a ray there lands mirrored)
             assert np.all((r(theta.numpy()) >= -1e-9) | (theta.numpy() == 0))
+    if cam.model in COLMAP_NAMES:
+        # The disc of theta the model solves on is one-to-one: COLMAP's distortion (written out independently)
+        # keeps a positive Jacobian determinant on it, by central differences.
+        assert min_jacobian_det(cam) > 0, f"{cam}: the distortion folds inside theta_limit={cam.theta_limit}"
+        assert not len(theta) or float(theta.max()) <= cam.theta_limit
     # From the sphere: every direction that projects validly into the image comes back (no missing ray), to
     # 1e-9 rad, or to what 1e-9 px is worth where the lens is nearly flat (a polynomial about to turn: there one
     # pixel spans a wide angle, whatever the solver).
@@ -267,6 +313,32 @@ def check_exact(cam: CameraModel) -> dict[str, float]:
     bar = MAX_RAD + 1e-9 / smallest_scale(cam, dirs[pvalid])
     assert (angle <= bar).all(), f"{cam}: direction -> pixel -> ray off by {float(angle.max()):.3g} rad"
     return {"px": worst, "rad": float(angle.max()) if len(angle) else 0.0, "rays": int(has.sum())}
+
+
+#: The thin-prism models by their COLMAP names, for COLMAP's Distortion (tests/helpers/colmap_models.py).
+COLMAP_NAMES = {
+    "thin_prism_fisheye": "THIN_PRISM_FISHEYE",
+    "rad_tan_thin_prism_fisheye": "RAD_TAN_THIN_PRISM_FISHEYE",
+}
+
+
+def min_jacobian_det(cam: CameraModel, h: float = 1e-6) -> float:
+    """Smallest Jacobian determinant of COLMAP's ``m -> m + Distortion(m)`` over the disc ``|m| <= theta_limit``
+    (200 radii up to 0.999 of it, 256 azimuths), by central differences."""
+    model = COLMAP_NAMES[cam.model]
+    extra = [getattr(cam, name) for name in cam.coefficients]
+    r = np.linspace(0.0, 0.999 * cam.theta_limit, 201)[1:, None]
+    a = np.linspace(0.0, 2 * np.pi, 257)[None, :-1]
+    x, y = r * np.cos(a), r * np.sin(a)
+
+    def f(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dx, dy = colmap.distortion(model, extra, x, y)
+        return x + dx, y + dy
+
+    (xa, ya), (xb, yb) = f(x + h, y), f(x - h, y)
+    (xc, yc), (xd, yd) = f(x, y + h), f(x, y - h)
+    det = (xa - xb) * (yc - yd) - (xc - xd) * (ya - yb)
+    return float(det.min()) / (4 * h * h)
 
 
 def smallest_scale(cam: CameraModel, d: torch.Tensor, h: float = 1e-7) -> torch.Tensor:

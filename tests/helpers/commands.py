@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parents[2]
 TRAIN = "train.py"
 EVALUATE = "scripts/evaluate.py"
 EXPORT = "scripts/export_onnx.py"
+PREDICT = "scripts/predict.py"
 INSPECT = "-c"  # python -c "<the console entry point>" key=value ...
 INSPECT_ENTRY = "from airfisheye_bench.cli.commands import inspect; inspect()"
 
@@ -58,6 +59,8 @@ def _entry(script: str, args: list[str]) -> tuple[Callable[[], object], list[str
         return apps.evaluate, args
     if script == EXPORT:  # scripts/export_onnx.py: sys.exit(export())
         return lambda: sys.exit(commands.export(args)), args
+    if script == PREDICT:  # scripts/predict.py: sys.exit(predict())
+        return lambda: sys.exit(commands.predict(args)), args
     if script == INSPECT and args and args[0] == INSPECT_ENTRY:  # its return value is dropped, as by ``-c``
         return lambda: commands.inspect(args[1:]), args[1:]
     raise ValueError(f"no in-process entry for {script} {args[:1]}")

@@ -16,7 +16,11 @@ import pytest
 
 from airfisheye_bench.errors import MissingFileError
 from airfisheye_bench.io.calibration_files import FORMATS, load_camera, read_calibration, save_camera
+from airfisheye_bench.io.calibration_files.colmap import PARAMETERS as COLMAP_PARAMETERS
+from airfisheye_bench.io.calibration_files.colmap import REFUSED as COLMAP_REFUSED
 from airfisheye_bench.io.errors import CalibrationFileError
+from tests.geometry.camera_tester import angle_between
+from tests.helpers import colmap_models as colmap
 from tests.io import calibration_fixtures as fx
 
 
@@ -549,53 +553,29 @@ def test_colmap_cameras_txt(tmp_path: Path) -> None:
         read_calibration(path, camera="0")  # COLMAP ids are names, never indices
 
 
-# COLMAP's maps, written out from src/colmap/sensor/models.h (github:colmap/colmap): ImgFromCam of each model, on
-# points in front of the camera (COLMAP's cheirality test), in COLMAP's pixels (the image corner is the origin).
-def _colmap_fisheye_from_normal(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    r = np.hypot(x, y)  # FisheyeFromNormal
-    theta = np.arctan(r)
-    return x * theta / r, y * theta / r
+# COLMAP's own test parameters (src/colmap/sensor/models_test.cc, <Model>.Nominal) on the image they centre.
+COLMAP_THIN_PRISM = [
+    651.123,
+    655.123,
+    386.123,
+    511.123,
+    -0.471,
+    0.223,
+    -0.001,
+    0.001,
+    0.001,
+    0.02,
+    -0.02,
+    0.001,
+]
+COLMAP_RAD_TAN_THIN_PRISM = [651.123, 655.123, 386.123, 511.123, -0.0232, 0.0924, -0.0591, 0.003, 0.0048, -0.0009,
+                             0.0002, 0.0005, -0.0009, -0.0001, 0.00007, -0.00017]  # fmt: skip
 
 
-def _colmap_img_from_cam(model: str, p: list[float], points: np.ndarray) -> np.ndarray:
-    x, y = points[:, 0] / points[:, 2], points[:, 1] / points[:, 2]
-    if model in ("SIMPLE_FISHEYE", "FISHEYE"):
-        f1, f2, c1, c2 = (p[0], p[0], p[1], p[2]) if model == "SIMPLE_FISHEYE" else p[:4]
-        uu, vv = _colmap_fisheye_from_normal(x, y)
-        return np.stack([f1 * uu + c1, f2 * vv + c2], -1)
-    f1, f2, c1, c2 = p[:4]
-    if model == "THIN_PRISM_FISHEYE":
-        k1, k2, p1, p2, k3, k4, sx1, sy1 = p[4:]
-        u, v = _colmap_fisheye_from_normal(x, y)
-        u2, uv, v2 = u * u, u * v, v * v
-        r2 = u2 + v2
-        radial = k1 * r2 + k2 * r2**2 + k3 * r2**3 + k4 * r2**4
-        du = u * radial + 2 * p1 * uv + p2 * (r2 + 2 * u2) + sx1 * r2
-        dv = v * radial + 2 * p2 * uv + p1 * (r2 + 2 * v2) + sy1 * r2
-        return np.stack([f1 * (u + du) + c1, f2 * (v + dv) + c2], -1)
-    if model == "RAD_TAN_THIN_PRISM_FISHEYE":
-        u, v = _colmap_fisheye_from_normal(x, y)
-        theta2 = u * u + v * v
-        th_radial = 1 + sum(k * theta2 ** (i + 1) for i, k in enumerate(p[4:10]))
-        xd, yd = th_radial * u, th_radial * v
-        p0, p1, s0, s1, s2, s3 = p[10:]
-        r2 = xd * xd + yd * yd
-        xd, yd = (
-            xd + 2 * p1 * xd * yd + p0 * (r2 + 2 * xd * xd) + s0 * r2 + s1 * r2 * r2,
-            yd + 2 * p0 * xd * yd + p1 * (r2 + 2 * yd * yd) + s2 * r2 + s3 * r2 * r2,
-        )
-        return np.stack([f1 * xd + c1, f2 * yd + c2], -1)
-    if model == "FOV":  # Distortion, its general branch (omega^2 and radius^2 >= 1e-4 here)
-        omega = p[4]
-        radius = np.hypot(x, y)
-        factor = np.arctan(radius * 2 * np.tan(omega / 2)) / (radius * omega)
-        return np.stack([f1 * x * factor + c1, f2 * y * factor + c2], -1)
-    if model == "EUCM":
-        alpha, beta = p[4:]
-        u, v, w = points.T
-        den = alpha * np.sqrt(beta * (u * u + v * v) + w * w) + (1 - alpha) * w
-        return np.stack([f1 * u / den + c1, f2 * v / den + c2], -1)
-    raise AssertionError(model)
+def _colmap_camera(tmp_path: Path, model: str, params: list[float], size: tuple[int, int] = (772, 1022)):
+    path = tmp_path / "cameras.txt"
+    path.write_text(f"# Camera list\n3 {model} {size[0]} {size[1]} {' '.join(repr(v) for v in params)}\n")
+    return load_camera(path)
 
 
 @pytest.mark.parametrize(
@@ -608,37 +588,93 @@ def _colmap_img_from_cam(model: str, p: list[float], points: np.ndarray) -> np.n
          "kannala_brandt"),
         ("RAD_TAN_THIN_PRISM_FISHEYE", [190.98, 190.97, 255.43, 257.40, 0.00348, 0.000715, -0.00205, 0.000203,
                                         0, 0, 0, 0, 0, 0, 0, 0], "kannala_brandt"),
-        ("FOV", [651.123, 655.123, 386.123, 511.123, 0.9], "fov"),  # COLMAP's models_test.cc parameters
+        ("THIN_PRISM_FISHEYE", COLMAP_THIN_PRISM, "thin_prism_fisheye"),
+        ("RAD_TAN_THIN_PRISM_FISHEYE", COLMAP_RAD_TAN_THIN_PRISM, "rad_tan_thin_prism_fisheye"),
+        # k5 alone: a radial term Kannala-Brandt has not.
+        ("RAD_TAN_THIN_PRISM_FISHEYE", [*COLMAP_RAD_TAN_THIN_PRISM[:9], 0.0001, 0, 0, 0, 0, 0, 0],
+         "rad_tan_thin_prism_fisheye"),
+        ("SIMPLE_DIVISION", [651.123, 386.123, 511.123, -0.1], "division"),
+        ("SIMPLE_DIVISION", [651.123, 386.123, 511.123, 0.0], "division"),
+        ("DIVISION", [651.123, 655.123, 386.123, 511.123, -0.1], "division"),
+        ("DIVISION", [651.123, 655.123, 386.123, 511.123, 0.1], "division"),
+        ("FOV", [651.123, 655.123, 386.123, 511.123, 0.9], "fov"),
         ("FOV", [651.123, 655.123, 386.123, 511.123, -0.9], "fov"),  # the same lens: the map is even in omega
         ("EUCM", [191.148, 191.132, 255.459, 257.382, 0.6291, 1.0418], "eucm"),  # TUM-VI cam0's, COLMAP's pixels
     ],
 )  # fmt: skip
 def test_colmap_models_project_as_colmap(tmp_path: Path, model: str, params: list[float], ours: str) -> None:
-    path = tmp_path / "cameras.txt"
-    path.write_text(f"# Camera list\n3 {model} 640 480 {' '.join(repr(v) for v in params)}\n")
-    camera = load_camera(path)
+    """Every model of models.h against its ImgFromCam written out (tests/helpers/colmap_models.py): the same
+    pixels to 1e-9 px wherever COLMAP projects a point in front of the camera, and the same points refused."""
+    camera = _colmap_camera(tmp_path, model, params)
     assert camera.model == ours
     rng = np.random.default_rng(3)
-    points = rng.normal(size=(500, 3))
+    points = rng.normal(size=(2000, 3))
     points[:, 2] = np.abs(points[:, 2]) + 0.05  # in front of the camera, up to 87 deg off the axis
     uv, valid = camera.project(points)
-    assert valid.all()
+    xy, ok = colmap.img_from_cam(model, params, points)
+    # DIVISION with k > 0 has no real root past t = 1 / sqrt(k) (58 deg here): neither projects those.
+    assert np.array_equal(valid, ok) and ok.mean() > (
+        0.5 if params[-1] > 0 and "DIVISION" in model else 0.999
+    )
     # Our pixel centres are at integers, COLMAP's at half-integers.
-    assert np.abs(uv + 0.5 - _colmap_img_from_cam(model, params, points)).max() < 1e-9
+    assert np.abs(uv[ok] + 0.5 - xy[ok]).max() < 1e-9
+
+
+@pytest.mark.parametrize(
+    ("model", "params"),
+    [
+        ("THIN_PRISM_FISHEYE", COLMAP_THIN_PRISM),
+        ("RAD_TAN_THIN_PRISM_FISHEYE", COLMAP_RAD_TAN_THIN_PRISM),
+        ("SIMPLE_DIVISION", [651.123, 386.123, 511.123, 0.1]),
+        ("DIVISION", [651.123, 655.123, 386.123, 511.123, -0.1]),
+    ],
+)
+def test_colmap_models_unproject_as_colmap(tmp_path: Path, model: str, params: list[float]) -> None:
+    """Pixels over the whole image against COLMAP's CamFromImg written out (for the thin-prism models its
+    IterativeUndistortion): the same rays, and each projects back onto its pixel through COLMAP's ImgFromCam."""
+    camera = _colmap_camera(tmp_path, model, params)
+    u, v = np.meshgrid(np.linspace(-0.5, 771.5, 13), np.linspace(-0.5, 1021.5, 17))
+    uv = np.stack([u.ravel(), v.ravel()], -1)
+    rays = camera.unproject(uv)
+    assert np.isfinite(rays).all()
+    plane, ok = colmap.cam_from_img(model, params, uv + 0.5)
+    assert ok.all()
+    theirs = np.concatenate([plane, np.ones((len(plane), 1))], -1)
+    theirs /= np.linalg.norm(theirs, axis=-1, keepdims=True)
+    # COLMAP's Newton stops once a step is below 1e-5: its rays are exact to what that leaves, ~1e-10 rad.
+    assert angle_between(rays, theirs).max() < 1e-9
+    xy, ok = colmap.img_from_cam(model, params, rays)
+    assert ok.all() and np.abs(xy - 0.5 - uv).max() < 1e-9
+
+
+def test_colmap_division_past_90_degrees_is_the_ray_of_img_from_cam(tmp_path: Path) -> None:
+    """Barrel DIVISION reaches past 90 deg (1 + k t^2 < 0) where COLMAP's CamFromImg, a point of the plane w = 1,
+    is the opposite ray: the ray here is the one ImgFromCam (no cheirality test) maps onto the pixel."""
+    camera = _colmap_camera(tmp_path, "SIMPLE_DIVISION", [200.0, 320.0, 240.0, -0.5], size=(640, 480))
+    uv = np.array(
+        [[-0.5, -0.5], [639.5, 239.5], [319.5, 479.5]]
+    )  # t = 2, 1.6, 1.2: beyond t = sqrt(2), and not
+    rays = camera.unproject(uv)
+    assert (rays[:2, 2] < 0).all() and rays[2, 2] > 0
+    xy, ok = colmap.img_from_cam("SIMPLE_DIVISION", [200.0, 320.0, 240.0, -0.5], rays)
+    assert ok.all() and np.abs(xy - 0.5 - uv).max() < 1e-9
+    plane, _ = colmap.cam_from_img("SIMPLE_DIVISION", [200.0, 320.0, 240.0, -0.5], uv + 0.5)
+    np.testing.assert_allclose(
+        rays[:2, :2] / rays[:2, 2:], plane[:2], rtol=1e-12
+    )  # the same line, the other way
+    assert camera.coverage_deg > 180.0
 
 
 @pytest.mark.parametrize(
     ("line", "message"),
     [
-        ("THIN_PRISM_FISHEYE 64 64 50 50 32 32 0.01 0 1e-4 0 0 0 0 2e-5",
-         "key '3.params': THIN_PRISM_FISHEYE with non-zero p1, sy1 is not supported (only its Kannala-Brandt part); "
-         "calibrate with OPENCV_FISHEYE instead"),
-        ("RAD_TAN_THIN_PRISM_FISHEYE 64 64 50 50 32 32 0 0 0 0 0 0.1 0 0 0 0 0 0",
-         "key '3.params': RAD_TAN_THIN_PRISM_FISHEYE with non-zero k5 is not supported"),
-        ("DIVISION 64 64 50 50 32 32 -0.1",
-         "key '3.model': DIVISION has no lens model here; supported: every model of COLMAP's models.h but "
-         "SIMPLE_DIVISION, DIVISION, EQUIRECTANGULAR"),
-        ("FISHEYE624 64 64 50 50 32 32", "key '3.model': FISHEYE624 is not a COLMAP camera model; supported:"),
+        ("EQUIRECTANGULAR 800 400 800 400",
+         "key '3.model': EQUIRECTANGULAR is a 360 x 180 deg panorama (COLMAP's spherical model, no focal length), "
+         "not a lens: no fisheye image is served through it"),
+        ("FISHEYE624 64 64 50 50 32 32",
+         "key '3.model': FISHEYE624 is not a COLMAP camera model; supported: every model of COLMAP's models.h but "
+         "EQUIRECTANGULAR"),
+        ("DIVISION 64 64 50 50 32 32", "key '3.params': expected 5 numbers, got 4"),
     ],
 )  # fmt: skip
 def test_colmap_refusals_are_one_short_line(tmp_path: Path, line: str, message: str) -> None:
@@ -648,6 +684,17 @@ def test_colmap_refusals_are_one_short_line(tmp_path: Path, line: str, message: 
         load_camera(path)
     text = str(err.value)
     assert message in text and "\n" not in text and len(text) - len(str(path)) <= 200
+
+
+def test_colmap_every_model_of_models_h_is_read() -> None:
+    """The reader's table against the models models.h defines (CAMERA_MODEL_CASES; EQUIRECTANGULAR refused)."""
+    models_h = {
+        "SIMPLE_PINHOLE", "PINHOLE", "SIMPLE_RADIAL", "SIMPLE_RADIAL_FISHEYE", "RADIAL", "RADIAL_FISHEYE", "OPENCV",
+        "OPENCV_FISHEYE", "FULL_OPENCV", "FOV", "THIN_PRISM_FISHEYE", "RAD_TAN_THIN_PRISM_FISHEYE",
+        "SIMPLE_DIVISION", "DIVISION", "SIMPLE_FISHEYE", "FISHEYE", "EUCM", "EQUIRECTANGULAR",
+    }  # fmt: skip
+    assert set(COLMAP_PARAMETERS) | set(COLMAP_REFUSED) == models_h
+    assert set(COLMAP_REFUSED) == {"EQUIRECTANGULAR"}
 
 
 def test_colmap_fov_of_omega_zero_is_the_pinhole(tmp_path: Path) -> None:

@@ -4,6 +4,7 @@ See docs/design.md, "Fisheye camera", for every model's parameters and the code 
 """
 
 from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.division import Division
 from airfisheye_bench.geometry.cameras.double_sphere import DoubleSphere
 from airfisheye_bench.geometry.cameras.eucm import EUCM
 from airfisheye_bench.geometry.cameras.fov import Fov
@@ -19,12 +20,14 @@ from airfisheye_bench.geometry.cameras.radial import (
 )
 from airfisheye_bench.geometry.cameras.radial_poly import RadialPoly
 from airfisheye_bench.geometry.cameras.registry import CAMERA_MODELS, camera_from_dict
+from airfisheye_bench.geometry.cameras.thin_prism import RadTanThinPrismFisheye, ThinPrismFisheye
 from airfisheye_bench.geometry.cameras.unified import Unified
 
 __all__ = [
     "CAMERA_MODELS",
     "EUCM",
     "CameraModel",
+    "Division",
     "DoubleSphere",
     "Equidistant",
     "Equisolid",
@@ -33,9 +36,11 @@ __all__ = [
     "Ocam",
     "Orthographic",
     "PinholeRadtan",
+    "RadTanThinPrismFisheye",
     "RadialCamera",
     "RadialPoly",
     "Stereographic",
+    "ThinPrismFisheye",
     "Unified",
     "camera_from_dict",
 ]

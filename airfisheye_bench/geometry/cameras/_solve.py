@@ -10,6 +10,10 @@
 - :class:`RadtanInverse`: invert OpenCV's radial-tangential distortion: the radial part as above, then Newton
   steps on the 2x2 system for the tangential terms, each point until it converges (at most 40; a numba loop on
   CPU), NaN where the result does not reproduce the input.
+- :class:`DiscInverse`: invert a near-radial distortion of the plane (COLMAP's thin-prism fisheye models) on the disc
+  where it is one-to-one (:func:`one_to_one_radius`): a start from its radial part's inverse, then Newton steps in a
+  trust region, halved until they shrink the residual (steepest descent where no Newton step does), NaN where the
+  result does not reproduce the input or leaves the disc.
 """
 
 from __future__ import annotations
@@ -249,6 +253,34 @@ def radial_limit(k1: float, k2: float, k3: float = 0.0) -> float:
     return math.sqrt(min(positive)) if positive else math.inf
 
 
+def _circles(r: torch.Tensor, azimuths: int = 128) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(x, y) [len(r), azimuths]``: points spread evenly over the circle of each radius ``r``."""
+    a = torch.linspace(0.0, 2.0 * math.pi, azimuths + 1, dtype=torch.float64)[:-1]
+    return r[:, None] * torch.cos(a), r[:, None] * torch.sin(a)
+
+
+def one_to_one_radius(
+    min_det: Callable[[torch.Tensor], torch.Tensor], hi: float, samples: int = 256
+) -> float:
+    """Largest radius ``<= hi`` whose disc has a positive Jacobian determinant everywhere (a near-radial map whose
+    boundary circle maps to a simple curve: one-to-one there). ``min_det(r)``: the determinant's smallest value
+    over the circle of each radius; the first radius of ``samples`` where it is not positive is narrowed down by
+    bisection."""
+    r = torch.linspace(0.0, hi, samples + 1, dtype=torch.float64)[1:]
+    bad = (~(min_det(r) > 0)).nonzero()
+    if not len(bad):
+        return hi
+    i = int(bad[0, 0])
+    a, b = (float(r[i - 1]) if i else 0.0), float(r[i])
+    for _ in range(50):  # bisection on the first sign change
+        mid = 0.5 * (a + b)
+        if bool(min_det(torch.tensor([mid], dtype=torch.float64))[0] > 0):
+            a = mid
+        else:
+            b = mid
+    return a
+
+
 class RadtanInverse:
     """Invert :func:`radtan`: the radial part by :class:`MonotoneInverse` on the radius, then Newton steps on the
     2x2 system (analytic Jacobian) for the tangential terms, on the points not yet converged. NaN where the result does
@@ -290,31 +322,17 @@ class RadtanInverse:
         self._radial_cap = r_cap
         self.r_valid = self._one_to_one_radius(self._radial.t_hi)
 
-    def _min_det(self, r: torch.Tensor, azimuths: int = 128) -> torch.Tensor:
+    def _min_det(self, r: torch.Tensor) -> torch.Tensor:
         """Smallest determinant of :func:`radtan`'s Jacobian over the circle of each radius ``r``."""
-        a = torch.linspace(0.0, 2.0 * math.pi, azimuths + 1, dtype=torch.float64)[:-1]
-        x, y = r[:, None] * torch.cos(a), r[:, None] * torch.sin(a)
+        x, y = _circles(r)
         j11, j12, j22 = self._jacobian(x, y)
         return (j11 * j22 - j12 * j12).min(dim=1).values
 
-    def _one_to_one_radius(self, hi: float, samples: int = 256) -> float:
-        """Largest radius ``<= hi`` whose disc has a positive Jacobian determinant everywhere (a near-radial map
-        whose boundary circle maps to a simple curve: one-to-one there)."""
+    def _one_to_one_radius(self, hi: float) -> float:
+        """Largest radius ``<= hi`` whose disc has a positive Jacobian determinant everywhere."""
         if not any(self.k[2:4]):
             return hi  # radial only: the determinant is f(r) f'(r) / r, positive up to r_max
-        r = torch.linspace(0.0, hi, samples + 1, dtype=torch.float64)[1:]
-        bad = (~(self._min_det(r) > 0)).nonzero()
-        if not len(bad):
-            return hi
-        i = int(bad[0, 0])
-        a, b = (float(r[i - 1]) if i else 0.0), float(r[i])
-        for _ in range(50):  # bisection on the first sign change
-            mid = 0.5 * (a + b)
-            if bool(self._min_det(torch.tensor([mid], dtype=torch.float64))[0] > 0):
-                a = mid
-            else:
-                b = mid
-        return a
+        return one_to_one_radius(self._min_det, hi)
 
     def __call__(
         self, xd: torch.Tensor, yd: torch.Tensor, max_steps: int = 40, fused: bool = True
@@ -373,13 +391,152 @@ class RadtanInverse:
         return x - (j22 * ex - j12 * ey) / det, y - (j11 * ey - j12 * ex) / det
 
 
+class DiscInverse:
+    """Invert a near-radial distortion ``F`` of the plane (``F(0) = 0``, ``|F(m)|`` close to an increasing radial
+    part ``g(|m|)``) on the disc ``|m| <= r_valid`` where it is one-to-one: COLMAP's thin-prism fisheye models in the
+    plane of ``theta`` (``ThinPrismFisheyeCameraModel``, ``RadTanThinPrismFisheyeModel``).
+
+    ``r_valid``: ``g`` still increases, stays within ``y_cap``, and ``F``'s Jacobian determinant is positive at every
+    azimuth (:func:`one_to_one_radius`), so a distorted point has at most one undistorted point there. Each point
+    starts from ``g``'s inverse (:class:`MonotoneInverse`'s table) along its own direction and takes Newton steps on
+    the 2x2 system, each no longer than ``max(0.1 |m|, 0.1)`` (COLMAP's ``IterativeUndistortion`` trust region), kept
+    on the disc and halved until it shrinks the residual, until the residual is float64's rounding of ``F``, no step
+    shrinks it, or five steps in a row shrank it by less than a tenth (no solution on the disc: crawling to the
+    residual's lowest point; Newton's steps shrink it far faster, by half even at a double root); at most
+    ``max_steps``.
+    NaN where the result does not reproduce the distorted point to ``tol`` per coordinate: never a wrong point, never
+    one off the disc.
+
+    Args:
+        distort: ``(x, y) -> F(x, y)`` on float64 tensors.
+        jacobian: ``(x, y) -> (dFx/dx, dFx/dy, dFy/dx, dFy/dy)``.
+        radial: ``g`` (float64 tensors); ``d_radial`` its derivative.
+        r_max: Where ``g`` stops increasing.
+        y_cap: Largest ``g`` solved for.
+        y_near: ``g`` up to which the start table reaches (the image and a frame around it).
+        tol: Largest accepted residual, per coordinate.
+    """
+
+    def __init__(
+        self,
+        distort: Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]],
+        jacobian: Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, ...]],
+        radial: Callable[[torch.Tensor], torch.Tensor],
+        d_radial: Callable[[torch.Tensor], torch.Tensor],
+        r_max: float,
+        y_cap: float = math.inf,
+        y_near: float = math.inf,
+        tol: float = 1e-12,
+    ) -> None:
+        self.distort, self.jacobian, self.tol = distort, jacobian, float(tol)
+        self._radial = MonotoneInverse(radial, d_radial, r_max, y_cap=y_cap, y_near=y_near)
+        self.r_valid = one_to_one_radius(self.min_det, self._radial.t_hi)
+        # The disc's image lies within the largest distorted radius of its rim: beyond (with a margin for the
+        # sampling) a point has no solution, and is not solved.
+        rim = _circles(torch.tensor([self.r_valid], dtype=torch.float64), azimuths=4096)
+        self._rd_max = 1.001 * float(torch.hypot(*self.distort(*rim)).max())
+
+    def min_det(self, r: torch.Tensor) -> torch.Tensor:
+        """Smallest determinant of ``F``'s Jacobian over the circle of each radius ``r``."""
+        j11, j12, j21, j22 = self.jacobian(*_circles(r))
+        return (j11 * j22 - j12 * j21).min(dim=1).values
+
+    def __call__(
+        self, xd: torch.Tensor, yd: torch.Tensor, max_steps: int = 50
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Undistort flat ``[N]`` coordinates; masked steps run only on the points not yet converged."""
+        rd = torch.hypot(xd, yd)
+        _, radial_hi = self._radial.y_range
+        t = self._radial(rd.clamp(max=radial_hi), steps=0).clamp(max=self.r_valid)
+        scale = t / rd.clamp_min(1e-300)
+        x, y = torch.where(rd == 0, xd, xd * scale), torch.where(rd == 0, yd, yd * scale)
+        # Converged once the residual is at float64's rounding of F (a few ulps of the distorted radius).
+        floor = 4e-16 * (1.0 + rd)
+        idx = (torch.isfinite(x) & torch.isfinite(y) & (rd <= self._rd_max)).nonzero().squeeze(1)
+        ex, ey = self._residual(x[idx], y[idx], xd[idx], yd[idx])
+        stalled = torch.zeros_like(idx)  # steps in a row that shrank the residual by less than a tenth
+        for _ in range(max_steps):
+            todo = (
+                ((ex.abs() > floor[idx]) | (ey.abs() > floor[idx])) & torch.isfinite(ex) & torch.isfinite(ey)
+            )
+            todo &= stalled < 5
+            keep = todo.nonzero().squeeze(1)
+            idx, ex, ey, stalled = idx[keep], ex[keep], ey[keep], stalled[keep]
+            if not len(idx):
+                break
+            xa, ya, xda, yda = x[idx], y[idx], xd[idx], yd[idx]
+            j11, j12, j21, j22 = self.jacobian(xa, ya)
+            det = j11 * j22 - j12 * j21
+            sx, sy = (j22 * ex - j12 * ey) / det, (j11 * ey - j21 * ex) / det
+            step = torch.hypot(sx, sy)
+            trust = (torch.clamp_min(0.1 * torch.hypot(xa, ya), 0.1) / step).clamp(max=1.0)
+            err = torch.hypot(ex, ey)
+            # Backtracking: the step is halved until it shrinks the residual (near a fold the full one overshoots).
+            lam = trust.clone()
+            xn, yn, exn, eyn = self._moved(xa, ya, sx, sy, lam, xda, yda)
+            worse = self._backtrack(xa, ya, sx, sy, lam, xda, yda, err, xn, yn, exn, eyn)
+            w = worse.nonzero().squeeze(1)
+            if len(w):
+                # Where no Newton step helps (its direction is wrong next to a fold, where J is nearly singular):
+                # the steepest descent of |F - m_d|^2, from its Cauchy point, with the same backtracking.
+                ja, jb, jc, jd, ewx, ewy = j11[w], j12[w], j21[w], j22[w], ex[w], ey[w]
+                gx, gy = ja * ewx + jc * ewy, jb * ewx + jd * ewy
+                alpha = (gx * gx + gy * gy) / ((ja * gx + jb * gy) ** 2 + (jc * gx + jd * gy) ** 2)
+                sx[w], sy[w], lam[w] = alpha * gx, alpha * gy, 1.0
+                step[w] = torch.hypot(sx[w], sy[w])
+                parts = self._moved(xa[w], ya[w], sx[w], sy[w], lam[w], xda[w], yda[w])
+                xn[w], yn[w], exn[w], eyn[w] = parts
+                lw = lam[w]
+                still = self._backtrack(xa[w], ya[w], sx[w], sy[w], lw, xda[w], yda[w], err[w], *parts)
+                lam[w], worse[w] = lw, still
+                xn[w], yn[w], exn[w], eyn[w] = parts
+            # No step shrinks it: float64's floor, or the residual's lowest point (no solution there). Done either way.
+            moved = (~worse & (step * lam > 1e-16 * (1.0 + torch.hypot(xa, ya)))).nonzero().squeeze(1)
+            idx, xn, yn, exn, eyn = idx[moved], xn[moved], yn[moved], exn[moved], eyn[moved]
+            x[idx], y[idx] = xn, yn
+            stalled = torch.where(torch.hypot(exn, eyn) > 0.9 * err[moved], stalled[moved] + 1, 0)
+            ex, ey = exn, eyn
+        fx, fy = self.distort(x, y)
+        ok = ((fx - xd).abs() <= self.tol) & ((fy - yd).abs() <= self.tol)
+        ok &= torch.hypot(x, y) <= self.r_valid
+        return torch.where(ok, x, torch.nan), torch.where(ok, y, torch.nan)
+
+    def _backtrack(
+        self, x, y, sx, sy, lam, xd, yd, err, xn, yn, exn, eyn, halvings: int = 10
+    ) -> torch.Tensor:
+        """Halve ``lam`` (in place, as the candidates ``xn, yn, exn, eyn``) where the step does not shrink the
+        residual below ``err``; returns where it still does not."""
+        worse = ~(torch.hypot(exn, eyn) < err)
+        for _ in range(halvings):
+            w = worse.nonzero().squeeze(1)
+            if not len(w):
+                break
+            lam[w] *= 0.5
+            xn[w], yn[w], exn[w], eyn[w] = self._moved(x[w], y[w], sx[w], sy[w], lam[w], xd[w], yd[w])
+            worse[w] = ~(torch.hypot(exn[w], eyn[w]) < err[w])
+        return worse
+
+    def _residual(self, x, y, xd, yd):
+        fx, fy = self.distort(x, y)
+        return fx - xd, fy - yd
+
+    def _moved(self, x, y, sx, sy, lam, xd, yd):
+        """``(x, y) - lam (sx, sy)``, kept on the disc, and its residual."""
+        xn, yn = x - lam * sx, y - lam * sy
+        pull = (self.r_valid / torch.hypot(xn, yn)).clamp(max=1.0)
+        xn, yn = xn * pull, yn * pull
+        return xn, yn, *self._residual(xn, yn, xd, yd)
+
+
 __all__ = [
     "FAR_FRAME",
     "PIXEL_TOL",
+    "DiscInverse",
     "MonotoneInverse",
     "RadtanInverse",
     "frame_reach",
     "increasing_limit",
+    "one_to_one_radius",
     "polyder",
     "polyval",
     "radial_limit",

@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.division import Division
 from airfisheye_bench.geometry.cameras.double_sphere import DoubleSphere
 from airfisheye_bench.geometry.cameras.eucm import EUCM
 from airfisheye_bench.geometry.cameras.fov import Fov
@@ -15,6 +16,7 @@ from airfisheye_bench.geometry.cameras.ocam import Ocam
 from airfisheye_bench.geometry.cameras.pinhole_radtan import PinholeRadtan
 from airfisheye_bench.geometry.cameras.radial import RADIAL_MODELS
 from airfisheye_bench.geometry.cameras.radial_poly import RadialPoly
+from airfisheye_bench.geometry.cameras.thin_prism import RadTanThinPrismFisheye, ThinPrismFisheye
 from airfisheye_bench.geometry.cameras.unified import Unified
 
 #: Every camera model by its registry name (the ``model`` entry of ``to_dict``).
@@ -25,6 +27,9 @@ CAMERA_MODELS: dict[str, type[CameraModel]] = {
     DoubleSphere.model: DoubleSphere,
     EUCM.model: EUCM,
     Fov.model: Fov,
+    Division.model: Division,
+    ThinPrismFisheye.model: ThinPrismFisheye,
+    RadTanThinPrismFisheye.model: RadTanThinPrismFisheye,
     Ocam.model: Ocam,
     RadialPoly.model: RadialPoly,
     PinholeRadtan.model: PinholeRadtan,

@@ -14,13 +14,16 @@ from collections.abc import Sequence
 from typing import Any
 
 __all__ = [
+    "division",
     "double_sphere",
     "eucm",
     "fov",
     "kannala_brandt",
     "ocam",
     "pinhole_radtan",
+    "rad_tan_thin_prism_fisheye",
     "radial_poly",
+    "thin_prism_fisheye",
     "unified",
 ]
 
@@ -116,6 +119,38 @@ def fov(width: int, height: int, fx: float, fy: float, cx: float, cy: float, ome
     values = (fx, fy, cx, cy, omega)
     names = ("fx", "fy", "cx", "cy", "omega")
     return {**_base("fov", width, height), **{n: float(v) for n, v in zip(names, values, strict=True)}}
+
+
+def division(width: int, height: int, fx: float, fy: float, cx: float, cy: float, k: float) -> dict[str, Any]:
+    """Fitzgibbon's division model (COLMAP ``DIVISION``): the pixel's normalised point ``m`` is the ray
+    ``(m, 1 + k |m|^2)``."""
+    values = (fx, fy, cx, cy, k)
+    names = ("fx", "fy", "cx", "cy", "k")
+    return {**_base("division", width, height), **{n: float(v) for n, v in zip(names, values, strict=True)}}
+
+
+def thin_prism_fisheye(
+    width: int, height: int, fx: float, fy: float, cx: float, cy: float, coefficients: Sequence[float]
+) -> dict[str, Any]:
+    """COLMAP ``THIN_PRISM_FISHEYE``: ``coefficients`` = ``k1, k2, p1, p2, k3, k4, sx1, sy1`` (COLMAP's order)."""
+    names = ("k1", "k2", "p1", "p2", "k3", "k4", "sx1", "sy1")
+    return {
+        **_base("thin_prism_fisheye", width, height),
+        **{n: float(v) for n, v in zip(("fx", "fy", "cx", "cy"), (fx, fy, cx, cy), strict=True)},
+        **{n: float(v) for n, v in zip(names, coefficients, strict=True)},
+    }
+
+
+def rad_tan_thin_prism_fisheye(
+    width: int, height: int, fx: float, fy: float, cx: float, cy: float, coefficients: Sequence[float]
+) -> dict[str, Any]:
+    """COLMAP ``RAD_TAN_THIN_PRISM_FISHEYE`` (Fisheye624): ``coefficients`` = ``k0..k5, p0, p1, s0..s3``."""
+    names = ("k0", "k1", "k2", "k3", "k4", "k5", "p0", "p1", "s0", "s1", "s2", "s3")
+    return {
+        **_base("rad_tan_thin_prism_fisheye", width, height),
+        **{n: float(v) for n, v in zip(("fx", "fy", "cx", "cy"), (fx, fy, cx, cy), strict=True)},
+        **{n: float(v) for n, v in zip(names, coefficients, strict=True)},
+    }
 
 
 def ocam(

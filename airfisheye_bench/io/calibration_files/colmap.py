@@ -18,20 +18,22 @@ OPENCV_FISHEYE              fx, fy, cx, cy, k1, k2, k3, k4              kannala_
 SIMPLE_RADIAL_FISHEYE       f, cx, cy, k                                kannala_brandt (k1 = k)
 RADIAL_FISHEYE              f, cx, cy, k1, k2                           kannala_brandt (k1, k2)
 SIMPLE_FISHEYE, FISHEYE     f, cx, cy / fx, fy, cx, cy                  kannala_brandt (k = 0: equidistant)
-THIN_PRISM_FISHEYE          fx, fy, cx, cy, k1, k2, p1, p2, k3, k4,     kannala_brandt (p1, p2, sx1, sy1 must
-                            sx1, sy1                                    be 0)
-RAD_TAN_THIN_PRISM_FISHEYE  fx, fy, cx, cy, k0..k5, p0, p1, s0..s3      kannala_brandt (k1..k4 = k0..k3; k4, k5,
-                                                                        p0, p1, s0..s3 must be 0)
+THIN_PRISM_FISHEYE          fx, fy, cx, cy, k1, k2, p1, p2, k3, k4,     thin_prism_fisheye (kannala_brandt when
+                            sx1, sy1                                    p1, p2, sx1, sy1 are 0)
+RAD_TAN_THIN_PRISM_FISHEYE  fx, fy, cx, cy, k0..k5, p0, p1, s0..s3      rad_tan_thin_prism_fisheye (kannala_brandt,
+                                                                        k1..k4 = k0..k3, when k4, k5, p0, p1,
+                                                                        s0..s3 are 0)
+SIMPLE_DIVISION, DIVISION   f, cx, cy, k / fx, fy, cx, cy, k            division
 FOV                         fx, fy, cx, cy, omega                       fov (omega = 0: pinhole_radtan)
 EUCM                        fx, fy, cx, cy, alpha, beta                 eucm
 ==========================  ==========================================  =========================================
 
 COLMAP's fisheye models all distort ``theta = atan(r)`` (``FisheyeFromNormal``): ``RADIAL_FISHEYE`` into ``theta (1
 + k1 theta^2 + k2 theta^4)``, ``THIN_PRISM_FISHEYE`` adds tangential and thin-prism terms to that, and
-``RAD_TAN_THIN_PRISM_FISHEYE`` a radial polynomial to theta^13: without those extra terms each is the
-Kannala-Brandt polynomial. With them they are no model here, and refused naming the terms (their 2-D distortion
-has no exact inverse here yet). ``FOV``'s map is even in omega (``|omega|`` is read). ``SIMPLE_DIVISION``,
-``DIVISION`` and ``EQUIRECTANGULAR`` are refused. Cameras are named by their ``CAMERA_ID``.
+``RAD_TAN_THIN_PRISM_FISHEYE`` a radial polynomial to theta^13 and then such terms: without those extra terms each
+is the Kannala-Brandt polynomial, and is read as ``kannala_brandt``; with them as its own model
+(``geometry/cameras/thin_prism.py``). ``FOV``'s map is even in omega (``|omega|`` is read). ``EQUIRECTANGULAR``, a
+360 x 180 deg panorama described by its size alone, is no lens: refused. Cameras are named by their ``CAMERA_ID``.
 
 Example:
     >>> doc = _document("# Camera list\\n1 OPENCV_FISHEYE 1280 960 400 401 640 480 0.1 0.01 0 0\\n", None)
@@ -46,7 +48,15 @@ import re
 from functools import partial
 from typing import Any
 
-from airfisheye_bench.io.calibration_files._camera_dicts import eucm, fov, kannala_brandt, pinhole_radtan
+from airfisheye_bench.io.calibration_files._camera_dicts import (
+    division,
+    eucm,
+    fov,
+    kannala_brandt,
+    pinhole_radtan,
+    rad_tan_thin_prism_fisheye,
+    thin_prism_fisheye,
+)
 from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
 
 __all__ = ["FORMAT", "PARAMETERS", "REFUSED"]
@@ -68,12 +78,18 @@ PARAMETERS = {
     "RAD_TAN_THIN_PRISM_FISHEYE": (
         "fx", "fy", "cx", "cy", "k0", "k1", "k2", "k3", "k4", "k5", "p0", "p1", "s0", "s1", "s2", "s3",
     ),
+    "SIMPLE_DIVISION": ("f", "cx", "cy", "k"),
+    "DIVISION": ("fx", "fy", "cx", "cy", "k"),
     "FOV": ("fx", "fy", "cx", "cy", "omega"),
     "EUCM": ("fx", "fy", "cx", "cy", "alpha", "beta"),
 }  # fmt: skip
-#: COLMAP's models that have no model here.
-REFUSED = ("SIMPLE_DIVISION", "DIVISION", "EQUIRECTANGULAR")
-#: Kannala-Brandt models -> (names of the polynomial's k1..k4, terms that must be zero).
+#: COLMAP's models that have no model here, and why.
+REFUSED = {
+    "EQUIRECTANGULAR": "is a 360 x 180 deg panorama (COLMAP's spherical model, no focal length), not a lens: "
+    "no fisheye image is served through it",
+}
+#: Kannala-Brandt models -> (names of the polynomial's k1..k4, terms beyond it: with any of them non-zero the model
+#: is its own, the dict builder of ``_OWN_MODEL``).
 _KB_FAMILY = {
     "OPENCV_FISHEYE": (("k1", "k2", "k3", "k4"), ()),
     "SIMPLE_RADIAL_FISHEYE": (("k",), ()),
@@ -85,6 +101,10 @@ _KB_FAMILY = {
         ("k0", "k1", "k2", "k3"),
         ("k4", "k5", "p0", "p1", "s0", "s1", "s2", "s3"),
     ),
+}
+_OWN_MODEL = {
+    "THIN_PRISM_FISHEYE": thin_prism_fisheye,
+    "RAD_TAN_THIN_PRISM_FISHEYE": rad_tan_thin_prism_fisheye,
 }
 _LINE = re.compile(r"^\s*(\d+)\s+([A-Z][A-Z0-9_]*)\s+(\d+)\s+(\d+)((?:\s+\S+)*)\s*$")
 
@@ -119,11 +139,13 @@ def _cameras(fields: Fields) -> dict[str, CameraEntry]:
 
 def _read(f: Fields, camera_id: str) -> tuple[dict[str, Any], dict]:
     model = f.str(f"{camera_id}.model")
+    if model in REFUSED:
+        raise f.error(f"{camera_id}.model", f"{model} {REFUSED[model]}")
     if model not in PARAMETERS:
-        what = "has no lens model here" if model in REFUSED else "is not a COLMAP camera model"
         raise f.error(
             f"{camera_id}.model",
-            f"{model} {what}; supported: every model of COLMAP's models.h but {', '.join(REFUSED)}",
+            f"{model} is not a COLMAP camera model; supported: every model of COLMAP's models.h but "
+            f"{', '.join(REFUSED)}",
         )
     names = PARAMETERS[model]
     values = f.numbers(f"{camera_id}.params", len(names))
@@ -134,16 +156,13 @@ def _read(f: Fields, camera_id: str) -> tuple[dict[str, Any], dict]:
     # COLMAP's pixel centres are at half-integers (the image corner is the origin); ours at integers.
     fx, fy, cx, cy = p["fx"], p["fy"], p["cx"] - 0.5, p["cy"] - 0.5
     if model in _KB_FAMILY:
-        k_names, zero = _KB_FAMILY[model]
-        extra = [name for name in zero if p[name] != 0]
-        if extra:
-            raise f.error(
-                f"{camera_id}.params",
-                f"{model} with non-zero {', '.join(extra)} is not supported (only its Kannala-Brandt part); "
-                "calibrate with OPENCV_FISHEYE instead",
-            )
+        k_names, beyond = _KB_FAMILY[model]
+        if any(p[name] != 0 for name in beyond):
+            return _OWN_MODEL[model](width, height, fx, fy, cx, cy, [p[name] for name in names[4:]]), {}
         k = [p[name] for name in k_names] + [0.0] * (4 - len(k_names))
         return kannala_brandt(width, height, fx, fy, cx, cy, k), {}
+    if model in ("SIMPLE_DIVISION", "DIVISION"):
+        return division(width, height, fx, fy, cx, cy, p["k"]), {}
     if model == "FOV":
         if p["omega"] == 0:  # COLMAP's limit: the undistorted pinhole
             return pinhole_radtan(width, height, fx, fy, cx, cy), {}
@@ -163,8 +182,7 @@ def _read(f: Fields, camera_id: str) -> tuple[dict[str, Any], dict]:
 
 FORMAT = CalibrationFormat(
     name="colmap",
-    summary="COLMAP cameras.txt (every model of models.h but SIMPLE_DIVISION, DIVISION, EQUIRECTANGULAR; "
-    "principal point moved by -0.5 px)",
+    summary="COLMAP cameras.txt (every model of models.h but EQUIRECTANGULAR; principal point moved by -0.5 px)",
     source="github:colmap/colmap src/colmap/sensor/models.h; COLMAP documentation (Output format; FAQ: the centre "
     "of the upper-left pixel is (0.5, 0.5))",
     detect=_detect,
