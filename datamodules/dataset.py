@@ -22,13 +22,18 @@ gets ``depth`` by projecting them at the served camera with the sample's augment
 
 Sources: ``cubemap`` remaps the raw cube faces on the fly with :class:`~airfisheye_bench.geometry.CubemapToFisheye`
 at the requested camera (any lens, FOV and size, no re-generation: the lookup table is built directly at the
-training resolution); ``fisheye`` reads the pre-rendered fisheye files (resized if the camera asks for another size).
+training resolution); ``equirect`` remaps equirectangular panoramas the same way with
+:class:`~airfisheye_bench.geometry.EquirectToFisheye`, the camera turned by the source's ``pano_rotation``;
+``fisheye`` reads the pre-rendered fisheye files (resized if the camera asks for another size).
 
 LiDAR (``sparse_depth``): the scan's rings come from where they are known (docs/design.md, "Rings": a ring field
 or the generator's ``lidar_beam``, the firing order of KITTI ``.bin``, else the channel table), then returns closer
 than ``lidar_min_range`` and returns no channel explains are removed and counted (``lidar_counts``; logged for
 the first frame a process serves), and with ``lidar_density="paper"`` only the returns of a fixed subset of beams
-are served, of those the occlusion correction kept on the whole scan at the paper's pixel scale.
+are served, of those the occlusion correction kept on the whole scan at the paper's pixel scale. A source that
+simulates its LiDAR from depth (``cast_scan(sample_id, spec)``) casts the served sensor; one whose LiDAR sees from
+the camera's centre (``parallax_free``) has no point the camera cannot see, and its scans are projected without
+occlusion correction.
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ from torch.utils.data import Dataset
 
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.geometry import CubemapToFisheye
+from airfisheye_bench.geometry import CubemapToFisheye, EquirectToFisheye
 from airfisheye_bench.geometry.gimbal import Gimbal, View
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset, paper_scale_camera
@@ -61,7 +66,7 @@ from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.io import DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.datasets import modalities_of, open_dataset
-from airfisheye_bench.io.spec import IMAGE_SOURCES
+from airfisheye_bench.io.spec import IMAGE_SOURCES, REMAP_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
 from datamodules.camera_config import CameraConfig
@@ -83,7 +88,8 @@ class AirFisheyeDataset(Dataset):
         root: Dataset root (holds ``dataset.yaml``).
         split: Split name (``train``, ``val``, ``test``).
         task: A registered task (``seg``, ``depth``, ``completion``, see :mod:`airfisheye_bench.specs`).
-        source: ``cubemap`` (remap on the fly) or ``fisheye`` (pre-rendered files).
+        source: ``cubemap`` or ``equirect`` (remap the cube faces or the panoramas on the fly) or ``fisheye``
+            (pre-rendered files).
         camera: The served camera (see :class:`CameraConfig`).
         occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``
             or ``none``, or an :class:`~airfisheye_bench.geometry.occlusion.Occlusion` (checked already: the
@@ -108,8 +114,11 @@ class AirFisheyeDataset(Dataset):
             (:mod:`~airfisheye_bench.geometry.lidar_density`), of the returns the occlusion correction kept on the
             whole scan at the paper's pixel scale (``paper_scale_camera``).
         gimbal: A virtual gimbal for this split (``Gimbal.parse(data.gimbal).for_split(training)``): each sample's
-            camera is turned to its view before the remap (``source=cubemap``), and the LiDAR with it; ``None``: the
-            recorded orientation.
+            camera is turned to its view before the remap (``source=cubemap`` or ``equirect``), and the LiDAR with it;
+            ``None``: the recorded orientation.
+        source_fallback: When the dataset has no ``source`` recording but the other raw one (``cubemap`` <->
+            ``equirect``), remap that one instead (logged): a source of a mixture that ``data.source`` does not fit
+            (a synthetic preset beside panoramas).
 
     Example:
         >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
@@ -137,6 +146,7 @@ class AirFisheyeDataset(Dataset):
         format_options: Mapping | None = None,
         lidar_density: str = "native",
         gimbal: Gimbal | None = None,
+        source_fallback: bool = False,
     ) -> None:
         task_spec = get_task(task)
         if lidar_density not in LIDAR_DENSITIES:
@@ -145,15 +155,20 @@ class AirFisheyeDataset(Dataset):
             raise ValueError(f"source must be one of {IMAGE_SOURCES}, got {source!r}")
         if not max_depth > 0:
             raise ValueError(f"max_depth must be positive, got {max_depth}")
-        if gimbal is not None and source != "cubemap":
+        if gimbal is not None and source not in REMAP_SOURCES:
             raise ConfigError(
-                "data.gimbal turns the camera of a remap source: it needs data.source=cubemap (pre-rendered fisheye "
-                "images have a fixed orientation)"
+                "data.gimbal turns the camera of a remap source: it needs data.source=cubemap or equirect "
+                "(pre-rendered fisheye images have a fixed orientation)"
             )
         self.reader = open_dataset(root, dataset_format, dict(format_options or {}))
         self.spec = self.reader.spec
         self.split = split
         self.task = task
+        if source_fallback and source in REMAP_SOURCES and not self.spec.has(source):
+            other = next((s for s in REMAP_SOURCES if self.spec.has(s)), None)
+            if other is not None:
+                log.info("%s has no %s: its %s are remapped instead", self.spec.name, source, other)
+                source = other
         self.source = source
         if isinstance(occlusion, str) and occlusion == ORACLE:  # no method: the visibility ground truth
             check_sparse_input_options(ORACLE, dict(occlusion_options or {}))
@@ -181,8 +196,9 @@ class AirFisheyeDataset(Dataset):
                 f"split {split!r} is empty (data.format={self.reader.format}): expected "
                 f"{self.reader.split_rule(split)}",
             )
-        if source == "cubemap" and not self.spec.has("cubemap"):
-            raise ConfigError(f"{self.reader.missing_reason('cubemap')}; use data.source=fisheye")
+        if source in REMAP_SOURCES and not self.spec.has(source):
+            served = [s for s in IMAGE_SOURCES if self.spec.has(s)] or ["fisheye"]
+            raise ConfigError(f"{self.reader.missing_reason(source)}; use data.source={' or '.join(served)}")
         for content in task_spec.requires:
             if not self.spec.has(content):
                 raise ConfigError(f"{self.reader.missing_reason(content)}; task={task} needs it")
@@ -205,7 +221,15 @@ class AirFisheyeDataset(Dataset):
                 f"(it serves image, {', '.join(SAMPLE_KEYS)})"
             )
         self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
-        if occlusion == ORACLE and "sparse_depth" in self.sample_keys:
+        # A LiDAR at the camera's centre (cast from its depth) returns only points the camera sees.
+        self.parallax_free = bool(getattr(self.reader, "parallax_free", False))
+        if self.parallax_free and "sparse_depth" in self.sample_keys:
+            log.info(
+                "%s: the LiDAR sees from the camera's centre (no parallax): its scans are projected without "
+                "occlusion correction (data.occlusion applies to sources with a LiDAR apart from the camera)",
+                self.spec.name,
+            )
+        elif occlusion == ORACLE and "sparse_depth" in self.sample_keys:
             require_visibility(self.reader, root)
 
         first_calib = self.reader.calib(self.sample_ids[0])
@@ -218,10 +242,10 @@ class AirFisheyeDataset(Dataset):
         self.face_size = first_calib.face_size
         self.label_lut = torch.from_numpy(self.spec.label_lut())
         self.gimbal = gimbal
-        self._remaps: dict[View, CubemapToFisheye] = {}
+        self._remaps: dict[View, CubemapToFisheye | EquirectToFisheye] = {}
         fixed = gimbal.fixed if gimbal is not None else None
         # The remap of the split's one orientation (recorded, or the gimbal's fixed view); per-sample views get theirs.
-        self._remap = self._remap_for(fixed or (0.0, 0.0, 0.0)) if source == "cubemap" else None
+        self._remap = self._remap_for(fixed or (0.0, 0.0, 0.0)) if source in REMAP_SOURCES else None
         self._mean = torch.tensor(IMAGENET_MEAN).view(3, 1, 1)
         self._std = torch.tensor(IMAGENET_STD).view(3, 1, 1)
 
@@ -234,7 +258,7 @@ class AirFisheyeDataset(Dataset):
         the split's one orientation (a sample of a varying gimbal serves its own view's in ``valid_mask``)."""
         return self._valid(self._remap)
 
-    def _valid(self, remap: CubemapToFisheye | None) -> torch.Tensor:
+    def _valid(self, remap: CubemapToFisheye | EquirectToFisheye | None) -> torch.Tensor:
         valid = remap.valid_mask if remap is not None else self.camera.valid_mask()
         return valid & ~self._outside_frame if self._outside_frame is not None else valid
 
@@ -271,10 +295,21 @@ class AirFisheyeDataset(Dataset):
             for mode in ("bilinear", "nearest"):
                 remap.table(mode)
 
-    def _remap_for(self, view: View) -> CubemapToFisheye:
-        """The remap of the camera turned to ``view`` (one object per view; its tables live in the process cache)."""
+    def _remap_for(self, view: View) -> CubemapToFisheye | EquirectToFisheye:
+        """The remap of the camera turned to ``view`` (one object per view; its tables live in the process cache).
+
+        A panorama's camera is its source's recorded one, ``R_pano_cam0`` (``pano_rotation``), turned by the view.
+        """
         if view not in self._remaps:
-            self._remaps[view] = CubemapToFisheye(self.camera, self.face_size, rotation=Gimbal.rotation(view))
+            turn = Gimbal.rotation(view)
+            if self.source == "cubemap":
+                self._remaps[view] = CubemapToFisheye(self.camera, self.face_size, rotation=turn)
+            else:
+                recorded = getattr(self.reader, "pano_rotation", None)
+                rotation = recorded if turn is None else turn if recorded is None else recorded @ turn
+                self._remaps[view] = EquirectToFisheye(
+                    self.camera, self.spec.equirect_size, rotation=rotation
+                )
         return self._remaps[view]
 
     def sample_view(self, index: int) -> View | None:
@@ -367,7 +402,7 @@ class AirFisheyeDataset(Dataset):
             out["depth"] = moved[-1:]
         return rgb, valid, out
 
-    def _label(self, sample_id: str, remap: CubemapToFisheye | None) -> torch.Tensor:
+    def _label(self, sample_id: str, remap: CubemapToFisheye | EquirectToFisheye | None) -> torch.Tensor:
         """Training-class ids ``[H, W]`` (raw ids mapped through ``dataset.yaml``; unknown raw ids are an error)."""
         raw = self._dense(sample_id, "seg", remap)[0]
         unknown = self.spec.unknown_label_ids(raw.numpy())
@@ -377,11 +412,17 @@ class AirFisheyeDataset(Dataset):
             )
         return self.label_lut[raw.long()]
 
-    def _dense(self, sample_id: str, modality: str, remap: CubemapToFisheye | None) -> torch.Tensor:
+    def _dense(
+        self, sample_id: str, modality: str, remap: CubemapToFisheye | EquirectToFisheye | None
+    ) -> torch.Tensor:
         """One dense modality at the served camera (through ``remap``: the sample's view): ``[C, H, W]`` (uint8 RGB
         / raw labels, float32 depth)."""
         if remap is not None:
-            faces = self._faces(sample_id, modality)
+            faces = (
+                self._faces(sample_id, modality)
+                if self.source == "cubemap"
+                else self._panorama(sample_id, modality)
+            )
             if modality == "rgb":
                 return remap(faces, "bilinear")
             out = remap(faces, "nearest", fill=self.spec.ignore_index if modality == "seg" else 0)
@@ -418,18 +459,26 @@ class AirFisheyeDataset(Dataset):
         x = torch.from_numpy(faces)
         return x.permute(0, 3, 1, 2) if x.ndim == 4 else x[:, None]
 
+    def _panorama(self, sample_id: str, modality: str) -> torch.Tensor:
+        """A panorama ``[C, H, W]`` (its size checked by the source); RGB stays channels-last in memory (no copy)."""
+        x = torch.from_numpy(self.reader.equirect(sample_id, modality))
+        return x.permute(2, 0, 1) if x.ndim == 3 else x[None]
+
     def lidar_points(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec]:
         """``(points float64 [M, 3], rings int64 [M], spec)`` of a frame after the counted filtering."""
         return self.filtered_scan(sample_id)[:3]
 
     def filtered_scan(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec, np.ndarray]:
         """:meth:`lidar_points` and the ``bool [N]`` mask of the scan's points it keeps (for per-point data)."""
-        scan = self.reader.lidar_scan(sample_id)
+        spec = self.lidar_spec or self.reader.calib(sample_id).lidar_spec()
+        cast = getattr(
+            self.reader, "cast_scan", None
+        )  # a LiDAR simulated from depth: the served sensor's beams
+        scan = cast(sample_id, spec) if cast is not None else self.reader.lidar_scan(sample_id)
         if len(scan.points) == 0:
             raise DatasetFormatError(scan.path, "the LiDAR scan is empty")
         if not np.isfinite(scan.points).all():
             raise DatasetFormatError(scan.path, "the LiDAR scan has non-finite coordinates")
-        spec = self.lidar_spec or self.reader.calib(sample_id).lidar_spec()
         try:
             rings, source = resolve_rings(scan.points, spec, scan.rings, scan.firing_order)
         except ValueError as err:  # a ring field that does not fit the spec
@@ -466,7 +515,11 @@ class AirFisheyeDataset(Dataset):
     def _sparse_depth(self, sample_id: str, params, turn: np.ndarray | None = None) -> torch.Tensor:
         points, rings, spec, keep = self.filtered_scan(sample_id)
         method = self.occlusion
-        if isinstance(method, str) and method == ORACLE:  # the truly visible points, projected without a test
+        if self.parallax_free:  # every return is seen by the camera: nothing to correct
+            method = Occlusion("none")
+        elif (
+            isinstance(method, str) and method == ORACLE
+        ):  # the truly visible points, projected without a test
             visible = oracle_visible(self.reader, sample_id, keep)
             points, rings, method = points[visible], rings[visible], Occlusion("none")
         T = _augmented(_turned(self.T_cam_lidar(sample_id), turn), params)

@@ -150,6 +150,8 @@ def open_split(
         kwargs["lidar_spec"] = lidar_specs.get(src.name)
         if src.source is not None:
             kwargs["source"] = src.source
+        else:  # data.source, or the raw recording this dataset has (a preset's cube faces beside panoramas)
+            kwargs["source_fallback"] = True
         try:
             dataset = AirFisheyeDataset(
                 roots[src.name], split, augment=augment, seed=draw_seed(seed, -3, k), **kwargs

@@ -41,6 +41,7 @@ from tests.helpers.commands import (
     run_in_process,
 )
 from tests.helpers.runs import tiny_run_overrides
+from tests.io.datasets.omni360_fixture import write_omni360_fixture
 from tests.io.datasets.woodscape_fixture import write_woodscape
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,6 +86,8 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
     bad_spec = tmp / "sensor.yaml"
     bad_spec.write_text("channels: 64\nelevations_deg: [2, 1]\n")
     woodscape = write_woodscape(tmp / "woodscape")
+    omni360 = write_omni360_fixture(tmp / "omni360", height=8, frames=3)
+    shutil.rmtree(omni360 / "NYC" / "nyc_Depth")  # a download without one scene's depth archive
     train = [*tiny_run_overrides("seg", dataset)]
     # On the synthetic preset with an empty cache: a row refused before any work leaves the cache without a dataset.
     fresh = [*train, "data.root=null", "data.preset=tiny", f"paths.data_dir={tmp}/cache"]
@@ -287,6 +290,17 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
             ],
             ("WoodScape released no LiDAR and no depth", "#82", "task=depth needs it"),
         ),
+        "omni360_depth": (  # a scene without its depth folder
+            TRAIN,
+            [
+                "task=depth",
+                "data=omni360",
+                f"data.root={omni360}",
+                "trainer=debug",
+                f"hydra.run.dir={tmp}/r21",
+            ],
+            (str(omni360 / "NYC"), "no depth folder", "task=depth needs it"),
+        ),
         "offline_weights": (
             TRAIN,
             [*train, "experiment=paper/seg", "data.camera.size=64", f"hydra.run.dir={tmp}/r19"],
@@ -368,6 +382,7 @@ DEFAULT_ROWS = (
     "scan_file",
     "occlusion_options",
     "woodscape_depth",
+    "omni360_depth",
 )
 """Rows of the default suite; the other schema rows are ``slow`` (test_schema_table covers them in-process)."""
 SLOW_ROWS = (

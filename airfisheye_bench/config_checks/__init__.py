@@ -89,7 +89,7 @@ def _gimbal_problem(value: Any, source: Any) -> str | None:
     except ValueError as err:
         return str(err).removeprefix("data.gimbal: ")
     if source == "fisheye":
-        return "needs data.source=cubemap (pre-rendered fisheye images have a fixed orientation)"
+        return "needs data.source=cubemap or equirect (pre-rendered fisheye images have a fixed orientation)"
     return None
 
 

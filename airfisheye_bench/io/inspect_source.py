@@ -76,7 +76,7 @@ def _check_sample(source, sid: str, deep: bool, report: InspectReport) -> None:
     except _LOAD_ERRORS as err:
         _add(report, err, source.root)
         return
-    kinds = [k for k in ("fisheye", "cubemap") if spec.has(k)]
+    kinds = [k for k in ("fisheye", "cubemap", "equirect") if spec.has(k)]
     for kind in kinds:
         for modality in modalities_of(source):
             report.files += 1
@@ -85,7 +85,7 @@ def _check_sample(source, sid: str, deep: bool, report: InspectReport) -> None:
                 _check_file(path, report)
                 continue
             try:
-                data = source.fisheye(sid, modality) if kind == "fisheye" else source.cubemap(sid, modality)
+                data = getattr(source, kind)(sid, modality)  # fisheye, cubemap or equirect
             except _LOAD_ERRORS as err:
                 _add(report, err, path)
                 continue
@@ -111,6 +111,8 @@ def _check_file(path: Path, report: InspectReport) -> None:
 def _check_map(path: Path, kind: str, modality: str, data: np.ndarray, calib, spec, report) -> None:
     if kind == "fisheye":
         size, shape = (int(calib.camera["height"]), int(calib.camera["width"])), data.shape[:2]
+    elif kind == "equirect":
+        size, shape = spec.equirect_size, data.shape[:2]
     else:
         size, shape = (len(FACE_NAMES), calib.face_size, calib.face_size), data.shape[:3]
     if tuple(shape) != size:

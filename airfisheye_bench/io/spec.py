@@ -37,10 +37,24 @@ from airfisheye_bench.io.yamlio import FieldReader, check_int, read_yaml, write_
 FORMAT_VERSION = 1
 DATASET_YAML = "dataset.yaml"
 
-#: Modalities a release may contain (``contents`` key).
-KNOWN_CONTENTS = ("cubemap", "fisheye", "lidar", "lidar_visible", "lidar_beam", "lidar_scan", "poses", "imu")
-#: The stored images a loader can serve from: the raw cube faces (remapped on the fly) or pre-rendered fisheye.
-IMAGE_SOURCES = ("cubemap", "fisheye")
+#: Modalities a release may contain (``contents`` key). ``equirect``: equirectangular panoramas (a public dataset's,
+#: ``data.format=omni360``; ``sensors.equirect`` gives their ``height`` and ``width``).
+KNOWN_CONTENTS = (
+    "cubemap",
+    "fisheye",
+    "equirect",
+    "lidar",
+    "lidar_visible",
+    "lidar_beam",
+    "lidar_scan",
+    "poses",
+    "imu",
+)
+#: The stored images a loader can serve from: the raw cube faces or equirectangular panoramas (remapped on the fly), or
+#: pre-rendered fisheye.
+IMAGE_SOURCES = ("cubemap", "fisheye", "equirect")
+#: The image sources remapped on the fly to any lens.
+REMAP_SOURCES = ("cubemap", "equirect")
 RGB_ENCODINGS = ("png", "jpg")
 SEG_ENCODINGS = ("png",)
 DEPTH_ENCODINGS = ("png16", "npy", "pfm")
@@ -214,6 +228,12 @@ class DatasetSpec:
         cube = self.sensors.get("cubemap", {})
         return int(cube["face_size"]) if "face_size" in cube else None
 
+    @property
+    def equirect_size(self) -> tuple[int, int] | None:
+        """``(height, width)`` of the release's equirectangular panoramas, if it has them."""
+        pano = self.sensors.get("equirect", {})
+        return (int(pano["height"]), int(pano["width"])) if "height" in pano else None
+
     def has(self, modality: str) -> bool:
         """Whether the release contains ``modality`` (see :data:`KNOWN_CONTENTS`)."""
         return modality in self.contents
@@ -367,6 +387,9 @@ class DatasetSpec:
                 raise r.error(f"contents[{i}]", f"must be one of {list(KNOWN_CONTENTS)}, got {item!r}")
         if "cubemap" in contents and "cubemap" not in sensors:
             raise r.error("sensors.cubemap", "is required when contents lists 'cubemap'")
+        if "equirect" in contents:
+            for side in ("height", "width"):
+                r.int(f"sensors.equirect.{side}", minimum=2)
 
         split_files = r.mapping("splits.files")
         if not split_files:

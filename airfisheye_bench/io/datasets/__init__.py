@@ -15,6 +15,7 @@ from typing import Any
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io.datasets.base import DatasetSource, DepthPoints, check_options, modalities_of
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
+from airfisheye_bench.io.datasets.omni360 import Omni360Source
 from airfisheye_bench.io.datasets.tartanair import TartanAirSource
 from airfisheye_bench.io.datasets.woodscape import WoodScapeSource
 from airfisheye_bench.io.reader import DatasetReader
@@ -24,6 +25,7 @@ from airfisheye_bench.io.reader import DatasetReader
 DATASET_FORMATS: dict[str, type] = {
     "airfisheye": DatasetReader,
     "kitti360": Kitti360Source,
+    "omni360": Omni360Source,
     "tartanair": TartanAirSource,
     "woodscape": WoodScapeSource,
 }
