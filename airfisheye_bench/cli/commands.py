@@ -212,8 +212,10 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
         raise ConfigError(f"runs={opts.runs}: expected a folder or results.json, or a list of them [a,b]")
     if opts.html is not None and not opts.html.endswith((".html", ".htm")):
         raise ConfigError(f"html={opts.html}: expected an .html file name")
+    # Absolute: the outputs show every path relative to the folder the results were collected from.
+    paths = [Path(r.strip()).expanduser().resolve() for r in runs]
     try:
-        entries, problems = load_entries(find_results([r.strip() for r in runs]))
+        entries, problems = load_entries(find_results(paths))
     except FileNotFoundError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
@@ -225,14 +227,13 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
     if not entries:
         print("error: no valid results.json to rank", file=sys.stderr)
         return 1
-    board = build_leaderboard(entries, paper=opts.paper, invalid=problems)
+    root = os.path.commonpath([p if p.is_dir() else p.parent for p in paths])
+    board = build_leaderboard(entries, paper=opts.paper, invalid=problems, root=root)
     written = list(board.write(opts.out))
     if opts.html is not None:
         from airfisheye_bench.evaluation.leaderboard.html import write_html  # matplotlib, only for html=
 
-        folders = [Path(r.strip()).expanduser().resolve() for r in runs]
-        folders = [f if f.is_dir() else f.parent for f in folders]
-        written.append(write_html(board, opts.html, runs_root=os.path.commonpath(folders)))
+        written.append(write_html(board, opts.html))
     print(board.to_markdown(), end="")
     print(f"wrote {', '.join(map(str, written))}", file=sys.stderr)
     return 0

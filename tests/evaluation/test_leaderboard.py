@@ -551,3 +551,20 @@ def test_the_served_camera_is_shown(tmp_path: Path) -> None:
         "| test | double_sphere 512x512 | 30.0 | 70.0 | ds |" in md
         and "| test | – | 20.0 | 60.0 | old |" in md
     )
+
+
+def test_paths_are_shown_relative_to_the_runs_folder_given_in_any_form(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """``runs=logs`` (relative to the working folder) or absolute: the CSV path and the invalid files listed in the
+    markdown read the same, relative to the runs folder."""
+    _write(tmp_path / "logs", "good", "seg", {"mIoU": 0.3})
+    _bad_files(tmp_path / "logs")
+    monkeypatch.chdir(tmp_path)
+    for runs in ("logs", str(tmp_path / "logs")):
+        assert leaderboard([f"runs={runs}", "out=board", "skip_invalid=true", "paper=false"]) == 0
+        md = (tmp_path / "board" / "leaderboard.md").read_text()
+        assert "- truncated/results.json: " in md and str(tmp_path) not in md
+        rows = _csv_rows((tmp_path / "board" / "leaderboard.csv").read_text())
+        assert [r["path"] for r in rows] == ["good/results.json"]
+    capsys.readouterr()

@@ -4,6 +4,7 @@ in headless Chromium (when installed): sorting, detail views, no console error a
 from __future__ import annotations
 
 import base64
+import csv
 import hashlib
 import io
 import re
@@ -66,7 +67,7 @@ def _results(
             "sha256": hashlib.sha256(run.encode()).hexdigest(),
             "config": {"encoder_name": "resnet18"},
         },
-        config={"evaluation": {"batch_size": 8, "note": EVIL}},
+        config={"evaluation": {"batch_size": 8, "note": EVIL}, "data": {"root": "/data/synth"}},
     )
     rng = np.random.default_rng(len(run))
     for i in range(4):  # one more than the page shows
@@ -419,3 +420,27 @@ def test_paths_are_shown_relative_to_the_runs_folder(runs: Path, board: lb.Leade
     entry = re.search(r'<details id="entry-seg-0" class="entry">.*?</div></details>', page, re.DOTALL)[0]
     assert str(runs) not in page
     assert "<dd>seg_ckpt/results.json</dd>" in entry
+
+
+def test_no_page_or_table_shows_where_the_runs_or_the_data_lie(runs: Path, tmp_path: Path, capsys) -> None:
+    """Runs relative to runs=, the dataset by its name and content hash (its folder nowhere, the configuration
+    included), in the markdown, the CSV and the HTML page the command writes."""
+    html, out = tmp_path / "board.html", tmp_path / "board"
+    assert leaderboard([f"runs={runs}", f"out={out}", f"html={html}", "skip_invalid=true"]) == 0
+    capsys.readouterr()
+    page, md, table = (
+        html.read_text(),
+        (out / "leaderboard.md").read_text(),
+        (out / "leaderboard.csv").read_text(),
+    )
+    for text in (page, md, table):
+        assert str(runs) not in text and "/data/synth" not in text
+    entry = re.search(r'<details id="entry-seg-0" class="entry">.*?</div></details>', page, re.DOTALL)[0]
+    assert "<dt>dataset</dt><dd>synth (manifest a1b2c3d4)</dd>" in entry and "dataset root" not in entry
+    assert f"<dt>manifest sha256</dt><dd>{HASH_A}</dd>" in entry
+    config = unescape(re.search(r"<pre>(.*?)</pre>", entry, re.DOTALL)[1])
+    assert '"root": "synth (manifest a1b2c3d4)"' in config  # config.data.root: the dataset, by name
+    assert "- broken/results.json: " in md and "broken/results.json" in page
+    assert {row["path"] for row in csv.DictReader(io.StringIO(table)) if row["run"] == "seg_ckpt"} == {
+        "seg_ckpt/results.json"
+    }

@@ -23,8 +23,8 @@ also writes the same tables as one self-contained, sortable HTML page with a det
 
 Modules: :mod:`~.collect` (rows from ``results.json`` files and the paper), :mod:`~.columns` (how a metric is
 shown), :mod:`~.rank` (groups and ranks), :mod:`~.text` (markdown, CSV), :mod:`~.board` (the
-:class:`Leaderboard` of every task), :mod:`~.html` and :mod:`~.charts` (the HTML page). The public names are
-re-exported here.
+:class:`Leaderboard` of every task), :mod:`~.paths` (paths as shown: relative to ``runs=``, datasets by name and
+content hash), :mod:`~.html` and :mod:`~.charts` (the HTML page). The public names are re-exported here.
 
 Example:
     >>> board = build_leaderboard([], paper=True)   # the paper's baselines alone

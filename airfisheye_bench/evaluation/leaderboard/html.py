@@ -24,7 +24,6 @@ import base64
 import hashlib
 import io
 import json
-import os
 from collections.abc import Mapping, Sequence
 from html import escape
 from importlib import resources
@@ -46,6 +45,7 @@ from airfisheye_bench.evaluation.leaderboard.columns import (
     metric_label,
     rim_label,
 )
+from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
 from airfisheye_bench.evaluation.leaderboard.rank import TaskTable
 from airfisheye_bench.io.results import load_results
 
@@ -88,8 +88,9 @@ def render_html(
         board: The ranked leaderboard (:func:`~airfisheye_bench.evaluation.leaderboard.build_leaderboard`).
         panels: Qualitative panels shown per entry (the first ones of its ``panels/`` folder).
         panel_width: Panels wider than this (pixels) are downscaled, to keep the page small.
-        runs_root: The folder the results were collected from: paths under it are shown relative to it (and
-            the home folder as ``~``), so a shared page shows no one's local layout.
+        runs_root: The folder the results were collected from (default: the board's ``root``): paths under it
+            are shown relative to it, a dataset's as its name and content hash, the home folder as ``~``
+            (:mod:`~airfisheye_bench.evaluation.leaderboard.paths`), so a shared page shows no one's local layout.
 
     Returns:
         A complete HTML document.
@@ -115,7 +116,7 @@ def render_html(
         "</header>",
         "<main>",
     ]
-    shown = _PathShortener(runs_root)
+    shown = board.shown_paths(runs_root)
     body += [_task_section(table, panels, panel_width, shown) for table in board.tables]
     if board.invalid:
         items = "".join(f"<li><code>{escape(shown.text(problem))}</code></li>" for problem in board.invalid)
@@ -146,52 +147,10 @@ def render_html(
     )
 
 
-class _PathShortener:
-    """Absolute paths as the page shows them: relative to the runs folder when under it, the home folder as ``~``.
-
-    Example:
-        >>> shown = _PathShortener("/data/logs")
-        >>> shown("/data/logs/seg/runs/a/results.json"), shown("/srv/x.ckpt"), shown("sha256:ab"), shown(None)
-        ('seg/runs/a/results.json', '/srv/x.ckpt', 'sha256:ab', None)
-        >>> shown.within({"paths": ["/data/logs/a", 3]})
-        {'paths': ['a', 3]}
-    """
-
-    def __init__(self, runs_root: str | Path | None) -> None:
-        self.root = str(Path(runs_root).expanduser().resolve()) if runs_root is not None else None
-        self.home = str(Path.home())
-
-    def __call__(self, value: Any) -> Any:
-        if not isinstance(value, str) or not value.startswith("/"):
-            return value
-        resolved = os.path.normpath(value)
-        if self.root and (resolved == self.root or resolved.startswith(self.root.rstrip("/") + "/")):
-            return os.path.relpath(resolved, self.root)
-        if self.home not in ("", "/") and resolved.startswith(self.home.rstrip("/") + "/"):
-            return "~" + resolved[len(self.home.rstrip("/")) :]
-        return value
-
-    def text(self, text: str) -> str:
-        """``text`` (a message) with the runs folder and the home folder inside it shortened."""
-        if self.root:
-            text = text.replace(self.root.rstrip("/") + "/", "")
-        if self.home not in ("", "/"):
-            text = text.replace(self.home.rstrip("/") + "/", "~/")
-        return text
-
-    def within(self, value: Any) -> Any:
-        """``value`` with every path string inside it (dicts and lists, recursively) shortened."""
-        if isinstance(value, Mapping):
-            return {k: self.within(v) for k, v in value.items()}
-        if isinstance(value, (list, tuple)):
-            return [self.within(v) for v in value]
-        return self(value)
-
-
 # ------------------------------------------------------------------------------------------------- tables
 
 
-def _task_section(table: TaskTable, panels: int, panel_width: int, shown: _PathShortener) -> str:
+def _task_section(table: TaskTable, panels: int, panel_width: int, shown: ShownPaths) -> str:
     task = table.task
     order = "higher is better" if table.higher_is_better else "lower is better"
     entries = [e for group in table.groups for _, e in group.rows]
@@ -299,9 +258,10 @@ def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardE
 
 
 def _detail(
-    table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, panel_width: int, shown: _PathShortener
+    table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, panel_width: int, shown: ShownPaths
 ) -> str:
     record = load_results(e.path) if e.path else {}
+    shown = shown.with_dataset(e.dataset_root, e.dataset_label)
     model = record.get("model") or {}
     source = e.evaluated or "unknown source"
     out = [
@@ -329,7 +289,7 @@ def _detail(
             )
     if charts:
         out.append(f'<div class="charts">{"".join(charts)}</div>')
-    out.append(_panels(e, panels, panel_width))
+    out.append(_panels(e, panels, panel_width, shown))
     settings = {"model": model, "config": record.get("config", {})}
     out.append(
         "<details><summary>Configuration (model and evaluation settings)</summary>"
@@ -340,16 +300,15 @@ def _detail(
 
 
 def _identity(
-    e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str, Any], shown: _PathShortener
+    e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str, Any], shown: ShownPaths
 ) -> str:
-    dataset = record.get("dataset") or {}
     rows = [
         ("model", e.model),
         ("run", e.run),
         ("evaluated", e.evaluated or "unknown"),
         *((key.replace("_", " "), shown(model[key])) for key in _IDENTITY_KEYS if model.get(key)),
-        ("dataset", e.dataset_name),
-        ("dataset root", shown(dataset.get("root"))),
+        ("dataset", e.dataset_label),  # by its name and content hash: where it lay is no one else's business
+        ("content sha256", e.content_sha256),
         ("manifest sha256", e.manifest_sha256),
         ("split", e.split),
         ("camera", e.camera or None),
@@ -388,24 +347,24 @@ def _figure(svg: str, caption: str) -> str:
     return f'<figure class="chart">{svg}<figcaption>{escape(caption)}</figcaption></figure>'
 
 
-def _panels(e: LeaderboardEntry, count: int, width: int) -> str:
+def _panels(e: LeaderboardEntry, count: int, width: int, shown: ShownPaths) -> str:
     """The first ``count`` panels next to ``results.json``, as downscaled JPEG data URIs."""
     folder = Path(e.path).parent / "panels" if e.path else None
     files = sorted(folder.glob("*.png"))[:count] if folder and folder.is_dir() and count > 0 else []
     if not files:
         return ""
-    images = "".join(_panel(f, width) for f in files)
+    images = "".join(_panel(f, width, shown) for f in files)
     return (
         "<h4>Qualitative panels</h4><p class=muted>image | (sparse input) | ground truth | prediction | error"
         f"</p><div class=panels>{images}</div>"
     )
 
 
-def _panel(path: Path, width: int) -> str:
+def _panel(path: Path, width: int, shown: ShownPaths) -> str:
     try:
         image = f'<img src="{_data_uri(path, width)}" alt="qualitative panel {escape(path.stem)}">'
     except OSError as err:  # a damaged PNG costs its picture, not the page
-        image = f"<p class=muted>unreadable panel: {escape(str(err))}</p>"
+        image = f"<p class=muted>unreadable panel: {escape(shown.text(str(err)))}</p>"
     return f'<figure class="panel">{image}<figcaption>{escape(path.stem)}</figcaption></figure>'
 
 

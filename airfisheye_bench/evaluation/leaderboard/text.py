@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 from airfisheye_bench.evaluation.leaderboard.collect import LeaderboardEntry
 from airfisheye_bench.evaluation.leaderboard.columns import MISSING, format_value, metric_label, rim_label
+from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
 from airfisheye_bench.evaluation.leaderboard.rank import TaskTable
 from airfisheye_bench.specs import all_tasks
 
@@ -96,19 +97,22 @@ def _table_markdown(table: TaskTable) -> list[str]:
     return lines
 
 
-def render_csv(tables: Sequence[TaskTable]) -> str:
-    """The leaderboard as wide CSV (:meth:`Leaderboard.to_csv`): one row per result, raw values."""
+def render_csv(tables: Sequence[TaskTable], shown: ShownPaths | None = None) -> str:
+    """The leaderboard as wide CSV (:meth:`Leaderboard.to_csv`): one row per result, raw values; ``path`` as
+    ``shown`` shows it (default: as found)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(csv_columns())
     for table in tables:
         for group in table.groups:
             for rank, e in group.rows:
-                writer.writerow(_csv_row(table, rank, e))
+                writer.writerow(_csv_row(table, rank, e, shown))
     return buffer.getvalue()
 
 
-def _csv_row(table: TaskTable, rank: int | None, e: LeaderboardEntry) -> list[object]:
+def _csv_row(
+    table: TaskTable, rank: int | None, e: LeaderboardEntry, shown: ShownPaths | None
+) -> list[object]:
     rim = e.breakdown.get(table.rim_key) if table.rim_key else None
     evaluated = "paper" if e.paper else e.evaluated
     head = [
@@ -127,7 +131,7 @@ def _csv_row(table: TaskTable, rank: int | None, e: LeaderboardEntry) -> list[ob
         *(_raw(e.metrics.get(m)) for m in _csv_metrics()),
         table.rim_key or "",
         _raw(rim),
-        e.path or "",
+        (shown(e.path) if shown else e.path) or "",
     ]
 
 
