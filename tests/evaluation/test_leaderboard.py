@@ -134,6 +134,21 @@ def test_the_same_content_written_by_another_encoder_is_one_dataset(tmp_path: Pa
     board = build_leaderboard(collect_results([tmp_path]), paper=False)
     assert _groups(board, "seg") == [[(1, "here"), (2, "there")]]
     assert [g.title for g in board.tables[0].groups] == ["synth (content c0ffeec0), test split"]
+    assert {r["content_sha256"] for r in _csv_rows(board.to_csv())} == {content}
+
+
+def test_every_rendering_says_the_content_hash_groups_the_rows(tmp_path: Path) -> None:
+    """One wording, in the markdown and the page: the content hash (``content_sha256``) names a dataset, the
+    manifest hash only stands in for results written before it."""
+    from airfisheye_bench.evaluation.leaderboard.html import render_html
+
+    _write(tmp_path, "old", "seg", {"mIoU": 0.5})  # no content hash: grouped by its manifest's
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert lb.GROUPING in board.to_markdown() and "(`content_sha256`" in lb.GROUPING
+    assert "### synth (manifest a1b2c3d4), test split" in board.to_markdown()
+    page = render_html(board)
+    assert "content hash (<code>content_sha256</code>" in page and "(<code>manifest_sha256</code>" in page
+    assert "synth (manifest a1b2c3d4), test split" in page
 
 
 # ------------------------------------------------------------------------------------------------ paper rows

@@ -24,6 +24,7 @@ import base64
 import hashlib
 import io
 import json
+import re
 from collections.abc import Mapping, Sequence
 from html import escape
 from importlib import resources
@@ -46,7 +47,7 @@ from airfisheye_bench.evaluation.leaderboard.columns import (
     rim_label,
 )
 from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
-from airfisheye_bench.evaluation.leaderboard.rank import TaskTable
+from airfisheye_bench.evaluation.leaderboard.rank import GROUPING, TaskTable
 from airfisheye_bench.io.results import load_results
 
 __all__ = ["render_html", "write_html"]
@@ -109,9 +110,8 @@ def render_html(
     body = [
         "<header>",
         "<h1>AirFisheye-bench leaderboard</h1>",
-        f"<p>{board.files} result(s){paper}. Ranks restart for every dataset (its name and its content hash: "
-        "the decoded data; the manifest hash where a result has no content hash) and split: results measured on "
-        "different data are not comparable. Click a column header to sort; click a model for its detail view.</p>",
+        f"<p>{board.files} result(s){paper}. {_code(GROUPING)} Click a column header to sort; click a model for its "
+        "detail view.</p>",
         f'<nav aria-label="Tasks"><ul>{nav}</ul></nav>',
         "</header>",
         "<main>",
@@ -341,6 +341,11 @@ def _binned(series: Mapping[str, list], metric: str, axis: str, key: str, label:
         label=label,
         scale=100 if percent else 1,
     )
+
+
+def _code(text: str) -> str:
+    """``text`` escaped, its backticked parts as ``<code>``."""
+    return re.sub(r"`([^`]+)`", r"<code>\1</code>", escape(text))
 
 
 def _figure(svg: str, caption: str) -> str:

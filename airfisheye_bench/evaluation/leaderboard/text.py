@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from airfisheye_bench.evaluation.leaderboard.collect import LeaderboardEntry
 from airfisheye_bench.evaluation.leaderboard.columns import MISSING, format_value, metric_label, rim_label
 from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
-from airfisheye_bench.evaluation.leaderboard.rank import TaskTable
+from airfisheye_bench.evaluation.leaderboard.rank import GROUPING, TaskTable
 from airfisheye_bench.specs import all_tasks
 
 __all__ = ["csv_columns", "render_csv", "render_markdown"]
@@ -23,6 +23,7 @@ _IDENTITY_COLUMNS = (
     "split",
     "camera",
     "dataset",
+    "content_sha256",
     "manifest_sha256",
     "run",
     "primary_metric",
@@ -48,9 +49,7 @@ def render_markdown(tables: Sequence[TaskTable], files: int, paper: bool, invali
     lines = [
         "# AirFisheye-bench leaderboard",
         "",
-        f"{files} result(s){with_paper}. Ranks restart for every dataset (its name and its content hash, or its "
-        "manifest hash where a result has no content hash) and split: results measured on different data are not "
-        "comparable. Values are fractions and metres "
+        f"{files} result(s){with_paper}. {GROUPING} Values are fractions and metres "
         f"(columns marked (%) printed in %); {MISSING} = not reported.",
     ]
     for table in tables:
@@ -125,7 +124,7 @@ def _csv_row(
         e.camera,
         e.dataset_name,
     ]
-    head += [e.manifest_sha256 or "", e.run, table.primary]
+    head += [e.content_sha256 or "", e.manifest_sha256 or "", e.run, table.primary]
     return [
         *head,
         *(_raw(e.metrics.get(m)) for m in _csv_metrics()),
