@@ -73,7 +73,8 @@ def test_rows_that_print_the_same_share_a_rank_in_every_rendering(tmp_path: Path
     from airfisheye_bench.evaluation.leaderboard.html import render_html
 
     html_ranks = re.findall(
-        r'<td class="num" data-value="(\d)">\d</td><td>\w</td><td>(?:<a [^>]*>)?deeplab', render_html(board)
+        r'<td class="num" data-value="(\d)">\d</td><td data-value="\w">\w</td><td>(?:<a [^>]*>)?deeplab',
+        render_html(board),
     )
     assert html_ranks == ["1", "2", "2", "4"]
 
@@ -583,3 +584,22 @@ def test_paths_are_shown_relative_to_the_runs_folder_given_in_any_form(
         rows = _csv_rows((tmp_path / "board" / "leaderboard.csv").read_text())
         assert [r["path"] for r in rows] == ["good/results.json"]
     capsys.readouterr()
+
+
+def test_a_sweep_trial_shows_what_its_sweep_chose(tmp_path: Path) -> None:
+    """``model.sweep_overrides`` (a multirun job's) beside the run's name in the markdown, in its own CSV column."""
+    chosen = ["task.module.optimizer.lr=0.001", "model.encoder_name=resnet34"]
+    for job, lr, miou in (("0", "0.001", 0.4), ("1", "0.01", 0.3)):
+        model = {"name": "deeplabv3plus", "run_name": f"sweep-a/{job}", "sweep_overrides": [f"task.module.optimizer.lr={lr}", chosen[1]]}  # fmt: skip
+        _write(tmp_path / "sweep-a", job, "seg", {"mIoU": miou}, model=model)
+    _write(tmp_path, "single", "seg", {"mIoU": 0.2})
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    md = board.to_markdown()
+    assert "| sweep-a/0 (task.module.optimizer.lr=0.001 model.encoder_name=resnet34) |" in md
+    assert "| sweep-a/1 (task.module.optimizer.lr=0.01 model.encoder_name=resnet34) |" in md
+    assert "| single |" in md
+    rows = {r["run"]: r["overrides"] for r in _csv_rows(board.to_csv())}
+    assert rows["sweep-a/0"] == " ".join(chosen) and rows["single"] == ""
+    bad = _write(tmp_path / "bad", "x", "seg", {"mIoU": 0.1}, model={"sweep_overrides": "lr=1"})
+    with pytest.raises(ValueError, match=r"model\.sweep_overrides is 'lr=1', not a list"):
+        load_entry(bad)

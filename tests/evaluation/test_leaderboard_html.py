@@ -444,3 +444,25 @@ def test_no_page_or_table_shows_where_the_runs_or_the_data_lie(runs: Path, tmp_p
     assert {row["path"] for row in csv.DictReader(io.StringIO(table)) if row["run"] == "seg_ckpt"} == {
         "seg_ckpt/results.json"
     }
+
+
+def test_a_sweep_trial_shows_what_its_sweep_chose_beside_its_name(tmp_path: Path) -> None:
+    chosen = ["task.module.optimizer.lr=0.001", f"model.note={EVIL}"]
+    path = write_results(
+        tmp_path / "sweep" / "2" / "results.json",
+        "seg",
+        "test",
+        {"mIoU": 0.4},
+        model={"name": "deeplabv3plus", "run_name": "sweep/2", "sweep_overrides": chosen},
+    )
+    entries, _ = load_entries([path])
+    page = render_html(build_leaderboard(entries, paper=False))
+    (row,) = _tables(page)[0]["rows"]
+    assert row[1] == "sweep/2" + " ".join(chosen)  # the name, then the overrides below it
+    assert (
+        '<td data-value="sweep/2">sweep/2<span class="overrides"><code>task.module.optimizer.lr=0.001</code>'
+        in page
+    )
+    summary = re.search(r"<summary>(.*?)</summary>", page)[1]
+    assert "sweep/2 (task.module.optimizer.lr=0.001 model.note=&lt;script&gt;" in summary
+    assert "<dt>sweep overrides</dt>" in page and EVIL not in page

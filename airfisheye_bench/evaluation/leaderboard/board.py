@@ -58,7 +58,7 @@ class Leaderboard:
 
         Example:
             >>> print(build_leaderboard([], paper=True).to_csv().splitlines()[1])  # doctest: +ELLIPSIS
-            seg,1,DeepLabV3+ / ResNet50,paper,paper (real AirFisheye),test,,AirFisheye (real),,,paper IV-A,mIoU,0.512,...
+            seg,1,DeepLabV3+ / ResNet50,paper,paper (real AirFisheye),test,,AirFisheye (real),,,paper IV-A,,mIoU,0.512,...
         """
         return render_csv(self.tables, self.shown_paths())
 

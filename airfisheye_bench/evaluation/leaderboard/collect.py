@@ -68,6 +68,8 @@ class LeaderboardEntry:
             for the paper's rows).
         dataset_root: ``dataset.root`` of the results: where the dataset was on the machine that measured it
             (never shown: the leaderboard names a dataset by :attr:`dataset_label`).
+        overrides: What a multirun's sweep chose for the run (``model.sweep_overrides``: ``key=value`` as on the
+            command line); empty for a single run.
     """
 
     task: str
@@ -85,6 +87,17 @@ class LeaderboardEntry:
     evaluated: str = ""
     camera: str = ""
     dataset_root: str | None = None
+    overrides: tuple[str, ...] = ()
+
+    @property
+    def run_with_overrides(self) -> str:
+        """The run's name, with what its sweep chose: ``<sweep>/3 (data.batch_size=8 model.encoder_name=resnet34)``.
+
+        Example:
+            >>> LeaderboardEntry("seg", "test", "m", "s/3", "d", overrides=("a.lr=0.01", "b=8")).run_with_overrides
+            's/3 (a.lr=0.01 b=8)'
+        """
+        return f"{self.run} ({' '.join(self.overrides)})" if self.overrides else self.run
 
     @property
     def source(self) -> str:
@@ -302,7 +315,16 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         evaluated=evaluated_label(model),
         camera=_camera(record),
         dataset_root=str(dataset["root"]) if dataset.get("root") else None,
+        overrides=_overrides(model),
     )
+
+
+def _overrides(model: Mapping[str, Any]) -> tuple[str, ...]:
+    """``model.sweep_overrides``: a list of ``key=value`` strings, or absent."""
+    chosen = model.get("sweep_overrides") or []
+    if not isinstance(chosen, list) or not all(isinstance(o, str) for o in chosen):
+        raise ValueError(f"model.sweep_overrides is {chosen!r}, not a list of key=value strings")
+    return tuple(chosen)
 
 
 def _camera(record: Mapping[str, Any]) -> str:

@@ -227,7 +227,7 @@ def _row(
     evaluated = "paper" if e.paper else e.evaluated or MISSING
     cells = [
         f'<td class="num" data-value="{"" if rank is None else rank}">{rank or MISSING}</td>',
-        f"<td>{escape(e.run)}</td>",
+        f'<td data-value="{escape(e.run)}">{escape(e.run)}{_overrides(e)}</td>',  # sorted by the run's name
         f"<td>{model}</td>",
         f"<td>{escape(evaluated)}</td>",
         f"<td>{escape(e.split)}</td>",
@@ -236,6 +236,13 @@ def _row(
     if table.rim_key:
         cells.append(number(table.primary, e.breakdown.get(table.rim_key)))
     return f"<tr{' class=paper' if e.paper else ''}>{''.join(cells)}</tr>"
+
+
+def _overrides(e: LeaderboardEntry) -> str:
+    """What a sweep chose for the entry's run, one ``key=value`` each, below its name (empty for a single run)."""
+    if not e.overrides:
+        return ""
+    return f'<span class="overrides">{" ".join(f"<code>{escape(o)}</code>" for o in e.overrides)}</span>'
 
 
 def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardEntry]], key: str) -> str:
@@ -266,7 +273,7 @@ def _detail(
     source = e.evaluated or "unknown source"
     out = [
         f'<details id="{anchor}" class="entry">',
-        f"<summary>{escape(e.model)} — {escape(e.run)} <span class=muted>({escape(source)}, "
+        f"<summary>{escape(e.model)} — {escape(e.run_with_overrides)} <span class=muted>({escape(source)}, "
         f"{escape(e.group_title)})</span></summary>",
         '<div class="entry-body">',
         _identity(e, record, model, shown),
@@ -305,6 +312,7 @@ def _identity(
     rows = [
         ("model", e.model),
         ("run", e.run),
+        ("sweep overrides", " ".join(e.overrides)),
         ("evaluated", e.evaluated or "unknown"),
         *((key.replace("_", " "), shown(model[key])) for key in _IDENTITY_KEYS if model.get(key)),
         ("dataset", e.dataset_label),  # by its name and content hash: where it lay is no one else's business

@@ -26,6 +26,7 @@ _IDENTITY_COLUMNS = (
     "content_sha256",
     "manifest_sha256",
     "run",
+    "overrides",
     "primary_metric",
 )
 _TEXT_COLUMNS = frozenset(
@@ -71,8 +72,9 @@ def _table_markdown(table: TaskTable) -> list[str]:
         "",
         f"Sorted by {metric_label(table.primary)}, {order}; rows that print the same share a rank. Rows: "
         "each evaluated model on one split (evaluated: checkpoint, ONNX fp32/int8, prediction folder, TTA; "
-        "camera: the served lens model and image size; run: the training run or the evaluation's name); the rim column is the outermost incidence-angle "
-        "ring, where fisheye distortion is strongest.",
+        "camera: the served lens model and image size; run: the training run or the evaluation's name, with what "
+        "a sweep chose for it in parentheses); the rim column is the outermost incidence-angle ring, where fisheye "
+        "distortion is strongest.",
     ]
     for group in table.groups:
         lines += ["", f"### {group.title}", ""]
@@ -91,7 +93,7 @@ def _table_markdown(table: TaskTable) -> list[str]:
             cells += [format_value(c, entry.metrics.get(c)) for c in table.columns]
             if table.rim_key:
                 cells.append(format_value(table.primary, entry.breakdown.get(table.rim_key)))
-            cells.append(entry.run)
+            cells.append(entry.run_with_overrides)
             lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     return lines
 
@@ -124,7 +126,7 @@ def _csv_row(
         e.camera,
         e.dataset_name,
     ]
-    head += [e.content_sha256 or "", e.manifest_sha256 or "", e.run, table.primary]
+    head += [e.content_sha256 or "", e.manifest_sha256 or "", e.run, " ".join(e.overrides), table.primary]
     return [
         *head,
         *(_raw(e.metrics.get(m)) for m in _csv_metrics()),
