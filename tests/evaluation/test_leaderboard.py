@@ -73,7 +73,7 @@ def test_rows_that_print_the_same_share_a_rank_in_every_rendering(tmp_path: Path
     from airfisheye_bench.evaluation.leaderboard.html import render_html
 
     html_ranks = re.findall(
-        r'<td class="num" data-value="(\d)">\d</td><td data-value="\w">\w</td><td>(?:<a [^>]*>)?deeplab',
+        r'<td class="num" data-value="(\d)">\d</td><td class="run" data-value="\w">\w</td><td class="text">(?:<a [^>]*>)?deeplab',
         render_html(board),
     )
     assert html_ranks == ["1", "2", "2", "4"]

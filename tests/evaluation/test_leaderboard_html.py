@@ -201,7 +201,7 @@ def test_paper_rows_are_marked_and_have_no_detail_view(page: str) -> None:
     paper_rows = re.findall(r"<tr class=paper>.*?</tr>", page)
     assert len(paper_rows) == 3
     assert all('<span class="badge">paper</span>' in row and "<a href" not in row for row in paper_rows)
-    assert all("<td>paper</td>" in row for row in paper_rows)
+    assert all('<td class="text">paper</td>' in row for row in paper_rows)
 
 
 def test_every_string_from_results_json_is_escaped(page: str) -> None:
@@ -381,6 +381,109 @@ def test_page_in_headless_chromium(board: lb.Leaderboard, tmp_path: Path) -> Non
         assert not any(e["method"] == "Page.javascriptDialogOpening" for e in browser.events)
 
 
+#: A sweep's jobs as the runs folder holds them: a long run name, an Optuna search's overrides, every metric the
+#: evaluation writes (the task's headline ones and more), rings and ranges: the widest rows a table gets.
+WIDE_METRICS = {
+    "depth": ("abs_rel", "sq_rel", "rmse", "rmse_log", "log10", "silog", "delta1", "delta2", "delta3"),
+    "completion": ("abs_rel", "rmse", "mae", "irmse", "imae", "delta1", "delta2", "delta3"),
+    "seg": ("mIoU", "pixel_acc"),
+}
+OPTUNA_CHOICES = [
+    "task.module.optimizer.lr=0.0072708183450185",
+    "task.module.optimizer.weight_decay=0.000123456789",
+    "task.module.optimizer.momentum=0.8812345",
+    "data.batch_size=8",
+    "model.encoder_output_stride=16",
+]
+
+
+@pytest.fixture(scope="module")
+def wide_board(tmp_path_factory: pytest.TempPathFactory) -> lb.Leaderboard:
+    root = tmp_path_factory.mktemp("wide")
+    sweep = "2026-11-24_09-30-05_81234-a3f0"
+    evaluated = (
+        {
+            "source": "checkpoint",
+            "stage": "training",
+            "checkpoint": "/r/checkpoints/epoch_003.ckpt",
+            "tta": "flip",
+        },
+        {"source": "onnx", "precision": "int8", "onnx": "/r/model.int8.onnx"},
+        {"source": "checkpoint", "checkpoint": "/r/checkpoints/epoch_024.ckpt"},
+    )
+    for task, keys in WIDE_METRICS.items():
+        for job, model in enumerate(evaluated):
+            run = f"{sweep}/{job + 11}" if job < 2 else "2026-11-25_10-00-00_999-beef"
+            write_results(
+                root / task / str(job) / "results.json",
+                task,
+                "test",
+                {key: 0.1234567 * (k + 1 + job) for k, key in enumerate(keys)},
+                breakdown={
+                    f"{kind}_{lo}-{hi}/{keys[0] if task == 'seg' else 'rmse'}": 3.0 + b + job
+                    for kind, bins in (("ring", RINGS), ("range", RANGES if task != "seg" else ()))
+                    for b, (lo, hi) in enumerate(bins)
+                },
+                dataset={"name": "airfisheye-synthetic-quickstart", "content_sha256": HASH_A},
+                model={
+                    **model,
+                    "name": {"seg": "deeplabv3plus", "depth": "adabins", "completion": "nlspn"}[task],
+                    "run_name": run,
+                    "sweep_overrides": OPTUNA_CHOICES if job < 2 else None,
+                    "config": {"encoder_name": "resnet50"},
+                },
+            )
+    entries, _ = load_entries(find_results([root]))
+    return build_leaderboard(entries, paper=True, root=root)
+
+
+@needs_browser
+def test_the_page_fits_a_1400_px_window_with_legible_charts(
+    wide_board: lb.Leaderboard, tmp_path: Path
+) -> None:
+    """At 1400 px every table shows its last column without scrolling (headers and text cells wrap), and every
+    text of every chart (legends, ticks, labels) is at least 12 px; in a narrower box a table still scrolls."""
+    html = write_html(wide_board, tmp_path / "wide.html", panels=0)
+    with Page(CHROMIUM, width=1400, height=900) as browser:
+        browser.open(html.as_uri())
+        tables = browser.evaluate(
+            "Array.from(document.querySelectorAll('table.board')).map(t => { const box = t.parentElement;"
+            " const cells = t.tHead.rows[0].cells; const last = cells[cells.length - 1].getBoundingClientRect();"
+            " return [t.id, cells.length, box.scrollWidth - box.clientWidth,"
+            " last.right - box.getBoundingClientRect().right, last.right - innerWidth]; })"
+        )
+        assert (
+            len(tables) == 6 and max(columns for _, columns, *_ in tables) == 5 + 9 + 1
+        )  # depth: 9 metrics, rim
+        for table, _, overflow, past_box, past_window in tables:
+            assert overflow <= 0 and past_box <= 0.5 and past_window <= 0, (
+                table,
+                overflow,
+                past_box,
+                past_window,
+            )
+        assert browser.evaluate("document.documentElement.scrollWidth <= innerWidth")
+
+        browser.evaluate("document.querySelectorAll('details.entry').forEach(d => d.open = true)")
+        sizes = browser.evaluate(
+            "Array.from(document.querySelectorAll('figure.chart svg')).map(svg => [svg.getAttribute('aria-label'),"
+            " svg.querySelectorAll('text').length, Math.min(...Array.from(svg.querySelectorAll('text')).map(t => {"
+            " const m = t.getScreenCTM(); return parseFloat(getComputedStyle(t).fontSize) * Math.hypot(m.a, m.b); }))])"
+        )
+        group = [size for label, _, size in sizes if "every entry of this group" in label]
+        assert (
+            len(group) == 3 and len(sizes) > 3
+        )  # one group chart (with a legend) per task, and the detail charts
+        assert all(size >= 12 for _, _, size in sizes), [(label, round(size, 1)) for label, _, size in sizes]
+
+        # Not vacuous: the same table in a box too narrow for it overflows, and the box scrolls.
+        overflow = browser.evaluate(
+            "(() => { const box = document.querySelector('#table-depth-1').parentElement; box.style.width = '800px';"
+            " return box.scrollWidth - box.clientWidth; })()"
+        )
+        assert overflow > 0
+
+
 @needs_browser
 def test_the_browser_checks_catch_a_request_leaving_the_file(board: lb.Leaderboard, tmp_path: Path) -> None:
     """The checks above are not vacuous: an external image is blocked and reported, or seen when unblocked."""
@@ -458,11 +561,12 @@ def test_a_sweep_trial_shows_what_its_sweep_chose_beside_its_name(tmp_path: Path
     entries, _ = load_entries([path])
     page = render_html(build_leaderboard(entries, paper=False))
     (row,) = _tables(page)[0]["rows"]
-    assert row[1] == "sweep/2" + " ".join(chosen)  # the name, then the overrides below it
     assert (
-        '<td data-value="sweep/2">sweep/2<span class="overrides"><code>task.module.optimizer.lr=0.001</code>'
-        in page
-    )
+        row[1] == "sweep/2optimizer.lr=0.001 model.note=" + EVIL
+    )  # the name, the overrides below it, shortened
+    assert (
+        '<code title="task.module.optimizer.lr=0.001">optimizer.lr=0.001</code>' in page
+    )  # in full on hover
     summary = re.search(r"<summary>(.*?)</summary>", page)[1]
     assert "sweep/2 (task.module.optimizer.lr=0.001 model.note=&lt;script&gt;" in summary
     assert "<dt>sweep overrides</dt>" in page and EVIL not in page

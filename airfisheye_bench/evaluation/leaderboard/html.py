@@ -21,6 +21,7 @@ Example:
 from __future__ import annotations
 
 import base64
+import contextlib
 import hashlib
 import io
 import json
@@ -50,7 +51,7 @@ from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
 from airfisheye_bench.evaluation.leaderboard.rank import GROUPING, TaskTable
 from airfisheye_bench.io.results import load_results
 
-__all__ = ["render_html", "write_html"]
+__all__ = ["render_html", "short_override", "write_html"]
 
 _ASSETS = resources.files("airfisheye_bench.evaluation.leaderboard") / "assets"
 #: ``model`` keys of ``results.json`` that say which file was evaluated (see the evaluation's predictors).
@@ -227,9 +228,10 @@ def _row(
     evaluated = "paper" if e.paper else e.evaluated or MISSING
     cells = [
         f'<td class="num" data-value="{"" if rank is None else rank}">{rank or MISSING}</td>',
-        f'<td data-value="{escape(e.run)}">{escape(e.run)}{_overrides(e)}</td>',  # sorted by the run's name
-        f"<td>{model}</td>",
-        f"<td>{escape(evaluated)}</td>",
+        # Sorted by the name; a sweep's job (<sweep>/<job>) may wrap before its number.
+        f'<td class="run" data-value="{escape(e.run)}">{escape(e.run).replace("/", "/<wbr>")}{_overrides(e)}</td>',
+        f'<td class="text">{model}</td>',
+        f'<td class="text">{escape(evaluated)}</td>',
         f"<td>{escape(e.split)}</td>",
         *(number(c, e.metrics.get(c)) for c in columns),
     ]
@@ -239,10 +241,29 @@ def _row(
 
 
 def _overrides(e: LeaderboardEntry) -> str:
-    """What a sweep chose for the entry's run, one ``key=value`` each, below its name (empty for a single run)."""
+    """What a sweep chose for the entry's run, below its name, each ``key=value`` shortened (:func:`short_override`)
+    with the whole override as its tooltip (and in the detail view); empty for a single run."""
     if not e.overrides:
         return ""
-    return f'<span class="overrides">{" ".join(f"<code>{escape(o)}</code>" for o in e.overrides)}</span>'
+    items = " ".join(f'<code title="{escape(o)}">{escape(short_override(o))}</code>' for o in e.overrides)
+    return f'<span class="overrides">{items}</span>'
+
+
+def short_override(override: str) -> str:
+    """An override as a table cell shows it: the key's last two parts, a decimal to 4 significant digits.
+
+    Example:
+        >>> short_override("task.module.optimizer.lr=0.0072708183450185"), short_override("data.batch_size=8")
+        ('optimizer.lr=0.007271', 'data.batch_size=8')
+        >>> short_override("model=unet"), short_override("task.module.optimizer.weight_decay=1.2345678e-05")
+        ('model=unet', 'optimizer.weight_decay=1.235e-05')
+    """
+    key, sep, value = override.partition("=")
+    key = ".".join(key.lstrip("+~").split(".")[-2:])
+    if any(c in value for c in ".eE"):
+        with contextlib.suppress(ValueError):  # a word with an e in it stays as it is
+            value = f"{float(value):.4g}"
+    return f"{key}{sep}{value}"
 
 
 def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardEntry]], key: str) -> str:
