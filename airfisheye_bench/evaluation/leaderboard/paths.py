@@ -1,10 +1,13 @@
 """How the leaderboard shows a path: a run's relative to the ``runs=`` folder, a dataset's as its name and short
-content hash, the home folder as ``~``; so a shared page or table shows no one's local layout.
+content hash, the home folder as ``~``, anything else by its last two parts; so a shared page or table shows no
+one's local layout.
 
 Example:
     >>> shown = ShownPaths("/data/logs").with_dataset("/cache/quickstart-v2", "quickstart (content 8b04c5ff)")
     >>> shown("/data/logs/seg/runs/a/results.json"), shown("/cache/quickstart-v2"), shown("/srv/x.ckpt")
     ('seg/runs/a/results.json', 'quickstart (content 8b04c5ff)', '/srv/x.ckpt')
+    >>> shown("/scratch/alice/runs/r3/checkpoints/last.ckpt")  # outside runs=: its last two parts
+    '…/checkpoints/last.ckpt'
     >>> shown("/cache/quickstart-v2/splits/test.txt"), shown("sha256:ab"), shown(None)
     ('quickstart (content 8b04c5ff)/splits/test.txt', 'sha256:ab', None)
     >>> shown.within({"paths": ["/data/logs/a", 3]})
@@ -56,7 +59,8 @@ class ShownPaths:
             return os.path.relpath(path, self.root)
         if self.home and _under(path, self.home):
             return "~" + path[len(self.home) :]
-        return value
+        parts = path.split("/")
+        return "…/" + "/".join(parts[-2:]) if len(parts) > 3 else value
 
     def text(self, text: str) -> str:
         """``text`` (a message) with the paths inside it shortened as :meth:`__call__` does."""
