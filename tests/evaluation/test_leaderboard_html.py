@@ -301,7 +301,8 @@ def test_paper_only_page_and_missing_or_damaged_panels(tmp_path: Path) -> None:
 CHROMIUM = find_chromium()
 needs_browser = pytest.mark.skipif(
     CHROMIUM is None,
-    reason="no Chromium on PATH (Debian: apt-get install chromium; or set CHROMIUM=/path/to/chrome)",
+    reason="no Chromium on PATH (Debian: apt-get install chromium or chromium-headless-shell; or set "
+    "CHROMIUM=/path/to/chrome)",
 )
 
 
