@@ -1,4 +1,10 @@
-"""Sweeps: the run directory of an Optuna search's best trial (``hparams_search=<task>_optuna``).
+"""Sweeps: what a multirun's sweep chose for each job, and the run directory of an Optuna search's best trial
+(``hparams_search=<task>_optuna``).
+
+A job of a multirun (``-m``, an Optuna search) is an ordinary run directory named by its number; the run keeps no
+``.hydra/`` folder (``hydra.output_subdir: null``), so the values its sweep chose for it are recorded in its
+``results.json`` (``model.sweep_overrides``, :func:`job_sweep_overrides`; an evaluation of the run's weights copies
+them, :func:`run_sweep_overrides`), where the leaderboard shows them beside the run's name.
 
 Hydra's Optuna sweeper prints the best trial's parameters and value and writes them to
 ``<sweep>/optimization_results.yaml``, but not which of the sweep's run directories it was. :class:`BestTrialReport`
@@ -8,18 +14,87 @@ Hydra's Optuna sweeper prints the best trial's parameters and value and writes t
 
 from __future__ import annotations
 
+import json
 import logging
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import yaml
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.experimental.callback import Callback
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.atomic import atomic_write_text
 
 log = logging.getLogger(__name__)
+
+
+def sweep_overrides(job: Sequence[str], command: Sequence[str], searched: Iterable[str]) -> list[str]:
+    """The overrides of a multirun job that its sweep chose, in the job's order.
+
+    Those of the keys the command swept (``lr=0.01,0.02``, ``range(...)``, ``choice(...)``, ``interval(...)``) or
+    the sweeper searched (``hydra.sweeper.params``: an Optuna search space); the command's other overrides are
+    every job's and tell nothing about this one.
+
+    Args:
+        job: The job's overrides (``hydra.overrides.task`` of the job: the command's, with each sweep's value).
+        command: The command's overrides (``hydra.overrides.task`` of the multirun; empty when unknown).
+        searched: The keys of the sweeper's own search space.
+
+    Example:
+        >>> sweep_overrides(["task=seg", "task.module.optimizer.lr=0.01", "data.batch_size=8"],
+        ...                 ["task=seg", "task.module.optimizer.lr=0.01,0.02", "data.batch_size=4,8"], [])
+        ['task.module.optimizer.lr=0.01', 'data.batch_size=8']
+        >>> sweep_overrides(["model.encoder_output_stride=8", "hparams_search=seg_optuna"],
+        ...                 ["hparams_search=seg_optuna"], ["model.encoder_output_stride"])
+        ['model.encoder_output_stride=8']
+    """
+    parser = OverridesParser.create()
+    swept = set(searched) | {
+        o.key_or_group for o in parser.parse_overrides(list(command)) if o.is_sweep_override()
+    }
+    return [o.input_line for o in parser.parse_overrides(list(job)) if o.key_or_group in swept]
+
+
+def job_sweep_overrides() -> list[str]:
+    """:func:`sweep_overrides` of the running Hydra job; ``[]`` for a single run or outside a Hydra application.
+
+    The command's sweeps are read from ``<sweep>/multirun.yaml``, which Hydra's basic sweeper writes before it
+    launches a job (every launcher: the file is in the sweep folder); the Optuna sweeper writes none, and its
+    choices are the keys of its search space (``hydra.sweeper.params``, in the job's configuration too).
+    """
+    if not HydraConfig.initialized():
+        return []
+    hydra = HydraConfig.get()
+    if hydra.mode != RunMode.MULTIRUN:
+        return []
+    searched = list(hydra.sweeper.get("params") or {})
+    saved = Path(str(hydra.sweep.dir)) / "multirun.yaml"
+    command = list(OmegaConf.load(saved).hydra.overrides.task) if saved.is_file() else []
+    return sweep_overrides(list(hydra.overrides.task), command, searched)
+
+
+def run_sweep_overrides(run_dir: str | Path) -> list[str]:
+    """What a multirun's sweep chose for a run directory: ``model.sweep_overrides`` of its ``results.json`` (written
+    at the end of training); ``[]`` for a single run, or a run not tested yet.
+
+    Example:
+        >>> import tempfile
+        >>> run = Path(tempfile.mkdtemp())
+        >>> _ = (run / "results.json").write_text('{"model": {"sweep_overrides": ["data.batch_size=8"]}}')
+        >>> run_sweep_overrides(run), run_sweep_overrides(run / "nowhere")
+        (['data.batch_size=8'], [])
+    """
+    try:
+        record = json.loads((Path(run_dir) / "results.json").read_text())
+    except (OSError, ValueError):
+        return []
+    model = record.get("model") if isinstance(record, dict) else None
+    chosen = model.get("sweep_overrides") if isinstance(model, dict) else None
+    return [str(o) for o in chosen] if isinstance(chosen, list) else []
 
 
 def _same(given: Any, best: Any) -> bool:

@@ -45,6 +45,7 @@ from airfisheye_bench.runs import (
     run_label,
 )
 from airfisheye_bench.specs import get_task
+from airfisheye_bench.sweeps import job_sweep_overrides
 from airfisheye_bench.tracking import log_run_outputs, start_tracking
 from datamodules.coverage import input_coverage
 from datamodules.sources import mixture_identity, resolve_sources
@@ -416,6 +417,8 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
                     "source": "checkpoint",
                     "stage": "training",  # the leaderboard tells this row from evaluate.py's of the same weights
                     "run_name": run_label(output_dir),
+                    # A multirun job: what its sweep chose (the leaderboard shows it beside the run's name).
+                    **({"sweep_overrides": chosen} if (chosen := job_sweep_overrides()) else {}),
                     "name": cfg.model.name,
                     "checkpoint": best or None,
                     "config": OmegaConf.to_container(cfg.model, resolve=True),

@@ -7,20 +7,31 @@ and beside it the yardstick, computed from the LiDAR spec and the camera: the pi
 ``T_cam_lidar``), counted where the frame has ground truth (a 1536^2 pixel has it where the served pixel it lies in has; the
 ground-truth pixels of a ring are the served ones times the pixel area ratio). Both are sparse pixels per ground-truth pixel; the paper sensor's returns beyond its range
 or outside its field of view have no ground truth or no beam either way.
+
+:func:`dataset_coverage` measures a dataset folder both ways (every return, and ``data.lidar.density=paper``) on a
+few frames, and :func:`format_coverage` prints it: ``airfisheye-inspect`` states it for every dataset with LiDAR.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
+
 import torch
 
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import beam_pixels, paper_camera
+from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, beam_pixels, paper_camera
+from airfisheye_bench.io.reader import DatasetReader
 from airfisheye_bench.metrics import RingCoverage, ring_edges_for
 from airfisheye_bench.specs import get_task
+from datamodules.airfisheye import AirFisheyeDataModule
 from datamodules.dataset import AirFisheyeDataset
 from datamodules.multi_source import MultiSourceDataset
 
-__all__ = ["input_coverage", "sparse_coverage"]
+__all__ = ["FRAMES", "dataset_coverage", "format_coverage", "input_coverage", "sparse_coverage"]
+
+#: Frames :func:`dataset_coverage` measures by default, spread over the split: a few seconds on any release.
+FRAMES = 4
 
 
 def _parts(dataset: AirFisheyeDataset | MultiSourceDataset) -> list[AirFisheyeDataset]:
@@ -67,3 +78,67 @@ def input_coverage(dataset: AirFisheyeDataset | MultiSourceDataset, task: str) -
     if "sparse_depth" not in get_task(task).inputs:
         return None
     return sparse_coverage(dataset)["served"]
+
+
+def dataset_coverage(
+    root: str | Path, size: int, every: int | None = None, split: str = "test"
+) -> dict[str, Any] | None:
+    """The completion input's coverage of a dataset folder, by ring, as training serves it at ``size``^2: with
+    every return (``native``) and at the paper sensor's density (``paper``: ``data.lidar.density=paper``), beside
+    the paper sensor on the paper's 1536^2 image (``paper_1536``), over every ``every``-th frame of ``split``.
+
+    Args:
+        root: A dataset in the AirFisheye layout.
+        size: The served image size (``data.camera.size``).
+        every: Measure every ``every``-th frame; ``None``: about :data:`FRAMES` frames spread over the split.
+        split: The split measured.
+
+    Returns:
+        ``{"split", "size", "every", "frames", "rings": {"native" | "paper" | "paper_1536": {"ring_0-30": ...}}}``;
+        ``None`` for a dataset without LiDAR (no completion input).
+    """
+    if not DatasetReader(root).spec.has("lidar"):
+        return None
+    rings: dict[str, dict[str, float]] = {}
+    for density in LIDAR_DENSITIES:
+        datamodule = AirFisheyeDataModule(
+            "completion", root=root, preset=None, camera={"size": size}, lidar={"density": density}
+        )
+        dataset = datamodule.split_dataset(split)
+        every = every or max(1, len(dataset) // FRAMES)
+        # The paper sensor's coverage depends on the frames, not on the served density: measured once.
+        coverage = sparse_coverage(dataset, every, reference=LidarSpec() if density == "native" else None)
+        rings[density] = coverage["served"]
+        rings.update({"paper_1536": coverage["paper_1536"]} if "paper_1536" in coverage else {})
+    frames = len(range(0, len(dataset), every))
+    return {"split": split, "size": size, "every": every, "frames": frames, "rings": rings}
+
+
+def format_coverage(coverage: dict[str, Any]) -> str:
+    """:func:`dataset_coverage` as a few lines: one per ring, the served input (every return, paper density) beside
+    the paper sensor at 1536^2.
+
+    Example:
+        >>> rings = {"native": {"ring_0-30": 0.918}, "paper": {"ring_0-30": 0.11}, "paper_1536": {"ring_0-30": 0.112}}
+        >>> print(format_coverage({"split": "test", "size": 128, "every": 8, "frames": 3, "rings": rings}))
+        sparse LiDAR coverage (completion input, sparse pixels per ground-truth pixel), test split, 3 frames (every=8):
+          ring           native 128^2   paper 128^2   paper sensor 1536^2
+          ring_0-30            0.9180        0.1100                0.1120
+          (paper: data.lidar.density=paper, the paper sensor's returns per pixel at the served size)
+    """
+    size, rings = coverage["size"], coverage["rings"]
+    columns = (f"native {size}^2", f"paper {size}^2", "paper sensor 1536^2")
+    lines = [
+        "sparse LiDAR coverage (completion input, sparse pixels per ground-truth pixel), "
+        f"{coverage['split']} split, {coverage['frames']} frames (every={coverage['every']}):",
+        f"  {'ring':<12}" + "".join(f"{c:>{len(c) + 3}}" for c in columns),
+    ]
+    for ring in rings["native"]:
+        values = (rings[k].get(ring, float("nan")) for k in ("native", "paper", "paper_1536"))
+        lines.append(
+            f"  {ring:<12}" + "".join(f"{v:>{len(c) + 3}.4f}" for c, v in zip(columns, values, strict=True))
+        )
+    lines.append(
+        "  (paper: data.lidar.density=paper, the paper sensor's returns per pixel at the served size)"
+    )
+    return "\n".join(lines)

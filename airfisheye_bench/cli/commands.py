@@ -26,6 +26,9 @@ Example:
       limit           int        20          problems listed in the summary
       lidar           str|null   null        LiDAR scans: the sensor (a preset such as hdl64e, or a spec file) to estimate rings
       min_range       float      1.0         LiDAR scans: returns closer than this (m) count as self-hits
+      coverage        bool       true        a dataset with LiDAR: also measure the completion input's coverage per ring
+      size            int|null   null        coverage: the served image size (null: data.camera.size's default)
+      every           int|null   null        coverage: every n-th test frame (null: a few frames spread over the split)
     <BLANKLINE>
     Booleans: true/false, yes/no, on/off, 1/0. Lists: key=[a,b].
 """
@@ -71,6 +74,9 @@ class InspectOptions:
         "LiDAR scans: the sensor (a preset such as hdl64e, or a spec file) to estimate rings"
     )
     min_range: float = option("LiDAR scans: returns closer than this (m) count as self-hits")
+    coverage: bool = option("a dataset with LiDAR: also measure the completion input's coverage per ring")
+    size: int | None = option("coverage: the served image size (null: data.camera.size's default)")
+    every: int | None = option("coverage: every n-th test frame (null: a few frames spread over the split)")
 
 
 INSPECT = Command(
@@ -84,8 +90,13 @@ INSPECT = Command(
 
 @report_user_errors
 def inspect(argv: Sequence[str] | None = None) -> int:
-    """``airfisheye-inspect root=DIR [format=woodscape] [deep=true] [limit=20]``; exit status 1 when problems are
-    found."""
+    """``airfisheye-inspect root=DIR [format=woodscape] [deep=true] [limit=20] [coverage=true] [size=128]
+    [every=N]``; exit status 1 when problems are found.
+
+    A sound dataset with LiDAR also gets the sparse LiDAR coverage of its completion input per incidence-angle
+    ring (``datamodules.coverage``): served at ``size`` with every return and at the paper's density, beside the
+    paper sensor at 1536^2, over a few test frames.
+    """
     parsed = _run(INSPECT, argv)
     if parsed is None:
         return 0
@@ -95,7 +106,11 @@ def inspect(argv: Sequence[str] | None = None) -> int:
     from airfisheye_bench.io.inspect_scans import inspect_scans  # at run time: see the module docstring
 
     opts = parsed.options
+    for key in ("size", "every"):  # answered before the scan, which may take minutes
+        if opts[key] is not None and opts[key] < 1:
+            raise ConfigError(f"{key}={opts[key]}: expected a whole number >= 1 (or null)")
     root = Path(opts.root)
+    dataset = False  # a dataset in the AirFisheye layout (its coverage can be measured)
     if opts.format != "airfisheye":
         from airfisheye_bench.io.inspect_source import inspect_source  # at run time: see the module docstring
 
@@ -108,6 +123,7 @@ def inspect(argv: Sequence[str] | None = None) -> int:
         report = inspect_source(root, opts.format, options, deep=opts.deep)
     elif (root / "dataset.yaml").is_file() or not root.exists():
         report = inspect_dataset(opts.root, deep=opts.deep)
+        dataset = True
     else:  # a folder (or a file) of LiDAR scans
         try:
             report = inspect_scans(root, opts.lidar, opts.min_range)
@@ -116,7 +132,22 @@ def inspect(argv: Sequence[str] | None = None) -> int:
         if root.is_file() and report.problems:  # the one file asked about is unusable: a user error
             raise DatasetFormatError(*report.problems[0])
     print(report.summary(limit=opts.limit))
+    if dataset and report.ok and opts.coverage:
+        _print_coverage(root, opts.size, opts.every)
     return 0 if report.ok else 1
+
+
+def _print_coverage(root: Path, size: int | None, every: int | None) -> None:
+    """The completion input's coverage of a sound dataset (nothing for one without LiDAR)."""
+    if size is None:  # the size training serves by default: the data group train.yaml starts from
+        from airfisheye_bench.constants import config_dir  # at run time: see the module docstring
+
+        size = int(OmegaConf.load(config_dir() / "data" / "synthetic.yaml").camera.size)
+    from datamodules.coverage import dataset_coverage, format_coverage  # torch: only when measured
+
+    coverage = dataset_coverage(root, size, every)
+    if coverage is not None:
+        print(format_coverage(coverage))
 
 
 # ---------------------------------------------------------------------------------------------- transcode
@@ -212,8 +243,10 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
         raise ConfigError(f"runs={opts.runs}: expected a folder or results.json, or a list of them [a,b]")
     if opts.html is not None and not opts.html.endswith((".html", ".htm")):
         raise ConfigError(f"html={opts.html}: expected an .html file name")
+    # Absolute: the outputs show every path relative to the folder the results were collected from.
+    paths = [Path(r.strip()).expanduser().resolve() for r in runs]
     try:
-        entries, problems = load_entries(find_results([r.strip() for r in runs]))
+        entries, problems = load_entries(find_results(paths))
     except FileNotFoundError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
@@ -225,14 +258,13 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
     if not entries:
         print("error: no valid results.json to rank", file=sys.stderr)
         return 1
-    board = build_leaderboard(entries, paper=opts.paper, invalid=problems)
+    root = os.path.commonpath([p if p.is_dir() else p.parent for p in paths])
+    board = build_leaderboard(entries, paper=opts.paper, invalid=problems, root=root)
     written = list(board.write(opts.out))
     if opts.html is not None:
         from airfisheye_bench.evaluation.leaderboard.html import write_html  # matplotlib, only for html=
 
-        folders = [Path(r.strip()).expanduser().resolve() for r in runs]
-        folders = [f if f.is_dir() else f.parent for f in folders]
-        written.append(write_html(board, opts.html, runs_root=os.path.commonpath(folders)))
+        written.append(write_html(board, opts.html))
     print(board.to_markdown(), end="")
     print(f"wrote {', '.join(map(str, written))}", file=sys.stderr)
     return 0

@@ -48,6 +48,7 @@ from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_D
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.runs import checkpoint_run_name, resolve_checkpoint, run_config, run_directory
 from airfisheye_bench.specs import UnknownTaskError, get_task, task_names
+from airfisheye_bench.sweeps import run_sweep_overrides
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.tracking import log_to_run, resolve_run
 from airfisheye_bench.viz import save_png, task_panel
@@ -268,6 +269,13 @@ def _run_name(identity: dict[str, Any]) -> str:
     return Path(identity.get("onnx") or identity.get("predictions") or "unnamed").name
 
 
+def _sweep_overrides(identity: dict[str, Any]) -> list[str]:
+    """What a multirun's sweep chose for the training run of the evaluated weights, when that run is here."""
+    checkpoint = identity.get("checkpoint") or identity.get("source_checkpoint")
+    run = run_directory(checkpoint) if checkpoint else None
+    return run_sweep_overrides(run) if run is not None else []
+
+
 def _write(
     cfg: DictConfig,
     output_dir: Path,
@@ -289,6 +297,8 @@ def _write(
     identity = predictor.identity()
     # The leaderboard's run label ("name" stays the architecture): the name given, else the training run.
     identity["run_name"] = cfg.get("name") or _run_name(identity)
+    if chosen := _sweep_overrides(identity):  # the weights come from a job of a sweep: what it chose
+        identity["sweep_overrides"] = chosen
     split_name = datamodule.split_names[("train", "val", "test").index(cfg.split)]
     path = write_results(
         output_dir / "results.json",

@@ -6,7 +6,10 @@ label ids unknown to ``dataset.yaml``, empty or non-finite LiDAR scans).
 
 Command line (:func:`airfisheye_bench.cli.commands.inspect`; ``--help`` lists the options)::
 
-    airfisheye-inspect root=/path/to/AirFisheye [deep=true] [limit=20]
+    airfisheye-inspect root=/path/to/AirFisheye [deep=true] [limit=20] [coverage=true] [size=128] [every=N]
+
+For a sound dataset with LiDAR the command also states its completion input's coverage per incidence-angle ring
+(:func:`datamodules.coverage.dataset_coverage`); the command wires it in, ``io`` being below ``datamodules``.
 
 A dataset in another layout (``format=woodscape``, ...) is inspected through its source:
 :func:`airfisheye_bench.io.inspect_source.inspect_source`.

@@ -8,8 +8,10 @@
 ``model`` says what was evaluated, which the leaderboard labels each row with (:func:`evaluated_label`):
 ``source`` (``checkpoint`` | ``onnx`` | ``predictions``), ``checkpoint`` / ``onnx`` / ``predictions`` (the file
 or folder), ``precision`` of an ONNX model (``fp32`` | ``int8``), ``tta`` (``null`` | ``flip``), ``stage``
-(``training`` for the test at the end of ``train.py``, else absent) and ``run_name``, the training run the weights
-come from (:func:`~airfisheye_bench.runs.checkpoint_run_name`) or the ``name=`` given. Files written before these
+(``training`` for the test at the end of ``train.py``, else absent), ``run_name``, the training run the weights
+come from (:func:`~airfisheye_bench.runs.checkpoint_run_name`) or the ``name=`` given, and for the weights of a
+multirun's job ``sweep_overrides``, what its sweep chose (``["data.batch_size=8", ...]``,
+:mod:`airfisheye_bench.sweeps`). Files written before these
 keys existed stay readable: a missing key is inferred where it can be (an ``.int8.onnx`` file name, the run
 directory of the checkpoint) and left out of the label otherwise.
 

@@ -19,11 +19,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-CANDIDATES = ("chromium", "chromium-browser", "google-chrome", "chrome")
+CANDIDATES = ("chromium", "chromium-browser", "chromium-headless-shell", "google-chrome", "chrome")
 
 
 def find_chromium() -> str | None:
-    """``$CHROMIUM`` or the first Chromium-like browser on ``PATH`` (Debian's package installs ``chromium``)."""
+    """``$CHROMIUM`` or the first Chromium-like browser on ``PATH`` (Debian's packages install ``chromium`` or
+    ``chromium-headless-shell``)."""
     if os.environ.get("CHROMIUM"):
         return shutil.which(os.environ["CHROMIUM"])
     return next((path for name in CANDIDATES if (path := shutil.which(name))), None)
@@ -155,10 +156,11 @@ class Page:
         self.call("Input.dispatchKeyEvent", type="keyUp", **key)
 
     def click(self, selector: str) -> None:
-        """Scroll an element into view and click its centre with the mouse."""
+        """Scroll an element into view and click the centre of its first box with the mouse (a link wrapped onto
+        two lines has nothing at the centre of both)."""
         x, y = self.evaluate(
             f"(() => {{ const e = document.querySelector({json.dumps(selector)}); e.scrollIntoView({{block: 'center'}});"
-            " const r = e.getBoundingClientRect(); return [r.x + r.width / 2, r.y + r.height / 2]; })()"
+            " const r = e.getClientRects()[0]; return [r.x + r.width / 2, r.y + r.height / 2]; })()"
         )
         for kind in ("mousePressed", "mouseReleased"):
             self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)

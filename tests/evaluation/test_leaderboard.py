@@ -73,7 +73,8 @@ def test_rows_that_print_the_same_share_a_rank_in_every_rendering(tmp_path: Path
     from airfisheye_bench.evaluation.leaderboard.html import render_html
 
     html_ranks = re.findall(
-        r'<td class="num" data-value="(\d)">\d</td><td>\w</td><td>(?:<a [^>]*>)?deeplab', render_html(board)
+        r'<td class="num" data-value="(\d)">\d</td><td class="run" data-value="\w">\w</td><td class="text">(?:<a [^>]*>)?deeplab',
+        render_html(board),
     )
     assert html_ranks == ["1", "2", "2", "4"]
 
@@ -134,6 +135,21 @@ def test_the_same_content_written_by_another_encoder_is_one_dataset(tmp_path: Pa
     board = build_leaderboard(collect_results([tmp_path]), paper=False)
     assert _groups(board, "seg") == [[(1, "here"), (2, "there")]]
     assert [g.title for g in board.tables[0].groups] == ["synth (content c0ffeec0), test split"]
+    assert {r["content_sha256"] for r in _csv_rows(board.to_csv())} == {content}
+
+
+def test_every_rendering_says_the_content_hash_groups_the_rows(tmp_path: Path) -> None:
+    """One wording, in the markdown and the page: the content hash (``content_sha256``) names a dataset, the
+    manifest hash only stands in for results written before it."""
+    from airfisheye_bench.evaluation.leaderboard.html import render_html
+
+    _write(tmp_path, "old", "seg", {"mIoU": 0.5})  # no content hash: grouped by its manifest's
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert lb.GROUPING in board.to_markdown() and "(`content_sha256`" in lb.GROUPING
+    assert "### synth (manifest a1b2c3d4), test split" in board.to_markdown()
+    page = render_html(board)
+    assert "content hash (<code>content_sha256</code>" in page and "(<code>manifest_sha256</code>" in page
+    assert "synth (manifest a1b2c3d4), test split" in page
 
 
 # ------------------------------------------------------------------------------------------------ paper rows
@@ -551,3 +567,39 @@ def test_the_served_camera_is_shown(tmp_path: Path) -> None:
         "| test | double_sphere 512x512 | 30.0 | 70.0 | ds |" in md
         and "| test | – | 20.0 | 60.0 | old |" in md
     )
+
+
+def test_paths_are_shown_relative_to_the_runs_folder_given_in_any_form(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """``runs=logs`` (relative to the working folder) or absolute: the CSV path and the invalid files listed in the
+    markdown read the same, relative to the runs folder."""
+    _write(tmp_path / "logs", "good", "seg", {"mIoU": 0.3})
+    _bad_files(tmp_path / "logs")
+    monkeypatch.chdir(tmp_path)
+    for runs in ("logs", str(tmp_path / "logs")):
+        assert leaderboard([f"runs={runs}", "out=board", "skip_invalid=true", "paper=false"]) == 0
+        md = (tmp_path / "board" / "leaderboard.md").read_text()
+        assert "- truncated/results.json: " in md and str(tmp_path) not in md
+        rows = _csv_rows((tmp_path / "board" / "leaderboard.csv").read_text())
+        assert [r["path"] for r in rows] == ["good/results.json"]
+    capsys.readouterr()
+
+
+def test_a_sweep_trial_shows_what_its_sweep_chose(tmp_path: Path) -> None:
+    """``model.sweep_overrides`` (a multirun job's) beside the run's name in the markdown, in its own CSV column."""
+    chosen = ["task.module.optimizer.lr=0.001", "model.encoder_name=resnet34"]
+    for job, lr, miou in (("0", "0.001", 0.4), ("1", "0.01", 0.3)):
+        model = {"name": "deeplabv3plus", "run_name": f"sweep-a/{job}", "sweep_overrides": [f"task.module.optimizer.lr={lr}", chosen[1]]}  # fmt: skip
+        _write(tmp_path / "sweep-a", job, "seg", {"mIoU": miou}, model=model)
+    _write(tmp_path, "single", "seg", {"mIoU": 0.2})
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    md = board.to_markdown()
+    assert "| sweep-a/0 (task.module.optimizer.lr=0.001 model.encoder_name=resnet34) |" in md
+    assert "| sweep-a/1 (task.module.optimizer.lr=0.01 model.encoder_name=resnet34) |" in md
+    assert "| single |" in md
+    rows = {r["run"]: r["overrides"] for r in _csv_rows(board.to_csv())}
+    assert rows["sweep-a/0"] == " ".join(chosen) and rows["single"] == ""
+    bad = _write(tmp_path / "bad", "x", "seg", {"mIoU": 0.1}, model={"sweep_overrides": "lr=1"})
+    with pytest.raises(ValueError, match=r"model\.sweep_overrides is 'lr=1', not a list"):
+        load_entry(bad)

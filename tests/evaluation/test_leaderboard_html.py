@@ -4,6 +4,7 @@ in headless Chromium (when installed): sorting, detail views, no console error a
 from __future__ import annotations
 
 import base64
+import csv
 import hashlib
 import io
 import re
@@ -66,7 +67,7 @@ def _results(
             "sha256": hashlib.sha256(run.encode()).hexdigest(),
             "config": {"encoder_name": "resnet18"},
         },
-        config={"evaluation": {"batch_size": 8, "note": EVIL}},
+        config={"evaluation": {"batch_size": 8, "note": EVIL}, "data": {"root": "/data/synth"}},
     )
     rng = np.random.default_rng(len(run))
     for i in range(4):  # one more than the page shows
@@ -200,7 +201,7 @@ def test_paper_rows_are_marked_and_have_no_detail_view(page: str) -> None:
     paper_rows = re.findall(r"<tr class=paper>.*?</tr>", page)
     assert len(paper_rows) == 3
     assert all('<span class="badge">paper</span>' in row and "<a href" not in row for row in paper_rows)
-    assert all("<td>paper</td>" in row for row in paper_rows)
+    assert all('<td class="text">paper</td>' in row for row in paper_rows)
 
 
 def test_every_string_from_results_json_is_escaped(page: str) -> None:
@@ -227,7 +228,8 @@ def test_page_is_self_contained(page: str) -> None:
 def test_detail_view_has_identity_charts_panels_and_configuration(runs: Path, page: str) -> None:
     entry = re.search(r'<details id="entry-seg-0" class="entry">.*?</div></details>', page, re.DOTALL)[0]
     assert "seg_ckpt" in entry and hashlib.sha256(b"seg_ckpt").hexdigest() in entry and HASH_A in entry
-    assert str(runs / "seg_ckpt" / "results.json") in entry and "/runs/seg_ckpt/last.ckpt" in entry
+    # Built without runs=: the paths by their last two parts.
+    assert "<dd>…/seg_ckpt/results.json</dd>" in entry and "<dd>…/seg_ckpt/last.ckpt</dd>" in entry
     assert 'aria-label="IoU per class, seg_ckpt"' in entry and "n/a" in entry  # water: null
     assert 'aria-label="mIoU (%) by incidence-angle ring, seg_ckpt"' in entry
     assert "depth range" not in entry  # segmentation has no range breakdown
@@ -299,7 +301,8 @@ def test_paper_only_page_and_missing_or_damaged_panels(tmp_path: Path) -> None:
 CHROMIUM = find_chromium()
 needs_browser = pytest.mark.skipif(
     CHROMIUM is None,
-    reason="no Chromium on PATH (Debian: apt-get install chromium; or set CHROMIUM=/path/to/chrome)",
+    reason="no Chromium on PATH (Debian: apt-get install chromium or chromium-headless-shell; or set "
+    "CHROMIUM=/path/to/chrome)",
 )
 
 
@@ -380,6 +383,109 @@ def test_page_in_headless_chromium(board: lb.Leaderboard, tmp_path: Path) -> Non
         assert not any(e["method"] == "Page.javascriptDialogOpening" for e in browser.events)
 
 
+#: A sweep's jobs as the runs folder holds them: a long run name, an Optuna search's overrides, every metric the
+#: evaluation writes (the task's headline ones and more), rings and ranges: the widest rows a table gets.
+WIDE_METRICS = {
+    "depth": ("abs_rel", "sq_rel", "rmse", "rmse_log", "log10", "silog", "delta1", "delta2", "delta3"),
+    "completion": ("abs_rel", "rmse", "mae", "irmse", "imae", "delta1", "delta2", "delta3"),
+    "seg": ("mIoU", "pixel_acc"),
+}
+OPTUNA_CHOICES = [
+    "task.module.optimizer.lr=0.0072708183450185",
+    "task.module.optimizer.weight_decay=0.000123456789",
+    "task.module.optimizer.momentum=0.8812345",
+    "data.batch_size=8",
+    "model.encoder_output_stride=16",
+]
+
+
+@pytest.fixture(scope="module")
+def wide_board(tmp_path_factory: pytest.TempPathFactory) -> lb.Leaderboard:
+    root = tmp_path_factory.mktemp("wide")
+    sweep = "2026-11-24_09-30-05_81234-a3f0"
+    evaluated = (
+        {
+            "source": "checkpoint",
+            "stage": "training",
+            "checkpoint": "/r/checkpoints/epoch_003.ckpt",
+            "tta": "flip",
+        },
+        {"source": "onnx", "precision": "int8", "onnx": "/r/model.int8.onnx"},
+        {"source": "checkpoint", "checkpoint": "/r/checkpoints/epoch_024.ckpt"},
+    )
+    for task, keys in WIDE_METRICS.items():
+        for job, model in enumerate(evaluated):
+            run = f"{sweep}/{job + 11}" if job < 2 else "2026-11-25_10-00-00_999-beef"
+            write_results(
+                root / task / str(job) / "results.json",
+                task,
+                "test",
+                {key: 0.1234567 * (k + 1 + job) for k, key in enumerate(keys)},
+                breakdown={
+                    f"{kind}_{lo}-{hi}/{keys[0] if task == 'seg' else 'rmse'}": 3.0 + b + job
+                    for kind, bins in (("ring", RINGS), ("range", RANGES if task != "seg" else ()))
+                    for b, (lo, hi) in enumerate(bins)
+                },
+                dataset={"name": "airfisheye-synthetic-quickstart", "content_sha256": HASH_A},
+                model={
+                    **model,
+                    "name": {"seg": "deeplabv3plus", "depth": "adabins", "completion": "nlspn"}[task],
+                    "run_name": run,
+                    "sweep_overrides": OPTUNA_CHOICES if job < 2 else None,
+                    "config": {"encoder_name": "resnet50"},
+                },
+            )
+    entries, _ = load_entries(find_results([root]))
+    return build_leaderboard(entries, paper=True, root=root)
+
+
+@needs_browser
+def test_the_page_fits_a_1400_px_window_with_legible_charts(
+    wide_board: lb.Leaderboard, tmp_path: Path
+) -> None:
+    """At 1400 px every table shows its last column without scrolling (headers and text cells wrap), and every
+    text of every chart (legends, ticks, labels) is at least 12 px; in a narrower box a table still scrolls."""
+    html = write_html(wide_board, tmp_path / "wide.html", panels=0)
+    with Page(CHROMIUM, width=1400, height=900) as browser:
+        browser.open(html.as_uri())
+        tables = browser.evaluate(
+            "Array.from(document.querySelectorAll('table.board')).map(t => { const box = t.parentElement;"
+            " const cells = t.tHead.rows[0].cells; const last = cells[cells.length - 1].getBoundingClientRect();"
+            " return [t.id, cells.length, box.scrollWidth - box.clientWidth,"
+            " last.right - box.getBoundingClientRect().right, last.right - innerWidth]; })"
+        )
+        assert (
+            len(tables) == 6 and max(columns for _, columns, *_ in tables) == 5 + 9 + 1
+        )  # depth: 9 metrics, rim
+        for table, _, overflow, past_box, past_window in tables:
+            assert overflow <= 0 and past_box <= 0.5 and past_window <= 0, (
+                table,
+                overflow,
+                past_box,
+                past_window,
+            )
+        assert browser.evaluate("document.documentElement.scrollWidth <= innerWidth")
+
+        browser.evaluate("document.querySelectorAll('details.entry').forEach(d => d.open = true)")
+        sizes = browser.evaluate(
+            "Array.from(document.querySelectorAll('figure.chart svg')).map(svg => [svg.getAttribute('aria-label'),"
+            " svg.querySelectorAll('text').length, Math.min(...Array.from(svg.querySelectorAll('text')).map(t => {"
+            " const m = t.getScreenCTM(); return parseFloat(getComputedStyle(t).fontSize) * Math.hypot(m.a, m.b); }))])"
+        )
+        group = [size for label, _, size in sizes if "every entry of this group" in label]
+        assert (
+            len(group) == 3 and len(sizes) > 3
+        )  # one group chart (with a legend) per task, and the detail charts
+        assert all(size >= 12 for _, _, size in sizes), [(label, round(size, 1)) for label, _, size in sizes]
+
+        # Not vacuous: the same table in a box too narrow for it overflows, and the box scrolls.
+        overflow = browser.evaluate(
+            "(() => { const box = document.querySelector('#table-depth-1').parentElement; box.style.width = '800px';"
+            " return box.scrollWidth - box.clientWidth; })()"
+        )
+        assert overflow > 0
+
+
 @needs_browser
 def test_the_browser_checks_catch_a_request_leaving_the_file(board: lb.Leaderboard, tmp_path: Path) -> None:
     """The checks above are not vacuous: an external image is blocked and reported, or seen when unblocked."""
@@ -419,3 +525,50 @@ def test_paths_are_shown_relative_to_the_runs_folder(runs: Path, board: lb.Leade
     entry = re.search(r'<details id="entry-seg-0" class="entry">.*?</div></details>', page, re.DOTALL)[0]
     assert str(runs) not in page
     assert "<dd>seg_ckpt/results.json</dd>" in entry
+
+
+def test_no_page_or_table_shows_where_the_runs_or_the_data_lie(runs: Path, tmp_path: Path, capsys) -> None:
+    """Runs relative to runs=, the dataset by its name and content hash (its folder nowhere, the configuration
+    included), in the markdown, the CSV and the HTML page the command writes."""
+    html, out = tmp_path / "board.html", tmp_path / "board"
+    assert leaderboard([f"runs={runs}", f"out={out}", f"html={html}", "skip_invalid=true"]) == 0
+    capsys.readouterr()
+    page, md, table = (
+        html.read_text(),
+        (out / "leaderboard.md").read_text(),
+        (out / "leaderboard.csv").read_text(),
+    )
+    for text in (page, md, table):
+        assert str(runs) not in text and "/data/synth" not in text
+    entry = re.search(r'<details id="entry-seg-0" class="entry">.*?</div></details>', page, re.DOTALL)[0]
+    assert "<dt>dataset</dt><dd>synth (manifest a1b2c3d4)</dd>" in entry and "dataset root" not in entry
+    assert f"<dt>manifest sha256</dt><dd>{HASH_A}</dd>" in entry
+    config = unescape(re.search(r"<pre>(.*?)</pre>", entry, re.DOTALL)[1])
+    assert '"root": "synth (manifest a1b2c3d4)"' in config  # config.data.root: the dataset, by name
+    assert "- broken/results.json: " in md and "broken/results.json" in page
+    assert {row["path"] for row in csv.DictReader(io.StringIO(table)) if row["run"] == "seg_ckpt"} == {
+        "seg_ckpt/results.json"
+    }
+
+
+def test_a_sweep_trial_shows_what_its_sweep_chose_beside_its_name(tmp_path: Path) -> None:
+    chosen = ["task.module.optimizer.lr=0.001", f"model.note={EVIL}"]
+    path = write_results(
+        tmp_path / "sweep" / "2" / "results.json",
+        "seg",
+        "test",
+        {"mIoU": 0.4},
+        model={"name": "deeplabv3plus", "run_name": "sweep/2", "sweep_overrides": chosen},
+    )
+    entries, _ = load_entries([path])
+    page = render_html(build_leaderboard(entries, paper=False))
+    (row,) = _tables(page)[0]["rows"]
+    assert (
+        row[1] == "sweep/2optimizer.lr=0.001 model.note=" + EVIL
+    )  # the name, the overrides below it, shortened
+    assert (
+        '<code title="task.module.optimizer.lr=0.001">optimizer.lr=0.001</code>' in page
+    )  # in full on hover
+    summary = re.search(r"<summary>(.*?)</summary>", page)[1]
+    assert "sweep/2 (task.module.optimizer.lr=0.001 model.note=&lt;script&gt;" in summary
+    assert "<dt>sweep overrides</dt>" in page and EVIL not in page

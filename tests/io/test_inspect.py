@@ -22,11 +22,34 @@ def copy(tiny_dataset: Path, tmp_path: Path) -> Path:
     return root
 
 
-def test_a_clean_dataset_has_no_problems(tiny_dataset: Path) -> None:
+def test_a_clean_dataset_has_no_problems(tiny_dataset: Path, capsys) -> None:
     report = inspect_dataset(tiny_dataset, deep=True)
     assert report.ok, report.summary()
     assert report.samples == 12 and report.files > 12 * 15
-    assert inspect([f"root={tiny_dataset}"]) == 0
+    assert inspect([f"root={tiny_dataset}", "coverage=false"]) == 0
+    assert "coverage" not in capsys.readouterr().out
+
+
+@pytest.mark.integration  # the datamodule, twice, and the paper sensor's beams over two frames: seconds
+def test_a_dataset_with_lidar_states_its_completion_coverage_per_ring(tiny_dataset: Path, capsys) -> None:
+    """Sparse pixels per ground-truth pixel by ring, served at size= with every return and at the paper's density,
+    beside the paper sensor at 1536^2; over the tiny preset's two test frames (a few frames by default)."""
+    assert inspect([f"root={tiny_dataset}", "size=64"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("sparse LiDAR coverage"))
+    assert lines[head].endswith("test split, 2 frames (every=1):")
+    assert lines[head + 1].split() == ["ring", "native", "64^2", "paper", "64^2", "paper", "sensor", "1536^2"]
+    rows = {line.split()[0]: [float(v) for v in line.split()[1:]] for line in lines[head + 2 : head + 6]}
+    assert list(rows) == ["ring_0-30", "ring_30-60", "ring_60-80", "ring_80-95"]
+    for native, paper, sensor in rows.values():
+        assert 0 < paper < native <= 1 and 0 < sensor < 1  # the paper density keeps a subset of the returns
+    assert "data.lidar.density=paper" in lines[head + 6]
+
+
+def test_coverage_options_are_checked_before_the_scan(tmp_path: Path, capsys) -> None:
+    assert exit_status(inspect, [f"root={tmp_path}", "every=0"]) == 2
+    assert "every=0: expected a whole number >= 1" in capsys.readouterr().err
+    assert exit_status(inspect, [f"root={tmp_path}", "size=-64"]) == 2
 
 
 def test_damage_is_reported_with_the_file(copy: Path) -> None:

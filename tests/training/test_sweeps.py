@@ -7,23 +7,28 @@ Skipped when the extras are not installed (``pip install -e ".[sweep,slurm]"``).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import importlib.util
 import json
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 import yaml
 from hydra import compose, initialize_config_dir
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.cli.commands import leaderboard
 from airfisheye_bench.constants import config_dir
+from airfisheye_bench.evaluation.command import _sweep_overrides as evaluation_sweep_overrides
 from airfisheye_bench.runs import SWEEP_NAME_ENV, register_resolvers
 from airfisheye_bench.specs import get_task, task_names
+from airfisheye_bench.sweeps import job_sweep_overrides, run_sweep_overrides
 from tests.helpers.runs import tiny_run_overrides
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -117,6 +122,55 @@ def test_the_slurm_launcher_submits_multi_node_ddp_jobs(
         assert f"#SBATCH {line}" in script, script
 
 
+# ------------------------------------------------------------------------------------ what a sweep chose
+@contextlib.contextmanager
+def _job(cfg: DictConfig) -> Iterator[None]:
+    """``cfg`` (composed with its ``hydra`` node) as the running Hydra job's configuration."""
+    instance = HydraConfig.instance()
+    saved = instance.cfg
+    instance.set_config(cfg)
+    try:
+        yield
+    finally:
+        instance.cfg = saved
+
+
+def test_a_job_of_a_multirun_records_the_values_its_sweep_chose(tmp_path: Path) -> None:
+    """A command's sweeps (``a,b``) are read from ``<sweep>/multirun.yaml``; its other overrides are every job's."""
+    command = ["task=seg", "task.module.optimizer.lr=0.01,0.02", "data.batch_size=4,8", "trainer=debug"]
+    (tmp_path / "multirun.yaml").write_text(yaml.safe_dump({"hydra": {"overrides": {"task": command}}}))
+    job = ["task=seg", "task.module.optimizer.lr=0.02", "data.batch_size=4", "trainer=debug"]
+    cfg = _compose([*job, "hydra.mode=MULTIRUN", f"hydra.sweep.dir={tmp_path}"])
+    with _job(cfg):
+        assert job_sweep_overrides() == ["task.module.optimizer.lr=0.02", "data.batch_size=4"]
+    with _job(_compose(job)):  # a single run: nothing was swept
+        assert job_sweep_overrides() == []
+    assert job_sweep_overrides() == []  # outside a Hydra application
+
+
+@needs_optuna
+def test_a_trial_of_an_optuna_search_records_its_searched_values(tmp_path: Path) -> None:
+    """The Optuna sweeper writes no multirun.yaml: its choices are the keys of its search space."""
+    trial = ["task.module.optimizer.lr=0.0123", "model.encoder_output_stride=8", "hparams_search=seg_optuna"]
+    cfg = _compose([*trial, f"hydra.sweep.dir={tmp_path}"])
+    with _job(cfg):
+        assert job_sweep_overrides() == trial[:2]
+
+
+def test_an_evaluation_of_a_trial_carries_what_its_sweep_chose(tmp_path: Path) -> None:
+    """``model.sweep_overrides`` of the run's own results.json travels to the evaluation of its weights."""
+    run = tmp_path / "sweep" / "3"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "config.yaml").write_text("task: {name: seg}\n")
+    (run / "checkpoints" / "last.ckpt").write_bytes(b"")
+    chosen = ["task.module.optimizer.lr=0.01", "data.batch_size=8"]
+    (run / "results.json").write_text(json.dumps({"model": {"sweep_overrides": chosen}}))
+    assert run_sweep_overrides(run) == chosen
+    assert evaluation_sweep_overrides({"checkpoint": str(run / "checkpoints" / "last.ckpt")}) == chosen
+    assert evaluation_sweep_overrides({"source_checkpoint": str(run / "checkpoints" / "last.ckpt")}) == chosen
+    assert evaluation_sweep_overrides({"onnx": str(tmp_path / "model.onnx")}) == []
+
+
 # ---------------------------------------------------------------------------------------------- real sweeps
 @needs_optuna
 @pytest.mark.slow
@@ -133,6 +187,14 @@ def test_an_optuna_search_runs_three_trials_and_reports_the_best(tiny_dataset: P
         }
     configs = [OmegaConf.load(t / "config.yaml") for t in trials]
     assert len({c.task.module.optimizer.lr for c in configs}) == 3
+    searched = set(_compose(["hparams_search=seg_optuna"]).hydra.sweeper.params)
+    for trial, config in zip(trials, configs, strict=True):  # each trial's results.json: what Optuna chose
+        chosen = dict(
+            o.split("=", 1)
+            for o in json.loads((trial / "results.json").read_text())["model"]["sweep_overrides"]
+        )
+        assert set(chosen) == searched
+        assert float(chosen["task.module.optimizer.lr"]) == pytest.approx(config.task.module.optimizer.lr)
     assert all(c.data.batch_size in (4, 8) for c in configs)
 
     # The best trial: the highest best-validation mIoU of the three, reported with its run directory.
@@ -165,6 +227,9 @@ def test_a_submitit_multirun_writes_one_sweep_folder_that_the_leaderboard_ranks(
         assert OmegaConf.load(sweep / job / "config.yaml").seed == seed
         record = json.loads((sweep / job / "results.json").read_text())
         assert record["model"]["run_name"] == f"{sweep.name}/{job}"
+        assert record["model"]["sweep_overrides"] == [
+            f"seed={seed}"
+        ]  # the sweep's value, not the command's rest
     assert len(list((sweep / ".submitit").glob("*/*_result.pkl"))) == 2  # really run by the executor
 
     out = tmp_path / "board"
@@ -172,5 +237,7 @@ def test_a_submitit_multirun_writes_one_sweep_folder_that_the_leaderboard_ranks(
     with (out / "leaderboard.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert sorted(row["run"] for row in rows) == [f"{sweep.name}/0", f"{sweep.name}/1"]
+    assert sorted(row["overrides"] for row in rows) == ["seed=1", "seed=2"]
+    assert f"| {sweep.name}/0 (seed=1) |" in (out / "leaderboard.md").read_text()
     ranks = [int(row["rank"]) for row in rows]
     assert sorted(ranks) in ([1, 2], [1, 1])  # ranked against each other (a tie shares its rank)

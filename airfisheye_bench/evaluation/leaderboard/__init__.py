@@ -1,8 +1,9 @@
 """The leaderboard: every ``results.json`` of a task ranked by its primary metric, next to the paper's baselines.
 
-Results are grouped by dataset (name + content hash prefix, or the manifest's for results without one) and split,
-and ranked within their group only: numbers measured on different data are not comparable, and the paper's
-baselines were measured on the real AirFisheye test split, which no synthetic run reproduces. Each task's table shows the headline metrics of the
+Results are grouped by dataset (its name and content hash, ``dataset.content_sha256`` of ``results.json``; the
+manifest hash, ``manifest_sha256``, for results written before it) and split, and ranked within their group only:
+numbers measured on different data are not comparable, and the paper's baselines were measured on the real
+AirFisheye test split, which no synthetic run reproduces. Each task's table shows the headline metrics of the
 design contract plus the outermost incidence-angle ring (the fisheye rim, ``ring_80-95/<primary>`` by default),
 where fisheye distortion hurts most.
 
@@ -23,8 +24,8 @@ also writes the same tables as one self-contained, sortable HTML page with a det
 
 Modules: :mod:`~.collect` (rows from ``results.json`` files and the paper), :mod:`~.columns` (how a metric is
 shown), :mod:`~.rank` (groups and ranks), :mod:`~.text` (markdown, CSV), :mod:`~.board` (the
-:class:`Leaderboard` of every task), :mod:`~.html` and :mod:`~.charts` (the HTML page). The public names are
-re-exported here.
+:class:`Leaderboard` of every task), :mod:`~.paths` (paths as shown: relative to ``runs=``, datasets by name and
+content hash), :mod:`~.html` and :mod:`~.charts` (the HTML page). The public names are re-exported here.
 
 Example:
     >>> board = build_leaderboard([], paper=True)   # the paper's baselines alone
@@ -56,10 +57,16 @@ from airfisheye_bench.evaluation.leaderboard.columns import (
     metric_label,
     rim_label,
 )
-from airfisheye_bench.evaluation.leaderboard.rank import LeaderboardGroup, TaskTable, competition_ranks
+from airfisheye_bench.evaluation.leaderboard.rank import (
+    GROUPING,
+    LeaderboardGroup,
+    TaskTable,
+    competition_ranks,
+)
 from airfisheye_bench.evaluation.leaderboard.text import csv_columns
 
 __all__ = [
+    "GROUPING",
     "MISSING",
     "PAPER_DATASET",
     "PAPER_SOURCE",

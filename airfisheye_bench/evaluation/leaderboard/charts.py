@@ -1,5 +1,9 @@
 """Charts of the HTML leaderboard, drawn by matplotlib at build time and inlined as SVG.
 
+Every chart is ``WIDTH_IN`` inches wide (its SVG's ``viewBox`` in points): the page shows it at least that wide
+(CSS ``5.6in``) where the window allows, so text of ``FONT_PT`` points is at least ``FONT_PT * 4 / 3`` pixels, 13 px
+for legends and axes alike.
+
 Text, axes and grid are drawn in a placeholder colour that becomes ``currentColor`` in the SVG, so every chart
 takes the page's text colour and stays readable in light and dark mode (the background is transparent). Data
 use the Okabe-Ito palette (distinguishable with the common colour-vision deficiencies), and each series also
@@ -21,18 +25,31 @@ import textwrap
 from collections.abc import Mapping, Sequence
 from html import escape
 
-__all__ = ["MARKERS", "OKABE_ITO", "bar_chart", "binned_chart", "legend_columns", "legend_labels"]
+__all__ = [
+    "FONT_PT",
+    "MARKERS",
+    "OKABE_ITO",
+    "WIDTH_IN",
+    "bar_chart",
+    "binned_chart",
+    "legend_columns",
+    "legend_labels",
+]
 
 #: Okabe & Ito (2008), without black (the text colour) and yellow (too light on white).
 OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00")
 MARKERS = ("o", "s", "^", "D", "v", "P")
 _INK = "#010203"  # placeholder for text, axes and grid: replaced by currentColor
+#: A chart's width in inches; the page's CSS shows it at least this wide (``.chart``: ``5.6in``), where it fits.
+WIDTH_IN = 5.6
+#: Every text of a chart (ticks, labels, legend), in points: 10 pt is 13.3 px at the chart's own size.
+FONT_PT = 10
 _STYLE = {
     "svg.fonttype": "none",  # text stays text: small, selectable, in the page's font
     "font.family": "sans-serif",
     # Laid out with DejaVu Sans (shipped with matplotlib); similar fallbacks where a browser lacks it.
     "font.sans-serif": ["DejaVu Sans", "Arial", "Helvetica"],
-    "font.size": 9,
+    "font.size": FONT_PT,
     "text.color": _INK,
     "axes.edgecolor": _INK,
     "axes.labelcolor": _INK,
@@ -82,7 +99,7 @@ def binned_chart(
 
     with _style(key):
         fig = Figure(
-            figsize=(5.6, 2.9 + (0.2 * rows_of_legend + 0.1 if len(series) > 1 else 0)),
+            figsize=(WIDTH_IN, 3.0 + (0.22 * rows_of_legend + 0.1 if len(series) > 1 else 0)),
             layout="constrained",
         )
         ax = fig.add_subplot()
@@ -102,7 +119,7 @@ def binned_chart(
         ax.set_ylabel(metric)
         ax.grid(axis="y")
         if len(series) > 1:  # below the axes: long labels must not squeeze the plot
-            fig.legend(loc="outside lower center", ncols=columns, fontsize=8)
+            fig.legend(loc="outside lower center", ncols=columns, fontsize=FONT_PT)
         return _svg(fig, label)
 
 
@@ -131,7 +148,7 @@ def bar_chart(
     names = list(values)
     numbers = [math.nan if values[n] is None else values[n] * scale for n in names]
     with _style(key):
-        fig = Figure(figsize=(5.6, 0.8 + 0.24 * len(names)), layout="constrained")
+        fig = Figure(figsize=(WIDTH_IN, 0.9 + 0.27 * len(names)), layout="constrained")
         ax = fig.add_subplot()
         bars = ax.barh(range(len(names)), [0.0 if math.isnan(v) else v for v in numbers], color=OKABE_ITO[0])
         ax.bar_label(bars, labels=["n/a" if math.isnan(v) else f"{v:.1f}" for v in numbers], padding=3)
@@ -145,8 +162,8 @@ def bar_chart(
 
 
 #: Characters of a legend label per line at the legend's font size: one column of the chart's width holds this
-#: many (DejaVu Sans 8 pt averages ~0.07 in a character; the chart is 5.6 in wide).
-LEGEND_WIDTH = 72
+#: many (DejaVu Sans at 10 pt averages ~0.0875 in a character; the chart is 5.6 in wide).
+LEGEND_WIDTH = 60
 
 
 def legend_labels(names: Sequence[str], width: int = LEGEND_WIDTH) -> list[str]:

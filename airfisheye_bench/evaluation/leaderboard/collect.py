@@ -54,18 +54,22 @@ class LeaderboardEntry:
             checkpoint, else the ``results.json`` folder name.
         dataset_name: ``dataset.name`` of the results (``dataset.yaml`` name).
         manifest_sha256: SHA-256 of the dataset's ``manifest.json``, when it had one.
-        content_sha256: The dataset's content identity (decoded arrays, the same on every installation), when
-            the results record it; it groups rows in place of the manifest.
+        content_sha256: The dataset's content hash (SHA-256 of the decoded arrays, the same on every
+            installation), when the results record it; it groups rows (the manifest hash for files without it).
         metrics: Metric values (fractions or metres); ``None`` for missing or non-finite.
         breakdown: Ring/range breakdown values, same rules.
         paper: True for the paper's published baselines.
-        path: The ``results.json`` the row came from (``None`` for the paper's rows).
+        path: The ``results.json`` the row came from, absolute (``None`` for the paper's rows).
         predictor: What produced the predictions: ``checkpoint``, ``onnx`` or ``predictions`` (``model.source``
             of the results; empty when unknown or for the paper's rows).
         evaluated: The row's label of what was evaluated, e.g. ``checkpoint epoch_003``, ``ONNX int8, flip TTA``
             or ``predictions`` (:func:`~airfisheye_bench.io.results.evaluated_label`; empty when unknown).
         camera: The served camera, ``<model> <W>x<H>`` (``config.camera`` of the results; empty when unknown or
             for the paper's rows).
+        dataset_root: ``dataset.root`` of the results: where the dataset was on the machine that measured it
+            (never shown: the leaderboard names a dataset by :attr:`dataset_label`).
+        overrides: What a multirun's sweep chose for the run (``model.sweep_overrides``: ``key=value`` as on the
+            command line); empty for a single run.
     """
 
     task: str
@@ -82,6 +86,18 @@ class LeaderboardEntry:
     predictor: str = ""
     evaluated: str = ""
     camera: str = ""
+    dataset_root: str | None = None
+    overrides: tuple[str, ...] = ()
+
+    @property
+    def run_with_overrides(self) -> str:
+        """The run's name, with what its sweep chose: ``<sweep>/3 (data.batch_size=8 model.encoder_name=resnet34)``.
+
+        Example:
+            >>> LeaderboardEntry("seg", "test", "m", "s/3", "d", overrides=("a.lr=0.01", "b=8")).run_with_overrides
+            's/3 (a.lr=0.01 b=8)'
+        """
+        return f"{self.run} ({' '.join(self.overrides)})" if self.overrides else self.run
 
     @property
     def source(self) -> str:
@@ -94,18 +110,30 @@ class LeaderboardEntry:
         return (not self.paper, self.dataset_name, self._identity(), self.split)
 
     def _identity(self) -> str:
-        """``content <8 hex>`` when known (it survives a re-encoding of the files), else ``manifest <8 hex>``."""
+        """``content <8 hex>`` (the content hash: it survives a re-encoding of the files) when known, else
+        ``manifest <8 hex>`` (the manifest hash of files written before the content hash existed)."""
         if self.content_sha256:
             return f"content {self.content_sha256[:8]}"
         return f"manifest {self.manifest_sha256[:8]}" if self.manifest_sha256 else ""
+
+    @property
+    def dataset_label(self) -> str:
+        """The dataset as the leaderboard names it: ``<name> (content <8 hex>)``, never by where it lies.
+
+        Example:
+            >>> LeaderboardEntry("seg", "test", "m", "r", "quickstart", content_sha256="8b04c5ff" + "0" * 56).dataset_label
+            'quickstart (content 8b04c5ff)'
+        """
+        if self.paper:
+            return PAPER_DATASET
+        return f"{self.dataset_name} ({self._identity() or 'no content hash'})"
 
     @property
     def group_title(self) -> str:
         """Human-readable dataset identity of :attr:`group_key`."""
         if self.paper:
             return f"{PAPER_DATASET}, {self.split} split — the paper's published baselines (not re-run here)"
-        label = self._identity() or "no manifest"
-        return f"{self.dataset_name} ({label}), {self.split} split"
+        return f"{self.dataset_label}, {self.split} split"
 
 
 def paper_baselines() -> tuple[LeaderboardEntry, ...]:
@@ -282,11 +310,21 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         content_sha256=str(dataset["content_sha256"]) if dataset.get("content_sha256") else None,
         metrics=_numbers(record, "metrics"),
         breakdown=_numbers(record, "breakdown"),
-        path=str(path),
+        path=str(path.resolve()),  # absolute: shown relative to the runs= folder, whatever the working folder
         predictor=str(model.get("source") or ("checkpoint" if model.get("checkpoint") else "")),
         evaluated=evaluated_label(model),
         camera=_camera(record),
+        dataset_root=str(dataset["root"]) if dataset.get("root") else None,
+        overrides=_overrides(model),
     )
+
+
+def _overrides(model: Mapping[str, Any]) -> tuple[str, ...]:
+    """``model.sweep_overrides``: a list of ``key=value`` strings, or absent."""
+    chosen = model.get("sweep_overrides") or []
+    if not isinstance(chosen, list) or not all(isinstance(o, str) for o in chosen):
+        raise ValueError(f"model.sweep_overrides is {chosen!r}, not a list of key=value strings")
+    return tuple(chosen)
 
 
 def _camera(record: Mapping[str, Any]) -> str:

@@ -21,10 +21,11 @@ Example:
 from __future__ import annotations
 
 import base64
+import contextlib
 import hashlib
 import io
 import json
-import os
+import re
 from collections.abc import Mapping, Sequence
 from html import escape
 from importlib import resources
@@ -46,10 +47,11 @@ from airfisheye_bench.evaluation.leaderboard.columns import (
     metric_label,
     rim_label,
 )
-from airfisheye_bench.evaluation.leaderboard.rank import TaskTable
+from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
+from airfisheye_bench.evaluation.leaderboard.rank import GROUPING, TaskTable
 from airfisheye_bench.io.results import load_results
 
-__all__ = ["render_html", "write_html"]
+__all__ = ["render_html", "short_override", "write_html"]
 
 _ASSETS = resources.files("airfisheye_bench.evaluation.leaderboard") / "assets"
 #: ``model`` keys of ``results.json`` that say which file was evaluated (see the evaluation's predictors).
@@ -88,8 +90,9 @@ def render_html(
         board: The ranked leaderboard (:func:`~airfisheye_bench.evaluation.leaderboard.build_leaderboard`).
         panels: Qualitative panels shown per entry (the first ones of its ``panels/`` folder).
         panel_width: Panels wider than this (pixels) are downscaled, to keep the page small.
-        runs_root: The folder the results were collected from: paths under it are shown relative to it (and
-            the home folder as ``~``), so a shared page shows no one's local layout.
+        runs_root: The folder the results were collected from (default: the board's ``root``): paths under it
+            are shown relative to it, a dataset's as its name and content hash, the home folder as ``~``
+            (:mod:`~airfisheye_bench.evaluation.leaderboard.paths`), so a shared page shows no one's local layout.
 
     Returns:
         A complete HTML document.
@@ -108,14 +111,13 @@ def render_html(
     body = [
         "<header>",
         "<h1>AirFisheye-bench leaderboard</h1>",
-        f"<p>{board.files} result(s){paper}. Ranks restart for every dataset (its name and its content hash: "
-        "the decoded data; the manifest hash where a result has no content hash) and split: results measured on "
-        "different data are not comparable. Click a column header to sort; click a model for its detail view.</p>",
+        f"<p>{board.files} result(s){paper}. {_code(GROUPING)} Click a column header to sort; click a model for its "
+        "detail view.</p>",
         f'<nav aria-label="Tasks"><ul>{nav}</ul></nav>',
         "</header>",
         "<main>",
     ]
-    shown = _PathShortener(runs_root)
+    shown = board.shown_paths(runs_root)
     body += [_task_section(table, panels, panel_width, shown) for table in board.tables]
     if board.invalid:
         items = "".join(f"<li><code>{escape(shown.text(problem))}</code></li>" for problem in board.invalid)
@@ -146,52 +148,10 @@ def render_html(
     )
 
 
-class _PathShortener:
-    """Absolute paths as the page shows them: relative to the runs folder when under it, the home folder as ``~``.
-
-    Example:
-        >>> shown = _PathShortener("/data/logs")
-        >>> shown("/data/logs/seg/runs/a/results.json"), shown("/srv/x.ckpt"), shown("sha256:ab"), shown(None)
-        ('seg/runs/a/results.json', '/srv/x.ckpt', 'sha256:ab', None)
-        >>> shown.within({"paths": ["/data/logs/a", 3]})
-        {'paths': ['a', 3]}
-    """
-
-    def __init__(self, runs_root: str | Path | None) -> None:
-        self.root = str(Path(runs_root).expanduser().resolve()) if runs_root is not None else None
-        self.home = str(Path.home())
-
-    def __call__(self, value: Any) -> Any:
-        if not isinstance(value, str) or not value.startswith("/"):
-            return value
-        resolved = os.path.normpath(value)
-        if self.root and (resolved == self.root or resolved.startswith(self.root.rstrip("/") + "/")):
-            return os.path.relpath(resolved, self.root)
-        if self.home not in ("", "/") and resolved.startswith(self.home.rstrip("/") + "/"):
-            return "~" + resolved[len(self.home.rstrip("/")) :]
-        return value
-
-    def text(self, text: str) -> str:
-        """``text`` (a message) with the runs folder and the home folder inside it shortened."""
-        if self.root:
-            text = text.replace(self.root.rstrip("/") + "/", "")
-        if self.home not in ("", "/"):
-            text = text.replace(self.home.rstrip("/") + "/", "~/")
-        return text
-
-    def within(self, value: Any) -> Any:
-        """``value`` with every path string inside it (dicts and lists, recursively) shortened."""
-        if isinstance(value, Mapping):
-            return {k: self.within(v) for k, v in value.items()}
-        if isinstance(value, (list, tuple)):
-            return [self.within(v) for v in value]
-        return self(value)
-
-
 # ------------------------------------------------------------------------------------------------- tables
 
 
-def _task_section(table: TaskTable, panels: int, panel_width: int, shown: _PathShortener) -> str:
+def _task_section(table: TaskTable, panels: int, panel_width: int, shown: ShownPaths) -> str:
     task = table.task
     order = "higher is better" if table.higher_is_better else "lower is better"
     entries = [e for group in table.groups for _, e in group.rows]
@@ -268,15 +228,42 @@ def _row(
     evaluated = "paper" if e.paper else e.evaluated or MISSING
     cells = [
         f'<td class="num" data-value="{"" if rank is None else rank}">{rank or MISSING}</td>',
-        f"<td>{escape(e.run)}</td>",
-        f"<td>{model}</td>",
-        f"<td>{escape(evaluated)}</td>",
+        # Sorted by the name; a sweep's job (<sweep>/<job>) may wrap before its number.
+        f'<td class="run" data-value="{escape(e.run)}">{escape(e.run).replace("/", "/<wbr>")}{_overrides(e)}</td>',
+        f'<td class="text">{model}</td>',
+        f'<td class="text">{escape(evaluated)}</td>',
         f"<td>{escape(e.split)}</td>",
         *(number(c, e.metrics.get(c)) for c in columns),
     ]
     if table.rim_key:
         cells.append(number(table.primary, e.breakdown.get(table.rim_key)))
     return f"<tr{' class=paper' if e.paper else ''}>{''.join(cells)}</tr>"
+
+
+def _overrides(e: LeaderboardEntry) -> str:
+    """What a sweep chose for the entry's run, below its name, each ``key=value`` shortened (:func:`short_override`)
+    with the whole override as its tooltip (and in the detail view); empty for a single run."""
+    if not e.overrides:
+        return ""
+    items = " ".join(f'<code title="{escape(o)}">{escape(short_override(o))}</code>' for o in e.overrides)
+    return f'<span class="overrides">{items}</span>'
+
+
+def short_override(override: str) -> str:
+    """An override as a table cell shows it: the key's last two parts, a decimal to 4 significant digits.
+
+    Example:
+        >>> short_override("task.module.optimizer.lr=0.0072708183450185"), short_override("data.batch_size=8")
+        ('optimizer.lr=0.007271', 'data.batch_size=8')
+        >>> short_override("model=unet"), short_override("task.module.optimizer.weight_decay=1.2345678e-05")
+        ('model=unet', 'optimizer.weight_decay=1.235e-05')
+    """
+    key, sep, value = override.partition("=")
+    key = ".".join(key.lstrip("+~").split(".")[-2:])
+    if any(c in value for c in ".eE"):
+        with contextlib.suppress(ValueError):  # a word with an e in it stays as it is
+            value = f"{float(value):.4g}"
+    return f"{key}{sep}{value}"
 
 
 def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardEntry]], key: str) -> str:
@@ -299,14 +286,15 @@ def _group_chart(table: TaskTable, rows: Sequence[tuple[int | None, LeaderboardE
 
 
 def _detail(
-    table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, panel_width: int, shown: _PathShortener
+    table: TaskTable, e: LeaderboardEntry, anchor: str, panels: int, panel_width: int, shown: ShownPaths
 ) -> str:
     record = load_results(e.path) if e.path else {}
+    shown = shown.with_dataset(e.dataset_root, e.dataset_label)
     model = record.get("model") or {}
     source = e.evaluated or "unknown source"
     out = [
         f'<details id="{anchor}" class="entry">',
-        f"<summary>{escape(e.model)} — {escape(e.run)} <span class=muted>({escape(source)}, "
+        f"<summary>{escape(e.model)} — {escape(e.run_with_overrides)} <span class=muted>({escape(source)}, "
         f"{escape(e.group_title)})</span></summary>",
         '<div class="entry-body">',
         _identity(e, record, model, shown),
@@ -329,7 +317,7 @@ def _detail(
             )
     if charts:
         out.append(f'<div class="charts">{"".join(charts)}</div>')
-    out.append(_panels(e, panels, panel_width))
+    out.append(_panels(e, panels, panel_width, shown))
     settings = {"model": model, "config": record.get("config", {})}
     out.append(
         "<details><summary>Configuration (model and evaluation settings)</summary>"
@@ -340,16 +328,16 @@ def _detail(
 
 
 def _identity(
-    e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str, Any], shown: _PathShortener
+    e: LeaderboardEntry, record: Mapping[str, Any], model: Mapping[str, Any], shown: ShownPaths
 ) -> str:
-    dataset = record.get("dataset") or {}
     rows = [
         ("model", e.model),
         ("run", e.run),
+        ("sweep overrides", " ".join(e.overrides)),
         ("evaluated", e.evaluated or "unknown"),
         *((key.replace("_", " "), shown(model[key])) for key in _IDENTITY_KEYS if model.get(key)),
-        ("dataset", e.dataset_name),
-        ("dataset root", shown(dataset.get("root"))),
+        ("dataset", e.dataset_label),  # by its name and content hash: where it lay is no one else's business
+        ("content sha256", e.content_sha256),
         ("manifest sha256", e.manifest_sha256),
         ("split", e.split),
         ("camera", e.camera or None),
@@ -384,28 +372,33 @@ def _binned(series: Mapping[str, list], metric: str, axis: str, key: str, label:
     )
 
 
+def _code(text: str) -> str:
+    """``text`` escaped, its backticked parts as ``<code>``."""
+    return re.sub(r"`([^`]+)`", r"<code>\1</code>", escape(text))
+
+
 def _figure(svg: str, caption: str) -> str:
     return f'<figure class="chart">{svg}<figcaption>{escape(caption)}</figcaption></figure>'
 
 
-def _panels(e: LeaderboardEntry, count: int, width: int) -> str:
+def _panels(e: LeaderboardEntry, count: int, width: int, shown: ShownPaths) -> str:
     """The first ``count`` panels next to ``results.json``, as downscaled JPEG data URIs."""
     folder = Path(e.path).parent / "panels" if e.path else None
     files = sorted(folder.glob("*.png"))[:count] if folder and folder.is_dir() and count > 0 else []
     if not files:
         return ""
-    images = "".join(_panel(f, width) for f in files)
+    images = "".join(_panel(f, width, shown) for f in files)
     return (
         "<h4>Qualitative panels</h4><p class=muted>image | (sparse input) | ground truth | prediction | error"
         f"</p><div class=panels>{images}</div>"
     )
 
 
-def _panel(path: Path, width: int) -> str:
+def _panel(path: Path, width: int, shown: ShownPaths) -> str:
     try:
         image = f'<img src="{_data_uri(path, width)}" alt="qualitative panel {escape(path.stem)}">'
     except OSError as err:  # a damaged PNG costs its picture, not the page
-        image = f"<p class=muted>unreadable panel: {escape(str(err))}</p>"
+        image = f"<p class=muted>unreadable panel: {escape(shown.text(str(err)))}</p>"
     return f'<figure class="panel">{image}<figcaption>{escape(path.stem)}</figcaption></figure>'
 
 

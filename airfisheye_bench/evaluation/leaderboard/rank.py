@@ -14,7 +14,15 @@ from airfisheye_bench.evaluation.leaderboard.columns import (
 )
 from airfisheye_bench.specs import get_task
 
-__all__ = ["LeaderboardGroup", "TaskTable", "competition_ranks", "task_table"]
+__all__ = ["GROUPING", "LeaderboardGroup", "TaskTable", "competition_ranks", "task_table"]
+
+#: Which hash groups the rows, as the markdown and the page say it (backticks mark code).
+GROUPING = (
+    "Ranks restart for every dataset and split: a dataset is its name and its content hash (`content_sha256` of "
+    "`results.json`, a SHA-256 of its decoded data, the same on every installation; a table's title shows its "
+    "first 8 hex digits, `content 1a2b3c4d`), or its manifest hash (`manifest_sha256`, `manifest 1a2b3c4d`) for "
+    "results written before the content hash existed. Results measured on different data are not comparable."
+)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ from collections.abc import Sequence
 
 from airfisheye_bench.evaluation.leaderboard.collect import LeaderboardEntry
 from airfisheye_bench.evaluation.leaderboard.columns import MISSING, format_value, metric_label, rim_label
-from airfisheye_bench.evaluation.leaderboard.rank import TaskTable
+from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
+from airfisheye_bench.evaluation.leaderboard.rank import GROUPING, TaskTable
 from airfisheye_bench.specs import all_tasks
 
 __all__ = ["csv_columns", "render_csv", "render_markdown"]
@@ -22,8 +23,10 @@ _IDENTITY_COLUMNS = (
     "split",
     "camera",
     "dataset",
+    "content_sha256",
     "manifest_sha256",
     "run",
+    "overrides",
     "primary_metric",
 )
 _TEXT_COLUMNS = frozenset(
@@ -47,9 +50,7 @@ def render_markdown(tables: Sequence[TaskTable], files: int, paper: bool, invali
     lines = [
         "# AirFisheye-bench leaderboard",
         "",
-        f"{files} result(s){with_paper}. Ranks restart for every dataset (its name and its content hash, or its "
-        "manifest hash where a result has no content hash) and split: results measured on different data are not "
-        "comparable. Values are fractions and metres "
+        f"{files} result(s){with_paper}. {GROUPING} Values are fractions and metres "
         f"(columns marked (%) printed in %); {MISSING} = not reported.",
     ]
     for table in tables:
@@ -71,8 +72,9 @@ def _table_markdown(table: TaskTable) -> list[str]:
         "",
         f"Sorted by {metric_label(table.primary)}, {order}; rows that print the same share a rank. Rows: "
         "each evaluated model on one split (evaluated: checkpoint, ONNX fp32/int8, prediction folder, TTA; "
-        "camera: the served lens model and image size; run: the training run or the evaluation's name); the rim column is the outermost incidence-angle "
-        "ring, where fisheye distortion is strongest.",
+        "camera: the served lens model and image size; run: the training run or the evaluation's name, with what "
+        "a sweep chose for it in parentheses); the rim column is the outermost incidence-angle ring, where fisheye "
+        "distortion is strongest.",
     ]
     for group in table.groups:
         lines += ["", f"### {group.title}", ""]
@@ -91,24 +93,27 @@ def _table_markdown(table: TaskTable) -> list[str]:
             cells += [format_value(c, entry.metrics.get(c)) for c in table.columns]
             if table.rim_key:
                 cells.append(format_value(table.primary, entry.breakdown.get(table.rim_key)))
-            cells.append(entry.run)
+            cells.append(entry.run_with_overrides)
             lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     return lines
 
 
-def render_csv(tables: Sequence[TaskTable]) -> str:
-    """The leaderboard as wide CSV (:meth:`Leaderboard.to_csv`): one row per result, raw values."""
+def render_csv(tables: Sequence[TaskTable], shown: ShownPaths | None = None) -> str:
+    """The leaderboard as wide CSV (:meth:`Leaderboard.to_csv`): one row per result, raw values; ``path`` as
+    ``shown`` shows it (default: as found)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(csv_columns())
     for table in tables:
         for group in table.groups:
             for rank, e in group.rows:
-                writer.writerow(_csv_row(table, rank, e))
+                writer.writerow(_csv_row(table, rank, e, shown))
     return buffer.getvalue()
 
 
-def _csv_row(table: TaskTable, rank: int | None, e: LeaderboardEntry) -> list[object]:
+def _csv_row(
+    table: TaskTable, rank: int | None, e: LeaderboardEntry, shown: ShownPaths | None
+) -> list[object]:
     rim = e.breakdown.get(table.rim_key) if table.rim_key else None
     evaluated = "paper" if e.paper else e.evaluated
     head = [
@@ -121,13 +126,13 @@ def _csv_row(table: TaskTable, rank: int | None, e: LeaderboardEntry) -> list[ob
         e.camera,
         e.dataset_name,
     ]
-    head += [e.manifest_sha256 or "", e.run, table.primary]
+    head += [e.content_sha256 or "", e.manifest_sha256 or "", e.run, " ".join(e.overrides), table.primary]
     return [
         *head,
         *(_raw(e.metrics.get(m)) for m in _csv_metrics()),
         table.rim_key or "",
         _raw(rim),
-        e.path or "",
+        (shown(e.path) if shown else e.path) or "",
     ]
 
 
