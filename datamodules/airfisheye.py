@@ -138,7 +138,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         super().__init__()
         if batch_size < 1:
             raise ConfigError(f"batch_size must be >= 1, got {batch_size}")
-        problem = remap_site_problem(remap_on, source, sources)
+        problem = remap_site_problem(remap_on, source, sources, gimbal)
         if problem is not None:
             raise ConfigError(f"data.remap_on={remap_on!r}: {problem}")
         self.remap_on = remap_on

@@ -525,6 +525,11 @@ SCHEMA_TABLE = [
         ["data.remap_on=device", "data.source=fisheye"],
         "data.remap_on='device': data.source=fisheye has no cube faces to remap",
     ),
+    (
+        "train",
+        ["data.remap_on=device", "data.gimbal={pitch_deg:[0,45]}"],
+        "data.remap_on='device': data.gimbal turns the samples of a split to views of their own",
+    ),
     ("train", ["data.augment.hflip=2"], "data.augment.hflip=2: expected a number in [0, 1]"),
     ("train", ["data.batch_size=0"], "data.batch_size=0: expected an integer >= 1"),
     ("train", ["data.motion_compensation=maybe"], "data.motion_compensation='maybe': expected true or false"),

@@ -145,11 +145,11 @@ def _image_sources() -> tuple[str, ...]:
     return IMAGE_SOURCES
 
 
-def _remap_site_problem(value: Any, source: Any, sources: Any) -> str | None:
+def _remap_site_problem(value: Any, source: Any, sources: Any, gimbal: Any) -> str | None:
     """``data.remap_on``: a site the data can be remapped at (``io.spec``'s own check)."""
     from airfisheye_bench.io.spec import remap_site_problem  # imports torch: only when checked
 
-    return remap_site_problem(value, source or "cubemap", sources)
+    return remap_site_problem(value, source or "cubemap", sources, gimbal)
 
 
 def _tasks() -> tuple[str, ...]:
@@ -327,7 +327,7 @@ RULES: dict[str, ValueRule] = {
     "data.remap_on": ValueRule(
         "custom",
         check=_remap_site_problem,
-        uses=("data.source", "data.sources"),
+        uses=("data.source", "data.sources", "data.gimbal"),
         hint="where the cube faces become the fisheye: the loader's workers or the model's device",
     ),
     "data.camera.model": ValueRule(

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from airfisheye_bench.geometry.cubemap import FACE_NAMES
+from airfisheye_bench.geometry.gimbal import Gimbal
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.yamlio import FieldReader, check_int, read_yaml, write_yaml
 
@@ -474,8 +475,12 @@ def classes_from(objs) -> tuple[ClassDef, ...]:
     return tuple(ClassDef(int(o.id), str(o.name), tuple(int(c) for c in o.color)) for o in objs)
 
 
-def remap_site_problem(remap_on: Any, source: Any, sources: Any = None) -> str | None:
-    """Why ``data.remap_on`` cannot be served with ``data.source`` / ``data.sources``, or ``None``.
+def remap_site_problem(remap_on: Any, source: Any, sources: Any = None, gimbal: Any = None) -> str | None:
+    """Why ``data.remap_on`` cannot be served with ``data.source`` / ``data.sources`` / ``data.gimbal``, or ``None``.
+
+    The device remaps a batch with one lookup table: a gimbal whose views vary from sample to sample (one table per
+    view) is refused; one fixed view per split is served (a ``data.gimbal`` the gimbal's own check refuses is left
+    to it).
 
     Example:
         >>> remap_site_problem("device", "cubemap") is None
@@ -495,4 +500,13 @@ def remap_site_problem(remap_on: Any, source: Any, sources: Any = None) -> str |
         return f"data.source={source}: the device remaps cube faces only; use data.remap_on=worker"
     if sources:
         return "data.sources mixes datasets with their own lenses and face sizes; use data.remap_on=worker"
+    try:
+        parsed = Gimbal.parse(gimbal)
+    except ValueError:
+        return None
+    if parsed is not None and any(parsed.for_split(training).fixed is None for training in (True, False)):
+        return (
+            "data.gimbal turns the samples of a split to views of their own, each with its own lookup table, and the "
+            "device remaps a batch with one; use data.remap_on=worker, or one fixed view (data.gimbal=[yaw,pitch])"
+        )
     return None

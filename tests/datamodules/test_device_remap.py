@@ -11,7 +11,9 @@ from omegaconf import OmegaConf, open_dict
 
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.geometry.gimbal import Gimbal
 from airfisheye_bench.io import DatasetFormatError
+from airfisheye_bench.io.spec import remap_site_problem
 from airfisheye_bench.training import train
 from datamodules import AirFisheyeDataModule, AirFisheyeDataset, CameraConfig, FisheyeAugment, collate
 from datamodules.augment import AugmentParams, augment_sample
@@ -89,6 +91,26 @@ def test_datamodule_finishes_the_batch_after_transfer(tiny_dataset: Path, task: 
     assert val["image"].shape[1:] == (3, 64, 64) and CUBE_KEYS["rgb"] not in val
 
 
+def test_a_fixed_gimbal_view_is_served_and_varying_views_are_refused(tiny_dataset: Path) -> None:
+    """One view per split: its rotated tables on the device, the LiDAR turned with it in the worker."""
+    common = dict(root=tiny_dataset, camera={"size": 64}, batch_size=3, augment={"hflip": 0.5}, seed=1)
+    batches = {}
+    for where in ("worker", "device"):
+        dm = AirFisheyeDataModule("completion", remap_on=where, gimbal=[10.0, 20.0], **common)
+        dm.setup("fit")
+        batches[where] = dm.on_after_batch_transfer(next(iter(dm.train_dataloader())), 0)
+    assert_same_batch(batches["device"], batches["worker"])
+    with pytest.raises(
+        ConfigError, match=r"data\.gimbal turns the samples of a split to views of their own"
+    ) as err:
+        AirFisheyeDataModule("seg", remap_on="device", gimbal={"pitch_deg": [0, 45]}, **common)
+    assert "\n" not in str(err.value)
+    # A library caller's dataset refuses it too.
+    ds = AirFisheyeDataset(tiny_dataset, "train", "seg", gimbal=Gimbal.parse([[0, 10], [0, 20]]))
+    with pytest.raises(ConfigError, match="through a view per sample"):
+        ds.device_remap()
+
+
 def test_file_checks_stay_in_the_worker(tiny_dataset: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """An unknown raw label id fails the frame in the worker when the fisheye sees it, as on the worker path."""
     ds = AirFisheyeDataset(tiny_dataset, "train", "seg", camera=CameraConfig(size=64))
@@ -119,6 +141,9 @@ def test_refused_combinations(tiny_dataset: Path) -> None:
     with pytest.raises(ConfigError, match=r"data\.source=fisheye has no cube faces") as err:
         AirFisheyeDataModule("seg", root=tiny_dataset, source="fisheye", remap_on="device")
     assert "\n" not in str(err.value)
+    assert remap_site_problem("device", "equirect") == (
+        "data.source=equirect: the device remaps cube faces only; use data.remap_on=worker"
+    )
     with pytest.raises(ConfigError, match="expected one of worker, device"):
         AirFisheyeDataModule("seg", root=tiny_dataset, remap_on="gpu")
     cfg = OmegaConf.create({"data": {"source": "fisheye", "remap_on": "device"}})
