@@ -256,8 +256,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
             self._device_remap = remap
         elif remap.key() != self._device_remap.key():
             raise ConfigError(
-                f"data.remap_on=device: split {dataset.split!r} has another camera or cube-face size than the "
-                f"others; use data.remap_on=worker"
+                f"data.remap_on=device: split {dataset.split!r} has another camera, cube-face size or data.gimbal "
+                "view than the others; use data.remap_on=worker"
             )
 
     def on_after_batch_transfer(self, batch: Any, dataloader_idx: int) -> Any:
