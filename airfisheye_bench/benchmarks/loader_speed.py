@@ -135,6 +135,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     roots = args.root or [ensure_dataset(args.preset)]
+    commit = git_commit(ROOT)  # the code this process runs (the tree may change while it measures)
     load_before = os.getloadavg()
     print(f"one process, one thread; {args.samples} samples x {args.repeats} repeat(s); load {load_before}")
     print(
@@ -170,7 +171,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
             "command": shlex.join(
                 ["python", "scripts/bench_loader.py", *(sys.argv[1:] if argv is None else argv)]
             ),
-            "commit": git_commit(ROOT),
+            "commit": commit,
             "machine": machine(),
             "threads": 1,
             "samples": args.samples,
