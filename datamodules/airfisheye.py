@@ -18,7 +18,7 @@ from torch.utils.data import DataLoader
 
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import CameraModel
 from airfisheye_bench.geometry.gimbal import Gimbal
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
@@ -371,13 +371,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
         """The names of ``data.sources`` (empty for a single-dataset run)."""
         return [src.name for src in self.sources]
 
-    def camera_of(self, source: str | None = None) -> FisheyeCamera:
+    def camera_of(self, source: str | None = None) -> CameraModel:
         """The served camera of one source (``None``: the run's camera, the first source's)."""
         dataset = self._any_dataset()
         return dataset.source_camera(source) if source is not None else dataset.camera
 
     @property
-    def camera(self) -> FisheyeCamera:
+    def camera(self) -> CameraModel:
         """The served fisheye camera (after ``setup``)."""
         return self._any_dataset().camera
 

@@ -8,8 +8,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.geometry import FisheyeCamera
-from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
+from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict, ideal_camera
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
 
@@ -108,9 +107,7 @@ class CameraConfig:
             if self.k is not None
             else (getattr(calibrated, "k", None) if model == "kannala_brandt" else None)
         )
-        camera = FisheyeCamera(
-            size, size, fov_deg=fov_deg if fov_deg is not None else 190.0, model=model, k=k
-        )
+        camera = ideal_camera(size, size, fov_deg=fov_deg if fov_deg is not None else 190.0, model=model, k=k)
         return ServedCamera(camera, camera, 1.0, (0.0, 0.0), None)
 
 

@@ -35,7 +35,7 @@ import numpy as np
 import torch
 
 from airfisheye_bench.benchmarks.lidar_scene import SCENES, camera_rig, scan, structured_scene, visible
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_mask, ordering_reference
 
@@ -111,7 +111,7 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for size in args.sizes:
-        camera = FisheyeCamera(size, size, fov_deg=190.0)
+        camera = ideal_camera(size, size, fov_deg=190.0)
         truth = occlusion_mask(points, T, camera, spec, "none") & visible(points, centre, boxes)
         fns = {name: mask_fn(points, T, camera, spec, name) for name in METHODS}
         masks = {name: fn() for name, fn in fns.items()}  # also compiles / warms up
@@ -131,9 +131,9 @@ def main() -> None:
             same = [np.array_equal(reference, rows[m][3]) for m in ("ordering", "ordering (numpy)")]
             print(f"\n{size}^2: ordering == ordering (numpy) == ordering_reference: {same[0] and same[1]}\n")
     if args.variants:
-        measure_variants(points, boxes, spec, FisheyeCamera(args.sizes[0], args.sizes[0]), args.repeats)
+        measure_variants(points, boxes, spec, ideal_camera(args.sizes[0], args.sizes[0]), args.repeats)
     if args.scans:
-        measure_scans(boxes, spec, centre, T, FisheyeCamera(args.sizes[-1], args.sizes[-1], fov_deg=190.0))
+        measure_scans(boxes, spec, centre, T, ideal_camera(args.sizes[-1], args.sizes[-1], fov_deg=190.0))
 
 
 SCANS = ("nominal", "boundary", "ring phase", "jitter", "shuffled")

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from airfisheye_bench.benchmarks.lidar_scene import camera_rig, ray_box_entry, scan, structured_scene
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import organize_scan, rings_from_elevation
 from airfisheye_bench.geometry.occlusion import occlusion_mask
@@ -86,7 +86,7 @@ def main() -> None:
     boxes = structured_scene(0)
     points = scan(spec, boxes)
     _, T = camera_rig()
-    camera = FisheyeCamera(args.size, args.size, fov_deg=190.0)
+    camera = ideal_camera(args.size, args.size, fov_deg=190.0)
     # The same scene scanned by an HDL-64E-like sensor (its table, offsets and beam origins; 2048 over 270 deg)
     table = LidarSpec.from_preset("hdl64e", points_per_channel=2048, hfov_deg=270.0)
     dirs = table.beam_directions(torch.float64).reshape(-1, 3).numpy()

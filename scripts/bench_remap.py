@@ -39,9 +39,9 @@ from airfisheye_bench.geometry import (
     CameraModel,
     CubemapToFisheye,
     EquirectToFisheye,
-    FisheyeCamera,
     camera_from_dict,
     gimbal_rotation,
+    ideal_camera,
 )
 from airfisheye_bench.geometry.cubemap import clear_table_cache, direction_to_face
 
@@ -59,7 +59,7 @@ def timeit(fn, repeat: int) -> float:
     return min(times)
 
 
-def cv2_atlas_maps(camera: FisheyeCamera, s: int):
+def cv2_atlas_maps(camera: CameraModel, s: int):
     """Maps for cv2.remap into a vertical atlas of the 5 faces, each padded by one texel (edge replicate)."""
     import cv2
 
@@ -87,7 +87,7 @@ def bench(face: int, out: int, repeat: int) -> dict[str, float]:
     rgb = rng.integers(0, 256, (5, face, face, 3), dtype=np.uint8)
     label = rng.integers(0, 23, (5, face, face, 1), dtype=np.uint8)
     depth = rng.uniform(1, 120, (5, face, face, 1)).astype(np.float32)
-    camera = FisheyeCamera(out, out)
+    camera = ideal_camera(out, out)
 
     clear_table_cache()
     t0 = time.perf_counter()
@@ -133,7 +133,7 @@ def bench_sources(face: int, out: int, repeat: int) -> dict[str, dict[str, float
             rng.uniform(1, 120, (h, w, 1)).astype(np.float32),
         ),
     }
-    camera = FisheyeCamera(out, out)
+    camera = ideal_camera(out, out)
     camera.valid_mask()  # the ray grid is the camera's, shared by both sources: not timed
     make = {
         "cube": lambda rotation=None: CubemapToFisheye(camera, face, rotation=rotation),
@@ -190,8 +190,8 @@ def model_cameras(out: int) -> dict[str, CameraModel]:
     """One camera per model family on an ``out x out`` sensor: the published calibrations, scaled."""
     cal = {k: v["camera"] for k, v in json.loads(CALIBRATIONS.read_text())["cameras"].items()}
     cams = {
-        "equidistant": FisheyeCamera(out, out),
-        "kannala_brandt (old form)": FisheyeCamera(
+        "equidistant": ideal_camera(out, out),
+        "kannala_brandt (old form)": ideal_camera(
             out, out, model="kannala_brandt", k=(0.05, -0.01, 0.002, -0.0003)
         ),
     }

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.cube_depth import planar_to_range
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, direction_to_face
 
@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     )
     args = parser.parse_args(argv)
     sample_coor = load_sample_coor(args.checkout)
-    camera = FisheyeCamera(args.size, args.size, fov_deg=190.0, model="equidistant")
+    camera = ideal_camera(args.size, args.size, fov_deg=190.0, model="equidistant")
     grid = np.stack(np.meshgrid(np.arange(args.size, dtype=np.float64), np.arange(args.size)), -1).reshape(
         -1, 2
     )

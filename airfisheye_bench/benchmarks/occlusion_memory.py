@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 from airfisheye_bench.benchmarks.lidar_scene import SCENES, camera_rig, scan, structured_scene
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion import occlusion_mask
 
@@ -67,9 +67,9 @@ def measure(method: str, size: int, repeats: int, seed: int) -> dict[str, float]
     _, offset, pitch = SCENES["structured"]
     points = scan(spec, structured_scene(seed))
     _, T = camera_rig(offset, pitch)
-    occlusion_mask(points, T, FisheyeCamera(64, 64, fov_deg=190.0), spec, method)  # compile the kernels
+    occlusion_mask(points, T, ideal_camera(64, 64, fov_deg=190.0), spec, method)  # compile the kernels
 
-    camera = FisheyeCamera(size, size, fov_deg=190.0)
+    camera = ideal_camera(size, size, fov_deg=190.0)
     before = _settle()
     occlusion_mask(points, T, camera, spec, method)
     first_peak = _status_kib("VmHWM") - before

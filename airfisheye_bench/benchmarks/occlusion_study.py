@@ -60,7 +60,7 @@ from airfisheye_bench.benchmarks.hidden_detection import detection_counts, detec
 from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.evaluation.clustered import flight_of
-from airfisheye_bench.geometry import FisheyeCamera, LidarSpec, lidar_depth_map, occlusion, project_lidar
+from airfisheye_bench.geometry import CameraModel, LidarSpec, lidar_depth_map, occlusion, project_lidar
 from airfisheye_bench.io.spec import DatasetSpec
 from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.viz import denormalize, make_panel, save_png
@@ -174,7 +174,7 @@ def frame_indices(n: int, limit: int | None) -> list[int]:
 def sparse_map(
     points: np.ndarray,
     T: np.ndarray,
-    camera: FisheyeCamera,
+    camera: CameraModel,
     spec: LidarSpec,
     method: str,
     max_depth: float,
@@ -207,7 +207,7 @@ def depth_counts(sparse: np.ndarray, gt: np.ndarray) -> dict[str, int]:
 
 def measure_frame(
     frame: Frame,
-    camera: FisheyeCamera,
+    camera: CameraModel,
     gt: np.ndarray,
     valid: np.ndarray,
     max_depth: float,

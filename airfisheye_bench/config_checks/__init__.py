@@ -14,7 +14,7 @@ constructors below (the datamodule, the dataset, the occlusion and camera code) 
 caller hands them directly, once, in their constructor (docs/design.md, "Layers").
 
 Every choice list is read the same way: from the module that defines it (the lens models of
-:mod:`airfisheye_bench.geometry.camera`, the fits of :mod:`airfisheye_bench.geometry.serving`, the occlusion methods
+:mod:`airfisheye_bench.geometry.cameras.ideal`, the fits of :mod:`airfisheye_bench.geometry.serving`, the occlusion methods
 and options of :mod:`airfisheye_bench.geometry.occlusion`, the LiDAR presets, the image sources of
 :mod:`airfisheye_bench.io.spec`, the task and model registries, Lightning's accelerators and precisions), imported
 inside the function that reads it, when its key is checked. Importing this module costs a fifth of a second; its
@@ -49,7 +49,7 @@ _ABSENT = object()
 
 # The choice lists, each read from the module that defines it when its key is checked (see the module docstring).
 def _lens_models() -> tuple[str, ...]:
-    from airfisheye_bench.geometry.camera import LENS_MODELS  # imports torch: only when checked
+    from airfisheye_bench.geometry.cameras.ideal import LENS_MODELS  # imports torch: only when checked
 
     return LENS_MODELS
 

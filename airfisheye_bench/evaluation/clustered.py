@@ -145,7 +145,13 @@ def cluster_difference(
     if n == 0:
         raise ValueError("no clusters")
     mean = sum(values) / n
-    out: dict[str, Any] = {"n": n, "mean": mean, "clusters": clusters, "level": level, "family_size": family_size}
+    out: dict[str, Any] = {
+        "n": n,
+        "mean": mean,
+        "clusters": clusters,
+        "level": level,
+        "family_size": family_size,
+    }
     if n < 2:
         return {**out, "std": math.nan, "ci": [math.nan] * 2, "ci_family": [math.nan] * 2, "p": math.nan}
     std = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1))

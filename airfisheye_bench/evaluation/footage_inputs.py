@@ -89,8 +89,8 @@ def erp_supersample(camera: CameraModel, erp_width: int) -> int:
     """Samples per pixel and axis: the panorama's texels across one camera pixel at its centre, 1 to 4.
 
     Example:
-        >>> from airfisheye_bench.geometry import FisheyeCamera
-        >>> camera = FisheyeCamera(64, 64, fov_deg=190.0)  # about 3 deg per pixel
+        >>> from airfisheye_bench.geometry import ideal_camera
+        >>> camera = ideal_camera(64, 64, fov_deg=190.0)  # about 3 deg per pixel
         >>> erp_supersample(camera, 128), erp_supersample(camera, 256), erp_supersample(camera, 8192)
         (1, 2, 4)
     """

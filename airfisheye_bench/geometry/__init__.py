@@ -1,7 +1,13 @@
 """Geometry: camera models, cubemap- and panorama-to-fisheye remapping, rigid transforms, LiDAR projection and occlusion."""
 
-from airfisheye_bench.geometry.camera import LENS_MODELS, FisheyeCamera, incidence_angle
-from airfisheye_bench.geometry.cameras import CAMERA_MODELS, CameraModel, camera_from_dict
+from airfisheye_bench.geometry.camera import FisheyeCamera, incidence_angle
+from airfisheye_bench.geometry.cameras import (
+    CAMERA_MODELS,
+    LENS_MODELS,
+    CameraModel,
+    camera_from_dict,
+    ideal_camera,
+)
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, CubemapToFisheye, face_rays, face_rotation
 from airfisheye_bench.geometry.equirect import EquirectToFisheye
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
@@ -45,6 +51,7 @@ __all__ = [
     "face_rays",
     "face_rotation",
     "gimbal_rotation",
+    "ideal_camera",
     "incidence_angle",
     "invert_rigid",
     "lidar_depth_map",

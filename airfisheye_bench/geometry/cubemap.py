@@ -131,8 +131,8 @@ class CubemapToFisheye:
             one from gimbal angles). ``None`` is the identity: the output looks along the front face.
 
     Example:
-        >>> from airfisheye_bench.geometry import FisheyeCamera
-        >>> remap = CubemapToFisheye(FisheyeCamera(64, 64), face_size=32)
+        >>> from airfisheye_bench.geometry import ideal_camera
+        >>> remap = CubemapToFisheye(ideal_camera(64, 64), face_size=32)
         >>> faces = torch.rand(5, 3, 32, 32)
         >>> remap(faces).shape, remap(faces, mode="nearest").shape
         (torch.Size([3, 64, 64]), torch.Size([3, 64, 64]))
@@ -150,7 +150,7 @@ class CubemapToFisheye:
     ) -> None:
         if not isinstance(camera, CameraModel):
             raise ValueError(
-                f"camera must be a CameraModel (FisheyeCamera(...), camera_from_dict(...)), got {type(camera).__name__}"
+                f"camera must be a CameraModel (ideal_camera(...), camera_from_dict(...)), got {type(camera).__name__}"
             )
         _check_face_size(face_size)
         if int(supersample) != supersample or supersample < 1:

@@ -49,10 +49,10 @@ Public API (stable): :func:`lonlat_to_direction`, :func:`direction_to_lonlat`, :
 :func:`~airfisheye_bench.geometry.remap_table.clear_table_cache`.
 
 Example:
-    >>> from airfisheye_bench.geometry import FisheyeCamera
+    >>> from airfisheye_bench.geometry import ideal_camera
     >>> from airfisheye_bench.geometry.transforms import gimbal_rotation
     >>> erp = torch.rand(3, 64, 128)  # [C, H, W], channels first as the cube faces
-    >>> remap = EquirectToFisheye(FisheyeCamera(48, 48), 64, rotation=gimbal_rotation(pitch_deg=30.0))
+    >>> remap = EquirectToFisheye(ideal_camera(48, 48), 64, rotation=gimbal_rotation(pitch_deg=30.0))
     >>> remap(erp).shape, remap(erp, mode="nearest", fill=255).shape
     (torch.Size([3, 48, 48]), torch.Size([3, 48, 48]))
 """
@@ -178,8 +178,8 @@ class EquirectToFisheye:
         camera, erp_height, erp_width, rotation (``None`` or float64 3x3), supersample, cache_dir.
 
     Example:
-        >>> from airfisheye_bench.geometry import FisheyeCamera
-        >>> remap = EquirectToFisheye(FisheyeCamera(64, 64), (32, 64))
+        >>> from airfisheye_bench.geometry import ideal_camera
+        >>> remap = EquirectToFisheye(ideal_camera(64, 64), (32, 64))
         >>> remap(np.zeros((1, 32, 64), np.float32), mode="nearest").shape  # numpy in, numpy out
         (1, 64, 64)
         >>> int(remap.valid_mask.sum()) == int(remap.camera.valid_mask().sum())  # the sphere has no gap
@@ -196,7 +196,7 @@ class EquirectToFisheye:
     ) -> None:
         if not isinstance(camera, CameraModel):
             raise ValueError(
-                f"camera must be a CameraModel (FisheyeCamera(...), camera_from_dict(...)), got {type(camera).__name__}"
+                f"camera must be a CameraModel (ideal_camera(...), camera_from_dict(...)), got {type(camera).__name__}"
             )
         if isinstance(erp_size, (int, np.integer)) and not isinstance(erp_size, bool):
             erp_size = (int(erp_size), 2 * int(erp_size))

@@ -32,8 +32,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry.camera import FisheyeCamera
-from airfisheye_bench.geometry.cameras import CameraModel
+from airfisheye_bench.geometry.cameras import CameraModel, ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 
 __all__ = [
@@ -123,9 +122,9 @@ def paper_density_subset(
     return BeamSubset(channels, columns)
 
 
-def paper_camera() -> FisheyeCamera:
+def paper_camera() -> CameraModel:
     """The paper's fisheye: equidistant, 190 deg, 1536 x 1536."""
-    return FisheyeCamera(PAPER_IMAGE_SIZE, PAPER_IMAGE_SIZE, PAPER_FOV_DEG)
+    return ideal_camera(PAPER_IMAGE_SIZE, PAPER_IMAGE_SIZE, PAPER_FOV_DEG)
 
 
 def paper_scale_camera(camera: CameraModel) -> CameraModel:
@@ -138,11 +137,11 @@ def paper_scale_camera(camera: CameraModel) -> CameraModel:
     the input that the paper's image would have, at the paper's density per pixel.
 
     Example:
-        >>> from airfisheye_bench.geometry.camera import FisheyeCamera
-        >>> big = paper_scale_camera(FisheyeCamera(128, 128, 190.0))
+        >>> from airfisheye_bench.geometry.cameras import ideal_camera
+        >>> big = paper_scale_camera(ideal_camera(128, 128, 190.0))
         >>> big.width, big.height
         (1536, 1536)
-        >>> paper_scale_camera(FisheyeCamera(2048, 2048, 190.0)).width
+        >>> paper_scale_camera(ideal_camera(2048, 2048, 190.0)).width
         2048
     """
     size = max(camera.width, camera.height)

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import camera_from_dict
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.transforms import check_rigid, relative_transform
 from airfisheye_bench.io.yamlio import FieldReader, read_yaml, write_yaml
@@ -54,7 +54,7 @@ class Calibration:
 
     def fisheye_camera(self):
         """The camera described by ``camera`` (``camera_from_dict``: any model)."""
-        return FisheyeCamera.from_dict(self.camera)
+        return camera_from_dict(self.camera)
 
     def lidar_spec(self):
         """The :class:`~airfisheye_bench.geometry.lidar.LidarSpec` described by ``lidar``."""
@@ -104,7 +104,7 @@ class Calibration:
         # Validate the sensor models with their own constructors so that errors point at the right key.
 
         for key, build, value in (
-            ("camera", FisheyeCamera.from_dict, camera),
+            ("camera", camera_from_dict, camera),
             ("lidar", LidarSpec.from_dict, lidar),
         ):
             try:

@@ -51,8 +51,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from airfisheye_bench.geometry import FisheyeCamera
-from airfisheye_bench.geometry.cameras import camera_from_dict
+from airfisheye_bench.geometry.cameras import camera_from_dict, ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.io.calibration_files import camera_label
@@ -78,7 +77,7 @@ class SynthConfig:
         face_size: Cube-face size in pixels (0: write no cube faces).
         fisheye_size: Width = height of the pre-rendered fisheye image (0: none).
         fisheye_fov_deg: Fisheye field of view.
-        fisheye_model: Fisheye projection model (``FisheyeCamera`` model name).
+        fisheye_model: Fisheye projection model (``ideal_camera``'s ``model``).
         fisheye_calibration: A calibrated camera's flat dict (``CameraModel.to_dict()``, already at
             ``fisheye_size``), rendered instead of the ideal ``fisheye_model`` / ``fisheye_fov_deg`` lens; set by
             ``airfisheye-generate camera.calibration=<file>`` (:func:`airfisheye_bench.synth.cli.build_config`).
@@ -207,7 +206,7 @@ class SynthConfig:
             return None
         if self.fisheye_calibration is not None:
             return camera_from_dict(self.fisheye_calibration)
-        return FisheyeCamera(
+        return ideal_camera(
             self.fisheye_size, self.fisheye_size, fov_deg=self.fisheye_fov_deg, model=self.fisheye_model
         )
 

@@ -7,7 +7,7 @@ them from the sensor poses and packs the results:
   ``R_world_cam`` at the camera timestamp: RGB, raw ids and range (0 = sky).
 * **Panorama** — :func:`render_erp`: an equirectangular panorama of the camera pose (``geometry.equirect.erp_rays``
   in the camera frame), cast directly, not resampled from the faces: the reference an ERP source is checked against.
-* **Fisheye** — either ray-cast directly through the lens (``FisheyeCamera.ray_grid``: exact, the yardstick for
+* **Fisheye** — either ray-cast directly through the lens (``CameraModel.ray_grid``: exact, the yardstick for
   the cubemap remap) or remapped from the faces with ``CubemapToFisheye`` (like the real release). Pixels outside
   the image circle are ``rgb = 0``, ``seg = 255`` (ignore), ``depth = 0``.
 * **LiDAR** — ``LidarSpec.beam_directions`` from the LiDAR pose at the LiDAR timestamp, each from its laser's
@@ -19,7 +19,7 @@ them from the sensor poses and packs the results:
 * **Visibility** — for every LiDAR point, whether the straight segment from the *camera centre at t_cam* to the
   point (the world position where the beam hit at t_lidar) is unobstructed: an exact ray cast
   (``Scene.segment_visible``), independent of the lens field of view. Consumers AND it with
-  ``FisheyeCamera.project`` validity to get "seen by the camera".
+  ``CameraModel.project`` validity to get "seen by the camera".
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera, face_rays, portable
+from airfisheye_bench.geometry import CameraModel, CubemapToFisheye, face_rays, portable
 from airfisheye_bench.geometry.equirect import erp_rays
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.synth.classes import IGNORE_ID
@@ -42,7 +42,7 @@ VISIBILITY_DEFINITION = (
     "lidar_visible/<frame>.npy[i] is True iff the straight segment from the camera centre at t_cam to LiDAR point i "
     "(its world position, hit at t_lidar) is unobstructed by scene geometry (exact ray cast; the last "
     f"max({VISIBILITY_ABS_EPS * 100:g} cm, {VISIBILITY_REL_EPS * 100:g}% of the distance) before the point, i.e. its "
-    "own surface, is not tested). It ignores the lens field of view: AND it with FisheyeCamera.project(...) validity "
+    "own surface, is not tested). It ignores the lens field of view: AND it with CameraModel.project(...) validity "
     "(points transformed with the motion-compensated T_cam_lidar) to get 'seen in the image'."
 )
 
@@ -225,7 +225,7 @@ def render_cube_faces(scene, lighting, T_world_cam: np.ndarray, face_size: int, 
     )
 
 
-def render_fisheye(scene, lighting, T_world_cam: np.ndarray, camera: FisheyeCamera, max_dist: float = 1000.0):
+def render_fisheye(scene, lighting, T_world_cam: np.ndarray, camera: CameraModel, max_dist: float = 1000.0):
     """Ray-cast the fisheye image directly through the lens model: ``(rgb [H,W,3], seg [H,W], depth [H,W])``."""
     valid = camera.valid_mask().reshape(-1).to(scene.device)
     rays = camera.ray_grid(dtype=torch.float64, device=scene.device).reshape(-1, 3)[valid]
@@ -351,7 +351,7 @@ def render_frame(
     *,
     face_size: int,
     lidar: LidarSpec,
-    camera: FisheyeCamera | None = None,
+    camera: CameraModel | None = None,
     fisheye_source: str = "raycast",
     max_dist: float = 1000.0,
     remapper: CubemapToFisheye | None = None,

@@ -37,7 +37,7 @@ import torch
 from tqdm.auto import tqdm
 
 from airfisheye_bench.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
-from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye, FisheyeCamera
+from airfisheye_bench.geometry import FACE_NAMES, CameraModel, CubemapToFisheye, ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.calib import Calibration
@@ -71,9 +71,9 @@ STATE_NAME = ".airfisheye-generate.json"
 JOURNAL_NAME = ".airfisheye-journal.jsonl"
 
 
-def calib_camera(config: SynthConfig) -> FisheyeCamera:
+def calib_camera(config: SynthConfig) -> CameraModel:
     """The camera in ``calib.yaml``: the pre-rendered fisheye, or (without one) a 190-deg default twice the face size."""
-    return config.fisheye_camera() or FisheyeCamera(
+    return config.fisheye_camera() or ideal_camera(
         2 * config.face_size, 2 * config.face_size, fov_deg=config.fisheye_fov_deg
     )
 
@@ -180,7 +180,7 @@ class _Sensors:
     """Sensor models built once per process (they cache ray grids and remap tables)."""
 
     lidar: LidarSpec
-    camera: FisheyeCamera | None
+    camera: CameraModel | None
     remapper: CubemapToFisheye | None
     scan: ScanModel
 

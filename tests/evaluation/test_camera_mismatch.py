@@ -11,14 +11,14 @@ from omegaconf import OmegaConf
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.command import _check_camera
 from airfisheye_bench.export.deploy import _portable_data_config
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.io.calibration_files import load_camera
 from tests.io import calibration_fixtures as fx
 
 
 def test_another_camera_is_refused_naming_both(tmp_path, caplog) -> None:
     model_camera = load_camera(fx.write_kitti360(tmp_path / "image_02.yaml")).resized(64, 64)
-    served = FisheyeCamera(64, 64, fov_deg=190.0)
+    served = ideal_camera(64, 64, fov_deg=190.0)
     cfg = OmegaConf.create({"onnx_path": "m.onnx", "allow_camera_mismatch": False})
     _check_camera(cfg, model_camera.to_dict(), model_camera)  # the same camera passes
     with pytest.raises(ConfigError) as err:

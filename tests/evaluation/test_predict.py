@@ -17,7 +17,7 @@ from PIL import Image
 from airfisheye_bench.errors import ConfigError, InputFileError, MissingFileError
 from airfisheye_bench.evaluation.footage import open_footage, read_sparse
 from airfisheye_bench.evaluation.footage_inputs import frame_preparer
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.cameras import camera_from_dict
 from airfisheye_bench.io.calibration_files import save_camera
 from airfisheye_bench.io.deployment import read_deployment_metadata
@@ -59,7 +59,7 @@ def _assert_nothing_written(parent: Path) -> None:
 
 
 def _outside_lens() -> np.ndarray:
-    return ~FisheyeCamera(SIZE, SIZE, fov_deg=190.0).valid_mask().numpy()
+    return ~ideal_camera(SIZE, SIZE, fov_deg=190.0).valid_mask().numpy()
 
 
 # ------------------------------------------------------------------------------------------ what is written
@@ -145,7 +145,7 @@ def test_equirectangular_panoramas(models, tmp_path: Path) -> None:
 
 
 def test_a_panorama_is_rendered_where_the_view_looks(tmp_path: Path) -> None:
-    camera = FisheyeCamera(SIZE, SIZE, fov_deg=190.0)
+    camera = ideal_camera(SIZE, SIZE, fov_deg=190.0)
     folder = tmp_path / "p"
     folder.mkdir()
     pano = np.zeros((64, 128, 3), np.uint8)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from airfisheye_bench.benchmarks import lidar_scene, occlusion_memory
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion import occlusion_mask
 
@@ -27,7 +27,7 @@ def test_each_row_is_the_methods_own_call_in_a_fresh_process():
     # The child scored the same scan the benchmark scene gives here: its mask is the real method's.
     points = lidar.scan(LidarSpec(), lidar.structured_scene(0))
     _, T = lidar.camera_rig(*lidar.SCENES["structured"][1:])
-    mask = occlusion_mask(points, T, FisheyeCamera(96, 96, fov_deg=190.0), LidarSpec(), "zbuffer")
+    mask = occlusion_mask(points, T, ideal_camera(96, 96, fov_deg=190.0), LidarSpec(), "zbuffer")
     assert (row["points"], row["kept"]) == (len(points), int(np.count_nonzero(mask)))
     # A z-buffer allocates at least its depth buffer and the points' pixel indices during the call.
     assert row["numpy_peak_mib"] * 2**20 >= 96 * 96 * 4 + 8 * row["kept"]

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 import torch
 
-from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye, FisheyeCamera, face_rays, face_rotation
+from airfisheye_bench.geometry import (
+    FACE_NAMES,
+    CameraModel,
+    CubemapToFisheye,
+    face_rays,
+    face_rotation,
+    ideal_camera,
+)
 from airfisheye_bench.geometry.cubemap import clear_table_cache, direction_to_face
 from airfisheye_bench.geometry.remap_table import _apply_torch
 from airfisheye_bench.geometry.transforms import gimbal_rotation
@@ -37,7 +44,7 @@ def direction_faces(face_size: int) -> torch.Tensor:
     return torch.from_numpy(np.stack(faces)).permute(0, 3, 1, 2).contiguous()
 
 
-def angular_error(image: torch.Tensor, camera: FisheyeCamera, mask: torch.Tensor) -> torch.Tensor:
+def angular_error(image: torch.Tensor, camera: CameraModel, mask: torch.Tensor) -> torch.Tensor:
     d = image.permute(1, 2, 0)[mask].double()
     d = d / d.norm(dim=-1, keepdim=True)
     ref = camera.ray_grid(torch.float64)[mask]
@@ -56,15 +63,15 @@ def test_face_rotations_match_design_table() -> None:
 @pytest.mark.parametrize(
     "camera",
     [
-        FisheyeCamera(96, 96),
-        FisheyeCamera(80, 64, fov_deg=230.0, model="equisolid"),
-        FisheyeCamera(96, 96, model="kannala_brandt", k=(0.05, -0.01, 0.002, -0.0003)),
-        FisheyeCamera(64, 64, fov_deg=180.0, model="orthographic"),
+        ideal_camera(96, 96),
+        ideal_camera(80, 64, fov_deg=230.0, model="equisolid"),
+        ideal_camera(96, 96, model="kannala_brandt", k=(0.05, -0.01, 0.002, -0.0003)),
+        ideal_camera(64, 64, fov_deg=180.0, model="orthographic"),
     ],
     ids=["equidistant190", "equisolid230", "kb190", "ortho180"],
 )
 @pytest.mark.parametrize("face_size", [24, 48])
-def test_remapped_directions_match_unproject(camera: FisheyeCamera, face_size: int) -> None:
+def test_remapped_directions_match_unproject(camera: CameraModel, face_size: int) -> None:
     """Each output pixel must see the direction the camera model assigns to it."""
     remap = CubemapToFisheye(camera, face_size)
     faces = direction_faces(face_size)
@@ -81,7 +88,7 @@ def test_remapped_directions_match_unproject(camera: FisheyeCamera, face_size: i
 
 
 def test_supersampling_averages_the_subpixel_footprint() -> None:
-    camera = FisheyeCamera(48, 48)
+    camera = ideal_camera(48, 48)
     face_size = 96
     faces = direction_faces(face_size)
     plain = CubemapToFisheye(camera, face_size)(faces)
@@ -100,7 +107,7 @@ def test_supersampling_averages_the_subpixel_footprint() -> None:
 
 
 def test_nearest_copies_values_and_fills_outside() -> None:
-    camera = FisheyeCamera(64, 64)
+    camera = ideal_camera(64, 64)
     remap = CubemapToFisheye(camera, 16)
     labels = torch.arange(5, dtype=torch.uint8).view(5, 1, 1, 1).expand(5, 1, 16, 16).contiguous()
     out = remap(labels, mode="nearest", fill=255)
@@ -115,7 +122,7 @@ def test_nearest_copies_values_and_fills_outside() -> None:
 
 
 def test_bilinear_is_seamless_on_a_constant_image() -> None:
-    remap = CubemapToFisheye(FisheyeCamera(128, 128), 20)
+    remap = CubemapToFisheye(ideal_camera(128, 128), 20)
     out = remap(torch.full((5, 3, 20, 20), 200, dtype=torch.uint8))
     mask = remap.valid_mask
     assert (out[:, mask] == 200).all()
@@ -123,7 +130,7 @@ def test_bilinear_is_seamless_on_a_constant_image() -> None:
 
 
 def test_nearest_is_an_exact_copy_for_any_dtype() -> None:
-    remap = CubemapToFisheye(FisheyeCamera(32, 32), 8)
+    remap = CubemapToFisheye(ideal_camera(32, 32), 8)
     lut = remap.table("nearest")
     for dtype in (torch.float64, torch.int64, torch.int32, torch.float32):
         faces = (torch.rand(5, 2, 8, 8, dtype=torch.float64) * 2**40 + 1e-7).to(dtype)
@@ -135,7 +142,7 @@ def test_nearest_is_an_exact_copy_for_any_dtype() -> None:
 
 
 def test_batched_and_numpy_inputs() -> None:
-    remap = CubemapToFisheye(FisheyeCamera(40, 40), 12)
+    remap = CubemapToFisheye(ideal_camera(40, 40), 12)
     batch = torch.rand(3, 5, 2, 12, 12)
     out = remap(batch)
     assert out.shape == (3, 2, 40, 40)
@@ -145,7 +152,7 @@ def test_batched_and_numpy_inputs() -> None:
 
 
 def test_device_agnostic_path_agrees_with_the_cpu_kernel() -> None:
-    remap = CubemapToFisheye(FisheyeCamera(64, 64, fov_deg=250.0), 16, supersample=2)
+    remap = CubemapToFisheye(ideal_camera(64, 64, fov_deg=250.0), 16, supersample=2)
     faces = torch.randint(0, 256, (5, 3, 16, 16), dtype=torch.uint8)
     lut = remap.table("bilinear")
     reference = _apply_torch(faces.transpose(0, 1).reshape(1, 3, -1), lut)
@@ -158,7 +165,7 @@ def test_device_agnostic_path_agrees_with_the_cpu_kernel() -> None:
 
 
 def test_fov_beyond_the_five_faces_leaves_the_back_empty() -> None:
-    camera = FisheyeCamera(64, 64, fov_deg=300.0)
+    camera = ideal_camera(64, 64, fov_deg=300.0)
     remap = CubemapToFisheye(camera, 16)
     mask = remap.valid_mask
     assert mask.sum() < camera.valid_mask().sum()  # part of the circle looks into the missing back face
@@ -167,9 +174,9 @@ def test_fov_beyond_the_five_faces_leaves_the_back_empty() -> None:
 
 
 def test_tables_are_cached_in_memory_and_on_disk(tmp_path) -> None:
-    camera = FisheyeCamera(32, 32)
+    camera = ideal_camera(32, 32)
     a = CubemapToFisheye(camera, 8, cache_dir=tmp_path)
-    b = CubemapToFisheye(FisheyeCamera(32, 32), 8)
+    b = CubemapToFisheye(ideal_camera(32, 32), 8)
     assert a.table("bilinear") is b.table("bilinear")
     assert len(list(tmp_path.glob("cubemap-lut-*.npz"))) == 1
     clear_table_cache()
@@ -183,7 +190,7 @@ def test_tables_are_cached_in_memory_and_on_disk(tmp_path) -> None:
 
 
 def test_bad_inputs() -> None:
-    remap = CubemapToFisheye(FisheyeCamera(32, 32), 8)
+    remap = CubemapToFisheye(ideal_camera(32, 32), 8)
     with pytest.raises(ValueError, match=r"faces must have shape \[5, C, 8, 8\]"):
         remap(torch.zeros(6, 3, 8, 8))
     with pytest.raises(ValueError, match=r"faces must have shape"):
@@ -191,17 +198,17 @@ def test_bad_inputs() -> None:
     with pytest.raises(ValueError, match="mode"):
         remap(torch.zeros(5, 3, 8, 8), mode="bicubic")
     with pytest.raises(ValueError, match="face_size"):
-        CubemapToFisheye(FisheyeCamera(32, 32), 1)
+        CubemapToFisheye(ideal_camera(32, 32), 1)
     with pytest.raises(ValueError, match="supersample"):
-        CubemapToFisheye(FisheyeCamera(32, 32), 8, supersample=0)
-    with pytest.raises(ValueError, match="FisheyeCamera"):
+        CubemapToFisheye(ideal_camera(32, 32), 8, supersample=0)
+    with pytest.raises(ValueError, match="ideal_camera"):
         CubemapToFisheye("cam", 8)
 
 
 @pytest.mark.parametrize("angles", [(0.0, 45.0, 0.0), (30.0, 20.0, 10.0), (-20.0, -30.0, 0.0)])
 def test_rotated_camera_sees_the_rotated_rays(angles: tuple[float, float, float]) -> None:
     """A virtual gimbal: with ``rotation = R_cube_cam`` each pixel sees its ray turned into the cube's frame."""
-    camera, face_size = FisheyeCamera(64, 64, fov_deg=150.0), 32
+    camera, face_size = ideal_camera(64, 64, fov_deg=150.0), 32
     rotation = gimbal_rotation(*angles)
     remap = CubemapToFisheye(camera, face_size, rotation=rotation)
     assert remap.table("bilinear") is not CubemapToFisheye(camera, face_size).table("bilinear")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from airfisheye_bench.geometry import FisheyeCamera, camera_from_dict
+from airfisheye_bench.geometry import camera_from_dict, ideal_camera
 from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.equirect import (
     EquirectToFisheye,
@@ -72,11 +72,11 @@ def _golden(name: str, size: int) -> CameraModel:
 @pytest.mark.parametrize(
     ("camera", "angles"),
     [
-        (FisheyeCamera(96, 96), (0.0, 0.0, 0.0)),
-        (FisheyeCamera(96, 96), (180.0, 0.0, 0.0)),  # looks across the +-180 deg seam
-        (FisheyeCamera(96, 96), (0.0, 90.0, 0.0)),  # the down pole in the middle of the image
-        (FisheyeCamera(80, 64, fov_deg=230.0, model="equisolid"), (37.0, -90.0, 12.0)),  # up pole, rolled
-        (FisheyeCamera(64, 64, fov_deg=360.0, model="equidistant"), (10.0, 20.0, 30.0)),  # the whole sphere
+        (ideal_camera(96, 96), (0.0, 0.0, 0.0)),
+        (ideal_camera(96, 96), (180.0, 0.0, 0.0)),  # looks across the +-180 deg seam
+        (ideal_camera(96, 96), (0.0, 90.0, 0.0)),  # the down pole in the middle of the image
+        (ideal_camera(80, 64, fov_deg=230.0, model="equisolid"), (37.0, -90.0, 12.0)),  # up pole, rolled
+        (ideal_camera(64, 64, fov_deg=360.0, model="equidistant"), (10.0, 20.0, 30.0)),  # the whole sphere
         (
             camera_from_dict(
                 {
@@ -123,7 +123,7 @@ def test_remapped_directions_match_the_rotated_rays(camera: CameraModel | str, a
 
 def test_nearest_takes_the_texel_containing_the_ray() -> None:
     h, w = 30, 60
-    camera = FisheyeCamera(64, 64)
+    camera = ideal_camera(64, 64)
     rotation = gimbal_rotation(170.0, 75.0, 0.0)  # the seam and the down pole in view
     index = torch.arange(h * w, dtype=torch.int64).view(1, h, w)
     got = EquirectToFisheye(camera, (h, w), rotation=rotation)(index, mode="nearest", fill=-1)[0]
@@ -142,7 +142,7 @@ def test_nearest_takes_the_texel_containing_the_ray() -> None:
 
 def test_bilinear_taps_wrap_and_cross_the_pole() -> None:
     h, w = 8, 16
-    camera = FisheyeCamera(32, 32)
+    camera = ideal_camera(32, 32)
     up = EquirectToFisheye(camera, (h, w), rotation=gimbal_rotation(pitch_deg=-90.0)).table("bilinear")
     back = EquirectToFisheye(camera, (h, w), rotation=gimbal_rotation(yaw_deg=180.0)).table("bilinear")
     torch.testing.assert_close(up.weight.sum(1), torch.ones(len(up.pixels)))
@@ -157,7 +157,7 @@ def test_bilinear_taps_wrap_and_cross_the_pole() -> None:
 
 def test_values_dtypes_batches_and_layouts() -> None:
     h, w = 16, 32
-    remap = EquirectToFisheye(FisheyeCamera(24, 24), h, supersample=1)  # one int: width = 2 * height
+    remap = EquirectToFisheye(ideal_camera(24, 24), h, supersample=1)  # one int: width = 2 * height
     assert (remap.erp_height, remap.erp_width) == (16, 32)
     rng = np.random.default_rng(0)
     hwc = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
@@ -179,7 +179,7 @@ def test_values_dtypes_batches_and_layouts() -> None:
 
 def test_supersampling_averages_within_the_pixel() -> None:
     h, w = 64, 128
-    camera = FisheyeCamera(16, 16)
+    camera = ideal_camera(16, 16)
     pano = direction_panorama(h, w)
     remap = EquirectToFisheye(camera, (h, w), rotation=gimbal_rotation(180.0, 30.0), supersample=3)
     lut = remap.table("bilinear")
@@ -193,7 +193,7 @@ def test_supersampling_averages_within_the_pixel() -> None:
 
 def test_tables_are_cached_per_size_camera_rotation_and_on_disk(tmp_path: Path) -> None:
     clear_table_cache()
-    camera = FisheyeCamera(16, 16)
+    camera = ideal_camera(16, 16)
     a = EquirectToFisheye(camera, 8, rotation=gimbal_rotation(10.0, 20.0), cache_dir=tmp_path)
     lut = a.table("bilinear")
     assert EquirectToFisheye(camera, 8, rotation=gimbal_rotation(10.0, 20.0)).table("bilinear") is lut
@@ -226,11 +226,11 @@ def test_tables_are_cached_per_size_camera_rotation_and_on_disk(tmp_path: Path) 
 )
 def test_bad_arguments_are_named(kwargs: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):
-        EquirectToFisheye(FisheyeCamera(16, 16), **kwargs)
+        EquirectToFisheye(ideal_camera(16, 16), **kwargs)
 
 
 def test_bad_panorama_shape_and_mode_are_named() -> None:
-    remap = EquirectToFisheye(FisheyeCamera(16, 16), 8)
+    remap = EquirectToFisheye(ideal_camera(16, 16), 8)
     with pytest.raises(ValueError, match=r"erp must have shape \[C, 8, 16\]"):
         remap(torch.zeros(8, 16))
     with pytest.raises(ValueError, match="mode"):
@@ -240,7 +240,7 @@ def test_bad_panorama_shape_and_mode_are_named() -> None:
 
 
 def test_range_and_z_depth_convert_both_ways() -> None:
-    camera = FisheyeCamera(32, 32)
+    camera = ideal_camera(32, 32)
     rays = camera.ray_grid(torch.float64)
     rng = torch.from_numpy(np.random.default_rng(1).uniform(1, 50, (2, 32, 32)))
     z = range_to_z_depth(rng, rays)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, LidarSpec
+from airfisheye_bench.geometry import CAM_FROM_FLU, CameraModel, LidarSpec, ideal_camera
 from airfisheye_bench.geometry.lidar_density import (
     BeamSubset,
     beam_pixels,
@@ -69,7 +69,7 @@ def test_the_subset_covers_the_rings_as_the_paper_sensor_does() -> None:
     """Geometrically (every beam returns): pixels hit per pixel of the image circle, by ring, at 64^2 and 128^2
     against the paper's 1536^2 (an equidistant ring holds pi f^2 (theta_hi^2 - theta_lo^2) pixels)."""
 
-    def coverage(spec: LidarSpec, camera: FisheyeCamera, subset: BeamSubset | None) -> np.ndarray:
+    def coverage(spec: LidarSpec, camera: CameraModel, subset: BeamSubset | None) -> np.ndarray:
         hit = beam_pixels(spec, camera, np.asarray(CAM_FROM_FLU), subset)
         theta = torch.acos(camera.unproject(hit.double())[:, 2].clamp(-1, 1))
         edges = np.radians(DEFAULT_RING_EDGES_DEG)
@@ -80,5 +80,5 @@ def test_the_subset_covers_the_rings_as_the_paper_sensor_does() -> None:
     paper = coverage(LidarSpec(), paper_camera(), None)
     assert paper == pytest.approx([0.10, 0.063, 0.036, 0.028], abs=0.005)  # a few per cent, centre to rim
     for spec, size in ((QUICKSTART, 128), (TINY, 64)):
-        served = coverage(spec, FisheyeCamera(size, size), paper_density_subset(spec, size))
+        served = coverage(spec, ideal_camera(size, size), paper_density_subset(spec, size))
         np.testing.assert_allclose(served, paper, rtol=0.25)

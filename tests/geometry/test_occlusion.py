@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
+from airfisheye_bench.geometry import CAM_FROM_FLU, euler_to_matrix, ideal_camera, make_transform
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import layout_from_angles
 from airfisheye_bench.geometry.occlusion import (
@@ -22,7 +22,7 @@ from airfisheye_bench.geometry.occlusion.ordering import layout_numba
 from tests.helpers.occlusion_scenes import cast_scan, ray_box_entry, rig, seen_from
 
 SPEC = LidarSpec(channels=32, points_per_channel=512)  # 270 x (-45..15) deg, a quarter of the paper's density
-CAMERA = FisheyeCamera(512, 512, fov_deg=190.0)
+CAMERA = ideal_camera(512, 512, fov_deg=190.0)
 # LiDAR frame (x forward, y left, z up): a wall 20 m ahead, a box 8-10 m ahead, the ground 5 m below.
 BOX_AND_WALL = np.array(
     [
@@ -205,7 +205,7 @@ def test_fast_equals_reference_on_random_scans(seed: int) -> None:
         hfov_deg=float(rng.choice([120.0, 270.0, 360.0])),
         vfov_deg=(-30.0, 20.0),
     )
-    camera = FisheyeCamera(96, 96, fov_deg=float(rng.choice([150.0, 190.0, 240.0])))
+    camera = ideal_camera(96, 96, fov_deg=float(rng.choice([150.0, 190.0, 240.0])))
     points = with_strays(random_scan(spec, rng, collisions=seed % 2 == 0), spec, rng)
     _, T = rig(rng.normal(0.0, 0.5, 3), float(rng.uniform(-30.0, 30.0)))
     for options in OPTION_SETS:
@@ -247,7 +247,7 @@ def test_numba_equals_vectorised_on_a_paper_size_scan() -> None:
     points = cast_scan(spec, structured_scene(4))
     points = points[np.random.default_rng(3).random(len(points)) < 0.9]  # dropped returns
     _, T = rig((0.1, 0.3, -0.4), 20.0)
-    camera = FisheyeCamera(256, 256, fov_deg=100.0)
+    camera = ideal_camera(256, 256, fov_deg=100.0)
     for options in (OPTION_SETS[2], OPTION_SETS[3], OPTION_SETS[0]):  # the literal reading last
         expected = ordering_mask(points, T, camera, spec, "vectorised", **options)
         np.testing.assert_array_equal(
@@ -473,7 +473,7 @@ def test_a_360_degree_scan_gives_the_same_mask_wherever_its_seam_falls() -> None
             t = np.minimum(ray_box_entry(np.zeros(3), dirs, box), 10.0)
             R_cam = CAM_FROM_FLU @ R.T
             T = make_transform(R_cam, -R_cam @ (R @ np.asarray(camera)))
-            masks.append(occlusion_mask(dirs * t[:, None], T, FisheyeCamera(512, 512), spec))
+            masks.append(occlusion_mask(dirs * t[:, None], T, ideal_camera(512, 512), spec))
         assert (masks[0] == masks[1]).all(), (centre, half, camera)
 
 
@@ -481,7 +481,7 @@ def test_a_360_degree_scan_gives_the_same_mask_wherever_its_seam_falls() -> None
 def test_mirrored_depth_map_is_the_mirrored_scene_seen_by_the_camera(cx: float) -> None:
     """``mirror=True`` writes each point where the camera would see its mirror image (x -> -x in the camera
     frame), for a centred, an integer and an arbitrary off-centre principal point."""
-    camera = FisheyeCamera(64, 64, cx=cx)
+    camera = ideal_camera(64, 64, cx=cx)
     T = make_transform(CAM_FROM_FLU, np.array([0.1, -0.2, 0.05]))
     rng = np.random.default_rng(4)
     points = rng.normal(size=(3000, 3)) * np.array([20.0, 20.0, 5.0])

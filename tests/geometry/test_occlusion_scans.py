@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 from airfisheye_bench.benchmarks import lidar_scene
-from airfisheye_bench.geometry import FisheyeCamera
+from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_layout import organize_scan
 from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_mask, ordering_reference
 from tests.helpers.occlusion_scenes import rig, seen_from
 
 PAPER = LidarSpec()  # 64 x 2048, 270 deg
-CAMERA = FisheyeCamera(512, 512, fov_deg=190.0)
+CAMERA = ideal_camera(512, 512, fov_deg=190.0)
 CAMERA_OFFSET = (0.0, 0.6, 0.4)  # 0.6 m beside (left) and 0.4 m above the LiDAR, looking along its x axis
 BENCH = lidar_scene  # one definition of the scene and scan variants, shared with the benchmark
 # LiDAR frame (x forward, y left, z up): a wall 20 m ahead, three boxes 5-14 m ahead, the ground 3 m below.

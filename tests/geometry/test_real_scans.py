@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from airfisheye_bench.geometry import CAM_FROM_FLU, FisheyeCamera, euler_to_matrix, make_transform
+from airfisheye_bench.geometry import CAM_FROM_FLU, euler_to_matrix, ideal_camera, make_transform
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import channels_exhaustive, organize_scan, rings_from_elevation
 from airfisheye_bench.geometry.occlusion import occlusion_mask
@@ -120,7 +120,7 @@ def test_ordering_keeps_the_same_points_with_estimated_rings(tmp_path: Path) -> 
     centre = np.array([0.0, 0.3, 0.1])
     R = (euler_to_matrix(0.0, math.radians(15.0), 0.0) @ CAM_FROM_FLU.T).T
     T = make_transform(R, -R @ centre)
-    camera = FisheyeCamera(512, 512, fov_deg=190.0)
+    camera = ideal_camera(512, 512, fov_deg=190.0)
     with_truth = occlusion_mask(pts, T, camera, HDL64E, rings=true)
     with_estimate = occlusion_mask(pts, T, camera, HDL64E, rings=est)
     in_view = occlusion_mask(pts, T, camera, HDL64E, method="none")

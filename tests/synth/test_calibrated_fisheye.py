@@ -14,7 +14,7 @@ import pytest
 import torch
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
+from airfisheye_bench.geometry import CubemapToFisheye, ideal_camera
 from airfisheye_bench.io import DatasetReader
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.synth import cli
@@ -70,7 +70,7 @@ def test_generated_fisheye_looks_along_the_calibrated_rays(kitti_dataset) -> Non
     err, agree = _remap_vs_raycast(reader, lens, sample_ids)
     assert err < 0.02 and agree > 0.85
     # ...and not what another lens (the preset's own 190-degree equidistant fisheye) would show.
-    other_err, other_agree = _remap_vs_raycast(reader, FisheyeCamera(64, 64, fov_deg=190.0), sample_ids)
+    other_err, other_agree = _remap_vs_raycast(reader, ideal_camera(64, 64, fov_deg=190.0), sample_ids)
     assert other_err > 2 * err and other_agree < agree - 0.05
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from airfisheye_bench.geometry import CubemapToFisheye, EquirectToFisheye, FisheyeCamera
+from airfisheye_bench.geometry import CubemapToFisheye, EquirectToFisheye, ideal_camera
 from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, euler_to_matrix
 from airfisheye_bench.synth.scene import Lighting, Scene
 from airfisheye_bench.synth.sensors import render_cube_faces, render_erp, render_fisheye
@@ -33,7 +33,7 @@ def rendered() -> dict[str, np.ndarray]:
     T = np.eye(4)
     T[:3, :3] = R_world_body @ euler_to_matrix(0.0, np.radians(30.0), 0.0) @ CAM_FROM_FLU.T
     T[:3, 3] = (0.0, 0.0, 25.0)
-    camera = FisheyeCamera(SIZE, SIZE)
+    camera = ideal_camera(SIZE, SIZE)
     _, cube_seg, cube_depth = render_cube_faces(scene, Lighting(), T, FACE_SIZE)
     _, erp_seg, erp_depth = render_erp(scene, Lighting(), T, ERP_HEIGHT)
     _, ray_seg, ray_depth = render_fisheye(scene, Lighting(), T, camera)

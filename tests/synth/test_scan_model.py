@@ -100,7 +100,9 @@ def test_existing_presets_keep_their_identity_and_the_occlusion_preset_round_tri
     for name, cfg in PRESETS.items():
         d = cfg.to_dict()
         assert SynthConfig.from_dict(d) == cfg, name
-        if not name.startswith("occlusion"):  # ideal scans: the scan fields are not recorded (identity unchanged)
+        if not name.startswith(
+            "occlusion"
+        ):  # ideal scans: the scan fields are not recorded (identity unchanged)
             assert cfg.scan_model().ideal and not any(k.startswith("lidar_phase") for k in d), name
     occ = get_preset("occlusion")
     assert not occ.scan_model().ideal and occ.lidar_points_per_channel == 2048 and occ.fisheye_size == 512

@@ -1,6 +1,8 @@
 """Camera models: one interface (:class:`CameraModel`), one module per family, one table (``CAMERA_MODELS``).
 
-See docs/design.md, "Fisheye camera", for every model's parameters and the code it follows.
+Each model declares its parameters once (``declaration``, ``params.py``); ``camera_from_dict`` builds any model from
+its flat dict, ``ideal_camera`` the ideal lenses by the config's spelling. See docs/design.md, "Fisheye camera", for
+every model's parameters and the code it follows, and "Adding a camera model".
 """
 
 from airfisheye_bench.geometry.cameras.base import CameraModel
@@ -8,6 +10,7 @@ from airfisheye_bench.geometry.cameras.division import Division
 from airfisheye_bench.geometry.cameras.double_sphere import DoubleSphere
 from airfisheye_bench.geometry.cameras.eucm import EUCM
 from airfisheye_bench.geometry.cameras.fov import Fov
+from airfisheye_bench.geometry.cameras.ideal import LENS_MODELS, ideal_camera
 from airfisheye_bench.geometry.cameras.kannala_brandt import KannalaBrandt
 from airfisheye_bench.geometry.cameras.ocam import Ocam
 from airfisheye_bench.geometry.cameras.pinhole_radtan import PinholeRadtan
@@ -26,6 +29,7 @@ from airfisheye_bench.geometry.cameras.unified import Unified
 __all__ = [
     "CAMERA_MODELS",
     "EUCM",
+    "LENS_MODELS",
     "CameraModel",
     "Division",
     "DoubleSphere",
@@ -43,4 +47,5 @@ __all__ = [
     "ThinPrismFisheye",
     "Unified",
     "camera_from_dict",
+    "ideal_camera",
 ]

@@ -1,9 +1,11 @@
 """The interface every camera model implements (docs/design.md, "Fisheye camera").
 
 A model is a small class of one shape, as in COLMAP's ``sensor/models.h`` and basalt's ``camera/`` folder: its
-parameters, a float64 projection ``_project(x, y, z) -> (u, v, in_region)`` and a float64 back-projection
-``_unproject(u, v) -> (x, y, z)`` (NaN where no ray exists). :class:`CameraModel` wraps both with the numpy/torch
-plumbing, the field-of-view limit, the per-pixel grids the rest of the project uses, and the flat ``to_dict``.
+parameters, declared once (``declaration``, a tuple of :class:`~airfisheye_bench.geometry.cameras.params.Param`), a
+float64 projection ``_project(x, y, z) -> (u, v, in_region)`` and a float64 back-projection ``_unproject(u, v) ->
+(x, y, z)`` (NaN where no ray exists). :class:`CameraModel` derives the constructor, ``params``, ``defaults``,
+``to_dict``, ``flat_dict`` and ``resized()`` from the declaration, and wraps the two maps with the numpy/torch
+plumbing, the field-of-view limit and the per-pixel grids the rest of the project uses.
 
 Conventions: camera frame x right, y down, z forward; the centre of pixel (row i, col j) is at ``(u=j, v=i)``.
 ``project`` reports ``valid`` = "the point is in the model's valid region and within ``fov_deg``"; whether its
@@ -14,7 +16,9 @@ where the model has no ray.
 
 from __future__ import annotations
 
+import inspect
 import math
+from collections.abc import Sequence
 from functools import cached_property
 from typing import Any, ClassVar
 
@@ -22,37 +26,43 @@ import torch
 
 from airfisheye_bench.geometry import portable
 from airfisheye_bench.geometry._arrays import ArrayLike, as_tensor, back, check_last_dim
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, Param
 
 #: Step (radians) of the central differences behind :meth:`CameraModel.pixels_per_radian`.
 _PPR_STEP = 1e-6
-
-
-def scaled_centre(cx: float, cy: float, sx: float, sy: float) -> dict[str, float]:
-    """The principal point of a sensor scaled by ``sx, sy``: pixel centres scale about the image corner
-    ``(-0.5, -0.5)``, ``c' = (c + 0.5) s - 0.5``.
-
-    Example:
-        >>> scaled_centre(255.5, 255.5, 0.5, 0.5)
-        {'cx': 127.5, 'cy': 127.5}
-    """
-    return {"cx": (cx + 0.5) * sx - 0.5, "cy": (cy + 0.5) * sy - 0.5}
+_ARG = inspect.Parameter.POSITIONAL_OR_KEYWORD
 
 
 class CameraModel:
-    """Base class of the camera models; subclasses set ``model`` and ``params`` and implement the two maps.
+    """Base class of the camera models; a subclass sets ``model`` and ``declaration``, may add ``_setup`` (derived
+    quantities and checks across parameters) and implements the two maps.
 
-    Subclasses store every name of ``params`` as an attribute (``to_dict`` reads them back) and call
-    ``super().__init__(width, height, fov_deg)`` first.
+    The constructor is the declaration's: ``Model(width, height, <params in declaration order>)``, each parameter by
+    position or name, defaults filled in, each value checked and stored as an attribute of its name; then
+    ``_setup()`` runs. ``inspect.signature(Model)`` shows it.
     """
 
     #: Registry name (``CAMERA_MODELS`` key, the ``model`` entry of ``to_dict``).
     model: ClassVar[str] = ""
-    #: Parameter names in ``to_dict`` order, besides ``model``, ``width`` and ``height``.
-    params: ClassVar[tuple[str, ...]] = ()
-    #: Parameters that may be left out of a dict, with their defaults.
+    #: The model's parameters, each declared once, in ``to_dict`` order (besides ``model``, ``width``, ``height``).
+    declaration: ClassVar[tuple[Param, ...]] = (FOV_DEG,)
+    #: Parameter names in ``to_dict`` order (from ``declaration``).
+    params: ClassVar[tuple[str, ...]] = ("fov_deg",)
+    #: Parameters that may be left out, with their defaults (from ``declaration``).
     defaults: ClassVar[dict[str, Any]] = {"fov_deg": None}
+    #: The constructor's signature (from ``declaration``).
+    __signature__: ClassVar[inspect.Signature]
 
-    def __init__(self, width: int, height: int, fov_deg: float | None = None) -> None:
+    width: int
+    height: int
+    fov_deg: float | None
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        _derive_from_declaration(cls)
+
+    def __init__(self, width: int, height: int, *args: Any, **kwargs: Any) -> None:
+        values = self._bind(width, height, args, kwargs)
         if (
             isinstance(width, bool)
             or isinstance(height, bool)
@@ -62,12 +72,38 @@ class CameraModel:
             raise ValueError(f"width and height must be positive integers, got {width}x{height}")
         if width <= 0 or height <= 0:
             raise ValueError(f"width and height must be positive integers, got {width}x{height}")
-        if fov_deg is not None and not (math.isfinite(fov_deg) and 0.0 < fov_deg <= 360.0):
-            raise ValueError(f"fov_deg must be in (0, 360] or None, got {fov_deg}")
         self.width = int(width)
         self.height = int(height)
-        self.fov_deg = None if fov_deg is None else float(fov_deg)
+        for p in self.declaration:
+            setattr(self, p.name, p.check(p.name, values[p.name]))
         self._grid_cache: dict[tuple[torch.dtype, str], torch.Tensor] = {}
+        self._setup()
+
+    @classmethod
+    def _bind(cls, width: Any, height: Any, args: tuple, kwargs: dict[str, Any]) -> dict[str, Any]:
+        """Every parameter's given or default value; ``TypeError`` for a missing or unknown one, as a def's."""
+        bound = cls.__signature__.bind(width, height, *args, **kwargs)
+        bound.apply_defaults()
+        return bound.arguments
+
+    def _setup(self) -> None:
+        """Derived quantities and checks across parameters, once every parameter is checked and set."""
+
+    @classmethod
+    def flat_dict(cls, width: int, height: int, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """The flat dict of the camera these constructor arguments describe, without building or checking it
+        (``camera_from_dict`` does): what the calibration readers return. Numbers become floats, lists lists of
+        floats, and defaults are filled in as ``to_dict`` writes them.
+
+        Example:
+            >>> from airfisheye_bench.geometry.cameras import KannalaBrandt
+            >>> d = KannalaBrandt.flat_dict(512, 512, 190.0, 190.1, 254.9, 256.8, k1=0.01)
+            >>> d["model"], d["k1"], d["k4"], list(d)[3:]
+            ('kannala_brandt', 0.01, 0.0, ['fx', 'fy', 'cx', 'cy', 'k1', 'k2', 'k3', 'k4', 'skew'])
+        """
+        values = cls._bind(width, height, args, kwargs)
+        plain = {p.name: _plain(values[p.name]) for p in cls.declaration}
+        return cls._flat(int(width), int(height), plain)
 
     # ------------------------------------------------------------------ the model (float64 tensors)
     def _project(self, x: torch.Tensor, y: torch.Tensor, z: torch.Tensor) -> tuple[torch.Tensor, ...]:
@@ -233,15 +269,17 @@ class CameraModel:
 
     # ------------------------------------------------------------------ identity and serialisation
     def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        """Parameters of the same lens on a sensor scaled by ``sx, sy``: by default the pinhole intrinsics
-        ``fx, fy, cx, cy`` that most models share; a model with other scaled parameters overrides it."""
-        return {"fx": self.fx * sx, "fy": self.fy * sy, **scaled_centre(self.cx, self.cy, sx, sy)}
+        """The parameters that change on a sensor scaled by ``sx, sy`` (``Param.scale``), with their new values."""
+        return {
+            p.name: p.scaled(getattr(self, p.name), sx, sy) for p in self.declaration if p.scale is not None
+        }
 
     def resized(self, width: int, height: int) -> CameraModel:
         """The same lens seen by a sensor of another resolution (intrinsics scaled with the image).
 
-        Pixel centres scale about the image corner ``(-0.5, -0.5)``: ``c' = (c + 0.5) s - 0.5``, focal lengths by
-        ``s``; the aspect ratio must be kept (a change of aspect would stretch the lens).
+        Each parameter follows its declared rule (``Param.scale``): pixel centres scale about the image corner
+        ``(-0.5, -0.5)``, ``c' = (c + 0.5) s - 0.5``, focal lengths (pixel lengths) by ``s``; the aspect ratio must be
+        kept (a change of aspect would stretch the lens).
         """
         sx, sy = width / self.width, height / self.height
         if not math.isclose(sx, sy, rel_tol=1e-9):
@@ -272,30 +310,45 @@ class CameraModel:
     def to_dict(self) -> dict[str, Any]:
         """Flat plain-Python description ``{"model", "width", "height", <params>}`` (``calib.yaml``, ONNX
         metadata); ``camera_from_dict`` inverts it. Optional parameters left at ``None`` are omitted."""
-        d: dict[str, Any] = {"model": self.model, "width": self.width, "height": self.height}
-        for name, value in self._param_dict().items():
-            if value is None and name in self.defaults:
+        return self._flat(self.width, self.height, self._param_dict())
+
+    @classmethod
+    def _flat(cls, width: int, height: int, values: dict[str, Any]) -> dict[str, Any]:
+        d: dict[str, Any] = {"model": cls.model, "width": width, "height": height}
+        for name, value in values.items():
+            if value is None and name in cls.defaults:
                 continue
             d[name] = list(value) if isinstance(value, tuple) else value
         return d
 
 
-def finite_float(name: str, value: Any, positive: bool = False) -> float:
-    """``value`` as a float, or ``ValueError`` naming the parameter."""
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(out) or (positive and out <= 0):
-        raise ValueError(f"{name} must be a finite{' positive' if positive else ''} number, got {value!r}")
-    return out
+def _derive_from_declaration(cls: type[CameraModel]) -> None:
+    """``params``, ``defaults`` and the constructor's signature of a model, from its ``declaration``."""
+    names = [p.name for p in cls.declaration]
+    if len(set(names)) != len(names) or {"model", "width", "height"} & set(names) or "fov_deg" not in names:
+        raise TypeError(
+            f"{cls.__name__}.declaration: unique names, fov_deg among them (the field-of-view limit), and none of "
+            f"model, width, height; got {names}"
+        )
+    cls.params = tuple(names)
+    cls.defaults = {p.name: p.default for p in cls.declaration if not p.required}
+    # Signature() refuses a required parameter after an optional one, as a def would: at import.
+    cls.__signature__ = inspect.Signature(
+        [inspect.Parameter("width", _ARG), inspect.Parameter("height", _ARG)]
+        + [inspect.Parameter(p.name, _ARG, default=p.default) for p in cls.declaration]
+    )
 
 
-def float_list(name: str, values: Any, min_len: int = 1) -> tuple[float, ...]:
-    """A sequence of finite floats as a tuple, or ``ValueError`` naming the parameter."""
-    if isinstance(values, str) or not hasattr(values, "__len__") or len(values) < min_len:
-        raise ValueError(f"{name} must be a list of at least {min_len} numbers, got {values!r}")
-    return tuple(finite_float(f"{name}[{i}]", v) for i, v in enumerate(values))
+_derive_from_declaration(CameraModel)
 
 
-__all__ = ["CameraModel", "finite_float", "float_list"]
+def _plain(value: Any) -> Any:
+    """A parameter's value as plain data: a float, a list of floats, or ``None``."""
+    if value is None:
+        return None
+    if isinstance(value, Sequence) and not isinstance(value, str):
+        return [float(v) for v in value]
+    return float(value)
+
+
+__all__ = ["CameraModel"]

@@ -18,11 +18,10 @@ github:colmap/colmap ``src/colmap/sensor/models.h`` (``DivisionCameraModel``): a
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import torch
 
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param
 
 
 class Division(CameraModel):
@@ -37,23 +36,7 @@ class Division(CameraModel):
     """
 
     model = "division"
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "k", "fov_deg")
-
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        k: float,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.k = finite_float("k", k)
+    declaration = (*PINHOLE, Param("k"), FOV_DEG)
 
     def _project(self, x, y, z):
         rho2 = x * x + y * y

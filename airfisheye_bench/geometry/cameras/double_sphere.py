@@ -10,11 +10,11 @@ basalt) only where its ray lies in the projection's region, so that the two agre
 from __future__ import annotations
 
 import math
-from typing import ClassVar
 
 import torch
 
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param, interval
 
 
 class DoubleSphere(CameraModel):
@@ -29,27 +29,9 @@ class DoubleSphere(CameraModel):
     """
 
     model = "double_sphere"
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "xi", "alpha", "fov_deg")
+    declaration = (*PINHOLE, Param("xi"), Param("alpha", check=interval(0.0, 1.0)), FOV_DEG)
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        xi: float,
-        alpha: float,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.xi = finite_float("xi", xi)
-        self.alpha = finite_float("alpha", alpha)
-        if not 0.0 <= self.alpha <= 1.0:
-            raise ValueError(f"alpha must be in [0, 1], got {alpha}")
+    def _setup(self) -> None:
         w1 = (1.0 - self.alpha) / self.alpha if self.alpha > 0.5 else self.alpha / (1.0 - self.alpha)
         self._w2 = (w1 + self.xi) / math.sqrt(2.0 * w1 * self.xi + self.xi * self.xi + 1.0)
 

@@ -8,11 +8,10 @@ Closed forms as in basalt's ``include/basalt/camera/extended_camera.hpp``: ``rho
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import torch
 
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param, interval, positive
 
 
 class EUCM(CameraModel):
@@ -27,27 +26,9 @@ class EUCM(CameraModel):
     """
 
     model = "eucm"
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "alpha", "beta", "fov_deg")
+    declaration = (*PINHOLE, Param("alpha", check=interval(0.0, 1.0)), Param("beta", check=positive), FOV_DEG)
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        alpha: float,
-        beta: float,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.alpha = finite_float("alpha", alpha)
-        self.beta = finite_float("beta", beta, positive=True)
-        if not 0.0 <= self.alpha <= 1.0:
-            raise ValueError(f"alpha must be in [0, 1], got {alpha}")
+    def _setup(self) -> None:
         self._w = (1.0 - self.alpha) / self.alpha if self.alpha > 0.5 else self.alpha / (1.0 - self.alpha)
 
     def _project(self, x, y, z):

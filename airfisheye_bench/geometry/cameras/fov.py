@@ -11,11 +11,11 @@ and tends to the pinhole as ``omega -> 0``: ``0 < omega < pi`` here (readers map
 from __future__ import annotations
 
 import math
-from typing import ClassVar
 
 import torch
 
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param, interval
 
 
 class Fov(CameraModel):
@@ -30,25 +30,13 @@ class Fov(CameraModel):
     """
 
     model = "fov"
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "omega", "fov_deg")
+    declaration = (
+        *PINHOLE,
+        Param("omega", check=interval(0.0, math.pi, open_lo=True, open_hi=True, text="(0, pi)")),
+        FOV_DEG,
+    )
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        omega: float,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.omega = finite_float("omega", omega, positive=True)
-        if self.omega >= math.pi:
-            raise ValueError(f"omega must be in (0, pi), got {omega}")
+    def _setup(self) -> None:
         self._two_tan = 2.0 * math.tan(self.omega / 2.0)
 
     def _project(self, x, y, z):

@@ -13,7 +13,7 @@ bounded Newton solver of ``_solve.py`` and is NaN beyond.
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from typing import Any
 
 import torch
 
@@ -24,7 +24,8 @@ from airfisheye_bench.geometry.cameras._solve import (
     frame_reach,
     increasing_limit,
 )
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param, finite_float, zeros
 
 
 class KannalaBrandt(CameraModel):
@@ -50,38 +51,9 @@ class KannalaBrandt(CameraModel):
     """
 
     model = "kannala_brandt"
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4", "skew", "fov_deg")
-    defaults: ClassVar[dict[str, Any]] = {
-        "k1": 0.0,
-        "k2": 0.0,
-        "k3": 0.0,
-        "k4": 0.0,
-        "skew": 0.0,
-        "fov_deg": None,
-    }
+    declaration = (*PINHOLE, *zeros("k1", "k2", "k3", "k4"), Param("skew", 0.0), FOV_DEG)
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        k1: float = 0.0,
-        k2: float = 0.0,
-        k3: float = 0.0,
-        k4: float = 0.0,
-        skew: float = 0.0,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.k1, self.k2, self.k3, self.k4 = (
-            finite_float(n, v) for n, v in zip(("k1", "k2", "k3", "k4"), (k1, k2, k3, k4), strict=True)
-        )
-        self.skew = finite_float("skew", skew)
+    def _setup(self) -> None:
         k1, k2, k3, k4 = self.k
         monotone = increasing_limit(
             self._dtheta_d, math.pi, poly=(1.0, 0.0, 3 * k1, 0.0, 5 * k2, 0.0, 7 * k3, 0.0, 9 * k4)
@@ -175,19 +147,7 @@ class KannalaBrandt(CameraModel):
             focal = (min(int(width), int(height)) / 2.0) / r_unit
         if not (isinstance(focal, int | float) and math.isfinite(focal) and focal > 0):
             raise ValueError(f"focal must be a positive number of pixels, got {focal}")
-        return cls(
-            width,
-            height,
-            fx=focal,
-            fy=focal,
-            cx=cx,
-            cy=cy,
-            k1=k[0],
-            k2=k[1],
-            k3=k[2],
-            k4=k[3],
-            fov_deg=fov_deg,
-        )
+        return cls(width, height, focal, focal, cx, cy, *k, fov_deg=fov_deg)
 
 
 __all__ = ["KannalaBrandt"]

@@ -20,7 +20,6 @@ never a nominal 180 deg; ``unproject`` is NaN outside it.
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
 
 import numpy as np
 import torch
@@ -34,7 +33,13 @@ from airfisheye_bench.geometry.cameras._solve import (
     polyder,
     polyval,
 )
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, float_list, scaled_centre
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import CX, CY, FOV_DEG, Param, numbers
+
+
+def _scaled_cam2world(cam2world: tuple[float, ...], sx: float, sy: float) -> list[float]:
+    # Radii scale by s: rho'(theta) = s rho(theta) and r' = s r, so cam2world's a_i scale by s^(1 - i).
+    return [a * sx ** (1 - i) for i, a in enumerate(cam2world)]
 
 
 class Ocam(CameraModel):
@@ -50,30 +55,22 @@ class Ocam(CameraModel):
     """
 
     model = "ocam"
-    params: ClassVar[tuple[str, ...]] = ("cx", "cy", "c", "d", "e", "cam2world", "world2cam", "fov_deg")
+    declaration = (
+        CX,
+        CY,
+        Param("c"),
+        Param("d"),
+        Param("e"),
+        Param("cam2world", check=numbers(2), scale=_scaled_cam2world),
+        Param("world2cam", check=numbers(2), scale="fx"),  # radii in pixels
+        FOV_DEG,
+    )
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        cx: float,
-        cy: float,
-        c: float,
-        d: float,
-        e: float,
-        cam2world: Any,
-        world2cam: Any,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.c, self.d, self.e = finite_float("c", c), finite_float("d", d), finite_float("e", e)
+    def _setup(self) -> None:
         if self.c - self.d * self.e == 0:
             raise ValueError(
-                f"the affine matrix [[c, d], [e, 1]] must be invertible, got c={c}, d={d}, e={e}"
+                f"the affine matrix [[c, d], [e, 1]] must be invertible, got c={self.c}, d={self.d}, e={self.e}"
             )
-        self.cam2world = float_list("cam2world", cam2world, 2)
-        self.world2cam = float_list("world2cam", world2cam, 2)
         self._dw2c = polyder(self.world2cam)
         # The valid region is where world2cam is invertible: from where its radius is >= 0 (a fit may give a
         # slightly negative radius on the axis, which would mirror a ray to the far side of the centre) to where
@@ -162,14 +159,6 @@ class Ocam(CameraModel):
         zp = polyval(self.cam2world, torch.hypot(gx, gy))
         rays = torch.stack([gx, gy, -zp], -1)  # OCamCalib's z looks backwards
         return rays / rays.norm(dim=-1, keepdim=True)
-
-    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        # Radii scale by s: rho'(theta) = s rho(theta) and r' = s r, so cam2world's a_i scale by s^(1 - i).
-        return {
-            **scaled_centre(self.cx, self.cy, sx, sy),
-            "cam2world": [a * sx ** (1 - i) for i, a in enumerate(self.cam2world)],
-            "world2cam": [b * sx for b in self.world2cam],
-        }
 
 
 __all__ = ["Ocam"]

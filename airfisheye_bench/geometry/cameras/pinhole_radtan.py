@@ -8,10 +8,9 @@ distortion is one-to-one (the radial factor increases and the tangential terms d
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
-
 from airfisheye_bench.geometry.cameras._solve import RadtanInverse, radial_limit, radtan
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, zeros
 
 
 class PinholeRadtan(CameraModel):
@@ -26,36 +25,9 @@ class PinholeRadtan(CameraModel):
     """
 
     model = "pinhole_radtan"
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "fov_deg")
-    defaults: ClassVar[dict[str, Any]] = {
-        "k1": 0.0,
-        "k2": 0.0,
-        "p1": 0.0,
-        "p2": 0.0,
-        "k3": 0.0,
-        "fov_deg": None,
-    }
+    declaration = (*PINHOLE, *zeros("k1", "k2", "p1", "p2", "k3"), FOV_DEG)
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        k1: float = 0.0,
-        k2: float = 0.0,
-        p1: float = 0.0,
-        p2: float = 0.0,
-        k3: float = 0.0,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.k1, self.k2, self.k3 = finite_float("k1", k1), finite_float("k2", k2), finite_float("k3", k3)
-        self.p1, self.p2 = finite_float("p1", p1), finite_float("p2", p2)
+    def _setup(self) -> None:
         self._m_max = radial_limit(self.k1, self.k2, self.k3)
         self._distorted = any(c != 0.0 for c in (self.k1, self.k2, self.p1, self.p2, self.k3))
         self._undistort = RadtanInverse(self.k1, self.k2, self.p1, self.p2, self.k3, r_max=self._m_max)

@@ -20,7 +20,8 @@ from typing import Any, ClassVar
 
 import torch
 
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, scaled_centre
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import Param, field_of_view, number, optional, positive
 
 
 class RadialCamera(CameraModel):
@@ -42,36 +43,32 @@ class RadialCamera(CameraModel):
         ([255.5, 255.5], [True, True])
     """
 
-    params: ClassVar[tuple[str, ...]] = ("fov_deg", "cx", "cy", "focal")
-    defaults: ClassVar[dict[str, Any]] = {"fov_deg": 190.0, "cx": None, "cy": None, "focal": None}
+    # fov_deg is the image circle here, never None; the others default from it and the image size (_setup).
+    declaration = (
+        Param("fov_deg", 190.0, check=field_of_view),
+        Param("cx", None, check=optional(number), scale="cx"),
+        Param("cy", None, check=optional(number), scale="cy"),
+        Param("focal", None, check=optional(positive), scale="fx"),
+    )
     #: Largest half-FOV the model represents (radians) and whether it is excluded.
     max_model_theta: ClassVar[float] = math.pi
     open_limit: ClassVar[bool] = False
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fov_deg: float = 190.0,
-        cx: float | None = None,
-        cy: float | None = None,
-        focal: float | None = None,
-    ) -> None:
-        fov_deg = finite_float("fov_deg", fov_deg)
-        super().__init__(width, height, fov_deg)
+    fov_deg: float
+
+    def _setup(self) -> None:
         limit = math.degrees(2 * self.max_model_theta)
-        if fov_deg > limit or (self.open_limit and fov_deg >= limit):
+        if self.fov_deg > limit or (self.open_limit and self.fov_deg >= limit):
             raise ValueError(
-                f"fov_deg={fov_deg} cannot be represented by the {self.model} model (maximum {limit:g} deg"
+                f"fov_deg={self.fov_deg} cannot be represented by the {self.model} model (maximum {limit:g} deg"
                 f"{', exclusive' if self.open_limit else ''})"
             )
-        self.cx = finite_float("cx", cx) if cx is not None else (self.width - 1) / 2.0
-        self.cy = finite_float("cy", cy) if cy is not None else (self.height - 1) / 2.0
-        if focal is None:
-            focal = (min(self.width, self.height) / 2.0) / self.radius(self.max_theta)
-        if not (isinstance(focal, int | float) and math.isfinite(focal) and focal > 0):
-            raise ValueError(f"focal must be a positive number of pixels, got {focal}")
-        self.focal = float(focal)
+        if self.cx is None:
+            self.cx = (self.width - 1) / 2.0
+        if self.cy is None:
+            self.cy = (self.height - 1) / 2.0
+        if self.focal is None:
+            self.focal = (min(self.width, self.height) / 2.0) / self.radius(self.max_theta)
 
     # r(theta) / f and its inverse, for floats and float64 tensors
     @staticmethod
@@ -99,9 +96,6 @@ class RadialCamera(CameraModel):
         s = torch.sin(theta) / r.clamp_min(1e-300)
         on_axis = r == 0
         return torch.where(on_axis, 0.0, s * dx), torch.where(on_axis, 0.0, s * dy), torch.cos(theta)
-
-    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        return {**scaled_centre(self.cx, self.cy, sx, sy), "focal": self.focal * sx}
 
 
 class Equidistant(RadialCamera):

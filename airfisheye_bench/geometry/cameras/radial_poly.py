@@ -12,7 +12,6 @@ around the image (``theta_limit``); back-projection inverts ``rho`` there by bou
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
 
 import torch
 
@@ -25,7 +24,8 @@ from airfisheye_bench.geometry.cameras._solve import (
     polyder,
     polyval,
 )
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float, scaled_centre
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, Param, positive
 
 
 class RadialPoly(CameraModel):
@@ -40,39 +40,21 @@ class RadialPoly(CameraModel):
     """
 
     model = "radial_poly"
-    params: ClassVar[tuple[str, ...]] = ("k1", "k2", "k3", "k4", "cx", "cy", "aspect_ratio", "fov_deg")
-    defaults: ClassVar[dict[str, Any]] = {
-        "k2": 0.0,
-        "k3": 0.0,
-        "k4": 0.0,
-        "aspect_ratio": 1.0,
-        "fov_deg": None,
-    }
+    declaration = (
+        Param("k1", scale="fx"),  # pixels per radian^i: pixel lengths
+        *(Param(name, 0.0, scale="fx") for name in ("k2", "k3", "k4")),
+        Param("cx", 0.0, scale="cx"),
+        Param("cy", 0.0, scale="cy"),
+        Param("aspect_ratio", 1.0, check=positive),
+        FOV_DEG,
+    )
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        k1: float,
-        k2: float = 0.0,
-        k3: float = 0.0,
-        k4: float = 0.0,
-        cx: float = 0.0,
-        cy: float = 0.0,
-        aspect_ratio: float = 1.0,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.k1, self.k2, self.k3, self.k4 = (
-            finite_float(n, v) for n, v in zip(("k1", "k2", "k3", "k4"), (k1, k2, k3, k4), strict=True)
-        )
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.aspect_ratio = finite_float("aspect_ratio", aspect_ratio, positive=True)
+    def _setup(self) -> None:
         self._coeffs = (0.0, self.k1, self.k2, self.k3, self.k4)
         self._dcoeffs = polyder(self._coeffs)
         monotone = increasing_limit(lambda t: polyval(self._dcoeffs, t), math.pi, poly=self._dcoeffs)
         if monotone <= 0:
-            raise ValueError(f"rho(theta) must increase from the optical axis (k1 > 0), got k1={k1}")
+            raise ValueError(f"rho(theta) must increase from the optical axis (k1 > 0), got k1={self.k1}")
         if self.fov_deg is not None and self.max_theta > monotone + 1e-12:
             raise ValueError(
                 f"rho(theta) stops increasing at {math.degrees(monotone):.1f} deg, below fov_deg/2="
@@ -111,15 +93,6 @@ class RadialPoly(CameraModel):
         s = torch.sin(theta) / r.clamp_min(1e-300)
         on_axis = r == 0
         return torch.where(on_axis, 0.0, s * gx), torch.where(on_axis, 0.0, s * gy), torch.cos(theta)
-
-    def _scaled_params(self, sx: float, sy: float) -> dict[str, Any]:
-        return {
-            "k1": self.k1 * sx,
-            "k2": self.k2 * sx,
-            "k3": self.k3 * sx,
-            "k4": self.k4 * sx,
-            **scaled_centre(self.cx, self.cy, sx, sy),
-        }
 
 
 __all__ = ["RadialPoly"]

@@ -59,15 +59,11 @@ def camera_from_dict(d: Mapping[str, Any]) -> CameraModel:
     cls = CAMERA_MODELS[name]
     kwargs = {k: v for k, v in d.items() if k != "model"}
     if cls is KannalaBrandt and _LEGACY_KB_KEYS & kwargs.keys():
-        allowed = {"width", "height", "fov_deg", "cx", "cy", "focal", "k"}
+        allowed = set(inspect.signature(KannalaBrandt.from_focal).parameters)
         _check_keys(name, kwargs, allowed, {"width", "height"})
         return KannalaBrandt.from_focal(**kwargs)
-    signature = inspect.signature(cls.__init__)
-    allowed = {p for p in signature.parameters if p != "self"}
-    required = {p.name for p in signature.parameters.values() if p.default is inspect.Parameter.empty} - {
-        "self"
-    }
-    _check_keys(name, kwargs, allowed, required)
+    required = {"width", "height", *(p.name for p in cls.declaration if p.required)}
+    _check_keys(name, kwargs, {"width", "height", *cls.params}, required)
     return cls(**kwargs)
 
 

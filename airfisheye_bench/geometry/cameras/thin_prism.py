@@ -17,7 +17,6 @@ wherever it does not reproduce the pixel or leaves the disc.
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
 
 import torch
 
@@ -30,32 +29,21 @@ from airfisheye_bench.geometry.cameras._solve import (
     one_to_one_radius,
     polyval,
 )
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, zeros
 
 
 class _ThetaPlaneDistortion(CameraModel):
-    """The shared part: ``fx, fy, cx, cy``, the plane of ``theta`` and its inverse; subclasses give the distortion
-    ``m -> m_d``, its Jacobian and its radial part's odd coefficients, and call :meth:`_setup` last."""
+    """The shared part: ``fx, fy, cx, cy``, the plane of ``theta`` and its inverse; subclasses declare ``fx, fy, cx,
+    cy``, their distortion coefficients and ``fov_deg``, and give the distortion ``m -> m_d``, its Jacobian and its
+    radial part's odd coefficients."""
 
-    #: The distortion coefficients, in COLMAP's order (besides fx, fy, cx, cy).
-    coefficients: ClassVar[tuple[str, ...]] = ()
+    @property
+    def coefficients(self) -> tuple[str, ...]:
+        """The distortion coefficients' names, in COLMAP's order (the parameters besides fx, fy, cx, cy, fov_deg)."""
+        return tuple(p.name for p in self.declaration if p not in (*PINHOLE, FOV_DEG))
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        fov_deg: float | None,
-        **k: float,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        for name in self.coefficients:
-            setattr(self, name, finite_float(name, k[name]))
+    def _setup(self) -> None:
         odd = self._radial_odd()  # theta_d = theta (c0 + c1 theta^2 + c2 theta^4 + ...)
         d_odd = tuple((2 * i + 1) * c for i, c in enumerate(odd))
 
@@ -132,31 +120,7 @@ class ThinPrismFisheye(_ThetaPlaneDistortion):
     """
 
     model = "thin_prism_fisheye"
-    coefficients: ClassVar[tuple[str, ...]] = ("k1", "k2", "p1", "p2", "k3", "k4", "sx1", "sy1")
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", *coefficients, "fov_deg")
-    defaults: ClassVar[dict[str, Any]] = {**dict.fromkeys(coefficients, 0.0), "fov_deg": None}
-
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        k1: float = 0.0,
-        k2: float = 0.0,
-        p1: float = 0.0,
-        p2: float = 0.0,
-        k3: float = 0.0,
-        k4: float = 0.0,
-        sx1: float = 0.0,
-        sy1: float = 0.0,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(
-            width, height, fx, fy, cx, cy, fov_deg, k1=k1, k2=k2, p1=p1, p2=p2, k3=k3, k4=k4, sx1=sx1, sy1=sy1
-        )
+    declaration = (*PINHOLE, *zeros("k1", "k2", "p1", "p2", "k3", "k4", "sx1", "sy1"), FOV_DEG)
 
     def _radial_odd(self) -> tuple[float, ...]:
         return (1.0, self.k1, self.k2, self.k3, self.k4)
@@ -197,37 +161,11 @@ class RadTanThinPrismFisheye(_ThetaPlaneDistortion):
     """
 
     model = "rad_tan_thin_prism_fisheye"
-    coefficients: ClassVar[tuple[str, ...]] = (
-        "k0", "k1", "k2", "k3", "k4", "k5", "p0", "p1", "s0", "s1", "s2", "s3",
-    )  # fmt: skip
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", *coefficients, "fov_deg")
-    defaults: ClassVar[dict[str, Any]] = {**dict.fromkeys(coefficients, 0.0), "fov_deg": None}
-
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        k0: float = 0.0,
-        k1: float = 0.0,
-        k2: float = 0.0,
-        k3: float = 0.0,
-        k4: float = 0.0,
-        k5: float = 0.0,
-        p0: float = 0.0,
-        p1: float = 0.0,
-        s0: float = 0.0,
-        s1: float = 0.0,
-        s2: float = 0.0,
-        s3: float = 0.0,
-        fov_deg: float | None = None,
-    ) -> None:
-        k = {"k0": k0, "k1": k1, "k2": k2, "k3": k3, "k4": k4, "k5": k5}
-        tangential = {"p0": p0, "p1": p1, "s0": s0, "s1": s1, "s2": s2, "s3": s3}
-        super().__init__(width, height, fx, fy, cx, cy, fov_deg, **k, **tangential)
+    declaration = (
+        *PINHOLE,
+        *zeros("k0", "k1", "k2", "k3", "k4", "k5", "p0", "p1", "s0", "s1", "s2", "s3"),
+        FOV_DEG,
+    )
 
     def _radial_odd(self) -> tuple[float, ...]:
         return (1.0, self.k0, self.k1, self.k2, self.k3, self.k4, self.k5)

@@ -14,12 +14,12 @@ closed form: ``ray = (f m_x, f m_y, f - xi)``, ``f = (xi + sqrt(1 + (1 - xi^2) |
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
 
 import torch
 
 from airfisheye_bench.geometry.cameras._solve import RadtanInverse, radial_limit, radtan
-from airfisheye_bench.geometry.cameras.base import CameraModel, finite_float
+from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param, interval, zeros
 
 
 class Unified(CameraModel):
@@ -36,32 +36,14 @@ class Unified(CameraModel):
     """
 
     model = "unified"
-    params: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "xi", "k1", "k2", "p1", "p2", "fov_deg")
-    defaults: ClassVar[dict[str, Any]] = {"k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0, "fov_deg": None}
+    declaration = (
+        *PINHOLE,
+        Param("xi", check=interval(0.0, math.inf, text="[0, inf) (the mirror parameter)")),
+        *zeros("k1", "k2", "p1", "p2"),
+        FOV_DEG,
+    )
 
-    def __init__(
-        self,
-        width: int,
-        height: int,
-        fx: float,
-        fy: float,
-        cx: float,
-        cy: float,
-        xi: float,
-        k1: float = 0.0,
-        k2: float = 0.0,
-        p1: float = 0.0,
-        p2: float = 0.0,
-        fov_deg: float | None = None,
-    ) -> None:
-        super().__init__(width, height, fov_deg)
-        self.fx, self.fy = finite_float("fx", fx, positive=True), finite_float("fy", fy, positive=True)
-        self.cx, self.cy = finite_float("cx", cx), finite_float("cy", cy)
-        self.xi = finite_float("xi", xi)
-        if self.xi < 0:
-            raise ValueError(f"xi must be >= 0 (the mirror parameter), got {xi}")
-        self.k1, self.k2 = finite_float("k1", k1), finite_float("k2", k2)
-        self.p1, self.p2 = finite_float("p1", p1), finite_float("p2", p2)
+    def _setup(self) -> None:
         self._w = self.xi if self.xi <= 1.0 else 1.0 / self.xi
         self._m_max = radial_limit(self.k1, self.k2)  # where the radial distortion stops increasing
         self._distorted = any(c != 0.0 for c in (self.k1, self.k2, self.p1, self.p2))

@@ -89,11 +89,11 @@ def occlusion_mask(
 
     Example:
         >>> import numpy as np
-        >>> from airfisheye_bench.geometry import FisheyeCamera, CAM_FROM_FLU, make_transform
+        >>> from airfisheye_bench.geometry import ideal_camera, CAM_FROM_FLU, make_transform
         >>> spec = LidarSpec(channels=16, points_per_channel=256)
         >>> wall = 10.0 * spec.beam_directions(torch.float64).reshape(-1, 3).numpy()  # a 10 m sphere
         >>> T = make_transform(CAM_FROM_FLU, np.zeros(3))  # camera at the LiDAR, looking along x
-        >>> camera = FisheyeCamera(256, 256)
+        >>> camera = ideal_camera(256, 256)
         >>> visible = occlusion_mask(wall, T, camera, spec)
         >>> in_view = occlusion_mask(wall, T, camera, spec, method="none")
         >>> bool(visible.any()), bool((visible == in_view).all())  # camera at the LiDAR: nothing hidden
@@ -117,10 +117,10 @@ def project_lidar(
 
     Example:
         >>> import numpy as np
-        >>> from airfisheye_bench.geometry import FisheyeCamera, CAM_FROM_FLU, make_transform
+        >>> from airfisheye_bench.geometry import ideal_camera, CAM_FROM_FLU, make_transform
         >>> T = make_transform(CAM_FROM_FLU, np.zeros(3))
         >>> point = np.array([[5.0, 0.0, 0.0]])
-        >>> uv, rng, mask = project_lidar(point, T, FisheyeCamera(64, 64), method="none")
+        >>> uv, rng, mask = project_lidar(point, T, ideal_camera(64, 64), method="none")
         >>> uv.tolist(), rng.tolist(), mask.tolist()
         ([[31.5, 31.5]], [5.0], [True])
     """
@@ -183,10 +183,10 @@ def lidar_depth_map(
 
     Example:
         >>> import numpy as np
-        >>> from airfisheye_bench.geometry import FisheyeCamera, CAM_FROM_FLU, make_transform
+        >>> from airfisheye_bench.geometry import ideal_camera, CAM_FROM_FLU, make_transform
         >>> T = make_transform(CAM_FROM_FLU, np.zeros(3))
         >>> pts = np.array([[7.0, 0.0, 0.0], [5.0, 0.0, 0.0], [200.0, 50.0, 0.0]])
-        >>> depth = lidar_depth_map(pts, T, FisheyeCamera(64, 64), method="none")
+        >>> depth = lidar_depth_map(pts, T, ideal_camera(64, 64), method="none")
         >>> depth.shape, float(depth.max()), int((depth > 0).sum())  # nearest of the two; 200 m is too far
         ((64, 64), 5.0, 1)
     """
@@ -241,11 +241,11 @@ def ordering_mask(
 
     Example:
         >>> import numpy as np
-        >>> from airfisheye_bench.geometry import FisheyeCamera, CAM_FROM_FLU, make_transform
+        >>> from airfisheye_bench.geometry import ideal_camera, CAM_FROM_FLU, make_transform
         >>> spec = LidarSpec(channels=8, points_per_channel=64)
         >>> wall = 10.0 * spec.beam_directions(torch.float64).reshape(-1, 3).numpy()
         >>> T = make_transform(CAM_FROM_FLU, np.array([0.0, 0.0, 0.3]))
-        >>> masks = [ordering_mask(wall, T, FisheyeCamera(64, 64), spec, name) for name in ORDERING_IMPLEMENTATIONS]
+        >>> masks = [ordering_mask(wall, T, ideal_camera(64, 64), spec, name) for name in ORDERING_IMPLEMENTATIONS]
         >>> all((m == masks[0]).all() for m in masks)
         True
     """

@@ -33,8 +33,8 @@ def derived_window_radius(camera: CameraModel, spec: LidarSpec) -> np.ndarray:
     """``int64 [H, W]``: the radius of the z-buffer's derived window (``kernel=None``) at every pixel.
 
     Example:
-        >>> from airfisheye_bench.geometry import FisheyeCamera
-        >>> r = derived_window_radius(FisheyeCamera(128, 128), LidarSpec())
+        >>> from airfisheye_bench.geometry import ideal_camera
+        >>> r = derived_window_radius(ideal_camera(128, 128), LidarSpec())
         >>> r.shape, int(r.min()) >= 0
         ((128, 128), True)
     """

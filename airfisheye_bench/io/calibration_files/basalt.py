@@ -35,13 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from airfisheye_bench.io.calibration_files._camera_dicts import (
-    double_sphere,
-    eucm,
-    kannala_brandt,
-    pinhole_radtan,
-    unified,
-)
+from airfisheye_bench.geometry.cameras import EUCM, DoubleSphere, KannalaBrandt, PinholeRadtan, Unified
 from airfisheye_bench.io.calibration_files._fields import (
     CalibrationFormat,
     CameraEntry,
@@ -77,22 +71,23 @@ def _read(f: Fields, index: int) -> tuple[dict[str, Any], dict[str, np.ndarray]]
         raise f.error(f"{key}.camera_type", f"{kind!r} is not supported; supported: {', '.join(PARAMETERS)}")
     p = {name: f.number(f"{key}.intrinsics.{name}") for name in PARAMETERS[kind]}
     width, height = f.size(f"value0.resolution[{index}]")
-    fx, fy, cx, cy = p["fx"], p["fy"], p["cx"], p["cy"]
     if kind == "ds":
-        camera = double_sphere(width, height, fx, fy, cx, cy, p["xi"], p["alpha"])
+        camera = DoubleSphere.flat_dict(width, height, **p)
     elif kind == "eucm":
-        camera = eucm(width, height, fx, fy, cx, cy, p["alpha"], p["beta"])
+        camera = EUCM.flat_dict(width, height, **p)
     elif kind == "kb4":
-        camera = kannala_brandt(width, height, fx, fy, cx, cy, [p["k1"], p["k2"], p["k3"], p["k4"]])
+        camera = KannalaBrandt.flat_dict(width, height, **p)
     elif kind == "ucm":
         alpha = p["alpha"]
         if not 0 <= alpha < 1:
             raise f.error(
                 f"{key}.intrinsics.alpha", f"expected 0 <= alpha < 1 for the unified model, got {alpha}"
             )
-        camera = unified(width, height, fx / (1 - alpha), fy / (1 - alpha), cx, cy, alpha / (1 - alpha))
+        # basalt's UCM is the unified model without distortion, in another parametrisation.
+        fx, fy = p["fx"] / (1 - alpha), p["fy"] / (1 - alpha)
+        camera = Unified.flat_dict(width, height, fx, fy, p["cx"], p["cy"], xi=alpha / (1 - alpha))
     else:
-        camera = pinhole_radtan(width, height, fx, fy, cx, cy)
+        camera = PinholeRadtan.flat_dict(width, height, **p)
     extrinsics = {}
     pose = f.get(f"value0.T_imu_cam[{index}]", None)
     if pose is not None:

@@ -48,14 +48,14 @@ import re
 from functools import partial
 from typing import Any
 
-from airfisheye_bench.io.calibration_files._camera_dicts import (
-    division,
-    eucm,
-    fov,
-    kannala_brandt,
-    pinhole_radtan,
-    rad_tan_thin_prism_fisheye,
-    thin_prism_fisheye,
+from airfisheye_bench.geometry.cameras import (
+    EUCM,
+    Division,
+    Fov,
+    KannalaBrandt,
+    PinholeRadtan,
+    RadTanThinPrismFisheye,
+    ThinPrismFisheye,
 )
 from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
 
@@ -89,7 +89,7 @@ REFUSED = {
     "no fisheye image is served through it",
 }
 #: Kannala-Brandt models -> (names of the polynomial's k1..k4, terms beyond it: with any of them non-zero the model
-#: is its own, the dict builder of ``_OWN_MODEL``).
+#: is its own, ``_OWN_MODEL``'s, whose parameters are COLMAP's in COLMAP's order).
 _KB_FAMILY = {
     "OPENCV_FISHEYE": (("k1", "k2", "k3", "k4"), ()),
     "SIMPLE_RADIAL_FISHEYE": (("k",), ()),
@@ -103,8 +103,8 @@ _KB_FAMILY = {
     ),
 }
 _OWN_MODEL = {
-    "THIN_PRISM_FISHEYE": thin_prism_fisheye,
-    "RAD_TAN_THIN_PRISM_FISHEYE": rad_tan_thin_prism_fisheye,
+    "THIN_PRISM_FISHEYE": ThinPrismFisheye,
+    "RAD_TAN_THIN_PRISM_FISHEYE": RadTanThinPrismFisheye,
 }
 _LINE = re.compile(r"^\s*(\d+)\s+([A-Z][A-Z0-9_]*)\s+(\d+)\s+(\d+)((?:\s+\S+)*)\s*$")
 
@@ -158,17 +158,17 @@ def _read(f: Fields, camera_id: str) -> tuple[dict[str, Any], dict]:
     if model in _KB_FAMILY:
         k_names, beyond = _KB_FAMILY[model]
         if any(p[name] != 0 for name in beyond):
-            return _OWN_MODEL[model](width, height, fx, fy, cx, cy, [p[name] for name in names[4:]]), {}
-        k = [p[name] for name in k_names] + [0.0] * (4 - len(k_names))
-        return kannala_brandt(width, height, fx, fy, cx, cy, k), {}
+            return _OWN_MODEL[model].flat_dict(width, height, fx, fy, cx, cy, *values[4:]), {}
+        k = [p[name] for name in k_names]  # k1, k2, ... in order; the rest default to 0
+        return KannalaBrandt.flat_dict(width, height, fx, fy, cx, cy, *k), {}
     if model in ("SIMPLE_DIVISION", "DIVISION"):
-        return division(width, height, fx, fy, cx, cy, p["k"]), {}
+        return Division.flat_dict(width, height, fx, fy, cx, cy, k=p["k"]), {}
     if model == "FOV":
         if p["omega"] == 0:  # COLMAP's limit: the undistorted pinhole
-            return pinhole_radtan(width, height, fx, fy, cx, cy), {}
-        return fov(width, height, fx, fy, cx, cy, abs(p["omega"])), {}
+            return PinholeRadtan.flat_dict(width, height, fx, fy, cx, cy), {}
+        return Fov.flat_dict(width, height, fx, fy, cx, cy, omega=abs(p["omega"])), {}
     if model == "EUCM":
-        return eucm(width, height, fx, fy, cx, cy, p["alpha"], p["beta"]), {}
+        return EUCM.flat_dict(width, height, fx, fy, cx, cy, alpha=p["alpha"], beta=p["beta"]), {}
     rational = [name for name in ("k4", "k5", "k6") if p.get(name, 0.0) != 0]
     if rational:
         raise f.error(
@@ -176,8 +176,8 @@ def _read(f: Fields, camera_id: str) -> tuple[dict[str, Any], dict]:
             f"FULL_OPENCV with non-zero {', '.join(rational)} (the rational model) is not supported; use OPENCV",
         )
     k1 = p.get("k1", p.get("k", 0.0))
-    radtan = [p.get(name, 0.0) for name in ("k2", "p1", "p2", "k3")]
-    return pinhole_radtan(width, height, fx, fy, cx, cy, k1, *radtan), {}
+    radtan = {name: p[name] for name in ("k2", "p1", "p2", "k3") if name in p}
+    return PinholeRadtan.flat_dict(width, height, fx, fy, cx, cy, k1=k1, **radtan), {}
 
 
 FORMAT = CalibrationFormat(

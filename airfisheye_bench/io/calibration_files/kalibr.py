@@ -39,13 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from airfisheye_bench.io.calibration_files._camera_dicts import (
-    double_sphere,
-    eucm,
-    kannala_brandt,
-    pinhole_radtan,
-    unified,
-)
+from airfisheye_bench.geometry.cameras import EUCM, DoubleSphere, KannalaBrandt, PinholeRadtan, Unified
 from airfisheye_bench.io.calibration_files._fields import (
     CalibrationFormat,
     CameraEntry,
@@ -118,19 +112,18 @@ def _read(f: Fields, prefix: str) -> tuple[dict[str, Any], dict[str, np.ndarray]
     width, height = f.size(prefix + "resolution")
     if model == "pinhole":
         fx, fy, cx, cy = values
-        if distortion == "equidistant":
-            camera = kannala_brandt(width, height, fx, fy, cx, cy, coefficients)
-        else:
-            camera = pinhole_radtan(width, height, fx, fy, cx, cy, *coefficients)
+        # Kalibr's coefficients are in the models' own order: k1..k4 (equidistant), k1, k2, p1, p2 (radtan).
+        lens = KannalaBrandt if distortion == "equidistant" else PinholeRadtan
+        camera = lens.flat_dict(width, height, fx, fy, cx, cy, *coefficients)
     elif model == "omni":
         xi, fx, fy, cx, cy = values
-        camera = unified(width, height, fx, fy, cx, cy, xi, *coefficients)
+        camera = Unified.flat_dict(width, height, fx, fy, cx, cy, xi, *coefficients)
     elif model == "ds":
         xi, alpha, fx, fy, cx, cy = values
-        camera = double_sphere(width, height, fx, fy, cx, cy, xi, alpha)
+        camera = DoubleSphere.flat_dict(width, height, fx, fy, cx, cy, xi=xi, alpha=alpha)
     else:
         alpha, beta, fx, fy, cx, cy = values
-        camera = eucm(width, height, fx, fy, cx, cy, alpha, beta)
+        camera = EUCM.flat_dict(width, height, fx, fy, cx, cy, alpha=alpha, beta=beta)
     return camera, _extrinsics(f, prefix)
 
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from airfisheye_bench.io.calibration_files._camera_dicts import kannala_brandt, pinhole_radtan, unified
+from airfisheye_bench.geometry.cameras import KannalaBrandt, PinholeRadtan, Unified
 from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
 
 __all__ = ["FORMAT", "MODEL_TYPES"]
@@ -63,20 +63,25 @@ def _read(f: Fields) -> tuple[dict[str, Any], dict]:
         p = {n: f.number(f"projection_parameters.{n}") for n in ("k2", "k3", "k4", "k5", "u0", "v0")}
         fx = f.number("projection_parameters.mu", positive=True)
         fy = f.number("projection_parameters.mv", positive=True)
-        k = [p["k2"], p["k3"], p["k4"], p["k5"]]  # camodocal's k1 is the fixed 1 of theta
-        return kannala_brandt(width, height, fx, fy, p["u0"], p["v0"], k), {}
+        k = [
+            p["k2"],
+            p["k3"],
+            p["k4"],
+            p["k5"],
+        ]  # camodocal's k1 is the fixed 1 of theta: its k2..k5 are k1..k4
+        return KannalaBrandt.flat_dict(width, height, fx, fy, p["u0"], p["v0"], *k), {}
     if kind == "PINHOLE":
         k1, k2, p1, p2 = (f.number(f"distortion_parameters.{n}") for n in ("k1", "k2", "p1", "p2"))
         fx = f.number("projection_parameters.fx", positive=True)
         fy = f.number("projection_parameters.fy", positive=True)
         cx, cy = f.number("projection_parameters.cx"), f.number("projection_parameters.cy")
-        return pinhole_radtan(width, height, fx, fy, cx, cy, k1, k2, p1, p2), {}
+        return PinholeRadtan.flat_dict(width, height, fx, fy, cx, cy, k1, k2, p1, p2), {}
     xi = f.number("mirror_parameters.xi")
     k1, k2, p1, p2 = (f.number(f"distortion_parameters.{n}") for n in ("k1", "k2", "p1", "p2"))
     fx = f.number("projection_parameters.gamma1", positive=True)
     fy = f.number("projection_parameters.gamma2", positive=True)
     cx, cy = f.number("projection_parameters.u0"), f.number("projection_parameters.v0")
-    return unified(width, height, fx, fy, cx, cy, xi, k1, k2, p1, p2), {}
+    return Unified.flat_dict(width, height, fx, fy, cx, cy, xi, k1, k2, p1, p2), {}
 
 
 FORMAT = CalibrationFormat(

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from airfisheye_bench.io.calibration_files._camera_dicts import ocam
+from airfisheye_bench.geometry.cameras import Ocam
 from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
 
 __all__ = ["FORMAT"]
@@ -108,7 +108,7 @@ def _read(f: Fields) -> tuple[dict[str, Any], dict]:
     c, d, e = f.numbers("affine", 3)
     height, width = f.numbers("image_size", 2)
     return (
-        ocam(
+        Ocam.flat_dict(
             f.whole("image_size", width),
             f.whole("image_size", height),
             cx=col,

@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from airfisheye_bench.io.calibration_files._camera_dicts import kannala_brandt, pinhole_radtan
+from airfisheye_bench.geometry.cameras import KannalaBrandt, PinholeRadtan
 from airfisheye_bench.io.calibration_files._fields import CalibrationFormat, CameraEntry, Fields
 
 __all__ = ["DISTORTION_KEYS", "FORMAT", "MATRIX_KEYS", "camera_from_matrices"]
@@ -81,7 +81,7 @@ def camera_from_matrices(
             raise fields.error(
                 d_key, f"a fisheye (cv::fisheye) calibration has 4 coefficients k1..k4, got {len(D)}"
             )
-        return kannala_brandt(width, height, fx, fy, cx, cy, D, skew=K[0, 1] / fx)
+        return KannalaBrandt.flat_dict(width, height, fx, fy, cx, cy, *D, skew=K[0, 1] / fx)
     if K[0, 1] != 0:
         raise fields.error(
             k_key, "a skewed camera matrix (K[0][1] != 0) is only supported for fisheye calibrations"
@@ -97,7 +97,7 @@ def camera_from_matrices(
             f"non-zero {', '.join(extra)}: the rational, thin-prism and tilted models are not supported; supported: "
             "k1, k2, p1, p2, k3 (pinhole_radtan) or 4 fisheye coefficients (kannala_brandt)",
         )
-    return pinhole_radtan(width, height, fx, fy, cx, cy, *D[:5])
+    return PinholeRadtan.flat_dict(width, height, fx, fy, cx, cy, *D[:5])
 
 
 #: Spellings of the camera matrix and of the coefficients, OpenCV's samples' first: ``calibrateCamera``'s own

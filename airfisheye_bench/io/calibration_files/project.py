@@ -4,7 +4,7 @@ JSON).
 
 The dict is the camera contract's ``to_dict()`` (``docs/design.md``, "Fisheye camera"): ``model``, ``width``,
 ``height`` and the model's parameters, pixel centres at integers. It is passed on unchanged: the camera registry
-(``camera_from_dict``) checks it, including the older ``FisheyeCamera`` dicts (``focal``, ``k``).
+(``camera_from_dict``) checks it, including the older Kannala-Brandt dicts (``focal``, ``k``).
 
 Example:
     >>> _cameras(Fields("calib.yaml", {"camera": {"model": "equidistant", "width": 64, "height": 64}}))

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from airfisheye_bench.io.calibration_files._camera_dicts import radial_poly
+from airfisheye_bench.geometry.cameras import RadialPoly
 from airfisheye_bench.io.calibration_files._fields import (
     CalibrationFormat,
     CameraEntry,
@@ -66,7 +66,7 @@ def _read(f: Fields) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         if not np.linalg.norm(q) > 0:
             raise f.error("extrinsic.quaternion", "expected a non-zero quaternion (x, y, z, w)")
         extrinsics["T_vehicle_cam"] = quaternion_pose(q, t)
-    return radial_poly(width, height, k, cx, cy, aspect), extrinsics
+    return RadialPoly.flat_dict(width, height, *k, cx=cx, cy=cy, aspect_ratio=aspect), extrinsics
 
 
 FORMAT = CalibrationFormat(

@@ -41,7 +41,7 @@ from typing import ClassVar
 import numpy as np
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.geometry.camera import FisheyeCamera
+from airfisheye_bench.geometry.cameras.ideal import ideal_camera
 from airfisheye_bench.geometry.equirect_lidar import lidar_from_equirect
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
@@ -286,7 +286,7 @@ class Omni360Source:
         axes."""
         self._scene(sample_id)
         height = self.erp_size[0]
-        camera = FisheyeCamera(height, height, fov_deg=FOV_DEG, model="equidistant")
+        camera = ideal_camera(height, height, fov_deg=FOV_DEG, model="equidistant")
         R_body_cam = CAM_FROM_FLU.T @ self.pano_rotation
         return Calibration(
             camera.to_dict(),

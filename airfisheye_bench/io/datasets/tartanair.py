@@ -40,7 +40,7 @@ import numpy as np
 from PIL import Image
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.geometry.camera import FisheyeCamera
+from airfisheye_bench.geometry.cameras import ideal_camera
 from airfisheye_bench.geometry.cube_depth import (
     SIX_FACE_NAMES,
     lidar_from_faces,
@@ -274,7 +274,7 @@ class TartanAirSource:
 
         def build() -> Calibration:
             size = self._image_size(self._face_file(f"{key}/{self._frames[key][0]}", "front", "rgb"))
-            camera = FisheyeCamera(2 * size, 2 * size, fov_deg=190.0, model="equidistant")
+            camera = ideal_camera(2 * size, 2 * size, fov_deg=190.0, model="equidistant")
             T_body_cam = make_transform(CAM_FROM_FLU.T, np.zeros(3))
             return Calibration(camera.to_dict(), size, T_body_cam, np.eye(4), self._lidar.to_dict())
 

@@ -328,13 +328,13 @@ def test_the_calibration_is_the_default_lens_at_the_panoramas_centre(fixture_roo
 def test_the_lidar_texel_is_the_remaps_nearest_texel() -> None:
     """:func:`erp_texel` (the LiDAR's look-up) takes the texel ``EquirectToFisheye``'s nearest mode takes, for rays
     all over the sphere (a 250 deg lens looking up and to the side reaches both poles and the seam)."""
-    from airfisheye_bench.geometry import FisheyeCamera
+    from airfisheye_bench.geometry.cameras.ideal import ideal_camera
     from airfisheye_bench.geometry.equirect import EquirectToFisheye
     from airfisheye_bench.geometry.equirect_lidar import erp_texel
     from airfisheye_bench.geometry.transforms import gimbal_rotation
 
     h, w = 24, 48
-    camera = FisheyeCamera(96, 96, fov_deg=250.0)
+    camera = ideal_camera(96, 96, fov_deg=250.0)
     rotation = gimbal_rotation(yaw_deg=150.0, pitch_deg=-60.0)
     index = np.arange(h * w, dtype=np.float64).reshape(1, h, w)
     remapped = EquirectToFisheye(camera, (h, w), rotation=rotation)(index, mode="nearest", fill=-1)[0]

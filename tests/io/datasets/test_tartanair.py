@@ -12,7 +12,7 @@ import pytest
 from omegaconf import open_dict
 from PIL import Image
 
-from airfisheye_bench.geometry import CubemapToFisheye, FisheyeCamera
+from airfisheye_bench.geometry import CubemapToFisheye, ideal_camera
 from airfisheye_bench.geometry.cube_depth import lidar_from_faces, sample_range
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.transforms import CAM_FROM_FLU
@@ -135,7 +135,7 @@ def test_a_point_placed_by_tartanairs_sampler_lands_at_its_fisheye_pixel_with_it
 ) -> None:
     _place_markers(writable_root)
     src = source(writable_root)
-    camera = FisheyeCamera(256, 256, fov_deg=190.0, model="equidistant")
+    camera = ideal_camera(256, 256, fov_deg=190.0, model="equidistant")
     remap = CubemapToFisheye(camera, SIZE)
     seg = remap(src.cubemap(FIRST, "seg")[:, None], "nearest", fill=255)[0]
     depth = remap(src.cubemap(FIRST, "depth")[:, None], "nearest", fill=0)[0]
