@@ -59,6 +59,7 @@ RESUME_HARMLESS = (
     "data.num_workers",
     "data.pin_memory",
     "data.persistent_workers",
+    "data.remap_on",
     "data.eval_batch_size",
     "data.cache_dir",
     "paths.data_dir",

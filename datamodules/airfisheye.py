@@ -26,9 +26,11 @@ from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.io.lidar_spec import load_lidar_spec
+from airfisheye_bench.io.spec import remap_site_problem
 from airfisheye_bench.synth.cache import ensure_dataset
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
+from datamodules.device_remap import CubeFaces, DeviceRemap
 from datamodules.multi_source import MultiSourceDataset, open_split, training_sampler
 from datamodules.sampling import (
     EpochSeededSampler,
@@ -89,6 +91,11 @@ class AirFisheyeDataModule(L.LightningDataModule):
         gimbal: A virtual gimbal turning the served camera relative to the remapped source
             (:mod:`~airfisheye_bench.geometry.gimbal`: a view ``[yaw, pitch(, roll)]`` in degrees, a list of views,
             or ranges ``{pitch_deg: [0, 45], ...}`` drawn per training sample); evaluation splits get fixed views.
+        remap_on: Where the cube faces become the fisheye image: ``worker`` (the loader's worker processes) or
+            ``device`` (the workers only decode the faces and project the LiDAR; the remap, augmentation and
+            normalisation run on the model's device after the transfer, in :meth:`on_after_batch_transfer`, with
+            the same tables and the same results: :mod:`datamodules.device_remap`). ``device`` needs
+            ``source=cubemap`` and one dataset.
 
     Example:
         >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
@@ -126,10 +133,16 @@ class AirFisheyeDataModule(L.LightningDataModule):
         sources: list[str] | None = None,
         source_options: dict[str, dict[str, Any]] | None = None,
         gimbal: Any = None,
+        remap_on: str = "worker",
     ) -> None:
         super().__init__()
         if batch_size < 1:
             raise ConfigError(f"batch_size must be >= 1, got {batch_size}")
+        problem = remap_site_problem(remap_on, source, sources, gimbal)
+        if problem is not None:
+            raise ConfigError(f"data.remap_on={remap_on!r}: {problem}")
+        self.remap_on = remap_on
+        self._device_remap: DeviceRemap | None = None
         location = {"format": format, "root": root, "format_options": format_options, "preset": preset}
         self.sources = resolve_sources(sources, source_options, {**location, "dataset_seed": dataset_seed})
         if not self.sources:
@@ -212,6 +225,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
                 self.datasets[name] = self._open_split(i, augment)
                 # Build the lookup tables before any worker starts: forked workers share them.
                 self.datasets[name].warm_up()
+                if self.remap_on == "device":
+                    self._check_device_remap(self.datasets[name])
 
     def _open_split(
         self, index: int, augment: FisheyeAugment | None
@@ -234,6 +249,28 @@ class AirFisheyeDataModule(L.LightningDataModule):
         name = self.split_names[index]
         return AirFisheyeDataset(self.dataset_root(), name, augment=augment, seed=self.seed, **kwargs)
 
+    def _check_device_remap(self, dataset: AirFisheyeDataset) -> None:
+        """Every split is finished by one :class:`DeviceRemap` (a batch does not say which split it is from)."""
+        remap = dataset.device_remap()
+        if self._device_remap is None:
+            self._device_remap = remap
+        elif remap.key() != self._device_remap.key():
+            raise ConfigError(
+                f"data.remap_on=device: split {dataset.split!r} has another camera, cube-face size or data.gimbal "
+                "view than the others; use data.remap_on=worker"
+            )
+
+    def on_after_batch_transfer(self, batch: Any, dataloader_idx: int) -> Any:
+        """Under ``remap_on=device``, finish the batch of cube faces on its device (the batch a worker would have
+        served); any other batch is returned as it is."""
+        if self._device_remap is not None and isinstance(batch, dict):
+            return self._device_remap(batch)
+        return batch
+
+    def _served(self, dataset: AirFisheyeDataset) -> AirFisheyeDataset | CubeFaces:
+        """What a loader reads: the dataset, or under ``remap_on=device`` its decoded faces."""
+        return CubeFaces(dataset) if self.remap_on == "device" else dataset
+
     def train_dataloader(self) -> DataLoader:
         dataset = self._dataset(0)
         if self.sources:
@@ -248,7 +285,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             sampler.start = batches_done * self.batch_size
             self.set_epoch(epoch)
         return DataLoader(
-            dataset,
+            self._served(dataset),
             batch_size=self.batch_size,
             sampler=sampler,
             drop_last=True,
@@ -289,7 +326,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         dataset = self._dataset(index)
         sampler = evaluation_sampler(dataset)
         return EvaluationLoader(
-            dataset,
+            self._served(dataset),
             batch_size=self.eval_batch_size,
             shuffle=False,
             sampler=sampler,

@@ -139,7 +139,7 @@ def augment_sample(
     colour, offset = torch.eye(3), torch.zeros(3)
     if params.jitter is not None:
         mean_rgb = rgb.reshape(3, -1).sum(1, dtype=torch.float64) / (255.0 * h * w)
-        colour, offset = jitter_affine(params.jitter, float(_LUMA.double() @ mean_rgb))
+        colour, offset = jitter_affine(params.jitter, float(LUMA.double() @ mean_rgb))
     colour = colour / 255.0  # the kernel reads 0-255 values
     image = torch.empty(3, h, w)
     moved = torch.empty(h, w, dtype=torch.bool)
@@ -235,7 +235,7 @@ def rotation_about_optical_axis(angle_rad: float) -> torch.Tensor:
 
 
 # ITU-R BT.601 luma, as torchvision's rgb_to_grayscale.
-_LUMA = torch.tensor([0.299, 0.587, 0.114])
+LUMA = torch.tensor([0.299, 0.587, 0.114])
 _RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
 
 
@@ -246,7 +246,7 @@ def color_matrix(saturation: float, hue: float) -> torch.Tensor:
     axis in YIQ space, a linear stand-in for HSV hue rotation that costs one matrix product instead of a colour
     space round trip.
     """
-    grey = torch.outer(torch.ones(3), _LUMA)
+    grey = torch.outer(torch.ones(3), LUMA)
     sat = saturation * torch.eye(3) + (1.0 - saturation) * grey
     c, s = math.cos(2 * math.pi * hue), math.sin(2 * math.pi * hue)
     rot = torch.tensor([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
@@ -262,7 +262,7 @@ def apply_color_jitter(image: torch.Tensor, params: AugmentParams) -> torch.Tens
     """
     if params.jitter is None:
         return image
-    mean_grey = float((_LUMA.to(image.dtype) @ image.reshape(3, -1)).mean())
+    mean_grey = float((LUMA.to(image.dtype) @ image.reshape(3, -1)).mean())
     matrix, offset = jitter_affine(params.jitter, mean_grey)
     out = matrix.to(image.dtype) @ image.reshape(3, -1)
     out += offset.to(image.dtype)[:, None]

@@ -68,8 +68,10 @@ from airfisheye_bench.io import DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.datasets import modalities_of, open_dataset
 from airfisheye_bench.io.spec import IMAGE_SOURCES, REMAP_SOURCES
 from airfisheye_bench.specs import get_task
-from datamodules.augment import FisheyeAugment, augment_sample, rotation_about_optical_axis
+from datamodules.augment import AugmentParams, FisheyeAugment, augment_sample, rotation_about_optical_axis
+from datamodules.augment_batch import pack_params
 from datamodules.camera_config import CameraConfig
+from datamodules.device_remap import AUGMENT_KEY, CUBE_KEYS, DeviceRemap
 from datamodules.oracle import oracle_visible, require_visibility
 from datamodules.sampling import SharedEpoch, draw_seed
 
@@ -320,9 +322,39 @@ class AirFisheyeDataset(Dataset):
         return self.gimbal.view(index, draw)
 
     def __getitem__(self, index: int) -> dict | None:
+        return self._guarded(self._load, index)
+
+    def load_faces(self, index: int) -> dict | None:
+        """What a worker serves under ``data.remap_on=device``: the decoded cube faces, the LiDAR depth and the
+        augmentation draw, for :class:`~datamodules.device_remap.DeviceRemap` to finish on the model's device."""
+        return self._guarded(self._load_faces, index)
+
+    def device_remap(self) -> DeviceRemap:
+        """The device half of ``data.remap_on=device`` for this dataset's camera and faces."""
+        if self.source != "cubemap" or self._depth_from_points:
+            raise ConfigError(
+                f"data.remap_on=device: data.source={self.source} (data.format={self.reader.format}): the device "
+                "remaps cube faces only; use data.remap_on=worker"
+            )
+        if self.gimbal is not None and self.gimbal.fixed is None:
+            raise ConfigError(
+                f"data.remap_on=device: data.gimbal serves the {self.split!r} split through a view per sample, each "
+                "with its own lookup table, and a batch is remapped with one; use data.remap_on=worker, or one "
+                "fixed view (data.gimbal=[yaw,pitch])"
+            )
+        return DeviceRemap(
+            self._remap,
+            self.valid_mask,
+            self._outside_frame,
+            self.label_lut,
+            self.spec.ignore_index,
+            self.max_depth,
+        )
+
+    def _guarded(self, load, index: int) -> dict | None:
         sample_id = self.sample_ids[index]
         try:
-            return self._load(sample_id, index)
+            return load(sample_id, index)
         except (DatasetFormatError, OSError, ValueError) as err:
             if not self.skip_bad_frames:
                 raise
@@ -334,11 +366,15 @@ class AirFisheyeDataset(Dataset):
         """Select the augmentation draws of ``epoch`` (visible to persistent workers too)."""
         self._epoch.set(epoch)
 
+    def _draw(self, index: int) -> AugmentParams | None:
+        """The sample's augmentation (``None`` without): it depends only on ``(seed, epoch, index)``."""
+        if self.augment is None:
+            return None
+        generator = torch.Generator().manual_seed(draw_seed(self.seed, self._epoch.get(), index))
+        return self.augment.sample(generator)
+
     def _load(self, sample_id: str, index: int) -> dict:
-        params = None
-        if self.augment is not None:
-            generator = torch.Generator().manual_seed(draw_seed(self.seed, self._epoch.get(), index))
-            params = self.augment.sample(generator)
+        params = self._draw(index)
         view = self.sample_view(index)
         remap = self._remap if view is None else self._remap_for(view)
         valid = self.valid_mask if remap is self._remap else self._valid(remap)
@@ -375,6 +411,39 @@ class AirFisheyeDataset(Dataset):
         out["image"] = rgb.sub_(self._mean).div_(self._std)  # rgb is this sample's own buffer: in place
         out["valid_mask"] = valid
         return out
+
+    def _load_faces(self, sample_id: str, index: int) -> dict:
+        """:meth:`load_faces` of one frame: the checks that name a file are made here, on the texels the fisheye
+        sees, so a bad file fails in the worker (and ``skip_bad_frames`` skips it) as it does on the worker path."""
+        params = self._draw(index)
+        out: dict = {
+            "sample_id": sample_id,
+            CUBE_KEYS["rgb"]: torch.from_numpy(self._checked_faces(sample_id, "rgb")),
+        }
+        if "label" in self.sample_keys:
+            raw = self._checked_faces(sample_id, "seg")
+            unknown = self.spec.unknown_label_ids(raw.reshape(-1)[self._seen_texels])
+            if unknown:
+                raise DatasetFormatError(
+                    self._path(sample_id, "seg"), f"label ids {unknown} are not raw classes of dataset.yaml"
+                )
+            out[CUBE_KEYS["seg"]] = torch.from_numpy(raw)
+        if "depth" in self.sample_keys:
+            depth = self._checked_faces(sample_id, "depth")
+            self._check_finite(torch.from_numpy(depth.reshape(-1)[self._seen_texels]), sample_id, "depth")
+            out[CUBE_KEYS["depth"]] = torch.from_numpy(depth).float()
+        if "sparse_depth" in self.sample_keys:  # masked on the device, by the moved mask
+            view = self.sample_view(index)  # the split's one view (device_remap refuses views that vary)
+            turn = None if view is None else Gimbal.rotation(view)
+            out["sparse_depth"] = self._sparse_depth(sample_id, params, turn)
+        if params is not None:
+            out[AUGMENT_KEY] = pack_params(params)
+        return out
+
+    @cached_property
+    def _seen_texels(self) -> np.ndarray:
+        """Flat indices of the face texels the served fisheye shows (the nearest table's)."""
+        return np.unique(self._remap.table("nearest").index[:, 0].numpy())
 
     def _augment(self, rgb: torch.Tensor, valid: torch.Tensor, out: dict, params) -> tuple:
         """Flip, rotate and colour-jitter every map of a sample consistently, in one fused pass."""
@@ -449,6 +518,11 @@ class AirFisheyeDataset(Dataset):
 
     def _faces(self, sample_id: str, modality: str) -> torch.Tensor:
         """Stacked faces ``[5, C, S, S]``; RGB stays channels-last in memory (no copy) for the remap kernel."""
+        x = torch.from_numpy(self._checked_faces(sample_id, modality))
+        return x.permute(0, 3, 1, 2) if x.ndim == 4 else x[:, None]
+
+    def _checked_faces(self, sample_id: str, modality: str) -> np.ndarray:
+        """The decoded faces as the reader gives them: ``[5, S, S, 3]`` RGB, ``[5, S, S]`` labels or depth."""
         faces = self.reader.cubemap(sample_id, modality)
         if faces.shape[1:3] != (self.face_size, self.face_size):
             raise DatasetFormatError(
@@ -456,8 +530,7 @@ class AirFisheyeDataset(Dataset):
                 f"cube faces are {faces.shape[2]}x{faces.shape[1]}, calib.yaml says "
                 f"face_size={self.face_size}",
             )
-        x = torch.from_numpy(faces)
-        return x.permute(0, 3, 1, 2) if x.ndim == 4 else x[:, None]
+        return faces
 
     def _panorama(self, sample_id: str, modality: str) -> torch.Tensor:
         """A panorama ``[C, H, W]`` (its size checked by the source); RGB stays channels-last in memory (no copy)."""

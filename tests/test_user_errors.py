@@ -519,6 +519,17 @@ SCHEMA_TABLE = [
     ("train", ["+data.camera.k=[0.1,0.2]"], "data.camera.k=[0.1, 0.2]: expected four numbers"),
     ("train", ["data.camera.camera=-1"], "data.camera.camera=-1: expected a camera name or a 0-based index"),
     ("train", ["data.source=pinhole"], "data.source='pinhole': expected one of cubemap, fisheye"),
+    ("train", ["data.remap_on=gpu"], "data.remap_on='gpu': expected one of worker, device"),
+    (
+        "train",
+        ["data.remap_on=device", "data.source=fisheye"],
+        "data.remap_on='device': data.source=fisheye has no cube faces to remap",
+    ),
+    (
+        "train",
+        ["data.remap_on=device", "data.gimbal={pitch_deg:[0,45]}"],
+        "data.remap_on='device': data.gimbal turns the samples of a split to views of their own",
+    ),
     ("train", ["data.augment.hflip=2"], "data.augment.hflip=2: expected a number in [0, 1]"),
     ("train", ["data.batch_size=0"], "data.batch_size=0: expected an integer >= 1"),
     ("train", ["data.motion_compensation=maybe"], "data.motion_compensation='maybe': expected true or false"),

@@ -145,6 +145,13 @@ def _image_sources() -> tuple[str, ...]:
     return IMAGE_SOURCES
 
 
+def _remap_site_problem(value: Any, source: Any, sources: Any, gimbal: Any) -> str | None:
+    """``data.remap_on``: a site the data can be remapped at (``io.spec``'s own check)."""
+    from airfisheye_bench.io.spec import remap_site_problem  # imports torch: only when checked
+
+    return remap_site_problem(value, source or "cubemap", sources, gimbal)
+
+
 def _tasks() -> tuple[str, ...]:
     from airfisheye_bench.specs import task_names  # imports torchmetrics: only when checked
 
@@ -317,6 +324,12 @@ RULES: dict[str, ValueRule] = {
     "num_workers": ValueRule("int", minimum=0),
     # Costly choices last: they import torch, then the task specs, the model zoo and Lightning.
     "data.source": ValueRule("choice", choices=_image_sources),
+    "data.remap_on": ValueRule(
+        "custom",
+        check=_remap_site_problem,
+        uses=("data.source", "data.sources", "data.gimbal"),
+        hint="where the cube faces become the fisheye: the loader's workers or the model's device",
+    ),
     "data.camera.model": ValueRule(
         "choice", choices=_lens_models, nullable=True, hint="null: the release's lens"
     ),

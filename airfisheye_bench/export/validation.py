@@ -14,6 +14,8 @@ def validation_batches(datamodule, limit: int = 0) -> Iterator[dict]:
     """Validation batches (no augmentation), stopping after ``limit`` frames (0: all)."""
     seen = 0
     for batch in datamodule.val_dataloader():
+        # data.remap_on=device: the cube faces become images here (Lightning calls this hook in training)
+        batch = datamodule.on_after_batch_transfer(batch, 0)
         if "image" not in batch:  # every frame of the batch was skipped (skip_bad_frames)
             continue
         if limit:

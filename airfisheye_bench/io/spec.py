@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from airfisheye_bench.geometry.cubemap import FACE_NAMES
+from airfisheye_bench.geometry.gimbal import Gimbal
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.yamlio import FieldReader, check_int, read_yaml, write_yaml
 
@@ -55,6 +56,9 @@ KNOWN_CONTENTS = (
 IMAGE_SOURCES = ("cubemap", "fisheye", "equirect")
 #: The image sources remapped on the fly to any lens.
 REMAP_SOURCES = ("cubemap", "equirect")
+#: Where the cube faces become the fisheye image (``data.remap_on``): in the loader's worker processes, or on the
+#: model's device after the batch is transferred (the workers then only decode the faces and project the LiDAR).
+REMAP_SITES = ("worker", "device")
 RGB_ENCODINGS = ("png", "jpg")
 SEG_ENCODINGS = ("png",)
 DEPTH_ENCODINGS = ("png16", "npy", "pfm")
@@ -469,3 +473,40 @@ def _parse_classes(r: FieldReader, key: str) -> tuple[ClassDef, ...]:
 def classes_from(objs) -> tuple[ClassDef, ...]:
     """Convert any objects with ``id``, ``name``, ``color`` attributes (e.g. ``synth.classes.ClassInfo``)."""
     return tuple(ClassDef(int(o.id), str(o.name), tuple(int(c) for c in o.color)) for o in objs)
+
+
+def remap_site_problem(remap_on: Any, source: Any, sources: Any = None, gimbal: Any = None) -> str | None:
+    """Why ``data.remap_on`` cannot be served with ``data.source`` / ``data.sources`` / ``data.gimbal``, or ``None``.
+
+    The device remaps a batch with one lookup table: a gimbal whose views vary from sample to sample (one table per
+    view) is refused; one fixed view per split is served (a ``data.gimbal`` the gimbal's own check refuses is left
+    to it).
+
+    Example:
+        >>> remap_site_problem("device", "cubemap") is None
+        True
+        >>> remap_site_problem("device", "fisheye")
+        'data.source=fisheye has no cube faces to remap; use data.remap_on=worker or data.source=cubemap'
+    """
+    if remap_on not in REMAP_SITES:
+        return f"expected one of {', '.join(REMAP_SITES)}"
+    if remap_on == "worker":
+        return None
+    if source == "fisheye":
+        return (
+            "data.source=fisheye has no cube faces to remap; use data.remap_on=worker or data.source=cubemap"
+        )
+    if source != "cubemap":
+        return f"data.source={source}: the device remaps cube faces only; use data.remap_on=worker"
+    if sources:
+        return "data.sources mixes datasets with their own lenses and face sizes; use data.remap_on=worker"
+    try:
+        parsed = Gimbal.parse(gimbal)
+    except ValueError:
+        return None
+    if parsed is not None and any(parsed.for_split(training).fixed is None for training in (True, False)):
+        return (
+            "data.gimbal turns the samples of a split to views of their own, each with its own lookup table, and the "
+            "device remaps a batch with one; use data.remap_on=worker, or one fixed view (data.gimbal=[yaw,pitch])"
+        )
+    return None
