@@ -4,7 +4,7 @@ The run directory (``hydra.run.dir``) ends up holding ``config.yaml`` (resolved)
 last), ``metrics.csv``, ``panels/`` and the test ``results.json`` in the leaderboard format; with ``logger=mlflow``
 the run is also an MLflow run (:mod:`airfisheye_bench.tracking`), recorded in ``mlflow_run.json``.
 
-Resuming (``ckpt_path=last``) continues the run exactly (see README, "Resume and DDP"): its configuration must be
+Resuming (``ckpt_path=last``) continues the run exactly (see docs/training.md, "Resume and DDP"): its configuration must be
 the run's (:func:`airfisheye_bench.runs.check_resume`), ``metrics.csv`` is cut back to the rows the checkpoint
 covers and appended to, and the data loader restarts at the checkpoint's batch.
 """

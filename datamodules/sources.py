@@ -84,8 +84,8 @@ def check_location(format: str, root: str | Path | None, preset: str | None, key
         raise ConfigError(f"{key}.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
     if root is None and format != "airfisheye":
         raise ConfigError(
-            f"{key}.format={format} reads that dataset from disk: give {key}.root=/path/to/it (see the README's "
-            "dataset table)"
+            f"{key}.format={format} reads that dataset from disk: give {key}.root=/path/to/it (see the dataset "
+            "table of docs/datasets.md)"
         )
     if root is None and preset is None:
         raise ConfigError(

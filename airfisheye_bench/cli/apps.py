@@ -20,7 +20,7 @@ from airfisheye_bench.runs import register_resolvers, resume_config
 register_resolvers()  # ${run_name:} in hydra.run.dir, ${sweep_name:} in hydra.sweep.dir
 
 
-@report_user_errors  # an unknown key: one line on stderr, exit status 2 (README, "When something goes wrong")
+@report_user_errors  # an unknown key: one line on stderr, exit status 2 (docs/troubleshooting.md)
 def train() -> float | None:
     """``airfisheye-train task=seg|depth|completion [group=option ...] [key=value ...]``; the primary metric."""
     check_overrides("train", sys.argv[1:])  # before Hydra, whose answer to an unknown key is a "+key" hint
@@ -35,7 +35,7 @@ def evaluate() -> None:
 
 
 @hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="train")
-@report_user_errors  # a user error: one line on stderr, exit status 2 (README, "When something goes wrong")
+@report_user_errors  # a user error: one line on stderr, exit status 2 (docs/troubleshooting.md)
 def _train(cfg: DictConfig) -> float | None:
     """The objective of a sweep: the test primary metric, or with ``optimized_metric=val/<metric>`` the best
     validation score."""

@@ -209,7 +209,7 @@ def test_an_onnx_model_refuses_data_of_another_size_or_lens(depth_onnx: Path, tm
 
 
 def test_training_and_evaluation_agree_to_the_documented_precision(depth_run: Path, tmp_path: Path) -> None:
-    """README "Evaluate": the training run's test numbers and evaluate.py's on the same checkpoint.
+    """docs/evaluation.md, "Evaluate": the training run's test numbers and evaluate.py's on the same checkpoint.
 
     With loader workers the evaluation runs the model on fewer intra-op threads than training did, so its float32
     convolutions sum in another order: continuous metrics agree to 1e-6 relative (6 significant digits, more than

@@ -1,4 +1,4 @@
-"""README "Your own camera": ``python train.py task=completion data.preset=tiny trainer=debug
+"""docs/cameras.md (your own camera): ``python train.py task=completion data.preset=tiny trainer=debug
 data.camera.calibration=<a Kalibr camchain with a ds camera>`` trains (here on the session's tiny dataset); the
 exported ONNX model carries that camera, without the file, and evaluation holds data to it."""
 

@@ -152,7 +152,7 @@ def tartanair_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_the_synthetic_preset_and_tartanair_in_one_run(tartanair_root: Path, tmp_path: Path) -> None:
-    """``data=tartanair data.root=<fixture> data.sources=[synthetic,tartanair]`` (the README's command): the
+    """``data=tartanair data.root=<fixture> data.sources=[synthetic,tartanair]`` (docs/training.md's command): the
     source named after the format reads data.root and data.format_options; the synthetic preset (tiny here) comes
     from the cache."""
     base = [o for o in tiny_run_overrides("seg", tartanair_root, size=32) if not o.startswith("data.root=")]
