@@ -103,9 +103,9 @@ def measure_nuscenes(path: str | Path, lidar: str = "hdl32e") -> dict[str, Any]:
         },
         "lidar": {"preset": lidar, "channels": spec.channels, "uniform": f"{lower:g}..{upper:g} deg"},
         "rings": {
-            f"resolve_rings ({source})": {"source": source, **shares(estimated, truth, r)},
-            "channel table (preset)": shares(rings_from_elevation(r, el, spec), truth, r),
-            "uniform grid over the datasheet FOV": shares(rings_from_elevation(r, el, uniform), truth, r),
+            "resolve_rings": {"source": source, **shares(estimated, truth, r)},
+            "channel_table": shares(rings_from_elevation(r, el, spec), truth, r),
+            "uniform_grid": shares(rings_from_elevation(r, el, uniform), truth, r),
         },
         "per_ring": per_ring,
     }
@@ -117,7 +117,13 @@ def _print(record: dict[str, Any]) -> None:
         f"{scan['file']} (sha256 {scan['sha256']}), {scan['points']} points, read as {record['lidar']['preset']}"
     )
     print(f"{'rings from':<44} {'beyond 2 m':>22} {'beyond 5 m':>22}")
-    for name, row in record["rings"].items():
+    labels = {
+        "resolve_rings": f"resolve_rings ({record['rings']['resolve_rings']['source']})",
+        "channel_table": "the preset's channel table alone",
+        "uniform_grid": "a uniform grid over the datasheet FOV",
+    }
+    for key, row in record["rings"].items():
+        name = labels[key]
         cells = [
             f"{row[k]['share']:8.2%} ({row[k]['in_their_ring']}/{row[k]['returns']})"
             for k in row
