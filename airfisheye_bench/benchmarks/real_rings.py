@@ -5,7 +5,8 @@ ring-less export of it would read it: the points in the file's order, its ring f
 rings :func:`~airfisheye_bench.geometry.rings.resolve_rings` assigns (from the order where it holds, else from the
 channel table) and those of the channel table alone are compared with it, for the returns beyond 2 m and beyond 5 m
 of the sensor (range). Per ring, the median elevation of the returns beyond 2 m and beyond 5 m is set against the
-preset's table and against a uniform grid over the datasheet's field of view.
+preset's table and against a uniform grid over the datasheet's field of view; the distance the vehicle drove during
+the sweep (nuScenes compensates its sweeps for it) is read from the no-returns (:func:`sweep_motion`).
 
 The sweep's licence (nuScenes: CC BY-NC-SA 4.0) keeps it and its points out of this repository: the record holds
 counts, shares and per-ring medians, with the file's name and SHA-256.
@@ -31,7 +32,7 @@ from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.io.manifest import sha256_file
 from airfisheye_bench.io.scan import load_scan
 
-__all__ = ["BEYOND_M", "main", "measure_nuscenes", "shares"]
+__all__ = ["BEYOND_M", "main", "measure_nuscenes", "shares", "sweep_motion"]
 
 #: The ranges (metres from the sensor) beyond which the shares are counted.
 BEYOND_M = (2.0, 5.0)
@@ -65,6 +66,31 @@ def _median_elevations(
         values = el[far & (truth == ring)]
         out.append(round(math.degrees(float(np.median(values))), 4) if len(values) else None)
     return out
+
+
+def sweep_motion(points: np.ndarray) -> dict[str, float | int]:
+    """How far the sensor moved during a column-ordered sweep compensated for it, read from its no-returns.
+
+    A sweep moved into the sensor's frame at its last firing moves every point by where the sensor was when it fired
+    it, the no-returns (zeros) too: they end on a line along the driving direction. The returns within 1 m on the x
+    axis (``|y| < 1 mm``) are fitted against their firing's place in the sweep (index / N), again without those
+    5 cm off the line: the slope is the distance driven during the revolution.
+
+    Example:
+        >>> x = np.linspace(-0.5, 0.0, 100)
+        >>> sweep_motion(np.column_stack([x, np.zeros(100), np.zeros(100)]))["driven_m"]
+        0.5
+    """
+    r = np.linalg.norm(points, axis=1)
+    on_axis = np.flatnonzero((r < 1.0) & (np.abs(points[:, 1]) < 1e-3))
+    if len(on_axis) < 2:
+        return {"points_on_axis": len(on_axis), "driven_m": float("nan")}
+    when, x = on_axis / (len(points) - 1), points[on_axis, 0]
+    fit = np.polyfit(when, x, 1)
+    line = np.abs(x - np.polyval(fit, when)) < 0.05  # refit without what is not on the line (a self-hit)
+    if line.sum() >= 2:
+        fit = np.polyfit(when[line], x[line], 1)
+    return {"points_on_axis": int(line.sum()), "driven_m": round(float(fit[0]), 4)}
 
 
 def measure_nuscenes(path: str | Path, lidar: str = "hdl32e") -> dict[str, Any]:
@@ -108,6 +134,7 @@ def measure_nuscenes(path: str | Path, lidar: str = "hdl32e") -> dict[str, Any]:
             "uniform_grid": shares(rings_from_elevation(r, el, uniform), truth, r),
         },
         "per_ring": per_ring,
+        "motion": sweep_motion(scan.points),
     }
 
 
@@ -130,6 +157,11 @@ def _print(record: dict[str, Any]) -> None:
             if "beyond" in k
         ]
         print(f"{name:<44} {cells[0]:>22} {cells[1]:>22}")
+    motion = record["motion"]
+    print(
+        f"driven during the sweep: {motion['driven_m']} m (fitted to its {motion['points_on_axis']} returns within "
+        "1 m on the x axis)"
+    )
     for name, diffs in record["per_ring"].items():
         if "_minus_" in name:
             print(f"{name}: up to {max(abs(v) for v in diffs if v is not None):.3f}")
