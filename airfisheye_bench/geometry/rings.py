@@ -1,6 +1,6 @@
 """The ring (channel) of every return: from the data where it says so, else estimated, robustly.
 
-Three sources, best first (docs/design.md, "Rings", says which file format gives which):
+Four sources, best first (docs/design.md, "Rings", says which file format gives which):
 
 ``field``         The sensor's own ring (nuScenes ``.pcd.bin``, ROS drivers' ``ring`` in PCD / PLY): passed through
                   (:func:`~airfisheye_bench.geometry.lidar_layout.check_rings`).
@@ -9,14 +9,16 @@ Three sources, best first (docs/design.md, "Rings", says which file format gives
                   per revolution of a laser, and the blocks are matched to the channel table in order
                   (:func:`rings_from_firing_order`). Near returns keep their laser's ring whatever their
                   elevation, and a laser with no return at all does not shift the others.
-``column_order``  The order of the points, column by column (nuScenes ``.pcd.bin``, a driver's packets where every
-                  firing is kept, no-returns included): each column holds every laser once, in one fixed sequence,
-                  so point ``i`` is fired by the laser of slot ``i mod channels``; the slots are matched to the
-                  channel table by their returns' median elevation (:func:`rings_from_column_order`). Returns moved
-                  after they were measured (a sweep compensated for the vehicle's motion) keep their laser's ring.
+``column_order``  The order of the points, column by column (a nuScenes sweep exported without its ring field, a
+                  driver's packets where every firing is kept, no-returns included): each column holds every laser
+                  once, in one fixed sequence, so point ``i`` is fired by the laser of slot ``i mod channels``; the
+                  slots are matched to the channel table by their returns' median elevation
+                  (:func:`rings_from_column_order`). Returns moved after they were measured (a sweep compensated
+                  for the vehicle's motion) keep their laser's ring.
 ``channel_table`` Each point's elevation against the channel table, measured from where each channel's beam
-                  starts (:func:`~airfisheye_bench.geometry.lidar_layout.rings_from_elevation`): exact beyond a few metres; near returns of a sensor whose
-                  beam origins are not described can land in a neighbouring ring.
+                  starts (:func:`~airfisheye_bench.geometry.lidar_layout.rings_from_elevation`): exact beyond a few
+                  metres; near returns of a sensor whose beam origins are not described, or of a sweep compensated
+                  for the vehicle's motion, can land in a neighbouring ring.
 """
 
 from __future__ import annotations
@@ -239,7 +241,7 @@ def _match_in_order(cost: np.ndarray, top_first: bool) -> tuple[float, np.ndarra
 def rings_from_column_order(
     r: np.ndarray, el: np.ndarray, spec: LidarSpec, columns: int = 16
 ) -> np.ndarray | None:
-    """Rings from a column-major storage order (``column_order`` source): ``int64 [N]``, or ``None`` if it does not hold.
+    """Rings from a column-major storage order (``column_order`` source): ``int64 [N]``, or ``None``.
 
     A file that keeps every firing (nuScenes ``.pcd.bin``: 32 x 1084 points, no-returns included) stores the scan
     column by column, each column holding every laser once in one fixed sequence (nuScenes: ring order; a Velodyne
