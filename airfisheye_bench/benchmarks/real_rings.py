@@ -32,7 +32,7 @@ from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.io.manifest import sha256_file
 from airfisheye_bench.io.scan import load_scan
 
-__all__ = ["BEYOND_M", "main", "measure_nuscenes", "shares", "sweep_motion"]
+__all__ = ["BEYOND_M", "main", "measure_nuscenes", "misses", "shares", "sweep_motion"]
 
 #: The ranges (metres from the sensor) beyond which the shares are counted.
 BEYOND_M = (2.0, 5.0)
@@ -93,6 +93,23 @@ def sweep_motion(points: np.ndarray) -> dict[str, float | int]:
     return {"points_on_axis": int(line.sum()), "driven_m": round(float(fit[0]), 4)}
 
 
+def misses(estimated: np.ndarray, truth: np.ndarray, r: np.ndarray, beyond: float) -> dict[str, Any]:
+    """The returns beyond ``beyond`` metres not in their laser's ring: how many per true ring, and by how many rings
+    off (estimated minus true).
+
+    Example:
+        >>> misses(np.array([0, 0, 2]), np.array([0, 1, 2]), np.full(3, 9.0), 5.0)
+        {'by_ring': [0, 1, 0], 'by_offset': {'-1': 1}}
+    """
+    far = (r > beyond) & (truth >= 0)
+    wrong = far & (estimated != truth)
+    offsets, counts = np.unique(estimated[wrong] - truth[wrong], return_counts=True)
+    return {
+        "by_ring": np.bincount(truth[wrong], minlength=int(truth.max()) + 1).tolist(),
+        "by_offset": {str(int(o)): int(c) for o, c in zip(offsets, counts, strict=True)},
+    }
+
+
 def measure_nuscenes(path: str | Path, lidar: str = "hdl32e") -> dict[str, Any]:
     """The record of one nuScenes sweep read without its ring field (see the module docstring)."""
     path = Path(path)
@@ -104,6 +121,7 @@ def measure_nuscenes(path: str | Path, lidar: str = "hdl32e") -> dict[str, Any]:
     r, _, el = spherical_coordinates(scan.points)
     # resolve_rings as a file without a ring field reaches it: the points in the file's order
     estimated, source = resolve_rings(scan.points, spec, None, scan.firing_order)
+    table_rings = rings_from_elevation(r, el, spec)
     lower, upper = spec.vfov_deg
     uniform = LidarSpec(channels=spec.channels, vfov_deg=(lower, upper), hfov_deg=360.0)
     tables = {"preset": spec, "uniform": uniform}
@@ -130,9 +148,10 @@ def measure_nuscenes(path: str | Path, lidar: str = "hdl32e") -> dict[str, Any]:
         "lidar": {"preset": lidar, "channels": spec.channels, "uniform": f"{lower:g}..{upper:g} deg"},
         "rings": {
             "resolve_rings": {"source": source, **shares(estimated, truth, r)},
-            "channel_table": shares(rings_from_elevation(r, el, spec), truth, r),
+            "channel_table": shares(table_rings, truth, r),
             "uniform_grid": shares(rings_from_elevation(r, el, uniform), truth, r),
         },
+        "channel_table_misses_beyond_5m": misses(table_rings, truth, r, BEYOND_M[-1]),
         "per_ring": per_ring,
         "motion": sweep_motion(scan.points),
     }
@@ -157,6 +176,10 @@ def _print(record: dict[str, Any]) -> None:
             if "beyond" in k
         ]
         print(f"{name:<44} {cells[0]:>22} {cells[1]:>22}")
+    missed = record["channel_table_misses_beyond_5m"]
+    print(
+        f"the channel table's misses beyond 5 m by true ring: {missed['by_ring']}, by offset: {missed['by_offset']}"
+    )
     motion = record["motion"]
     print(
         f"driven during the sweep: {motion['driven_m']} m (fitted to its {motion['points_on_axis']} returns within "
