@@ -120,10 +120,12 @@ def test_hdl32e_in_nuscenes_order_without_a_ring_field(tmp_path: Path, suffix: s
     assert sweep_motion(scan.points)["driven_m"] == pytest.approx(0.45, abs=0.01)
 
 
-def test_hdl32e_in_the_packets_firing_sequence() -> None:
-    """Every column in the manual's firing sequence (laser IDs 0-31: the lower and upper banks interleave)."""
+@pytest.mark.parametrize("motion_m", [0.0, 1.35])
+def test_hdl32e_in_the_packets_firing_sequence(motion_m: float) -> None:
+    """Every column in the manual's firing sequence (laser IDs 0-31: the lower and upper banks interleave), still
+    or driving 27 m/s (1.35 m a revolution at 20 Hz)."""
     ring_of_laser = np.argsort(np.argsort(HDL32E_VERTICAL_ANGLES_DEG))
-    points, truth = simulate(HDL32E_MANUAL, 10, order="nuscenes", motion_m=0.45, sequence=ring_of_laser)
+    points, truth = simulate(HDL32E_MANUAL, 10, order="nuscenes", motion_m=motion_m, sequence=ring_of_laser)
     assert truth[:4].tolist() == [0, 16, 1, 17]
     rings, source = resolve_rings(points, HDL32E_MANUAL)
     assert source == "column_order" and _share(rings, truth, points) >= 0.99
