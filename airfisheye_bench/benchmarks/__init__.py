@@ -5,7 +5,8 @@ Each ``scripts/<name>.py`` is a thin entry point to one module here (``bench_eva
 :mod:`~.loader_speed`, ``bench_multi_source`` -> :mod:`~.multi_source_cost`, ``bench_occlusion_memory`` ->
 :mod:`~.occlusion_memory`, ``occlusion_study``, ``occlusion_ablation``, ``gpu_campaign`` -> :mod:`~.gpu_campaign`,
 which times training steps with :mod:`~.train_throughput` and keeps its time-boxed record with
-:mod:`~.campaign_record`); :mod:`~.lidar_scene` is the analytic LiDAR scene the LiDAR benchmarks and tests share.
+:mod:`~.campaign_record`, ``check_real_rings`` -> :mod:`~.real_rings`); :mod:`~.lidar_scene` is the analytic LiDAR
+scene the LiDAR benchmarks and tests share.
 They run from a checkout: the benchmarks write their tables into its ``docs/benchmarks.md`` and the ablation
 drives its ``train.py``. Nothing is imported here: ``occlusion_memory`` measures each method in a fresh
 ``python -m`` process, which loads only its own module.

@@ -12,7 +12,7 @@ preset        channels  points / revolution    source of the table
 ============  ========  =====================  ==========================================================
 ``paper``     64        2048 over 270 deg      the paper's sensor (64 channels, 270 deg, 120 m), uniform
 ``hdl64e``    64        2083                   KITTI's HDL-64E S2 factory calibration (per-laser values)
-``hdl32e``    32        1084 (20 Hz)           HDL-32E datasheet / nuScenes: +10.67 to -30.67 deg, 1.33 deg
+``hdl32e``    32        1084 (20 Hz)           HDL-32E manual: vertical angle per laser, -30.67 to +10.67 deg
 ``vlp16``     16        1800 (10 Hz, 0.2 deg)  VLP-16 manual: vertical angles and vertical corrections
 ``vlp32c``    32        1800 (10 Hz, 0.2 deg)  VLP-32C manual: vertical angles and azimuth offsets
 ``os1-64``    64        1024 (1024x10)         Ouster SDK design values (gen1 OS-1-64)
@@ -106,6 +106,19 @@ _HDL64E_LASERS = (
     (1.0275339, -12.115005, 12.081173, -2.5999999),
 )
 
+# ------------------------------------------------------------------------------------------------ HDL-32E
+#: Velodyne HDL-32E user's manual (63-9113), "Laser Firing Sequence": the vertical angle (deg) of each laser in firing
+#: order, which is the order of the Ethernet packet (DSR # 0-31). The lowest laser fires first, then the lower and
+#: upper banks of 16 interleave (against ghosting from retro-reflectors); DSR 15 is the 0 deg laser. The manual
+#: prints -6.66 and -26.66 where the 4/3 deg grid and the ROS driver's 32db.yaml have -6.67 / -26.67. Appendix D:
+#: the x and y offsets are zero and every laser fires from the centre of the lenses, where the driver's (and
+#: nuScenes') frame has its origin; the vertical angle is the only per-laser parameter: no beam origins.
+HDL32E_VERTICAL_ANGLES_DEG = (
+    -30.67, -9.33, -29.33, -8.00, -28.00, -6.66, -26.66, -5.33, -25.33, -4.00, -24.00, -2.67, -22.67, -1.33,
+    -21.33, 0.00, -20.00, 1.33, -18.67, 2.67, -17.33, 4.00, -16.00, 5.33, -14.67, 6.67, -13.33, 8.00, -12.00,
+    9.33, -10.67, 10.67,
+)  # fmt: skip
+
 # ------------------------------------------------------------------------------------------------ VLP-16
 # Velodyne VLP-16 user manual, "vertical angle" and "vertical correction (mm)" per laser ID 0-15 (its table of
 # laser angles; the correction is added to z): (elevation deg, vertical origin offset mm).
@@ -188,14 +201,13 @@ LIDAR_PRESETS: dict[str, dict[str, Any]] = {
             [(0.0, h / 100.0, z / 100.0) for _, _, z, h in _HDL64E_LASERS],
         ),
     },
-    # HDL-32E datasheet: +10.67 to -30.67 deg in 1.33 deg steps, 100 m; nuScenes runs it at 20 Hz, ~1.39 M
-    # points/s -> ~1084 per laser and revolution. No per-laser origins published: the beams start at the centre.
+    # HDL-32E: the manual's vertical angles (above), 100 m; nuScenes runs it at 20 Hz, ~1.39 M points/s -> 1084 per
+    # laser and revolution (the nuScenes sweep of docs/figures/real_rings_nuscenes_hdl32e.json holds 32 x 1084).
     "hdl32e": {
-        "channels": 32,
         "points_per_channel": 1084,
         "hfov_deg": 360.0,
-        "vfov_deg": (-30.67, 10.67),
         "max_range": 100.0,
+        **laser_table(HDL32E_VERTICAL_ANGLES_DEG),
     },
     "vlp16": {
         "points_per_channel": 1800,
@@ -242,6 +254,7 @@ LIDAR_PRESETS: dict[str, dict[str, Any]] = {
 
 
 __all__ = [
+    "HDL32E_VERTICAL_ANGLES_DEG",
     "LIDAR_PRESETS",
     "OUSTER_BEAM_ORIGIN_MM",
     "OUSTER_GEN1_BEAM_ORIGIN_MM",

@@ -1,6 +1,6 @@
 """The ring (channel) of every return: from the data where it says so, else estimated, robustly.
 
-Three sources, best first (docs/design.md, "Rings", says which file format gives which):
+Four sources, best first (docs/design.md, "Rings", says which file format gives which):
 
 ``field``         The sensor's own ring (nuScenes ``.pcd.bin``, ROS drivers' ``ring`` in PCD / PLY): passed through
                   (:func:`~airfisheye_bench.geometry.lidar_layout.check_rings`).
@@ -9,21 +9,29 @@ Three sources, best first (docs/design.md, "Rings", says which file format gives
                   per revolution of a laser, and the blocks are matched to the channel table in order
                   (:func:`rings_from_firing_order`). Near returns keep their laser's ring whatever their
                   elevation, and a laser with no return at all does not shift the others.
+``column_order``  The order of the points, column by column (a nuScenes sweep exported without its ring field, a
+                  driver's packets where every firing is kept, no-returns included): each column holds every laser
+                  once, in one fixed sequence, so point ``i`` is fired by the laser of slot ``i mod channels``; the
+                  slots are matched to the channel table by their returns' median elevation
+                  (:func:`rings_from_column_order`). Returns moved after they were measured (a sweep compensated
+                  for the vehicle's motion) keep their laser's ring.
 ``channel_table`` Each point's elevation against the channel table, measured from where each channel's beam
-                  starts (:func:`~airfisheye_bench.geometry.lidar_layout.rings_from_elevation`): exact beyond a few metres; near returns of a sensor whose
-                  beam origins are not described can land in a neighbouring ring.
+                  starts (:func:`~airfisheye_bench.geometry.lidar_layout.rings_from_elevation`): exact beyond a few
+                  metres; near returns of a sensor whose beam origins are not described, or of a sweep compensated
+                  for the vehicle's motion, can land in a neighbouring ring.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import channel_residuals, check_rings, rings_from_elevation
 
-RING_SOURCES = ("field", "firing_order", "channel_table")
+RING_SOURCES = ("field", "firing_order", "column_order", "channel_table")
 
 
 def firing_blocks(
@@ -230,6 +238,107 @@ def _match_in_order(cost: np.ndarray, top_first: bool) -> tuple[float, np.ndarra
     return float(total.min()), rings
 
 
+def rings_from_column_order(
+    r: np.ndarray, el: np.ndarray, spec: LidarSpec, columns: int = 16
+) -> np.ndarray | None:
+    """Rings from a column-major storage order (``column_order`` source): ``int64 [N]``, or ``None``.
+
+    A file that keeps every firing (nuScenes ``.pcd.bin``: 32 x 1084 points, no-returns included) stores the scan
+    column by column, each column holding every laser once in one fixed sequence (nuScenes: ring order; a Velodyne
+    packet: the laser IDs' firing order, which interleaves the HDL-32E's banks). Point ``i`` then belongs to slot
+    ``i mod channels``, whatever its elevation: the slots are ranked by the median elevation of their returns beyond
+    2 m (seen from the lasers' mean beam origin) and the rank is the ring; slots without such returns are left to the
+    channel table, and the others matched to the channels in order (:func:`_match_in_order`). The order is taken only
+    where it holds everywhere (:func:`_order_holds`): every slot's returns beyond 10 m lie within half a channel
+    spacing of their channel (median), and in every run of ``columns`` columns they fit their slots' rings better
+    than those of the slots beside them. A file with a point missing (returns dropped, a cropped scan) shifts the
+    slots and fails this: ``None``, and the table decides.
+
+    Example:
+        >>> spec = LidarSpec(channels=3, points_per_channel=90, hfov_deg=360.0, vfov_deg=(-2.0, 2.0))
+        >>> el = np.radians(np.tile([0.0, -2.0, 2.0], 90))  # every column: the middle, lower, upper laser
+        >>> rings_from_column_order(np.full(270, 20.0), el, spec)[:3].tolist()
+        [1, 0, 2]
+    """
+    n_c, n = spec.channels, len(r)
+    if n < 2 * columns * n_c:
+        return None
+    rho, z = r * np.cos(el), r * np.sin(el)
+    radial, _, vertical = spec.channel_origins().mean(axis=0)
+    seen = np.arctan2(z - vertical, np.maximum(rho - radial, 1e-6))
+    slots = _by_slot(np.where(rho > 2.0, seen, np.nan), n_c)  # [columns, slot]
+    with warnings.catch_warnings():  # a slot without returns beyond 2 m: NaN, on purpose
+        warnings.simplefilter("ignore", RuntimeWarning)
+        median = np.nanmedian(slots, axis=0)
+    known = np.flatnonzero(np.isfinite(median))
+    if len(known) < n_c // 2:
+        return None
+    known = known[np.argsort(median[known], kind="stable")]
+    ring_of_slot = np.full(n_c, -1, dtype=np.int64)
+    if len(known) == n_c:  # every laser returned: the rank is the ring
+        ring_of_slot[known] = np.arange(n_c)
+    else:
+        table = spec.channel_elevations()
+        cost = np.minimum(np.abs(median[known, None] - table[None, :]), 3.0 * spec.vertical_resolution)
+        ring_of_slot[known] = _match_in_order(cost, top_first=False)[1]
+    if not _order_holds(r, el, ring_of_slot, spec, n_c * columns):
+        return None
+    ring = ring_of_slot[np.arange(n) % n_c]
+    unknown = ring < 0
+    if unknown.any():
+        ring[unknown] = rings_from_elevation(r[unknown], el[unknown], spec)
+    return np.where(r > 0, ring, -1).astype(np.int64)
+
+
+def _by_slot(values: np.ndarray, width: int) -> np.ndarray:
+    """``values`` padded with NaN to whole rows of ``width`` and reshaped to ``[rows, width]``."""
+    rows = -(-len(values) // width)
+    padded = np.full(rows * width, np.nan)
+    padded[: len(values)] = values
+    return padded.reshape(rows, width)
+
+
+def _order_holds(r: np.ndarray, el: np.ndarray, ring_of_slot: np.ndarray, spec: LidarSpec, run: int) -> bool:
+    """Whether the slots' rings fit the returns beyond 10 m: every slot's, and every run of ``run`` points' phase.
+
+    Residuals are seen from each channel's beam origin, in half the spacing to its nearest neighbour, on returns
+    beyond 10 m only: a sweep compensated for the vehicle's motion moves near returns by up to a channel spacing
+    (nuScenes, 9 m/s: the ground 5 m ahead by 1.1 deg), far ones by a fraction of it. A slot's median must stay
+    under 1 (its channel, not a neighbour's: a table that does not fit fails here). In every run with 8 such returns
+    or more, the slots' rings must fit better than those of the slots one before or after: a point missing before
+    the run shifts its phase by one, and then a neighbouring slot's ring fits.
+    """
+    n_c, n = spec.channels, len(r)
+    table = spec.channel_elevations()
+    gap = np.diff(table)
+    half = np.minimum(np.concatenate([gap[:1], gap]), np.concatenate([gap, gap[-1:]])) / 2.0
+    radial, _, vertical = spec.channel_origins().T
+    far = np.flatnonzero(r * np.cos(el) > 10.0)
+    if len(far) == 0:
+        return False
+    rho, z, slot = r[far] * np.cos(el[far]), r[far] * np.sin(el[far]), far % n_c
+    fits = []
+    for shift in (0, -1, 1):
+        ring = ring_of_slot[(slot + shift) % n_c]
+        k = np.maximum(ring, 0)
+        scaled = np.full(n, np.nan)
+        scaled[far] = np.where(
+            ring >= 0,
+            (np.arctan2(z - vertical[k], np.maximum(rho - radial[k], 1e-6)) - table[k]) / half[k],
+            np.nan,
+        )
+        fits.append(scaled)
+    with warnings.catch_warnings():  # slots or runs without far returns: NaN, skipped
+        warnings.simplefilter("ignore", RuntimeWarning)
+        per_slot = np.nanmedian(_by_slot(fits[0], n_c), axis=0)
+        per_run = np.stack([np.nanmedian(np.abs(_by_slot(f, run)), axis=1) for f in fits])
+    counted = np.isfinite(_by_slot(fits[0], run)).sum(axis=1) >= 8
+    if np.isnan(per_slot).all() or not counted.any():
+        return False
+    phase_holds = per_run[0, counted] < np.fmin(per_run[1, counted], per_run[2, counted])
+    return bool(np.nanmax(np.abs(per_slot)) < 1.0 and phase_holds.all())
+
+
 def _prefix_argmin(values: np.ndarray) -> np.ndarray:
     idx = np.arange(len(values))
     best = np.minimum.accumulate(values)
@@ -245,8 +354,9 @@ def resolve_rings(
         points: ``float64 [N, 3]`` in the order of the file.
         spec: The sensor.
         rings: The file's ring field, if it has one (checked against the spec).
-        firing_order: The file keeps the firing order (KITTI ``.bin``); falls back to the channel table when the
-            order shows no revolutions.
+        firing_order: The file keeps the firing order (KITTI ``.bin``); falls back to the column order, then the
+            channel table, when the order shows no revolutions. Any file's order is tried as a column order
+            (:func:`rings_from_column_order`: it holds only where every firing was kept).
 
     Example:
         >>> spec = LidarSpec(channels=4, points_per_channel=8)
@@ -262,7 +372,16 @@ def resolve_rings(
         ordered = rings_from_firing_order(r, az, el, spec)
         if ordered is not None:
             return ordered, "firing_order"
+    by_column = rings_from_column_order(r, el, spec)
+    if by_column is not None:
+        return by_column, "column_order"
     return rings_from_elevation(r, el, spec), "channel_table"
 
 
-__all__ = ["RING_SOURCES", "firing_blocks", "resolve_rings", "rings_from_firing_order"]
+__all__ = [
+    "RING_SOURCES",
+    "firing_blocks",
+    "resolve_rings",
+    "rings_from_column_order",
+    "rings_from_firing_order",
+]

@@ -38,11 +38,13 @@ from airfisheye_bench.synth.classes import IGNORE_ID
 VISIBILITY_ABS_EPS = 0.02
 VISIBILITY_REL_EPS = 1e-3
 
+# Written into every dataset.yaml, so its text is part of the datasets' content identity (tests/io/test_content.py):
+# it keeps the camera's old name, FisheyeCamera (today any CameraModel), rather than change every dataset's identity.
 VISIBILITY_DEFINITION = (
     "lidar_visible/<frame>.npy[i] is True iff the straight segment from the camera centre at t_cam to LiDAR point i "
     "(its world position, hit at t_lidar) is unobstructed by scene geometry (exact ray cast; the last "
     f"max({VISIBILITY_ABS_EPS * 100:g} cm, {VISIBILITY_REL_EPS * 100:g}% of the distance) before the point, i.e. its "
-    "own surface, is not tested). It ignores the lens field of view: AND it with CameraModel.project(...) validity "
+    "own surface, is not tested). It ignores the lens field of view: AND it with FisheyeCamera.project(...) validity "
     "(points transformed with the motion-compensated T_cam_lidar) to get 'seen in the image'."
 )
 

@@ -7,7 +7,12 @@ azimuth offsets, a random phase per laser and small angular jitter; returns beyo
 * ``order="kitti"``: each laser's revolution stored contiguously, top laser first, starting near azimuth 0 and
   wrapping once at +-180 deg (KITTI ``.bin``);
 * ``order="firing"``: column by column, every laser of a column in turn (a driver's packet order);
-* self-hits within 1 m can be added (nuScenes holds thousands).
+* ``order="nuscenes"``: column by column with every firing stored, a lost return as a zero (nuScenes
+  ``.pcd.bin``: 32 x 1084 points), the lasers of a column in ring order or in ``sequence`` (the rings in a
+  packet's firing order);
+* self-hits within 1 m can be added (nuScenes holds thousands);
+* ``motion_m``: the sweep compensated for the vehicle's motion, as nuScenes' are: the vehicle drives that far
+  ahead (+x) during the revolution and every point is moved into the sensor's frame at the last firing.
 
 The true ring of every return comes with it.
 """
@@ -57,10 +62,13 @@ def simulate(
     order: str = "kitti",
     jitter_cells: float = 0.05,
     self_hits: int = 0,
+    motion_m: float = 0.0,
+    sequence: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(points float64 [N, 3], true ring int64 [N])`` in the file order ``order`` (see the module docstring).
 
-    Self-hits get ring -1 in the truth (no laser of the table measured them in the scene).
+    Self-hits get ring -1 in the truth (no laser of the table measured them in the scene); in the ``nuscenes`` order
+    they replace the returns of their firings, so that every column keeps one point per laser.
     """
     rng = np.random.default_rng(seed)
     n_c, n_pc = spec.channels, spec.points_per_channel
@@ -80,17 +88,31 @@ def simulate(
     dirs = np.stack([np.cos(el) * np.cos(beam_az), np.cos(el) * np.sin(beam_az), np.sin(el)], axis=1)
     origins = spec.beam_origins(beam_az, channel)
     t = _hit(origins, dirs)
-    keep = t <= spec.max_range
-    points = origins[keep] + dirs[keep] * t[keep, None]
-    ring, az_kept, col_kept = channel[keep], az[keep], column[keep]
+    keep = (t <= spec.max_range) | (order == "nuscenes")  # nuScenes keeps every firing
+    points = np.where(
+        (t <= spec.max_range)[:, None], origins + dirs * np.where(np.isfinite(t), t, 0.0)[:, None], 0.0
+    )
+    if motion_m:  # where the sensor was at each firing, seen from where it is at the last one
+        points[:, 0] -= motion_m * (1.0 - (column + 0.5) / n_pc)
+    points = points[keep]
+    ring, az_kept, col_kept, lost = channel[keep], az[keep], column[keep], (t > spec.max_range)[keep]
     if order == "kitti":  # laser by laser, top first; inside a laser by firing time (column)
         idx = np.lexsort((col_kept, -ring))
     elif order == "firing":
         idx = np.lexsort((ring, col_kept))
+    elif order == "nuscenes":
+        slot = np.empty(n_c, dtype=np.int64)
+        slot[np.arange(n_c) if sequence is None else np.asarray(sequence)] = np.arange(n_c)
+        idx = np.lexsort((slot[ring], col_kept))
     else:
         raise ValueError(order)
-    points, ring = points[idx], ring[idx]
-    if (
+    points, ring, lost = points[idx], ring[idx], lost[idx]
+    if self_hits and order == "nuscenes":  # the body instead of the scene, 0.2-1.2 m along the beam
+        where = rng.choice(np.flatnonzero(~lost), self_hits, replace=False)
+        beam = points[where] / np.linalg.norm(points[where], axis=1, keepdims=True)
+        points[where] = beam * rng.uniform(0.2, 1.2, (self_hits, 1))
+        ring[where] = -1
+    elif (
         self_hits
     ):  # returns 0.2-1.2 m along a beam (the vehicle's own body), a tenth of them zeros (no return)
         where = np.sort(rng.integers(0, len(points), self_hits))  # fired between two stored returns

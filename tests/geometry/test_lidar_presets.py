@@ -13,7 +13,7 @@ import torch
 
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_layout import organize_scan, rings_from_elevation
-from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
+from airfisheye_bench.geometry.lidar_presets import HDL32E_VERTICAL_ANGLES_DEG, LIDAR_PRESETS
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.lidar_spec import load_lidar_spec, ouster_metadata_spec
 
@@ -42,6 +42,20 @@ def test_hdl64e_matches_the_kitti_calibration() -> None:
     assert np.abs(np.asarray(spec.elevations_deg) - uniform).max() > 2.0
     spacing = np.diff(spec.elevations_deg)
     assert 0.3 < np.median(spacing[40:]) < 0.45 and 0.4 < np.median(spacing[:20]) < 0.6
+
+
+def test_hdl32e_matches_the_manuals_table() -> None:
+    """Golden values: the HDL-32E manual's "Laser Firing Sequence" (laser 0 at -30.67 deg fires first, then the lower
+    and upper banks interleave: laser 1 at -9.33, laser 2 at -29.33, ...; laser 15 is the 0 deg one, laser 31 the
+    highest at +10.67); no beam origins (Appendix D: every laser fires from the centre of the lenses)."""
+    spec = LidarSpec.from_preset("hdl32e")
+    assert spec.channels == 32 and spec.vfov_deg == (-30.67, 10.67) and spec.beam_origins_m is None
+    angles = np.asarray(HDL32E_VERTICAL_ANGLES_DEG)
+    assert angles[:4].tolist() == [-30.67, -9.33, -29.33, -8.0] and angles[15] == 0.0 and angles[31] == 10.67
+    ring_of_laser = np.argsort(np.argsort(angles))  # the ring (elevation order) of each laser in firing order
+    assert ring_of_laser[:6].tolist() == [0, 16, 1, 17, 2, 18]
+    # the manual's 2-decimal angles on the datasheet's 4/3 deg grid
+    np.testing.assert_allclose(spec.elevations_deg, np.linspace(-30.67, 10.67, 32), atol=0.011)
 
 
 def test_other_presets_have_their_datasheet_values() -> None:
