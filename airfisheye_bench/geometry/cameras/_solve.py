@@ -385,7 +385,12 @@ class RadtanInverse:
                 g, dg = radial_factor(s, k1, k2, k3, k4, k5, k6)
                 return g + s * dg
 
-        self._radial = MonotoneInverse(f, df, min(r_max, 1e3), y_cap=r_cap)
+        t_hi = min(r_max, 1e3)
+        if any(self.rational):
+            # Short of a pole of the denominator (where r_max may end): rounding may put its root on the far side,
+            # where the radius is hugely negative. The radius is far beyond r_cap there anyway.
+            t_hi *= 1.0 - 1e-6
+        self._radial = MonotoneInverse(f, df, t_hi, y_cap=r_cap)
         self._radial_cap = r_cap
         self.r_valid = self._one_to_one_radius(self._radial.t_hi)
 
