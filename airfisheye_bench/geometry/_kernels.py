@@ -360,12 +360,14 @@ def scatter_min(values, target, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def newton_radtan(x, y, xd, yd, k1, k2, p1, p2, k3, max_steps):  # pragma: no cover - compiled
+def newton_radtan(x, y, xd, yd, k1, k2, p1, p2, k3, k4, k5, k6, max_steps):  # pragma: no cover - compiled
     """Polish ``(x, y)`` in place so that OpenCV's radial-tangential distortion of it gives ``(xd, yd)``.
 
     Newton's method on the 2x2 system (analytic, symmetric Jacobian), per point until the residual is below 1e-15
-    or ``max_steps``; non-finite starts are left alone. Float64 ``[N]`` arrays.
+    or ``max_steps``; non-finite starts are left alone. Float64 ``[N]`` arrays. Non-zero ``k4, k5, k6``: the
+    rational model, the radial factor divided by ``1 + k4 r^2 + k5 r^4 + k6 r^6``.
     """
+    rational = k4 != 0.0 or k5 != 0.0 or k6 != 0.0
     for i in range(x.shape[0]):
         a, b = x[i], y[i]
         if not (np.isfinite(a) and np.isfinite(b)):
@@ -373,11 +375,15 @@ def newton_radtan(x, y, xd, yd, k1, k2, p1, p2, k3, max_steps):  # pragma: no co
         for _ in range(max_steps):
             r2 = a * a + b * b
             radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            d_radial = 2.0 * (k1 + r2 * (2.0 * k2 + r2 * 3.0 * k3))
+            if rational:
+                den = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
+                radial = radial / den
+                d_radial = (d_radial - radial * 2.0 * (k4 + r2 * (2.0 * k5 + r2 * 3.0 * k6))) / den
             ex = a * radial + 2.0 * p1 * a * b + p2 * (r2 + 2.0 * a * a) - xd[i]
             ey = b * radial + p1 * (r2 + 2.0 * b * b) + 2.0 * p2 * a * b - yd[i]
             if abs(ex) <= 1e-15 and abs(ey) <= 1e-15:
                 break
-            d_radial = 2.0 * (k1 + r2 * (2.0 * k2 + r2 * 3.0 * k3))
             j11 = radial + a * a * d_radial + 2.0 * p1 * b + 6.0 * p2 * a
             j12 = a * b * d_radial + 2.0 * p1 * a + 2.0 * p2 * b
             j22 = radial + b * b * d_radial + 6.0 * p1 * b + 2.0 * p2 * a

@@ -145,3 +145,29 @@ def test_live_cv2_pinhole_project_and_undistort() -> None:
     und = cv2.undistortPoints(uv[:, None], K, D, None, None, None, crit)[:, 0]
     rays = np.concatenate([und, np.ones((len(und), 1))], 1)
     assert angle_between(cam.unproject(uv), rays).max() <= MAX_RAD
+
+
+#: A rational calibration (cv::calibrateCamera with CALIB_RATIONAL_MODEL) of realistic size: OpenCV's order.
+RATIONAL = {"model": "pinhole_radtan", "width": 1280, "height": 960, "fx": 700.0, "fy": 702.0, "cx": 639.2,
+            "cy": 481.7, "k1": -0.3, "k2": 0.1, "p1": 1e-3, "p2": -5e-4, "k3": 0.0, "k4": 0.05, "k5": 0.01,
+            "k6": 0.0}  # fmt: skip
+
+
+def test_live_cv2_rational_project_and_undistort() -> None:
+    """OpenCV's 8-coefficient model: cv2.projectPoints to 1e-6 px over the image, cv2.undistortPoints to 1e-9 rad."""
+    cv2 = _cv2()
+    cam = camera_from_dict(RATIONAL)
+    dirs = sphere_directions(6000, seed=10)
+    uv, valid = cam.project(dirs.numpy())
+    valid &= cam.in_image(uv)
+    dirs = dirs[valid].numpy()
+    K = np.array([[cam.fx, 0.0, cam.cx], [0, cam.fy, cam.cy], [0, 0, 1.0]])
+    D = np.array([cam.k1, cam.k2, cam.p1, cam.p2, cam.k3, cam.k4, cam.k5, cam.k6])
+    expected, _ = cv2.projectPoints(dirs[:, None], np.zeros(3), np.zeros(3), K, D)
+    uv, _ = cam.project(dirs)
+    theta = np.degrees(np.arccos(dirs[:, 2]))
+    assert theta.max() > 55 and np.abs(uv - expected[:, 0]).max() <= MAX_PX
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-15)
+    und = cv2.undistortPoints(uv[:, None], K, D, None, None, None, crit)[:, 0]
+    rays = np.concatenate([und, np.ones((len(und), 1))], 1)
+    assert angle_between(cam.unproject(uv), rays).max() <= MAX_RAD

@@ -191,6 +191,18 @@ def _pinhole_radtan(rng: np.random.Generator) -> dict:
     }
 
 
+def _pinhole_rational(rng: np.random.Generator) -> dict:
+    """OpenCV's rational model (CALIB_RATIONAL_MODEL, COLMAP FULL_OPENCV): small denominators, or the large, nearly
+    cancelling numerator and denominator that wide lenses calibrate to (k1 ~ k4, k2 ~ k5), some with a pole."""
+    cam = _pinhole_radtan(rng)
+    if rng.random() < 0.5:
+        k4, k5, k6 = rng.uniform(-0.1, 0.3), rng.uniform(-0.05, 0.05), rng.uniform(-0.01, 0.01)
+    else:
+        k4, k5, k6 = rng.uniform(0.5, 3.0), rng.uniform(0.0, 1.0), rng.uniform(0.0, 0.1)
+        cam["k1"], cam["k2"], cam["k3"] = k4 + rng.uniform(-0.6, 0.1), k5 + rng.uniform(-0.3, 0.1), k6
+    return {**cam, "k4": k4, "k5": k5, "k6": k6}
+
+
 def _ocam(rng: np.random.Generator) -> dict:
     """A lens ``r = f theta (1 + a theta^2 + b theta^4)`` fitted as OCamCalib does: world2cam of 6-16 terms in
     ``theta - pi/2`` over the calibrated range only (then written with six decimals, as export_data.m does), so
@@ -230,12 +242,13 @@ FAMILIES: dict[str, Callable[[np.random.Generator], dict]] = {
     "ocam": _ocam,
     "radial_poly": _radial_poly,
     "pinhole_radtan": _pinhole_radtan,
+    "pinhole_rational": _pinhole_rational,
 }
 
 
 def random_cameras(family: str, n: int = PER_FAMILY) -> list[CameraModel]:
     """``n`` cameras of one family, the same ones every run (the family's name seeds the generator)."""
-    rng = np.random.default_rng([35, *family.encode()])
+    rng = np.random.default_rng([35, *family.encode()])  # a family's name, not its model's
     return [camera_from_dict(FAMILIES[family](rng)) for _ in range(n)]
 
 
@@ -296,11 +309,11 @@ def check_exact(cam: CameraModel) -> dict[str, float]:
         assert not len(theta) or float(theta.max()) <= limit + step
         if cam.model == "ocam":  # and where the radius is not negative (a ray there lands mirrored)
             assert np.all((r(theta.numpy()) >= -1e-9) | (theta.numpy() == 0))
-    if cam.model in COLMAP_NAMES:
+    if cam.model in COLMAP_NAMES or (cam.model == "pinhole_radtan" and cam.theta_limit < math.pi / 2):
         # The disc of theta the model solves on is one-to-one: COLMAP's distortion (written out independently)
         # keeps a positive Jacobian determinant on it, by central differences.
         assert min_jacobian_det(cam) > 0, f"{cam}: the distortion folds inside theta_limit={cam.theta_limit}"
-        assert not len(theta) or float(theta.max()) <= cam.theta_limit
+        assert not len(theta) or float(theta.max()) <= cam.theta_limit + 1e-12
     # From the sphere: every direction that projects validly into the image comes back (no missing ray), to
     # 1e-9 rad, or to what 1e-9 px is worth where the lens is nearly flat (a polynomial about to turn: there one
     # pixel spans a wide angle, whatever the solver).
@@ -320,14 +333,20 @@ COLMAP_NAMES = {
     "thin_prism_fisheye": "THIN_PRISM_FISHEYE",
     "rad_tan_thin_prism_fisheye": "RAD_TAN_THIN_PRISM_FISHEYE",
 }
+#: The pinhole's coefficients in FULL_OPENCV's order.
+FULL_OPENCV = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
 
 
 def min_jacobian_det(cam: CameraModel, h: float = 1e-6) -> float:
-    """Smallest Jacobian determinant of COLMAP's ``m -> m + Distortion(m)`` over the disc ``|m| <= theta_limit``
-    (200 radii up to 0.999 of it, 256 azimuths), by central differences."""
-    model = COLMAP_NAMES[cam.model]
-    extra = [getattr(cam, name) for name in cam.coefficients]
-    r = np.linspace(0.0, 0.999 * cam.theta_limit, 201)[1:, None]
+    """Smallest Jacobian determinant of COLMAP's ``m -> m + Distortion(m)`` over the disc where the model is valid,
+    ``|m| <= theta_limit`` (the pinhole: ``|m| <= tan(theta_limit)``; 200 radii up to 0.999 of it, 256 azimuths), by
+    central differences."""
+    if cam.model == "pinhole_radtan":
+        model, extra, limit = "FULL_OPENCV", [getattr(cam, n) for n in FULL_OPENCV], math.tan(cam.theta_limit)
+    else:
+        names = cam.coefficients
+        model, extra, limit = COLMAP_NAMES[cam.model], [getattr(cam, n) for n in names], cam.theta_limit
+    r = np.linspace(0.0, 0.999 * limit, 201)[1:, None]
     a = np.linspace(0.0, 2 * np.pi, 257)[None, :-1]
     x, y = r * np.cos(a), r * np.sin(a)
 
@@ -355,7 +374,9 @@ def smallest_scale(cam: CameraModel, d: torch.Tensor, h: float = 1e-7) -> torch.
 
 # ---------------------------------------------------------------------------------------------- tests
 def test_every_family_of_the_registry_is_drawn() -> None:
-    assert set(FAMILIES) == set(CAMERA_MODELS)
+    assert set(CAMERA_MODELS) <= set(FAMILIES)
+    # The rest are variants of a model (its name a family's, not a registry key).
+    assert {FAMILIES[f](np.random.default_rng(0))["model"] for f in FAMILIES} == set(CAMERA_MODELS)
 
 
 @pytest.mark.parametrize("family", sorted(FAMILIES))

@@ -1,8 +1,9 @@
 """COLMAP's camera models written out in numpy, line by line, to test the project's models against (not its code).
 
 Source: github:colmap/colmap ``src/colmap/sensor/models.h`` (as of 2026-08): each model's ``ImgFromCam``,
-``CamFromImg`` and ``Distortion``, ``BasePerspectiveFisheyeCameraModel::FisheyeFromNormal`` /
-``NormalFromFisheye`` and ``BasePerspectiveCameraModel::IterativeUndistortion``. COLMAP's pixels: the image corner
+``CamFromImg`` and ``Distortion`` (``FullOpenCVCameraModel``'s is OpenCV's rational model),
+``BasePerspectiveFisheyeCameraModel::FisheyeFromNormal`` / ``NormalFromFisheye`` and
+``BasePerspectiveCameraModel::IterativeUndistortion``. COLMAP's pixels: the image corner
 is the origin, the top-left pixel's centre is (0.5, 0.5). ``IterativeUndistortion`` takes its Jacobian from ceres
 Jets (exact derivatives); here central differences stand in for them (the point it converges to is the same).
 """
@@ -35,6 +36,16 @@ def normal_from_fisheye(uu: np.ndarray, vv: np.ndarray) -> tuple[np.ndarray, np.
 
 def distortion(model: str, extra: list[float], u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``Distortion(extra_params, u, v, &du, &dv)`` of each model with one."""
+    if model == "FULL_OPENCV":
+        k1, k2, p1, p2, k3, k4, k5, k6 = extra
+        u2, uv, v2 = u * u, u * v, v * v
+        r2 = u2 + v2
+        r4 = r2 * r2
+        r6 = r4 * r2
+        radial = (1 + k1 * r2 + k2 * r4 + k3 * r6) / (1 + k4 * r2 + k5 * r4 + k6 * r6)
+        du = u * radial + 2 * p1 * uv + p2 * (r2 + 2 * u2) - u
+        dv = v * radial + 2 * p2 * uv + p1 * (r2 + 2 * v2) - v
+        return du, dv
     if model == "OPENCV_FISHEYE":
         k1, k2, k3, k4 = extra
         theta2 = u * u + v * v
@@ -121,6 +132,10 @@ def img_from_cam(model: str, p: list[float], points: np.ndarray) -> tuple[np.nda
         duu, dvv = distortion(model, p[4:], uu, vv)
         return np.stack([f1 * (uu + duu) + c1, f2 * (vv + dvv) + c2], -1), w >= EPS
     f1, f2, c1, c2 = p[:4]
+    if model == "FULL_OPENCV":
+        x, y = u / w, v / w
+        dx, dy = distortion(model, p[4:], x, y)
+        return np.stack([f1 * (x + dx) + c1, f2 * (y + dy) + c2], -1), w >= EPS
     if model == "FOV":  # Distortion's general branch (omega^2 and radius^2 >= 1e-4 on the points tested)
         omega = p[4]
         x, y = u / w, v / w
@@ -143,12 +158,13 @@ def cam_from_img(model: str, p: list[float], xy: np.ndarray) -> tuple[np.ndarray
         x0, y0 = (x - c1) / f1, (y - c2) / f2
         denom = 1.0 + k * (x0 * x0 + y0 * y0)
         return np.stack([x0 / denom, y0 / denom], -1), np.ones(len(x), dtype=bool)
-    if model in FISHEYE:
+    if model in FISHEYE or model == "FULL_OPENCV":
         f1, f2, c1, c2 = p[:4]
         out, ok = np.empty((len(x), 2)), np.empty(len(x), dtype=bool)
         for i, (uu, vv) in enumerate(zip((x - c1) / f1, (y - c2) / f2, strict=True)):
             uu, vv, ok[i] = iterative_undistortion(model, p[4:], uu, vv)
-            u, v = normal_from_fisheye(np.array([uu]), np.array([vv]))
-            out[i] = u[0], v[0]
+            if model in FISHEYE:
+                uu, vv = (c[0] for c in normal_from_fisheye(np.array([uu]), np.array([vv])))
+            out[i] = uu, vv
         return out, ok
     raise AssertionError(model)

@@ -405,11 +405,22 @@ def test_opencv_plumb_bob_json_and_bad_coefficients(tmp_path: Path) -> None:
         "model": "pinhole_radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 501.0, "cx": 319.5, "cy": 239.5,
         "k1": -0.2, "k2": 0.05, "p1": 0.001, "p2": -0.002, "k3": 0.01,
     }  # fmt: skip
-    dist["rows"], dist["data"] = 1, [-0.2, 0.05, 0.001, -0.002, 0.01, 0.3, 0.0, 0.0]
+    # CALIB_RATIONAL_MODEL's 8 coefficients: k4..k6 the radial factor's denominator.
+    dist["rows"], dist["data"] = 1, [-0.2, 0.05, 0.001, -0.002, 0.01, 0.3, 0.02, -0.001]
     dist["cols"] = 8
     path.write_text(json.dumps(doc))
+    assert read_calibration(path).camera == {
+        "model": "pinhole_radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 501.0, "cx": 319.5, "cy": 239.5,
+        "k1": -0.2, "k2": 0.05, "p1": 0.001, "p2": -0.002, "k3": 0.01, "k4": 0.3, "k5": 0.02, "k6": -0.001,
+    }  # fmt: skip
+    # 12 with the thin-prism terms at 0: the same lens.
+    dist["cols"], dist["data"] = 12, [*dist["data"], 0.0, 0.0, 0.0, 0.0]
+    path.write_text(json.dumps(doc))
+    assert read_calibration(path).camera["k4"] == 0.3
+    dist["data"][8] = 1e-3
+    path.write_text(json.dumps(doc))
     with pytest.raises(
-        CalibrationFileError, match=r"key 'distortion_coefficients': non-zero k4: the rational"
+        CalibrationFileError, match=r"key 'distortion_coefficients': non-zero s1: the thin-prism"
     ):
         read_calibration(path)
 
@@ -421,6 +432,8 @@ def test_opencv_live_filestorage(tmp_path: Path) -> None:
     for suffix, D, fisheye in (
         (".yml", np.array([[0.012], [-0.003], [5e-4], [-2e-5]]), 1),
         (".json", np.array([[-0.2, 0.05, 1e-3, -2e-3, 0.01]]), 0),
+        # cv::calibrateCamera with CALIB_RATIONAL_MODEL writes 8 coefficients.
+        (".yaml", np.array([[-0.3], [0.1], [1e-3], [-5e-4], [0.0], [0.05], [0.01], [0.0]]), 0),
     ):
         path = tmp_path / f"camera{suffix}"
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
@@ -438,8 +451,8 @@ def test_opencv_live_filestorage(tmp_path: Path) -> None:
             K[0, 2],
             K[1, 2],
         )
-        names = ("k1", "k2", "k3", "k4") if fisheye else ("k1", "k2", "p1", "p2", "k3")
-        assert [camera[n] for n in names] == D.reshape(-1).tolist()
+        names = ("k1", "k2", "k3", "k4") if fisheye else ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
+        assert [camera.get(n, 0.0) for n in names[: D.size]] == D.reshape(-1).tolist()
 
 
 @pytest.mark.parametrize(
@@ -568,6 +581,8 @@ COLMAP_THIN_PRISM = [
     -0.02,
     0.001,
 ]
+#: A rational calibration of realistic size (k1, k2, p1, p2, k3, k4, k5, k6) on a 1280 x 960 image.
+COLMAP_FULL_OPENCV = [700.0, 702.0, 639.5, 481.0, -0.3, 0.1, 1e-3, -5e-4, 0.0, 0.05, 0.01, 0.002]
 COLMAP_RAD_TAN_THIN_PRISM = [651.123, 655.123, 386.123, 511.123, -0.0232, 0.0924, -0.0591, 0.003, 0.0048, -0.0009,
                              0.0002, 0.0005, -0.0009, -0.0001, 0.00007, -0.00017]  # fmt: skip
 
@@ -600,6 +615,7 @@ def _colmap_camera(tmp_path: Path, model: str, params: list[float], size: tuple[
         ("FOV", [651.123, 655.123, 386.123, 511.123, 0.9], "fov"),
         ("FOV", [651.123, 655.123, 386.123, 511.123, -0.9], "fov"),  # the same lens: the map is even in omega
         ("EUCM", [191.148, 191.132, 255.459, 257.382, 0.6291, 1.0418], "eucm"),  # TUM-VI cam0's, COLMAP's pixels
+        ("FULL_OPENCV", COLMAP_FULL_OPENCV, "pinhole_radtan"),
     ],
 )  # fmt: skip
 def test_colmap_models_project_as_colmap(tmp_path: Path, model: str, params: list[float], ours: str) -> None:
@@ -612,9 +628,14 @@ def test_colmap_models_project_as_colmap(tmp_path: Path, model: str, params: lis
     points[:, 2] = np.abs(points[:, 2]) + 0.05  # in front of the camera, up to 87 deg off the axis
     uv, valid = camera.project(points)
     xy, ok = colmap.img_from_cam(model, params, points)
+    if model == "FULL_OPENCV":
+        # COLMAP projects every point in front; the model only where the distortion is one-to-one (77 deg here).
+        theta = np.arctan2(np.hypot(points[:, 0], points[:, 1]), points[:, 2])
+        assert math.radians(75) < camera.theta_limit < math.radians(80)
+        ok &= theta <= camera.theta_limit
     # DIVISION with k > 0 has no real root past t = 1 / sqrt(k) (58 deg here): neither projects those.
     assert np.array_equal(valid, ok) and ok.mean() > (
-        0.5 if params[-1] > 0 and "DIVISION" in model else 0.999
+        0.5 if (params[-1] > 0 and "DIVISION" in model) or model == "FULL_OPENCV" else 0.999
     )
     # Our pixel centres are at integers, COLMAP's at half-integers.
     assert np.abs(uv[ok] + 0.5 - xy[ok]).max() < 1e-9
@@ -627,6 +648,7 @@ def test_colmap_models_project_as_colmap(tmp_path: Path, model: str, params: lis
         ("RAD_TAN_THIN_PRISM_FISHEYE", COLMAP_RAD_TAN_THIN_PRISM),
         ("SIMPLE_DIVISION", [651.123, 386.123, 511.123, 0.1]),
         ("DIVISION", [651.123, 655.123, 386.123, 511.123, -0.1]),
+        ("FULL_OPENCV", COLMAP_FULL_OPENCV),
     ],
 )
 def test_colmap_models_unproject_as_colmap(tmp_path: Path, model: str, params: list[float]) -> None:
@@ -695,6 +717,16 @@ def test_colmap_every_model_of_models_h_is_read() -> None:
     }  # fmt: skip
     assert set(COLMAP_PARAMETERS) | set(COLMAP_REFUSED) == models_h
     assert set(COLMAP_REFUSED) == {"EQUIRECTANGULAR"}
+
+
+def test_colmap_full_opencv_rational(tmp_path: Path) -> None:
+    """FULL_OPENCV with non-zero k4..k6 (OpenCV's rational model) loads as pinhole_radtan with them; zero, they are
+    left out of the dict (the plumb_bob camera of before)."""
+    camera = _colmap_camera(tmp_path, "FULL_OPENCV", COLMAP_FULL_OPENCV)
+    assert camera.model == "pinhole_radtan"
+    assert (camera.k4, camera.k5, camera.k6) == (0.05, 0.01, 0.002) and camera.cx == 639.5 - 0.5
+    plumb_bob = _colmap_camera(tmp_path, "FULL_OPENCV", [*COLMAP_FULL_OPENCV[:9], 0, 0, 0]).to_dict()
+    assert not {"k4", "k5", "k6"} & set(plumb_bob) and plumb_bob["k1"] == -0.3
 
 
 def test_colmap_fov_of_omega_zero_is_the_pinhole(tmp_path: Path) -> None:

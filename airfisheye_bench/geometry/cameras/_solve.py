@@ -7,9 +7,10 @@
   the radii near the image brackets every root there (a dense grid's search the few far beyond); linear
   interpolation starts close to it and two Newton steps clamped to the bracket polish it. Each result is checked
   (``|f(t) - y| <= tol``); a miss is solved again by safeguarded Newton steps, and is NaN if it still misses.
-- :class:`RadtanInverse`: invert OpenCV's radial-tangential distortion: the radial part as above, then Newton
-  steps on the 2x2 system for the tangential terms, each point until it converges (at most 40; a numba loop on
-  CPU), NaN where the result does not reproduce the input.
+- :class:`RadtanInverse`: invert OpenCV's radial-tangential distortion (plumb_bob, or the rational model's radial
+  factor, :func:`radial_factor`): the radial part as above, then Newton steps on the 2x2 system for the tangential
+  terms, each point until it converges (at most 40; a numba loop on CPU), NaN where the result does not reproduce
+  the input.
 - :class:`DiscInverse`: invert a near-radial distortion of the plane (COLMAP's thin-prism fisheye models) on the disc
   where it is one-to-one (:func:`one_to_one_radius`): a start from its radial part's inverse, then Newton steps in a
   trust region, halved until they shrink the residual (steepest descent where no Newton step does), NaN where the
@@ -232,25 +233,75 @@ class MonotoneInverse:
         return torch.where((self.f(t) - y).abs() <= self.tol, t, torch.nan)
 
 
-def radtan(
-    x: torch.Tensor, y: torch.Tensor, k1: float, k2: float, p1: float, p2: float, k3: float = 0.0
+def radial_factor(
+    r2: torch.Tensor,
+    k1: float,
+    k2: float,
+    k3: float = 0.0,
+    k4: float = 0.0,
+    k5: float = 0.0,
+    k6: float = 0.0,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """OpenCV's radial-tangential (plumb_bob) distortion of normalised coordinates."""
+    """OpenCV's radial factor ``g = (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6)`` of ``r2 = r^2``
+    and ``2 dg/d(r^2)``; without k4..k6 (plumb_bob) the numerator alone, evaluated as it always was."""
+    g = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    dg = 2.0 * (k1 + r2 * (2.0 * k2 + r2 * 3.0 * k3))
+    if k4 or k5 or k6:  # the rational model (CALIB_RATIONAL_MODEL, COLMAP's FULL_OPENCV)
+        den = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
+        d_den = 2.0 * (k4 + r2 * (2.0 * k5 + r2 * 3.0 * k6))
+        g = g / den
+        dg = (dg - g * d_den) / den
+    return g, dg
+
+
+def radtan(
+    x: torch.Tensor,
+    y: torch.Tensor,
+    k1: float,
+    k2: float,
+    p1: float,
+    p2: float,
+    k3: float = 0.0,
+    k4: float = 0.0,
+    k5: float = 0.0,
+    k6: float = 0.0,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """OpenCV's radial-tangential distortion of normalised coordinates (plumb_bob; with k4..k6 the rational model)."""
     r2 = x * x + y * y
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    if k4 or k5 or k6:
+        radial, _ = radial_factor(r2, k1, k2, k3, k4, k5, k6)
+    else:
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
     xy = x * y
     xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
     yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
     return xd, yd
 
 
-def radial_limit(k1: float, k2: float, k3: float = 0.0) -> float:
-    """Largest undistorted radius up to which ``r (1 + k1 r^2 + k2 r^4 + k3 r^6)`` increases (inf if always)."""
-    # d/dr = 1 + 3 k1 s + 5 k2 s^2 + 7 k3 s^3 with s = r^2: its smallest positive real root, if any.
-    coeffs = np.trim_zeros(np.array([7.0 * k3, 5.0 * k2, 3.0 * k1, 1.0]), "f")
-    roots = np.roots(coeffs) if len(coeffs) > 1 else np.array([])
+def radial_limit(
+    k1: float, k2: float, k3: float = 0.0, k4: float = 0.0, k5: float = 0.0, k6: float = 0.0
+) -> float:
+    """Largest undistorted radius up to which ``r g(r^2)`` increases (inf if always); ``g`` is
+    :func:`radial_factor`'s, whose denominator's first zero (a pole) ends it too."""
+    if not (k4 or k5 or k6):
+        # d/dr = 1 + 3 k1 s + 5 k2 s^2 + 7 k3 s^3 with s = r^2: its smallest positive real root, if any.
+        coeffs = np.trim_zeros(np.array([7.0 * k3, 5.0 * k2, 3.0 * k1, 1.0]), "f")
+        roots = np.roots(coeffs) if len(coeffs) > 1 else np.array([])
+        positive = [r.real for r in roots if abs(r.imag) <= 1e-12 * max(1.0, abs(r)) and r.real > 0]
+        return math.sqrt(min(positive)) if positive else math.inf
+    # g = N / D in s = r^2: d(r g)/dr = (N D + 2 s (N' D - N D')) / D^2, whose sign is its numerator's.
+    P = np.polynomial.Polynomial
+    num, den, s = P([1.0, k1, k2, k3]), P([1.0, k4, k5, k6]), P([0.0, 1.0])
+    slope = num * den + 2.0 * s * (num.deriv() * den - num * den.deriv())
+    return math.sqrt(min(_first_positive_root(slope.coef), _first_positive_root(den.coef)))
+
+
+def _first_positive_root(coeffs: np.ndarray) -> float:
+    """Smallest positive real root of a polynomial (coefficients lowest order first), inf if none."""
+    coeffs = np.trim_zeros(np.asarray(coeffs, dtype=np.float64), "b")
+    roots = np.polynomial.polynomial.polyroots(coeffs) if len(coeffs) > 1 else np.array([])
     positive = [r.real for r in roots if abs(r.imag) <= 1e-12 * max(1.0, abs(r)) and r.real > 0]
-    return math.sqrt(min(positive)) if positive else math.inf
+    return min(positive) if positive else math.inf
 
 
 def _circles(r: torch.Tensor, azimuths: int = 128) -> tuple[torch.Tensor, torch.Tensor]:
@@ -282,19 +333,21 @@ def one_to_one_radius(
 
 
 class RadtanInverse:
-    """Invert :func:`radtan`: the radial part by :class:`MonotoneInverse` on the radius, then Newton steps on the
-    2x2 system (analytic Jacobian) for the tangential terms, on the points not yet converged. NaN where the result does
-    not reproduce the distorted point or lies beyond ``r_valid``.
+    """Invert :func:`radtan` (plumb_bob or rational): the radial part by :class:`MonotoneInverse` on the radius, then
+    Newton steps on the 2x2 system (analytic Jacobian) for the tangential terms, on the points not yet converged. NaN
+    where the result does not reproduce the distorted point or lies beyond ``r_valid``.
 
     ``r_valid`` is the largest undistorted radius of the disc on which the distortion is one-to-one, so that a
-    distorted point has one undistorted point in it, not two: the radial factor still increases (``r_max``), the
-    Jacobian's determinant stays positive at every azimuth (the tangential terms fold the map a little before
-    ``r_max``), and the distorted radius stays within ``r_cap``. The camera models' valid regions end there too.
+    distorted point has one undistorted point in it, not two: the radius ``r g(r^2)`` still increases, short of any
+    pole of the rational denominator (``r_max``, :func:`radial_limit`), the Jacobian's determinant stays positive at
+    every azimuth (the tangential terms fold the map a little before ``r_max``), and the distorted radius stays
+    within ``r_cap``. The camera models' valid regions end there too.
 
     Args:
         k1, k2, p1, p2, k3: OpenCV's plumb_bob coefficients.
-        r_max: Largest undistorted radius where the radial factor ``r (1 + k1 r^2 + ...)`` increases.
+        r_max: Largest undistorted radius where the radius ``r g(r^2)`` increases (:func:`radial_limit`).
         r_cap: Largest distorted radius solved for (normalised units; 10 is 84 deg off-axis for a pinhole).
+        k4, k5, k6: The rational model's denominator (:func:`radial_factor`); 0: plumb_bob.
     """
 
     def __init__(
@@ -306,8 +359,12 @@ class RadtanInverse:
         k3: float = 0.0,
         r_max: float = math.inf,
         r_cap: float = 10.0,
+        k4: float = 0.0,
+        k5: float = 0.0,
+        k6: float = 0.0,
     ) -> None:
         self.k = (k1, k2, p1, p2, k3)
+        self.rational = (k4, k5, k6)
         self.r_max = r_max
 
         def f(r: torch.Tensor) -> torch.Tensor:  # r (1 + k1 r^2 + k2 r^4 + k3 r^6)
@@ -318,7 +375,22 @@ class RadtanInverse:
             s = r * r
             return 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3))
 
-        self._radial = MonotoneInverse(f, df, min(r_max, 1e3), y_cap=r_cap)
+        if any(self.rational):
+
+            def f(r: torch.Tensor) -> torch.Tensor:  # r g(r^2)
+                return r * radial_factor(r * r, k1, k2, k3, k4, k5, k6)[0]
+
+            def df(r: torch.Tensor) -> torch.Tensor:  # g + r^2 (2 dg/d(r^2))
+                s = r * r
+                g, dg = radial_factor(s, k1, k2, k3, k4, k5, k6)
+                return g + s * dg
+
+        t_hi = min(r_max, 1e3)
+        if any(self.rational):
+            # Short of a pole of the denominator (where r_max may end): rounding may put its root on the far side,
+            # where the radius is hugely negative. The radius is far beyond r_cap there anyway.
+            t_hi *= 1.0 - 1e-6
+        self._radial = MonotoneInverse(f, df, t_hi, y_cap=r_cap)
         self._radial_cap = r_cap
         self.r_valid = self._one_to_one_radius(self._radial.t_hi)
 
@@ -340,6 +412,8 @@ class RadtanInverse:
         """Undistort flat ``[N]`` coordinates: on CPU (``fused``) a numba loop takes each point until it converges;
         otherwise each masked torch step runs only on the points not yet converged."""
         k1, k2, p1, p2, k3 = self.k
+        k4, k5, k6 = self.rational
+        distorted = any(self.k) or any(self.rational)
         rd = torch.hypot(xd, yd)
         # The table's interpolation alone starts within ~1e-7; the 2x2 Newton steps below polish the radial part
         # together with the tangential one. The tangential terms can carry a point inside r_max past the radial
@@ -348,18 +422,17 @@ class RadtanInverse:
         rd_start = torch.where(rd <= self._radial_cap, rd.clamp(max=radial_hi), rd)
         scale = self._radial(rd_start, steps=0) / rd.clamp_min(1e-300)
         x, y = torch.where(rd == 0, xd, xd * scale), torch.where(rd == 0, yd, yd * scale)
-        if any(self.k) and fused and x.device.type == "cpu":
+        if distorted and fused and x.device.type == "cpu":
             # One fused loop, each point until it converges (several times faster than the masked steps below).
             xn, yn = x.numpy(), y.numpy()
-            _kernels.newton_radtan(
-                xn, yn, xd.contiguous().numpy(), yd.contiguous().numpy(), k1, k2, p1, p2, k3, 40
-            )
-        elif any(self.k):
+            xdn, ydn = xd.contiguous().numpy(), yd.contiguous().numpy()
+            _kernels.newton_radtan(xn, yn, xdn, ydn, k1, k2, p1, p2, k3, k4, k5, k6, 40)
+        elif distorted:
             active = None  # all points
             for _ in range(max_steps):
                 xa, ya = (x, y) if active is None else (x[active], y[active])
                 xda, yda = (xd, yd) if active is None else (xd[active], yd[active])
-                fx, fy = radtan(xa, ya, k1, k2, p1, p2, k3)
+                fx, fy = radtan(xa, ya, k1, k2, p1, p2, k3, k4, k5, k6)
                 ex, ey = fx - xda, fy - yda
                 todo = ((ex.abs() > 1e-15) | (ey.abs() > 1e-15)) & torch.isfinite(ex) & torch.isfinite(ey)
                 if not bool(todo.any()):
@@ -368,7 +441,7 @@ class RadtanInverse:
                 active = idx if active is None else active[idx]
                 xn, yn = self._step(xa[idx], ya[idx], ex[idx], ey[idx])
                 x[active], y[active] = xn, yn
-        fx, fy = radtan(x, y, k1, k2, p1, p2, k3)
+        fx, fy = radtan(x, y, k1, k2, p1, p2, k3, k4, k5, k6)
         tol = 1e-9 * (1.0 + rd)
         ok = ((fx - xd).abs() <= tol) & ((fy - yd).abs() <= tol) & (torch.hypot(x, y) <= self.r_valid)
         return torch.where(ok, x, torch.nan), torch.where(ok, y, torch.nan)
@@ -377,8 +450,7 @@ class RadtanInverse:
         """``(j11, j12, j22)`` of :func:`radtan`'s (symmetric) Jacobian at ``(x, y)``."""
         k1, k2, p1, p2, k3 = self.k
         r2 = x * x + y * y
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        d_radial = 2.0 * (k1 + r2 * (2.0 * k2 + r2 * 3.0 * k3))  # 2 d(radial)/d(r^2)
+        radial, d_radial = radial_factor(r2, k1, k2, k3, *self.rational)  # and 2 d(radial)/d(r^2)
         j11 = radial + x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x
         j12 = x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y
         j22 = radial + y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x
@@ -539,6 +611,7 @@ __all__ = [
     "one_to_one_radius",
     "polyder",
     "polyval",
+    "radial_factor",
     "radial_limit",
     "radtan",
 ]

@@ -50,6 +50,8 @@ class CameraModel:
     params: ClassVar[tuple[str, ...]] = ("fov_deg",)
     #: Parameters that may be left out, with their defaults (from ``declaration``).
     defaults: ClassVar[dict[str, Any]] = {"fov_deg": None}
+    #: Parameters that ``to_dict`` and ``key()`` leave out at their defaults (``Param.omit_default``).
+    omitted_defaults: ClassVar[dict[str, Any]] = {}
     #: The constructor's signature (from ``declaration``).
     __signature__: ClassVar[inspect.Signature]
 
@@ -292,9 +294,17 @@ class CameraModel:
     def _param_dict(self) -> dict[str, Any]:
         return {name: getattr(self, name) for name in self.params}
 
+    def _identity_dict(self) -> dict[str, Any]:
+        """:meth:`_param_dict` without the parameters at a default their declaration omits (``Param.omit_default``)."""
+        return {k: v for k, v in self._param_dict().items() if not self._omitted(k, v)}
+
+    @classmethod
+    def _omitted(cls, name: str, value: Any) -> bool:
+        return name in cls.omitted_defaults and value == cls.omitted_defaults[name]
+
     def key(self) -> tuple:
         """Hashable identity of the camera (for lookup-table caches)."""
-        values = tuple(tuple(v) if isinstance(v, list | tuple) else v for v in self._param_dict().values())
+        values = tuple(tuple(v) if isinstance(v, list | tuple) else v for v in self._identity_dict().values())
         return (self.model, self.width, self.height, *values)
 
     def __eq__(self, other: object) -> bool:
@@ -304,19 +314,20 @@ class CameraModel:
         return hash(self.key())
 
     def __repr__(self) -> str:
-        inner = ", ".join(f"{k}={v!r}" for k, v in self._param_dict().items() if v is not None)
+        inner = ", ".join(f"{k}={v!r}" for k, v in self._identity_dict().items() if v is not None)
         return f"{type(self).__name__}({self.width}x{self.height}, {inner})"
 
     def to_dict(self) -> dict[str, Any]:
         """Flat plain-Python description ``{"model", "width", "height", <params>}`` (``calib.yaml``, ONNX
-        metadata); ``camera_from_dict`` inverts it. Optional parameters left at ``None`` are omitted."""
+        metadata); ``camera_from_dict`` inverts it. Optional parameters left at ``None`` are omitted, and so are
+        those declared ``omit_default`` at their default."""
         return self._flat(self.width, self.height, self._param_dict())
 
     @classmethod
     def _flat(cls, width: int, height: int, values: dict[str, Any]) -> dict[str, Any]:
         d: dict[str, Any] = {"model": cls.model, "width": width, "height": height}
         for name, value in values.items():
-            if value is None and name in cls.defaults:
+            if (value is None and name in cls.defaults) or cls._omitted(name, value):
                 continue
             d[name] = list(value) if isinstance(value, tuple) else value
         return d
@@ -332,6 +343,7 @@ def _derive_from_declaration(cls: type[CameraModel]) -> None:
         )
     cls.params = tuple(names)
     cls.defaults = {p.name: p.default for p in cls.declaration if not p.required}
+    cls.omitted_defaults = {p.name: p.default for p in cls.declaration if p.omit_default}
     # Signature() refuses a required parameter after an optional one, as a def would: at import.
     cls.__signature__ = inspect.Signature(
         [inspect.Parameter("width", _ARG), inspect.Parameter("height", _ARG)]

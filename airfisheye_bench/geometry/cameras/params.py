@@ -118,12 +118,16 @@ class Param:
         scale: How it follows the image in ``resized()``: a key of :data:`SCALES` (``"fx"``: a pixel length along
             u, ``"cx"``: a pixel position along u, ...), a rule ``(value, sx, sy) -> value``, or ``None``
             (unchanged: angles, ratios, coefficients of normalised coordinates).
+        omit_default: Left out of ``to_dict`` and the camera's ``key()`` while at its default: a parameter added
+            to a model later, so the dicts, files, content identities and cache names of the cameras that do
+            without it stay what they were.
     """
 
     name: str
     default: Any = REQUIRED
     check: Check = number
     scale: str | Scale | None = None
+    omit_default: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.scale, str) and self.scale not in SCALES:
@@ -147,9 +151,10 @@ class Param:
         return rule(value, sx, sy)
 
 
-def zeros(*names: str) -> tuple[Param, ...]:
-    """Distortion coefficients that default to 0 (of normalised coordinates: unchanged by ``resized()``)."""
-    return tuple(Param(name, 0.0) for name in names)
+def zeros(*names: str, omit_default: bool = False) -> tuple[Param, ...]:
+    """Distortion coefficients that default to 0 (of normalised coordinates: unchanged by ``resized()``);
+    ``omit_default``: see :class:`Param`."""
+    return tuple(Param(name, 0.0, omit_default=omit_default) for name in names)
 
 
 # ---------------------------------------------------------------------------------------------------- shared

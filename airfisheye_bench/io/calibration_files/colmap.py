@@ -13,7 +13,7 @@ PINHOLE                     fx, fy, cx, cy                              pinhole_
 SIMPLE_RADIAL               f, cx, cy, k                                pinhole_radtan (k1 = k)
 RADIAL                      f, cx, cy, k1, k2                           pinhole_radtan
 OPENCV                      fx, fy, cx, cy, k1, k2, p1, p2              pinhole_radtan
-FULL_OPENCV                 fx, fy, cx, cy, k1, k2, p1, p2, k3..k6      pinhole_radtan (k4..k6 must be 0)
+FULL_OPENCV                 fx, fy, cx, cy, k1, k2, p1, p2, k3..k6      pinhole_radtan (k4..k6: the rational model)
 OPENCV_FISHEYE              fx, fy, cx, cy, k1, k2, k3, k4              kannala_brandt
 SIMPLE_RADIAL_FISHEYE       f, cx, cy, k                                kannala_brandt (k1 = k)
 RADIAL_FISHEYE              f, cx, cy, k1, k2                           kannala_brandt (k1, k2)
@@ -169,14 +169,8 @@ def _read(f: Fields, camera_id: str) -> tuple[dict[str, Any], dict]:
         return Fov.flat_dict(width, height, fx, fy, cx, cy, omega=abs(p["omega"])), {}
     if model == "EUCM":
         return EUCM.flat_dict(width, height, fx, fy, cx, cy, alpha=p["alpha"], beta=p["beta"]), {}
-    rational = [name for name in ("k4", "k5", "k6") if p.get(name, 0.0) != 0]
-    if rational:
-        raise f.error(
-            f"{camera_id}.params",
-            f"FULL_OPENCV with non-zero {', '.join(rational)} (the rational model) is not supported; use OPENCV",
-        )
     k1 = p.get("k1", p.get("k", 0.0))
-    radtan = {name: p[name] for name in ("k2", "p1", "p2", "k3") if name in p}
+    radtan = {name: p[name] for name in ("k2", "p1", "p2", "k3", "k4", "k5", "k6") if name in p}
     return PinholeRadtan.flat_dict(width, height, fx, fy, cx, cy, k1=k1, **radtan), {}
 
 

@@ -11,7 +11,8 @@ without an image size the file is refused naming the key.
 - ``fisheye_model: 1``, or no ``fisheye_model`` and 4 coefficients: ``cv::fisheye`` (``kannala_brandt``, k1..k4;
   K[0, 1] = alpha * fx, alpha being ``cv::fisheye``'s skew).
 - otherwise ``cv::calibrateCamera``'s order k1, k2, p1, p2[, k3[, k4, k5, k6[, s1..s4[, tauX, tauY]]]]:
-  ``pinhole_radtan`` (4 or 5 coefficients; the rational, thin-prism and tilt terms must be zero).
+  ``pinhole_radtan`` (4, 5 or 8 coefficients, 8 being ``CALIB_RATIONAL_MODEL``'s; of 12 or 14 the thin-prism
+  and tilt terms must be zero).
 
 Pixel convention: OpenCV's (pixel centre at integer coordinates), the project's: nothing to convert.
 
@@ -90,14 +91,15 @@ def camera_from_matrices(
         raise fields.error(
             d_key, f"expected 4, 5, 8, 12 or 14 coefficients (k1, k2, p1, p2[, k3, ...]), got {len(D)}"
         )
-    extra = {name: v for name, v in zip(_RADTAN_NAMES[5:], D[5:], strict=False) if v != 0}
+    extra = {name: v for name, v in zip(_RADTAN_NAMES[8:], D[8:], strict=False) if v != 0}
     if extra:
         raise fields.error(
             d_key,
-            f"non-zero {', '.join(extra)}: the rational, thin-prism and tilted models are not supported; supported: "
-            "k1, k2, p1, p2, k3 (pinhole_radtan) or 4 fisheye coefficients (kannala_brandt)",
+            f"non-zero {', '.join(extra)}: the thin-prism and tilted models are not supported; supported: k1, k2, "
+            "p1, p2, k3[, k4, k5, k6] (pinhole_radtan) or 4 fisheye coefficients (kannala_brandt)",
         )
-    return PinholeRadtan.flat_dict(width, height, fx, fy, cx, cy, *D[:5])
+    # k1, k2, p1, p2, k3, k4, k5, k6: the declaration's order is OpenCV's.
+    return PinholeRadtan.flat_dict(width, height, fx, fy, cx, cy, *D[:8])
 
 
 #: Spellings of the camera matrix and of the coefficients, OpenCV's samples' first: ``calibrateCamera``'s own
@@ -180,7 +182,7 @@ FORMAT = CalibrationFormat(
     name="opencv",
     summary="OpenCV FileStorage YAML/JSON (camera_matrix | cameraMatrix | K | mtx, distortion_coefficients | "
     "distCoeffs | dist_coeffs | D | dist, image_width + image_height | imageSize | image_size | width + height; "
-    "4 coefficients or fisheye_model: 1 = kannala_brandt, 5 = pinhole_radtan)",
+    "4 coefficients or fisheye_model: 1 = kannala_brandt, 5 or 8 (rational) = pinhole_radtan)",
     source="OpenCV samples/cpp/calibration.cpp and tutorial_code/calib3d/camera_calibration/camera_calibration.cpp "
     "(saveCameraParams); cv::fisheye and cv::calibrateCamera docs for the coefficient order",
     detect=_detect,

@@ -9,8 +9,7 @@ Layouts (github:ros-perception/image_common ``camera_calibration_parsers/src/par
 - message: ``width``, ``height``, ``distortion_model``, ``K`` / ``D`` (ROS 1) or ``k`` / ``d`` (ROS 2), flat lists.
 
 ``distortion_model`` (``sensor_msgs/distortion_models.h``): ``equidistant`` -> ``kannala_brandt`` (D = k1..k4, the
-``cv::fisheye`` model), ``plumb_bob`` and ``rational_polynomial`` -> ``pinhole_radtan`` (the rational terms must be
-zero). Pixel convention: OpenCV's, the project's.
+``cv::fisheye`` model), ``plumb_bob`` and ``rational_polynomial`` (k1, k2, p1, p2, k3..k6) -> ``pinhole_radtan``. Pixel convention: OpenCV's, the project's.
 
 Example:
     >>> doc = {"width": 848, "height": 800, "distortion_model": "equidistant", "D": [0.1, -0.02, 0.003, 0.0],
@@ -83,7 +82,7 @@ def _read(f: Fields) -> tuple[dict[str, Any], dict]:
 FORMAT = CalibrationFormat(
     name="ros",
     summary="ROS camera_info YAML (camera_calibration_parsers layout or a message dump; distortion_model "
-    "equidistant = kannala_brandt, plumb_bob = pinhole_radtan)",
+    "equidistant = kannala_brandt, plumb_bob, rational_polynomial = pinhole_radtan)",
     source="github:ros-perception/image_common camera_calibration_parsers/src/parse_yml.cpp; "
     "sensor_msgs/CameraInfo.msg and distortion_models.h",
     detect=_detect,
