@@ -116,7 +116,9 @@ def execute(
     allow_dirty: bool = True,
 ) -> None:
     """Train every run that has no ``results.json`` yet; ``after(run)`` once each has finished (or was found
-    finished). Each run's commit (taken when it starts), command and wall time go to ``<run>/provenance.json``."""
+    finished). A run with a ``last.ckpt`` and no results was killed (a session's end): it is resumed exactly
+    (``ckpt_path=last``). Each segment's commit (taken when it starts) and wall time are kept beside the run
+    (``seed<s>.segments.json``), and the run's commit, command and wall time go to ``<run>/provenance.json``."""
     for k, run in enumerate(runs, 1):
         if run.results.is_file():
             print(f"[{k}/{len(runs)}] {run.method} seed {run.seed}: done already", file=sys.stderr)
@@ -127,12 +129,36 @@ def execute(
                     f"{REPO}: uncommitted changes; a study run must train from a commit (commit them, or "
                     "--allow-dirty to try the tool)"
                 )
-            print(f"[{k}/{len(runs)}] {run.method} seed {run.seed}", file=sys.stderr)
             argv = run.argv(overrides)
             command = " ".join(["python", *(Path(a).name if a == argv[1] else a for a in argv[1:])])
-            started = time.time()  # the commit and the start are taken before train.py runs
+            segments_path = (
+                run.out.parent / f"{run.out.name}.segments.json"
+            )  # beside the run: train.py owns it
+            segments = (
+                json.loads(segments_path.read_text(encoding="utf-8")) if segments_path.is_file() else []
+            )
+            if (
+                run.out / "checkpoints" / "last.ckpt"
+            ).is_file():  # killed earlier (a session's end): resume it
+                argv = [argv[0], argv[1], "ckpt_path=last", f"hydra.run.dir={run.out}"]
+            print(
+                f"[{k}/{len(runs)}] {run.method} seed {run.seed}" + (" (resumed)" if segments else ""),
+                file=sys.stderr,
+            )
+            segments.append({"commit": commit, "argv": argv[2:], "started": time.time()})
+            run.out.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(segments_path, json.dumps(segments, indent=2) + "\n")
             runner(argv)
-            record = {"commit": commit, "command": command, "wall_s": round(time.time() - started, 1)}
+            segments[-1]["wall_s"] = round(time.time() - segments[-1]["started"], 1)
+            record = {
+                "commit": segments[0]["commit"],
+                "command": command,
+                "wall_s": round(
+                    sum(seg.get("wall_s") or 0.0 for seg in segments), 1
+                ),  # a killed segment's is unknown
+                # A run killed and resumed (ckpt_path=last: exact on one CPU process) trained in several segments.
+                "segments": [{"commit": seg["commit"], "wall_s": seg.get("wall_s")} for seg in segments],
+            }
             atomic_write_text(run.out / "provenance.json", json.dumps(record, indent=2) + "\n")
         if after is not None:
             after(run)

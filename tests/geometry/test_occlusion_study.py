@@ -309,3 +309,28 @@ def test_hidden_detection_pools_counts_per_flight_and_compares_methods_pairwise(
     d = result["paired_f1"]["a - b"]  # the same gap in every flight: no spread, p = 0
     assert d["n"] == 3 and d["mean"] == pytest.approx(16 / 22 - 4 / 9)  # b: precision 2/3, recall 2/6
     assert d["p_holm"] == 0.0
+
+
+def test_a_killed_run_is_resumed_exactly_and_its_segments_recorded(
+    ablation: ModuleType, tmp_path: Path
+) -> None:
+    calls: list[list[str]] = []
+
+    def train(argv: list[str]) -> None:
+        calls.append(argv)
+        args = dict(a.split("=", 1) for a in argv[2:])
+        out = Path(args["hydra.run.dir"])
+        if "ckpt_path" not in args:  # the first segment is killed after its first checkpoint
+            (out / "checkpoints").mkdir(parents=True)
+            (out / "checkpoints" / "last.ckpt").write_text("weights")
+            raise KeyboardInterrupt
+        (out / "results.json").write_text(json.dumps({"metrics": {"rmse": 5.0}}))
+
+    argv = ["--out", str(tmp_path), "--methods", "none", "--seeds", "0", "--no-regions"]
+    with pytest.raises(KeyboardInterrupt):
+        ablation.main(argv, runner=train)
+    ablation.main(argv, runner=train)
+    assert calls[1][2:] == ["ckpt_path=last", f"hydra.run.dir={tmp_path / 'none' / 'seed0'}"]
+    record = json.loads((tmp_path / "none" / "seed0" / "provenance.json").read_text())
+    assert len(record["segments"]) == 2 and record["segments"][0]["wall_s"] is None
+    assert record["command"].startswith("python train.py task=completion data.occlusion=none seed=0")
