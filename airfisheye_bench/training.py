@@ -11,21 +11,19 @@ covers and appended to, and the data loader restarts at the checkpoint's batch.
 
 from __future__ import annotations
 
-import contextlib
 import difflib
 import inspect
 import logging
 import os
 import re
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import hydra
 import lightning as L
 import torch
-from hydra.core.hydra_config import HydraConfig
 from hydra.errors import InstantiationException
 from lightning.pytorch.utilities import rank_zero_only
 from omegaconf import DictConfig, OmegaConf
@@ -43,6 +41,7 @@ from airfisheye_bench.runs import (
     read_checkpoint,
     resolve_checkpoint,
     run_label,
+    run_log,
 )
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tracking import log_run_outputs, start_tracking
@@ -51,9 +50,6 @@ from datamodules.sources import mixture_identity, resolve_sources
 from models.weights import pretrained_weights_disabled
 
 log = logging.getLogger(__name__)
-
-#: The format of log lines when no handler gives one (Hydra's job logging: ``[time][logger][level] - message``).
-LOG_FORMAT = "[%(asctime)s][%(name)s][%(levelname)s] - %(message)s"
 
 # The datamodule, not the DataLoader, restores the position in the epoch (AirFisheyeDataModule.load_state_dict).
 warnings.filterwarnings(
@@ -267,30 +263,6 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
     return ckpt_path
 
 
-@contextlib.contextmanager
-def run_log(output_dir: Path) -> Iterator[None]:
-    """Write the command's log to ``<run>/<job name>.log`` (``train.log``) while active.
-
-    Attached only once the checks passed, so a refused command writes nothing into the run directory (Hydra's
-    own file handler is switched off in ``configs/hydra/default.yaml``). Outside a Hydra application (a library
-    caller) nothing is attached.
-    """
-    if not HydraConfig.initialized():
-        yield
-        return
-    root = logging.getLogger()
-    console = next((h for h in root.handlers if h.formatter is not None), None)
-    output_dir.mkdir(parents=True, exist_ok=True)
-    handler = logging.FileHandler(output_dir / f"{HydraConfig.get().job.name}.log")
-    handler.setFormatter(console.formatter if console else logging.Formatter(LOG_FORMAT))
-    root.addHandler(handler)
-    try:
-        yield
-    finally:
-        root.removeHandler(handler)
-        handler.close()
-
-
 def instantiate_node(node: DictConfig, key: str, **kwargs: Any) -> Any:
     """``hydra.utils.instantiate(node, **kwargs)``; a key its class does not take is a :class:`ConfigError`.
 
@@ -308,11 +280,26 @@ def instantiate_node(node: DictConfig, key: str, **kwargs: Any) -> Any:
         )
         if match is None:
             raise
-        name = match.group(1)
-        taken = list(inspect.signature(hydra.utils.get_class(node._target_)).parameters)
-        nearest = difflib.get_close_matches(name, taken, n=1)
-        hint = f"did you mean {key}.{nearest[0]}?" if nearest else f"it takes {', '.join(taken)}"
-        raise ConfigError(f"{key}.{name}: {node._target_} takes no argument {name!r}; {hint}") from None
+        raise _unknown_argument(node, key, match.group(1)) from None
+
+
+def check_node_arguments(node: DictConfig, key: str) -> None:
+    """Refuse, without building it, a key that ``node``'s class does not take (:func:`instantiate_node`'s
+    message): for the objects built only once the run directory is written (a logger opens its store when built).
+    """
+    taken = inspect.signature(hydra.utils.get_class(node._target_)).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in taken.values()):
+        return
+    for name in node:
+        if not str(name).startswith("_") and name not in taken:
+            raise _unknown_argument(node, key, str(name))
+
+
+def _unknown_argument(node: DictConfig, key: str, name: str) -> ConfigError:
+    taken = list(inspect.signature(hydra.utils.get_class(node._target_)).parameters)
+    nearest = difflib.get_close_matches(name, taken, n=1)
+    hint = f"did you mean {key}.{nearest[0]}?" if nearest else f"it takes {', '.join(taken)}"
+    return ConfigError(f"{key}.{name}: {node._target_} takes no argument {name!r}; {hint}")
 
 
 def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule) -> None:
@@ -363,30 +350,46 @@ def train_checked(cfg: DictConfig) -> dict[str, Any]:
     if finished is not None and not cfg.get("retest"):
         log.info(finished)
         return {}
-    with run_log(output_dir):
-        return _train(cfg, output_dir, retest_only=finished is not None)
+    with run_log(output_dir) as open_log:
+        return _train(cfg, output_dir, resume_from, open_log, retest_only=finished is not None)
 
 
-def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, Any]:
+def _train(
+    cfg: DictConfig,
+    output_dir: Path,
+    resume_from: str | None,
+    open_log: Callable[[], None],
+    retest_only: bool,
+) -> dict[str, Any]:
     log_lightning_once()
     L.seed_everything(cfg.seed, workers=True)
-    ckpt_path = prepare_run_dir(cfg, output_dir)
-
-    datamodule, module = build(cfg, resume_from=ckpt_path)
+    # Everything that can refuse the run is checked before the run directory is written: the data (its source,
+    # files and the task it can serve), the model, the callbacks and trainer, a process without a batch.
+    datamodule, module = build(cfg, resume_from=resume_from)
     # A group entry set to null (callbacks.rich_progress_bar=null) switches that callback or logger off.
     groups = {"callbacks": cfg.get("callbacks") or {}, "logger": cfg.get("logger") or {}}
-    callbacks, loggers = (
-        [instantiate_node(c, f"{group}.{name}") for name, c in nodes.items() if c is not None]
-        for group, nodes in groups.items()
-    )
+    nodes = {
+        group: {name: c for name, c in entries.items() if c is not None} for group, entries in groups.items()
+    }
+    callbacks = [instantiate_node(c, f"callbacks.{name}") for name, c in nodes["callbacks"].items()]
+    for name, node in nodes["logger"].items():
+        check_node_arguments(node, f"logger.{name}")
     trainer: L.Trainer = instantiate_node(
-        cfg.trainer, "trainer", callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
+        cfg.trainer, "trainer", callbacks=callbacks, logger=False, plugins=[AtomicCheckpointIO()]
     )
+    if cfg.get("train", True) and not retest_only:
+        check_training_batches(trainer, datamodule)
+
+    ckpt_path = prepare_run_dir(cfg, output_dir)
+    open_log()
+    # Built now: a logger opens its store when built (MLflow creates its database in the run directory). What
+    # Trainer(logger=...) does with them is this setter.
+    loggers = [instantiate_node(c, f"logger.{name}") for name, c in nodes["logger"].items()]
+    trainer.loggers = loggers
     if trainer.is_global_zero:
         start_tracking(loggers, OmegaConf.to_container(cfg, resolve=True))
 
     if cfg.get("train", True) and not retest_only:
-        check_training_batches(trainer, datamodule)
         trainer.fit(module, datamodule=datamodule, ckpt_path=ckpt_path)
 
     results: dict[str, Any] = {}
