@@ -233,10 +233,10 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
 
     A new run writes ``config.yaml`` and starts ``metrics.csv`` afresh. A resume checks the configuration against
     the run's (:func:`check_run_dir`), records an accepted change, and cuts ``metrics.csv`` back to the rows its
-    checkpoint covers (rows a killed process logged after it are logged again). A checkpoint that does not record
-    its rows (a best ``epoch_*.ckpt``: the history after it is rewritten) moves ``metrics.csv`` aside to
-    ``metrics.<n>.csv`` and starts a new one. Files are written by the first process only (DDP starts one per
-    device).
+    ``last.ckpt`` covers (rows a killed process logged after it are logged again). Another checkpoint (a best
+    ``epoch_*.ckpt``: the history after it is rewritten), or one that does not record its rows, moves
+    ``metrics.csv`` aside to ``metrics.<n>.csv`` and starts a new one. Files are written by the first process only
+    (DDP starts one per device).
     """
     first = rank_zero_only.rank == 0
     ckpt_path = check_run_dir(cfg, output_dir)
@@ -249,6 +249,10 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
     log.info("resuming %s from %s with the run's config.yaml", output_dir, ckpt_path)
     check_resume(cfg, output_dir, write=first)
     rows = read_checkpoint(ckpt_path, mmap=True).get(METRIC_ROWS_KEY)
+    if Path(ckpt_path).name != "last.ckpt":
+        # A best checkpoint may share last.ckpt's bytes, rows record included (checkpointing.share_file): resuming
+        # from it still rewrites the history after it, so the earlier rows are kept aside.
+        rows = None
     if first:
         remove_stale_temporaries(output_dir / "checkpoints")  # left by a kill during a checkpoint write
         metrics = output_dir / "metrics.csv"
@@ -258,7 +262,7 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
             aside = numbered_sibling(metrics)
             os.replace(metrics, aside)
             log.warning(
-                "%s does not record its metrics.csv rows: the earlier rows are kept in %s", ckpt_path, aside
+                "%s is not where metrics.csv left off: its earlier rows are kept in %s", ckpt_path, aside
             )
     return ckpt_path
 
