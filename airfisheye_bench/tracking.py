@@ -84,6 +84,8 @@ class RunMLFlowLogger(MLFlowLogger):
         artifact_location: str | None = None,
         tags: Mapping[str, Any] | None = None,
     ) -> None:
+        # "Creating initial MLflow database tables...", "Updating database tables": every run's own new store.
+        logging.getLogger("mlflow.store.db.utils").setLevel(logging.WARNING)
         tracking_uri = tracking_uri or os.environ.get("MLFLOW_TRACKING_URI") or None
         if tracking_uri is None:
             tracking_uri, default_artifacts = local_store(save_dir)

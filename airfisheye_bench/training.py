@@ -25,7 +25,9 @@ import hydra
 import lightning as L
 import torch
 from hydra.errors import InstantiationException
+from lightning.pytorch.callbacks import ProgressBar
 from lightning.pytorch.utilities import rank_zero_only
+from lightning.pytorch.utilities.model_summary import get_human_readable_count
 from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.atomic import atomic_write_text, remove_stale_temporaries
@@ -34,6 +36,7 @@ from airfisheye_bench.config_checks import check_train_config
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.io.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
+from airfisheye_bench.progress import console_is_terminal
 from airfisheye_bench.runs import (
     check_resume,
     keep_metric_rows,
@@ -60,6 +63,11 @@ warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and i
 # Lightning's own code builds a torch pytree LeafSpec, which this torch deprecates: nothing a user can change.
 warnings.filterwarnings(
     "ignore", message=r"`isinstance\(treespec, LeafSpec\)` is deprecated", category=FutureWarning
+)
+# An epoch shorter than trainer.log_every_n_steps (the tiny preset): metrics.csv still gets the epoch's values and
+# the progress log its epoch line, so nothing is missing that the advice would bring back.
+warnings.filterwarnings(
+    "ignore", message=r"The number of training batches \(\d+\) is smaller than the logging"
 )
 
 
@@ -378,9 +386,17 @@ def _train(
     callbacks = [instantiate_node(c, f"callbacks.{name}") for name, c in nodes["callbacks"].items()]
     for name, node in nodes["logger"].items():
         check_node_arguments(node, f"logger.{name}")
+    terminal: dict[str, Any] = {}
+    if not console_is_terminal():
+        # Redirected (a file, nohup, SLURM): ProgressLog's lines instead of a bar's frames, and the model's size in
+        # one line instead of the summary table.
+        callbacks = [c for c in callbacks if not isinstance(c, ProgressBar)]
+        terminal = {"enable_progress_bar": False, "enable_model_summary": False}
     trainer: L.Trainer = instantiate_node(
-        cfg.trainer, "trainer", callbacks=callbacks, logger=False, plugins=[AtomicCheckpointIO()]
+        cfg.trainer, "trainer", callbacks=callbacks, logger=False, plugins=[AtomicCheckpointIO()], **terminal
     )
+    if terminal and trainer.is_global_zero:
+        log.info("model %s: %s", cfg.model.name, parameter_counts(module))
     if cfg.get("train", True) and not retest_only:
         check_training_batches(trainer, datamodule)
 
@@ -441,6 +457,18 @@ def _train(
     if callback is not None and getattr(callback, "best_model_score", None) is not None:
         results["best_val"] = {str(callback.monitor): float(callback.best_model_score)}
     return results
+
+
+def parameter_counts(module: torch.nn.Module) -> str:
+    """``<n> parameters (<m> trainable)`` in Lightning's units (``12.3 M``).
+
+    Example:
+        >>> parameter_counts(torch.nn.Linear(1000, 10))
+        '10.0 K parameters (10.0 K trainable)'
+    """
+    total = sum(p.numel() for p in module.parameters())
+    trainable = sum(p.numel() for p in module.parameters() if p.requires_grad)
+    return f"{get_human_readable_count(total)} parameters ({get_human_readable_count(trainable)} trainable)"
 
 
 def source_results(

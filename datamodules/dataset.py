@@ -207,7 +207,10 @@ class AirFisheyeDataset(Dataset):
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
-        self.served = (camera or CameraConfig()).resolve(self.calibrated_camera, source)
+        camera = camera or CameraConfig()
+        self.served = camera.resolve(self.calibrated_camera, source)
+        #: The served camera's log line, if it says more than the release's lens (the datamodule logs it once).
+        self.camera_line = camera.describe(self.served)
         self.camera = self.served.camera
         # Pixels beyond a padded calibration's sensor: no data there (None when every pixel is on the sensor).
         outside = ~self.served.frame_mask() if self.served.fit == "pad" else None
