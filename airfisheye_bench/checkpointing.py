@@ -8,6 +8,9 @@ so after an epoch without improvement ``last.ckpt`` is stale. :class:`LastCheckp
 * at the end of every epoch (after its validation), and at the end of training;
 * every ``every_n_train_steps`` optimizer steps when set (not on an epoch's last batch: the epoch-end one follows).
 
+A best checkpoint that ``ModelCheckpoint`` wrote at the same step becomes a hard link to the new ``last.ckpt``
+(:func:`share_file`): the same state is stored once (a one-epoch run kept two 99 MB copies of it).
+
 The state is taken at Lightning's own restore points (``on_train_batch_end``, ``on_train_epoch_end``) but written
 at the next hook, once the metrics of that step or epoch have been handed to the loggers: the checkpoint records
 how many ``metrics.csv`` rows it covers, so a resumed run cuts the file back to them and appends, and the file ends
@@ -18,12 +21,15 @@ through :class:`AtomicCheckpointIO` (temporary file + rename), so a kill during 
 from __future__ import annotations
 
 import csv
+import os
+import uuid
 from pathlib import Path
 from typing import Any
 
 import lightning as L
 import torch
 from lightning.fabric.loggers.logger import rank_zero_experiment
+from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.loggers import CSVLogger
 from lightning.pytorch.loggers.csv_logs import ExperimentWriter
 from lightning.pytorch.plugins.io import TorchCheckpointIO
@@ -100,7 +106,46 @@ class LastCheckpoint(L.Callback):
         if trainer.is_global_zero:
             checkpoint[METRIC_ROWS_KEY] = flush_metric_rows(trainer)
         trainer.strategy.save_checkpoint(checkpoint, self.path)
+        if trainer.is_global_zero:
+            for best in _saved_at_step(trainer, checkpoint.get("global_step")):
+                share_file(self.path, best)
         trainer.strategy.barrier("LastCheckpoint")
+
+
+def _saved_at_step(trainer: L.Trainer, step: int | None) -> list[Path]:
+    """The full checkpoints that ``ModelCheckpoint`` callbacks wrote at optimizer step ``step`` and still keep."""
+    found = []
+    for callback in trainer.checkpoint_callbacks:
+        if not isinstance(callback, ModelCheckpoint) or callback.save_weights_only:
+            continue
+        # Lightning's record of its latest save (no public name): the file and the step it was written at.
+        path = getattr(callback, "_last_checkpoint_saved", "")
+        if (
+            path
+            and getattr(callback, "_last_global_step_saved", None) == step
+            and path in callback.best_k_models
+        ):
+            found.append(Path(path))
+    return found
+
+
+def share_file(source: Path, target: Path) -> None:
+    """Make ``target`` a hard link to ``source`` (the same bytes, stored once), atomically; left as it is where the
+    file system has no hard links or they are on different devices.
+
+    A best checkpoint written at the step of ``last.ckpt`` holds the same weights, optimizer and loop state: a
+    short run (``trainer=debug``) would keep two copies of the model. ``last.ckpt`` is only ever replaced by a
+    rename (:class:`AtomicCheckpointIO`), never written in place, so the best file keeps its bytes when
+    ``last.ckpt`` moves on, and the best one gains ``last.ckpt``'s record of its ``metrics.csv`` rows.
+    """
+    if not source.is_file() or not target.is_file() or source.resolve() == target.resolve():
+        return
+    link = target.with_name(f".{target.name}.{uuid.uuid4().hex[:12]}.tmp")  # atomic.TEMP_GLOB, as a write's
+    try:
+        os.link(source, link)
+        os.replace(link, target)
+    except OSError:
+        link.unlink(missing_ok=True)
 
 
 def flush_metric_rows(trainer: L.Trainer) -> int | None:

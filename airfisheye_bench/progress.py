@@ -14,41 +14,17 @@ from __future__ import annotations
 
 import logging
 import math
-import sys
 import time
-from collections.abc import Mapping
 from typing import Any
 
 import lightning as L
+
+from airfisheye_bench.io.progress_report import console_is_terminal, progress_line
 
 log = logging.getLogger(__name__)
 
 #: Metrics of an epoch line, by prefix; the per-ring and per-class values stay in ``metrics.csv``.
 _EPOCH_PREFIXES = ("train/", "val/")
-
-
-def console_is_terminal() -> bool:
-    """Whether standard output is an interactive terminal (a progress bar is seen there)."""
-    return sys.stdout.isatty()
-
-
-def progress_line(where: str, metrics: Mapping[str, Any], seconds: float | None = None) -> str:
-    """``<where>: key value, ...`` with 4 significant decimals, then the time taken when given.
-
-    Example:
-        >>> progress_line("epoch 1/3 step 50/120", {"train/loss": 2.0})
-        'epoch 1/3 step 50/120: train/loss 2.0000'
-    """
-    parts = [f"{key} {_number(value)}" for key, value in metrics.items()]
-    timing = f" ({seconds:.0f} s)" if seconds is not None else ""
-    return f"{where}: {', '.join(parts) or 'no metrics yet'}{timing}"
-
-
-def _number(value: Any) -> str:
-    value = float(value)
-    if not math.isfinite(value):
-        return str(value)
-    return f"{value:.4g}" if abs(value) >= 1e4 or (value != 0 and abs(value) < 1e-3) else f"{value:.4f}"
 
 
 def log_to_files(text: str, logger: logging.Logger = log) -> None:

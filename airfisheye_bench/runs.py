@@ -7,25 +7,30 @@ configuration and applies only the keys given (:func:`resume_config`); a change 
 (:data:`RESUME_UNSAFE`) is refused, a harmless one (:data:`RESUME_HARMLESS`) recorded, any other needs
 ``resume_overrides_ok=true`` (:func:`check_resume`). Evaluation and export
 accept the directory or a ``.ckpt`` file (:func:`resolve_checkpoint`); the run's data configuration travels with it
-(:func:`run_config`). Kept light (no torch import at module level): the entry points register
+(:func:`run_config`). The command's log file is written only once the run directory is (:func:`run_log`). Kept
+light (no torch import at module level): the entry points register
 :func:`register_resolvers` before Hydra composes.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import functools
 import json
 import logging
+import logging.handlers
 import os
 import pickle
 import re
 import secrets
 import socket
-from collections.abc import Iterable, Mapping
+import sys
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict
 
 from airfisheye_bench.atomic import atomic_write_text
@@ -498,3 +503,48 @@ def read_checkpoint(path: str | Path, mmap: bool = False) -> dict[str, Any]:
     if not isinstance(state, dict):
         raise InputFileError(f"{path}: not a checkpoint (it holds a {type(state).__name__}, not a dict)")
     return state
+
+
+#: The format of log lines when no handler gives one (Hydra's job logging: ``[time][logger][level] - message``).
+LOG_FORMAT = "[%(asctime)s][%(name)s][%(levelname)s] - %(message)s"
+
+
+@contextlib.contextmanager
+def run_log(output_dir: Path) -> Iterator[Callable[[], None]]:
+    """Write the command's log to ``<run>/<job name>.log`` (``train.log``, ``evaluate.log``) while active; yields
+    ``open_log``.
+
+    Until ``open_log()`` is called the records are held in memory: the checks and the building of the data and
+    model log lines too, but a refused command writes nothing into the run directory. ``open_log()``, called once
+    the command writes its run directory, writes the held records to the file, then every later one (Hydra's own
+    file handler is switched off in ``configs/hydra/default.yaml`` and ``configs/evaluate.yaml``). Outside a Hydra
+    application (a library caller) nothing is attached.
+    """
+    if not HydraConfig.initialized():
+        yield lambda: None
+        return
+    root = logging.getLogger()
+    console = next((h for h in root.handlers if h.formatter is not None), None)
+    # Never flushed on its own (no capacity or level reached): open_log hands the records to the file.
+    held = logging.handlers.MemoryHandler(sys.maxsize, logging.CRITICAL + 1, flushOnClose=False)
+    root.addHandler(held)
+    handlers: list[logging.Handler] = []
+
+    def open_log() -> None:
+        output_dir.mkdir(parents=True, exist_ok=True)
+        handler = logging.FileHandler(output_dir / f"{HydraConfig.get().job.name}.log")
+        handler.setFormatter(console.formatter if console else logging.Formatter(LOG_FORMAT))
+        root.removeHandler(held)
+        held.setTarget(handler)
+        held.flush()
+        root.addHandler(handler)
+        handlers.append(handler)
+
+    try:
+        yield open_log
+    finally:
+        root.removeHandler(held)
+        held.close()
+        for handler in handlers:
+            root.removeHandler(handler)
+            handler.close()

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import logging
+import sys
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -130,6 +131,16 @@ def best_trial_dir(sweep_dir: str | Path, best_params: Mapping[str, Any]) -> Pat
 class BestTrialReport(Callback):
     """At the end of an Optuna sweep: log the best trial's run directory and write ``<sweep>/best_trial.yaml``
     (``run_dir``, ``value``, ``params``, ``optimized_metric``)."""
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        """Before the sweeper is built: Optuna's messages go through the command's logging (one format, once),
+        unless standard error is a terminal (Optuna's own handler colours them there, and only there)."""
+        if sys.stderr.isatty():
+            return
+        import optuna  # the sweep extra, present whenever this callback runs (hparams_search=...)
+
+        optuna.logging.disable_default_handler()  # its colour codes would land in the file
+        optuna.logging.enable_propagation()
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))

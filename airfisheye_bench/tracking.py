@@ -61,6 +61,12 @@ def read_run_record(run_dir: str | os.PathLike) -> dict[str, str] | None:
     return record if isinstance(record, dict) and record.get("run_id") else None
 
 
+#: The runs' own stores chosen in this process. MLflow puts the store in use into ``$MLFLOW_TRACKING_URI`` (for its
+#: subprocesses): the next job of a multirun run in this process (an Optuna search) would take the previous job's
+#: store for the user's choice and log into it.
+_LOCAL_STORES: set[str] = set()
+
+
 class RunMLFlowLogger(MLFlowLogger):
     """``MLFlowLogger`` storing into the run directory unless given a tracking URI; resumes the run's MLflow run.
 
@@ -84,9 +90,13 @@ class RunMLFlowLogger(MLFlowLogger):
         artifact_location: str | None = None,
         tags: Mapping[str, Any] | None = None,
     ) -> None:
-        tracking_uri = tracking_uri or os.environ.get("MLFLOW_TRACKING_URI") or None
+        # "Creating initial MLflow database tables...", "Updating database tables": every run's own new store.
+        logging.getLogger("mlflow.store.db.utils").setLevel(logging.WARNING)
+        from_env = os.environ.get("MLFLOW_TRACKING_URI")
+        tracking_uri = tracking_uri or (from_env if from_env not in _LOCAL_STORES else None)
         if tracking_uri is None:
             tracking_uri, default_artifacts = local_store(save_dir)
+            _LOCAL_STORES.add(tracking_uri)
             artifact_location = artifact_location or default_artifacts
             Path(default_artifacts).parent.mkdir(parents=True, exist_ok=True)
         record = read_run_record(save_dir)

@@ -11,23 +11,23 @@ covers and appended to, and the data loader restarts at the checkpoint's batch.
 
 from __future__ import annotations
 
-import contextlib
 import difflib
 import inspect
 import logging
 import os
 import re
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import hydra
 import lightning as L
 import torch
-from hydra.core.hydra_config import HydraConfig
 from hydra.errors import InstantiationException
+from lightning.pytorch.callbacks import ProgressBar
 from lightning.pytorch.utilities import rank_zero_only
+from lightning.pytorch.utilities.model_summary import get_human_readable_count
 from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.atomic import atomic_write_text, remove_stale_temporaries
@@ -36,6 +36,7 @@ from airfisheye_bench.config_checks import check_train_config
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
 from airfisheye_bench.io.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
+from airfisheye_bench.progress import console_is_terminal
 from airfisheye_bench.runs import (
     check_resume,
     keep_metric_rows,
@@ -43,6 +44,7 @@ from airfisheye_bench.runs import (
     read_checkpoint,
     resolve_checkpoint,
     run_label,
+    run_log,
 )
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.sweeps import job_sweep_overrides
@@ -53,9 +55,6 @@ from models.weights import pretrained_weights_disabled
 
 log = logging.getLogger(__name__)
 
-#: The format of log lines when no handler gives one (Hydra's job logging: ``[time][logger][level] - message``).
-LOG_FORMAT = "[%(asctime)s][%(name)s][%(levelname)s] - %(message)s"
-
 # The datamodule, not the DataLoader, restores the position in the epoch (AirFisheyeDataModule.load_state_dict).
 warnings.filterwarnings(
     "ignore", message="You're resuming from a checkpoint that ended before the epoch ended"
@@ -65,6 +64,11 @@ warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and i
 # Lightning's own code builds a torch pytree LeafSpec, which this torch deprecates: nothing a user can change.
 warnings.filterwarnings(
     "ignore", message=r"`isinstance\(treespec, LeafSpec\)` is deprecated", category=FutureWarning
+)
+# An epoch shorter than trainer.log_every_n_steps (the tiny preset): metrics.csv still gets the epoch's values and
+# the progress log its epoch line, so nothing is missing that the advice would bring back.
+warnings.filterwarnings(
+    "ignore", message=r"The number of training batches \(\d+\) is smaller than the logging"
 )
 
 
@@ -238,10 +242,10 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
 
     A new run writes ``config.yaml`` and starts ``metrics.csv`` afresh. A resume checks the configuration against
     the run's (:func:`check_run_dir`), records an accepted change, and cuts ``metrics.csv`` back to the rows its
-    checkpoint covers (rows a killed process logged after it are logged again). A checkpoint that does not record
-    its rows (a best ``epoch_*.ckpt``: the history after it is rewritten) moves ``metrics.csv`` aside to
-    ``metrics.<n>.csv`` and starts a new one. Files are written by the first process only (DDP starts one per
-    device).
+    ``last.ckpt`` covers (rows a killed process logged after it are logged again). Another checkpoint (a best
+    ``epoch_*.ckpt``: the history after it is rewritten), or one that does not record its rows, moves
+    ``metrics.csv`` aside to ``metrics.<n>.csv`` and starts a new one. Files are written by the first process only
+    (DDP starts one per device).
     """
     first = rank_zero_only.rank == 0
     ckpt_path = check_run_dir(cfg, output_dir)
@@ -254,6 +258,10 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
     log.info("resuming %s from %s with the run's config.yaml", output_dir, ckpt_path)
     check_resume(cfg, output_dir, write=first)
     rows = read_checkpoint(ckpt_path, mmap=True).get(METRIC_ROWS_KEY)
+    if Path(ckpt_path).name != "last.ckpt":
+        # A best checkpoint may share last.ckpt's bytes, rows record included (checkpointing.share_file): resuming
+        # from it still rewrites the history after it, so the earlier rows are kept aside.
+        rows = None
     if first:
         remove_stale_temporaries(output_dir / "checkpoints")  # left by a kill during a checkpoint write
         metrics = output_dir / "metrics.csv"
@@ -263,33 +271,9 @@ def prepare_run_dir(cfg: DictConfig, output_dir: Path) -> str | None:
             aside = numbered_sibling(metrics)
             os.replace(metrics, aside)
             log.warning(
-                "%s does not record its metrics.csv rows: the earlier rows are kept in %s", ckpt_path, aside
+                "%s is not where metrics.csv left off: its earlier rows are kept in %s", ckpt_path, aside
             )
     return ckpt_path
-
-
-@contextlib.contextmanager
-def run_log(output_dir: Path) -> Iterator[None]:
-    """Write the command's log to ``<run>/<job name>.log`` (``train.log``) while active.
-
-    Attached only once the checks passed, so a refused command writes nothing into the run directory (Hydra's
-    own file handler is switched off in ``configs/hydra/default.yaml``). Outside a Hydra application (a library
-    caller) nothing is attached.
-    """
-    if not HydraConfig.initialized():
-        yield
-        return
-    root = logging.getLogger()
-    console = next((h for h in root.handlers if h.formatter is not None), None)
-    output_dir.mkdir(parents=True, exist_ok=True)
-    handler = logging.FileHandler(output_dir / f"{HydraConfig.get().job.name}.log")
-    handler.setFormatter(console.formatter if console else logging.Formatter(LOG_FORMAT))
-    root.addHandler(handler)
-    try:
-        yield
-    finally:
-        root.removeHandler(handler)
-        handler.close()
 
 
 def instantiate_node(node: DictConfig, key: str, **kwargs: Any) -> Any:
@@ -309,11 +293,26 @@ def instantiate_node(node: DictConfig, key: str, **kwargs: Any) -> Any:
         )
         if match is None:
             raise
-        name = match.group(1)
-        taken = list(inspect.signature(hydra.utils.get_class(node._target_)).parameters)
-        nearest = difflib.get_close_matches(name, taken, n=1)
-        hint = f"did you mean {key}.{nearest[0]}?" if nearest else f"it takes {', '.join(taken)}"
-        raise ConfigError(f"{key}.{name}: {node._target_} takes no argument {name!r}; {hint}") from None
+        raise _unknown_argument(node, key, match.group(1)) from None
+
+
+def check_node_arguments(node: DictConfig, key: str) -> None:
+    """Refuse, without building it, a key that ``node``'s class does not take (:func:`instantiate_node`'s
+    message): for the objects built only once the run directory is written (a logger opens its store when built).
+    """
+    taken = inspect.signature(hydra.utils.get_class(node._target_)).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in taken.values()):
+        return
+    for name in node:
+        if not str(name).startswith("_") and name not in taken:
+            raise _unknown_argument(node, key, str(name))
+
+
+def _unknown_argument(node: DictConfig, key: str, name: str) -> ConfigError:
+    taken = list(inspect.signature(hydra.utils.get_class(node._target_)).parameters)
+    nearest = difflib.get_close_matches(name, taken, n=1)
+    hint = f"did you mean {key}.{nearest[0]}?" if nearest else f"it takes {', '.join(taken)}"
+    return ConfigError(f"{key}.{name}: {node._target_} takes no argument {name!r}; {hint}")
 
 
 def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule) -> None:
@@ -364,30 +363,54 @@ def train_checked(cfg: DictConfig) -> dict[str, Any]:
     if finished is not None and not cfg.get("retest"):
         log.info(finished)
         return {}
-    with run_log(output_dir):
-        return _train(cfg, output_dir, retest_only=finished is not None)
+    with run_log(output_dir) as open_log:
+        return _train(cfg, output_dir, resume_from, open_log, retest_only=finished is not None)
 
 
-def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, Any]:
+def _train(
+    cfg: DictConfig,
+    output_dir: Path,
+    resume_from: str | None,
+    open_log: Callable[[], None],
+    retest_only: bool,
+) -> dict[str, Any]:
     log_lightning_once()
     L.seed_everything(cfg.seed, workers=True)
-    ckpt_path = prepare_run_dir(cfg, output_dir)
-
-    datamodule, module = build(cfg, resume_from=ckpt_path)
+    # Everything that can refuse the run is checked before the run directory is written: the data (its source,
+    # files and the task it can serve), the model, the callbacks and trainer, a process without a batch.
+    datamodule, module = build(cfg, resume_from=resume_from)
     # A group entry set to null (callbacks.rich_progress_bar=null) switches that callback or logger off.
     groups = {"callbacks": cfg.get("callbacks") or {}, "logger": cfg.get("logger") or {}}
-    callbacks, loggers = (
-        [instantiate_node(c, f"{group}.{name}") for name, c in nodes.items() if c is not None]
-        for group, nodes in groups.items()
-    )
+    nodes = {
+        group: {name: c for name, c in entries.items() if c is not None} for group, entries in groups.items()
+    }
+    callbacks = [instantiate_node(c, f"callbacks.{name}") for name, c in nodes["callbacks"].items()]
+    for name, node in nodes["logger"].items():
+        check_node_arguments(node, f"logger.{name}")
+    terminal: dict[str, Any] = {}
+    if not console_is_terminal():
+        # Redirected (a file, nohup, SLURM): ProgressLog's lines instead of a bar's frames, and the model's size in
+        # one line instead of the summary table.
+        callbacks = [c for c in callbacks if not isinstance(c, ProgressBar)]
+        terminal = {"enable_progress_bar": False, "enable_model_summary": False}
     trainer: L.Trainer = instantiate_node(
-        cfg.trainer, "trainer", callbacks=callbacks, logger=loggers or False, plugins=[AtomicCheckpointIO()]
+        cfg.trainer, "trainer", callbacks=callbacks, logger=False, plugins=[AtomicCheckpointIO()], **terminal
     )
+    if terminal and trainer.is_global_zero:
+        log.info("model %s: %s", cfg.model.name, parameter_counts(module))
+    if cfg.get("train", True) and not retest_only:
+        check_training_batches(trainer, datamodule)
+
+    ckpt_path = prepare_run_dir(cfg, output_dir)
+    open_log()
+    # Built now: a logger opens its store when built (MLflow creates its database in the run directory). What
+    # Trainer(logger=...) does with them is this setter.
+    loggers = [instantiate_node(c, f"logger.{name}") for name, c in nodes["logger"].items()]
+    trainer.loggers = loggers
     if trainer.is_global_zero:
         start_tracking(loggers, OmegaConf.to_container(cfg, resolve=True))
 
     if cfg.get("train", True) and not retest_only:
-        check_training_batches(trainer, datamodule)
         trainer.fit(module, datamodule=datamodule, ckpt_path=ckpt_path)
 
     results: dict[str, Any] = {}
@@ -437,6 +460,18 @@ def _train(cfg: DictConfig, output_dir: Path, retest_only: bool) -> dict[str, An
     if callback is not None and getattr(callback, "best_model_score", None) is not None:
         results["best_val"] = {str(callback.monitor): float(callback.best_model_score)}
     return results
+
+
+def parameter_counts(module: torch.nn.Module) -> str:
+    """``<n> parameters (<m> trainable)`` in Lightning's units (``12.3 M``).
+
+    Example:
+        >>> parameter_counts(torch.nn.Linear(1000, 10))
+        '10.0 K parameters (10.0 K trainable)'
+    """
+    total = sum(p.numel() for p in module.parameters())
+    trainable = sum(p.numel() for p in module.parameters() if p.requires_grad)
+    return f"{get_human_readable_count(total)} parameters ({get_human_readable_count(trainable)} trainable)"
 
 
 def source_results(

@@ -210,6 +210,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.datasets: dict[str, AirFisheyeDataset | MultiSourceDataset] = {}
         self._resume_position: tuple[int, int] | None = None
         self._source_roots: dict[str, Path] | None = None
+        self._camera_lines: set[str] = set()
 
     # ----------------------------------------------------------------------------------- Lightning hooks
     def prepare_data(self) -> None:
@@ -223,10 +224,19 @@ class AirFisheyeDataModule(L.LightningDataModule):
             if name not in self.datasets:
                 augment = self.augment if i == 0 else None
                 self.datasets[name] = self._open_split(i, augment)
+                self._log_camera(self.datasets[name])
                 # Build the lookup tables before any worker starts: forked workers share them.
                 self.datasets[name].warm_up()
                 if self.remap_on == "device":
                     self._check_device_remap(self.datasets[name])
+
+    def _log_camera(self, dataset: AirFisheyeDataset | MultiSourceDataset) -> None:
+        """Log the served camera (each source's) once: every split resolves the same one."""
+        parts = dataset.datasets.values() if isinstance(dataset, MultiSourceDataset) else [dataset]
+        for part in parts:
+            if part.camera_line is not None and part.camera_line not in self._camera_lines:
+                self._camera_lines.add(part.camera_line)
+                log.info("%s", part.camera_line)
 
     def _open_split(
         self, index: int, augment: FisheyeAugment | None

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -11,8 +10,6 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict, ideal_camera
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
-
-log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -55,9 +52,17 @@ class CameraConfig:
         except (ValueError, OSError) as err:
             raise ConfigError(f"data.camera.calibration: {err}") from None
 
+    def describe(self, served: ServedCamera) -> str | None:
+        """The log line of a camera :meth:`resolve` served: a calibration file's lens, or a non-square camera
+        padded or cropped; ``None`` for the release's lens at a size that keeps its aspect, or an ideal lens."""
+        if self.calibration is not None:
+            where = self.calibration if isinstance(self.calibration, str) else "the model's metadata"
+            return f"camera from {where}: {served.describe()}"
+        return f"camera: {served.describe()}" if served.fit is not None else None
+
     def resolve(self, calibrated: CameraModel, source: str) -> ServedCamera:
         """The camera to serve (and how it maps onto the calibrated sensor), given the release's calibrated
-        fisheye."""
+        fisheye (each split resolves it: the datamodule logs :meth:`describe` once)."""
         lens_changed = any(v is not None for v in (self.model, self.fov_deg, self.k))
         lens = self.calibrated_lens()
         if lens is not None:
@@ -71,13 +76,7 @@ class CameraConfig:
                     "data.camera.calibration needs data.source=cubemap (the pre-rendered fisheye files have the "
                     "release's lens)"
                 )
-            served = serve_camera(lens, self.size, self.fit)
-            log.info(
-                "camera from %s: %s",
-                self.calibration if isinstance(self.calibration, str) else "the model's metadata",
-                served.describe(),
-            )
-            return served
+            return serve_camera(lens, self.size, self.fit)
         size = self.size or calibrated.width
         if not lens_changed:
             square = calibrated.width == calibrated.height
@@ -92,9 +91,7 @@ class CameraConfig:
                 # The aspect ratio is kept exactly (the pre-rendered files are resampled to it).
                 resized = calibrated.resized(size, size * calibrated.height // calibrated.width)
                 return ServedCamera(resized, calibrated, size / calibrated.width, (0.0, 0.0), None)
-            served = serve_camera(calibrated, size, self.fit)
-            log.info("camera: %s", served.describe())
-            return served
+            return serve_camera(calibrated, size, self.fit)
         if source == "fisheye":
             raise ValueError(
                 "camera.model/fov_deg/k can only change with source=cubemap (the pre-rendered fisheye files have a "

@@ -65,7 +65,7 @@ from airfisheye_bench.geometry.remap_table import reserve_tables
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.io import DatasetFormatError, EmptySplitError
-from airfisheye_bench.io.datasets import modalities_of, open_dataset
+from airfisheye_bench.io.datasets import DATASET_FORMATS, open_dataset, unserved_modality
 from airfisheye_bench.io.spec import IMAGE_SOURCES, REMAP_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import AugmentParams, FisheyeAugment, augment_sample, rotation_about_optical_axis
@@ -162,6 +162,14 @@ class AirFisheyeDataset(Dataset):
                 "data.gimbal turns the camera of a remap source: it needs data.source=cubemap or equirect "
                 "(pre-rendered fisheye images have a fixed orientation)"
             )
+        needed = {task_spec.target, *task_spec.inputs} - {"image"}
+        # A map the format never has (WoodScape's depth) is refused before the folder is read: a wrong or empty
+        # root would otherwise be reported first, for a command that cannot run on any root of that format.
+        if dataset_format in DATASET_FORMATS:
+            fixed = DATASET_FORMATS[dataset_format]
+            modality = unserved_modality(fixed, needed)
+            if modality is not None:
+                raise ConfigError(f"{fixed.missing_reason(modality)}; task={task} needs it")
         self.reader = open_dataset(root, dataset_format, dict(format_options or {}))
         self.spec = self.reader.spec
         self.split = split
@@ -204,19 +212,8 @@ class AirFisheyeDataset(Dataset):
         for content in task_spec.requires:
             if not self.spec.has(content):
                 raise ConfigError(f"{self.reader.missing_reason(content)}; task={task} needs it")
-        needed = {task_spec.target, *task_spec.inputs} - {"image"}
         # A source without dense depth images may give its depth target as LiDAR points (``depth_points``).
         self._depth_from_points = callable(getattr(self.reader, "depth_points", None))
-        # A dense map the source lacks (WoodScape has no depth, KITTI-360 no fisheye labels; its depth target comes
-        # from points instead).
-        modalities = modalities_of(self.reader)
-        for key, modality in (("label", "seg"), ("depth", "depth")):
-            if (
-                key in needed
-                and modality not in modalities
-                and not (key == "depth" and self._depth_from_points)
-            ):
-                raise ConfigError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
         if needed - set(SAMPLE_KEYS):
             raise ValueError(
                 f"task={task} needs sample keys {sorted(needed - set(SAMPLE_KEYS))} that the dataset cannot serve "
@@ -236,7 +233,10 @@ class AirFisheyeDataset(Dataset):
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
-        self.served = (camera or CameraConfig()).resolve(self.calibrated_camera, source)
+        camera = camera or CameraConfig()
+        self.served = camera.resolve(self.calibrated_camera, source)
+        #: The served camera's log line, if it says more than the release's lens (the datamodule logs it once).
+        self.camera_line = camera.describe(self.served)
         self.camera = self.served.camera
         # Pixels beyond a padded calibration's sensor: no data there (None when every pixel is on the sensor).
         outside = ~self.served.frame_mask() if self.served.fit == "pad" else None

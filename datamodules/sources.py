@@ -78,7 +78,7 @@ def check_location(format: str, root: str | Path | None, preset: str | None, key
         >>> check_location("airfisheye", None, "tny")
         Traceback (most recent call last):
         ...
-        airfisheye_bench.errors.ConfigError: data.preset='tny': expected one of tiny, quickstart, small, medium, paper, occlusion (or give data.root)
+        airfisheye_bench.errors.ConfigError: data.preset='tny': expected one of tiny, quickstart, ... (or give data.root)
     """
     if format not in DATASET_FORMATS:
         raise ConfigError(f"{key}.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")

@@ -7,6 +7,7 @@ worker to ask makes each one, under a lock, in a folder beside the workers' own 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -21,6 +22,16 @@ def pytest_configure(config: pytest.Config) -> None:
     workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
     if workers > 1:
         torch.set_num_threads(max(1, (os.cpu_count() or 1) // workers))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _runs_outside_the_checkout(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """A command left to its default run directory (``logs/<task>/runs/<name>`` under ``paths.root_dir``, the working
+    folder: the checkout) writes under this session's temporary folder instead; the commands' subprocesses
+    inherit it. A test that needs another ``PROJECT_ROOT`` sets its own."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("PROJECT_ROOT", str(tmp_path_factory.mktemp("project")))
+        yield
 
 
 @pytest.fixture(scope="session")

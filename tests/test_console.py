@@ -1,5 +1,7 @@
 """What a fresh run and an evaluation print (real processes: the console handlers and warning filters are what is
-tested): each log message once, no warning that is not the user's business, the table logged."""
+tested): each log message once, no warning that is not the user's business, the table logged. The console is
+captured, as a redirected one (a file, nohup, SLURM): progress lines, no progress-bar frames, colour codes or model
+summary table."""
 
 from __future__ import annotations
 
@@ -18,12 +20,33 @@ WARNING_LINE = re.compile(r"^\S+\.py:\d+: ", re.MULTILINE)
 LOG_LINE = re.compile(r"^\[[\d\- :,]+\]\[[\w.]+\]\[\w+\] - (.*)$", re.MULTILINE)
 
 
+#: A Kalibr camchain: the served camera comes from a calibration file, which each split resolves.
+CAMCHAIN = """cam0:
+  camera_model: ds
+  distortion_model: none
+  distortion_coeffs: []
+  intrinsics: [-0.17, 0.59, 158.3, 158.3, 254.9, 256.9]
+  resolution: [512, 512]
+"""
+
+
 @pytest.fixture(scope="session")  # once per worker: xdist may tear a module fixture down between batches
 def fresh_train(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
     """A fresh ``python train.py`` run in its own process (the console is what is tested): its console output and
-    run directory, shared by the tests below."""
-    run = tmp_path_factory.mktemp("console") / "run"
-    train = run_command(TRAIN, [*tiny_run_overrides("seg", tiny_dataset), f"hydra.run.dir={run}"])
+    run directory, shared by the tests below. The callbacks are the default ones (the progress bar too), the
+    logging interval is longer than the tiny epoch (a fresh run's trainer.log_every_n_steps on a small dataset),
+    the lens a calibration file's."""
+    folder = tmp_path_factory.mktemp("console")
+    camchain = folder / "camchain.yaml"
+    camchain.write_text(CAMCHAIN)
+    args = [
+        *(a for a in tiny_run_overrides("seg", tiny_dataset) if not a.startswith("callbacks.")),
+        "trainer.log_every_n_steps=50",
+        f"data.camera.calibration={camchain}",
+        f"hydra.run.dir={folder / 'run'}",
+    ]
+    run = folder / "run"
+    train = run_command(TRAIN, args)
     output = train.stdout + train.stderr
     assert train.returncode == 0, output[-3000:]
     return output, run
@@ -36,6 +59,21 @@ def test_a_fresh_train_prints_no_warning_that_is_not_the_users_business(
     assert not WARNING_LINE.findall(output), output
     assert "INFO: " not in output  # Lightning's own console handler: its messages came twice
     assert "litlogger" not in output  # Lightning's advertisement of its cloud logger
+
+
+def test_a_redirected_train_prints_no_terminal_only_output(fresh_train: tuple[str, Path]) -> None:
+    """No progress-bar frame, colour code or model summary table, no line longer than a log line with a path; the
+    served camera said once, the model's size in one line."""
+    output, _ = fresh_train
+    lines = output.splitlines()
+    assert max(len(line) for line in lines) <= 300, max(lines, key=len)[:500]
+    assert "\x1b" not in output  # no colour codes
+    assert not re.search(r"[━┃│┏└]", output), output  # rich's bar and table characters
+    # tqdm's bar: its frames' carriage returns are read as line ends here (text mode), its percentages stay.
+    assert not re.search(r"\d+%\|", output), output
+    assert "Trainable params" not in output and "Total params" not in output
+    assert sum("camera from" in line for line in lines) == 1, output
+    assert sum("model deeplabv3plus: " in line and "parameters" in line for line in lines) == 1, output
 
 
 def test_a_fresh_train_prints_each_message_once(fresh_train: tuple[str, Path]) -> None:

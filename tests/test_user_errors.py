@@ -6,12 +6,17 @@ this process (``tests.helpers.commands.run_in_process``: ``argv``, stdout and st
 what a row changes in the process, ``ROW_PATCH``, is put back after it). Module fixtures run the rows once:
 a representative set in the default suite, the other schema rows ``slow`` (every kind of schema key is also checked
 by ``test_schema_table``). Rows on an empty dataset cache check that the command stopped before generating the
-dataset. The rows that need a corrupted dataset load frames in a DataLoader worker and are ``slow``.
+dataset. Every row checks that the refused command left no new file or folder, and removed none: in its temporary
+folder (the run directories it names, the dataset cache), the dataset it read, the checkout's ``logs/`` and the
+default data cache; one row leaves ``hydra.run.dir`` to its default, ``logs/<task>/runs/<name>`` under
+``PROJECT_ROOT`` (set for every row to a folder of the temporary one that does not exist yet). The rows that need a
+corrupted dataset load frames in a DataLoader worker and are ``slow``.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import os
 import pickle
 import shutil
 import sys
@@ -88,6 +93,10 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
     woodscape = write_woodscape(tmp / "woodscape")
     omni360 = write_omni360_fixture(tmp / "omni360", height=8, frames=3)
     shutil.rmtree(omni360 / "NYC" / "nyc_Depth")  # a download without one scene's depth archive
+    empty = tmp / "empty"  # a dataset folder with nothing in it
+    empty.mkdir()
+    existing = tmp / "existing_run"  # a run directory given by hydra.run.dir that exists: it stays
+    existing.mkdir()
     train = [*tiny_run_overrides("seg", dataset)]
     # On the synthetic preset with an empty cache: a row refused before any work leaves the cache without a dataset.
     fresh = [*train, "data.root=null", "data.preset=tiny", f"paths.data_dir={tmp}/cache"]
@@ -297,9 +306,46 @@ def _fast_rows(tmp: Path, dataset: Path) -> dict[str, tuple[str, list[str], tupl
                 "data=omni360",
                 f"data.root={omni360}",
                 "trainer=debug",
-                f"hydra.run.dir={tmp}/r21",
+                f"hydra.run.dir={tmp}/r26",
             ],
             (str(omni360 / "NYC"), "no depth folder", "task=depth needs it"),
+        ),
+        # Refused on the dataset itself, before the run directory is written: nothing of the run is left.
+        "root_empty": (
+            TRAIN,
+            [*train, f"data.root={empty}", f"hydra.run.dir={tmp}/r23"],
+            (f"{empty}/dataset.yaml", "does not exist"),
+        ),
+        "run_dir_exists": (
+            TRAIN,
+            [*train, f"data.root={empty}", f"hydra.run.dir={existing}"],
+            (f"{empty}/dataset.yaml",),
+        ),
+        "run_dir_default": (  # logs/seg/runs/<name> under PROJECT_ROOT: made by Hydra, taken back
+            TRAIN,
+            [*train, f"data.root={empty}"],
+            (f"{empty}/dataset.yaml",),
+        ),
+        "woodscape_views": (
+            TRAIN,
+            [
+                *tiny_run_overrides("seg", woodscape),
+                "data=woodscape",
+                "data.format_options.views=[FV,XX]",
+                f"hydra.run.dir={tmp}/r24",
+            ],
+            ("data.format_options.views", "XX"),
+        ),
+        "woodscape_depth_root_empty": (  # what the format never has is said before its folder is read
+            TRAIN,
+            [
+                "task=depth",
+                "data=woodscape",
+                f"data.root={empty}",
+                "trainer=debug",
+                f"hydra.run.dir={tmp}/r25",
+            ],
+            ("WoodScape released no LiDAR and no depth", "task=depth needs it"),
         ),
         "offline_weights": (
             TRAIN,
@@ -314,6 +360,26 @@ class RowOutcomes:
     tmp: Path
     outcomes: dict[str, Outcome]
     names: dict[str, tuple[str, ...]]
+    #: The files and folders each row added or removed (none, for a refused command).
+    changes: dict[str, list[str]]
+
+
+def _tree(*roots: Path) -> set[str]:
+    """Every file and folder under ``roots`` (the roots too, where they exist)."""
+    found = set()
+    for root in roots:
+        if root.exists():
+            found |= {str(root), *(str(p) for p in root.rglob("*"))}
+    return found
+
+
+def _watched(tmp: Path, dataset: Path) -> set[str]:
+    """What a row might write to: its temporary folder, the dataset, the checkout's ``logs/`` and top level (where
+    ``paths.root_dir`` points by default), the top level of the default data cache."""
+    cache = Path(os.environ.get("AIRFISHEYE_DATA", Path.home() / ".cache" / "airfisheye-bench"))
+    tops = {str(p) for folder in (ROOT, cache) if folder.is_dir() for p in folder.iterdir()}
+    tops = {p for p in tops if not Path(p).name.startswith(".") and Path(p).name != "__pycache__"}
+    return _tree(tmp, dataset, ROOT / "logs") | tops
 
 
 def _run_rows(tmp: Path, dataset: Path, selected: tuple[str, ...]) -> RowOutcomes:
@@ -321,13 +387,18 @@ def _run_rows(tmp: Path, dataset: Path, selected: tuple[str, ...]) -> RowOutcome
     rows = {name: row for name, row in _fast_rows(tmp, dataset).items() if name in selected}
     if _has_tensorboard():
         rows.pop("logger_missing", None)
-    outcomes = {}
+    outcomes, changes = {}, {}
+    # paths.root_dir (logs/ of a run directory left to its default): a folder that does not exist yet.
+    env = {"PROJECT_ROOT": str(tmp / "project")}
     for name, (script, args, _) in rows.items():
+        before = _watched(tmp, dataset)
         with pytest.MonkeyPatch.context() as patch:
             if name in ROW_PATCH:
                 ROW_PATCH[name](tmp, patch)
-            outcomes[name] = run_in_process(script, args)
-    return RowOutcomes(tmp, outcomes, {name: names for name, (_, _, names) in rows.items()})
+            outcomes[name] = run_in_process(script, args, extra_env=env)
+        after = _watched(tmp, dataset)
+        changes[name] = sorted(f"+{p}" for p in after - before) + sorted(f"-{p}" for p in before - after)
+    return RowOutcomes(tmp, outcomes, {name: names for name, (_, _, names) in rows.items()}, changes)
 
 
 def _has_tensorboard() -> bool:
@@ -383,6 +454,11 @@ DEFAULT_ROWS = (
     "occlusion_options",
     "woodscape_depth",
     "omni360_depth",
+    "root_empty",
+    "run_dir_exists",
+    "run_dir_default",
+    "woodscape_views",
+    "woodscape_depth_root_empty",
 )
 """Rows of the default suite; the other schema rows are ``slow`` (test_schema_table covers them in-process)."""
 SLOW_ROWS = (
@@ -420,6 +496,7 @@ def _check_row(row: str, rows: RowOutcomes) -> None:
     if row == "logger_missing" and _has_tensorboard():
         pytest.skip("tensorboard is installed here: the row needs it missing")
     message = assert_one_line_error(rows.outcomes[row], *rows.names[row])
+    assert not rows.changes[row], rows.changes[row]  # a refused command writes nothing, removes nothing
     if row in ("ckpt_garbage", "export_ckpt_garbage"):
         assert "weights_only" not in message  # PyTorch's advice to unpickle anything is not repeated
     if row in FAIL_FAST:  # refused before the dataset was generated (none of them gets that far)

@@ -6,16 +6,18 @@ from a wheel too). ``python train.py`` and ``python scripts/evaluate.py`` are th
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
 from airfisheye_bench.cli.overrides import check_overrides
+from airfisheye_bench.cli.run_dir import takes_back_run_dir
 from airfisheye_bench.config_checks import check_common_values, check_train_config
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import report_user_errors
-from airfisheye_bench.runs import register_resolvers, resume_config
+from airfisheye_bench.runs import register_resolvers, resume_config, run_log
 
 register_resolvers()  # ${run_name:} in hydra.run.dir, ${sweep_name:} in hydra.sweep.dir
 
@@ -36,6 +38,7 @@ def evaluate() -> None:
 
 @hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="train")
 @report_user_errors  # a user error: one line on stderr, exit status 2 (docs/troubleshooting.md)
+@takes_back_run_dir  # refused or failed: the run directory Hydra made for it is removed while empty
 def _train(cfg: DictConfig) -> float | None:
     """The objective of a sweep: the test primary metric, or with ``optimized_metric=val/<metric>`` the best
     validation score."""
@@ -56,6 +59,7 @@ def _train(cfg: DictConfig) -> float | None:
 
 @hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="evaluate")
 @report_user_errors  # a user error: one line on stderr, exit status 2
+@takes_back_run_dir
 def _evaluate(cfg: DictConfig) -> None:
     # A mistyped value is answered before the imports below. The data group is checked by the command, once, when it
     # knows which one it serves (a checkpoint's or ONNX model's own, command-line data.* on top).
@@ -63,4 +67,5 @@ def _evaluate(cfg: DictConfig) -> None:
     from airfisheye_bench.evaluation.command import evaluate as score  # Lightning and ONNX Runtime: seconds
 
     overrides = [o.lstrip("+") for o in HydraConfig.get().overrides.task if o.lstrip("+").startswith("data.")]
-    score(cfg, data_overrides=overrides)
+    with run_log(Path(cfg.output_dir)) as open_log:  # evaluate.log: written with the results, not before
+        score(cfg, data_overrides=overrides, before_writing=open_log)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -75,13 +76,19 @@ EVALUATE_RULES: dict[str, ValueRule] = {
 """``evaluate.yaml``'s own options (the common keys are :data:`airfisheye_bench.config_checks.RULES`)."""
 
 
-def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[str, Any]:
+def evaluate(
+    cfg: DictConfig,
+    data_overrides: list[str] | None = None,
+    before_writing: Callable[[], None] | None = None,
+) -> dict[str, Any]:
     """Evaluate the configured source and write ``results.json`` and panels to ``cfg.output_dir``.
 
     Args:
         cfg: The composed ``configs/evaluate.yaml``.
         data_overrides: ``data.key=value`` strings applied on top of a checkpoint's or ONNX model's own data
             configuration (the command line's ``data.*`` overrides).
+        before_writing: Called once the evaluation succeeded, before anything is written to ``cfg.output_dir``
+            (the command opens its ``evaluate.log`` there: a refused or failed evaluation writes nothing).
 
     Returns:
         The ``results.json`` record.
@@ -153,6 +160,8 @@ def evaluate(cfg: DictConfig, data_overrides: list[str] | None = None) -> dict[s
             max_depth=max_depth,
             on_batch=writer.add_batch if writer else None,
         )
+    if before_writing is not None:
+        before_writing()
     record = _write(cfg, output_dir, task, datamodule, data_config, predictor, result)
     summary = "\n".join(
         [

@@ -43,7 +43,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from airfisheye_bench.atomic import atomic_write_text, check_writable
 from airfisheye_bench.errors import ConfigError, MissingFileError, OutputExistsError
@@ -52,7 +51,7 @@ from airfisheye_bench.evaluation.footage_inputs import INPUT_FORMATS, frame_prep
 from airfisheye_bench.evaluation.predictors import TTA_MODES
 from airfisheye_bench.evaluation.submission import write_prediction
 from airfisheye_bench.evaluation.trained import TrainedModel, load_trained
-from airfisheye_bench.progress import console_is_terminal, progress_line
+from airfisheye_bench.io.progress_report import ProgressReport
 from airfisheye_bench.specs import DEPTH_PNG_SCALE, get_task
 from airfisheye_bench.viz import (
     class_legend,
@@ -171,7 +170,7 @@ def predict_footage(
     started = time.monotonic()
     writer = _Writer(model, out, DEPTH_FORMATS[depth_format])
     names: list[str] = []
-    with writer, _Progress(footage.count, progress) as bar:
+    with writer, ProgressReport(footage.count, "predict", "frame", progress, logger=log) as bar:
         for chunk in _batches(footage.frames(), batch_size):
             images = [prepare(rgb) for _, rgb in chunk]
             batch = {"image": torch.stack([_normalise(model, image) for image in images])}
@@ -348,31 +347,3 @@ class _Writer:
         for folder in self._made:  # deepest first; only the empty folders this run made
             with contextlib.suppress(OSError):
                 folder.rmdir()
-
-
-class _Progress:
-    """A progress bar in a terminal; otherwise a log line at every tenth of the frames (``progress.py``'s rule)."""
-
-    def __init__(self, total: int | None, enabled: bool) -> None:
-        self.total, self.enabled, self.done = total, enabled, 0
-        self.started = time.monotonic()
-        self.bar = None
-        if enabled and console_is_terminal():
-            self.bar = tqdm(total=total, desc="predict", unit="frame", dynamic_ncols=True)
-        self.step = max(1, (total or 10) // 10)
-
-    def update(self, n: int) -> None:
-        before, self.done = self.done, self.done + n
-        if self.bar is not None:
-            self.bar.update(n)
-        elif self.enabled and before // self.step != self.done // self.step:
-            seconds = time.monotonic() - self.started
-            where = f"predict frame {self.done}/{self.total or '?'}"
-            log.info(progress_line(where, {"frames/s": self.done / max(seconds, 1e-9)}, seconds))
-
-    def __enter__(self) -> _Progress:
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if self.bar is not None:
-            self.bar.close()

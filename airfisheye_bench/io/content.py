@@ -11,18 +11,17 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
-from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 import yaml
 from PIL import Image
-from tqdm.auto import tqdm
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.layout import MANIFEST_NAME
 from airfisheye_bench.io.manifest import dataset_files, sha256_file
+from airfisheye_bench.io.progress_report import track
 
 __all__ = ["CONTENT_CACHE_NAME", "CONTENT_FORMAT", "content_identity", "decoded_content"]
 
@@ -114,8 +113,7 @@ def content_identity(root: str | Path, use_cache: bool = True, progress: bool = 
             pass  # an unreadable cache is recomputed
     files = dataset_files(root)
     h = hashlib.sha256(CONTENT_FORMAT.encode("ascii"))
-    items: Iterable[str] = tqdm(files, desc="content", unit="file") if progress else files
-    for rel in items:
+    for rel in track(files, len(files), "content", "file", progress):
         description, data = decoded_content(root / rel)
         h.update(f"\n{rel}\n{description}\n{len(data)}\n".encode())
         h.update(data)

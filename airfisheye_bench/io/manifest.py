@@ -14,15 +14,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-
-from tqdm.auto import tqdm
 
 from airfisheye_bench.atomic import TEMP_GLOB, atomic_write_text
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import CONTACT_SHEET_NAME, MANIFEST_NAME
+from airfisheye_bench.io.progress_report import track
 
 MANIFEST_FORMAT = "airfisheye-manifest/1"
 #: Files that never belong in a manifest: the manifest, the contact sheet, generator state and temporaries.
@@ -184,10 +182,7 @@ def verify(root: str | Path, check_unexpected: bool = True, progress: bool = Fal
     root = Path(root)
     entries = read_manifest(root)
     report = VerifyReport()
-    items: Iterable = sorted(entries.items())
-    if progress:
-        items = tqdm(items, total=len(entries), desc="verify", unit="file")
-    for rel, entry in items:
+    for rel, entry in track(sorted(entries.items()), len(entries), "verify", "file", progress):
         path = root / rel
         report.checked += 1
         if not path.is_file():

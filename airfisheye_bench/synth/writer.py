@@ -34,7 +34,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from airfisheye_bench.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.geometry import FACE_NAMES, CameraModel, CubemapToFisheye, ideal_camera
@@ -45,6 +44,7 @@ from airfisheye_bench.io.content import decoded_content
 from airfisheye_bench.io.layout import DatasetLayout
 from airfisheye_bench.io.manifest import FileEntry, sha256_bytes, sha256_file, write_manifest
 from airfisheye_bench.io.poses import ImuTable, PoseTable
+from airfisheye_bench.io.progress_report import ProgressReport
 from airfisheye_bench.io.spec import DATASET_YAML, DatasetSpec, FileEncodings
 from airfisheye_bench.io.splits import write_split
 from airfisheye_bench.synth.dataset_yaml import dataset_spec, generator_identity
@@ -261,7 +261,7 @@ def generate_dataset(
         seed: Base seed.
         workers: Processes rendering frames (the output does not depend on it).
         device: Torch device for ray casting (``cpu``; ``cuda`` when available).
-        progress: Show a progress bar.
+        progress: Report progress: a bar in a terminal, else a log line every tenth of the frames.
 
     Returns:
         ``out_dir``.
@@ -298,9 +298,8 @@ def generate_dataset(
         if Job(t, f).key not in done
     ]
     total_frames = sum(p.num_frames for p in plans)
-    bar = _progress_bar(
-        progress, total_frames, total_frames - sum(1 for j in jobs if j.frame >= 0), config.name
-    )
+    done_frames = total_frames - sum(1 for j in jobs if j.frame >= 0)
+    bar = ProgressReport(total_frames, f"generate {config.name}", "frame", progress, done_frames, log)
     try:
         with open(journal, "a", encoding="utf-8") as jf:
             for key, files in _execute(jobs, (config, seed, str(root), plans, device), int(workers)):
@@ -478,18 +477,3 @@ def _read_journal(journal: Path, root: Path) -> dict[str, dict]:
         ):
             done[entry["unit"]] = files
     return done
-
-
-class _NoBar:
-    def update(self, n: int = 1) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-def _progress_bar(enabled: bool, total: int, initial: int, name: str):
-    if not enabled:
-        return _NoBar()
-
-    return tqdm(total=total, initial=initial, desc=f"generate {name}", unit="frame", dynamic_ncols=True)

@@ -16,7 +16,7 @@ import torchvision
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf, open_dict
 
-from airfisheye_bench.checkpointing import AtomicCheckpointIO, RunCSVLogger
+from airfisheye_bench.checkpointing import AtomicCheckpointIO, RunCSVLogger, share_file
 from airfisheye_bench.config_checks import check_train_config
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.runs import (
@@ -50,6 +50,34 @@ def test_last_checkpoint_holds_the_final_state(tiny_dataset: Path, tmp_path: Pat
     rows = (tmp_path / "metrics.csv").read_text().splitlines()
     assert saved["metrics_csv_rows"] == len(rows) - 1  # the checkpoint covers every row logged
     assert not list(tmp_path.rglob("*.tmp"))
+    # The best checkpoint is the last.ckpt written at its step (one file for both when that is the last step).
+    (best,) = (tmp_path / "checkpoints").glob("epoch_*.ckpt")
+    state = torch.load(best, map_location="cpu", weights_only=True)
+    assert "metrics_csv_rows" in state
+    last = tmp_path / "checkpoints" / "last.ckpt"
+    assert (best.stat().st_ino == last.stat().st_ino) == (state["global_step"] == 3)
+
+
+@pytest.mark.integration
+def test_a_one_epoch_run_stores_its_weights_once(tiny_runs) -> None:
+    """``trainer=debug``: the best checkpoint is the last one (the same step), one file under two names."""
+    folder = tiny_runs("seg") / "checkpoints"
+    best, last = folder / "epoch_000.ckpt", folder / "last.ckpt"
+    assert best.stat().st_ino == last.stat().st_ino and last.stat().st_nlink == 2
+
+
+def test_a_shared_file_keeps_its_bytes_when_the_other_name_is_rewritten(tmp_path: Path) -> None:
+    last, best = tmp_path / "last.ckpt", tmp_path / "epoch_000.ckpt"
+    io = AtomicCheckpointIO()
+    io.save_checkpoint({"step": torch.tensor(1), "rows": 2}, last)
+    io.save_checkpoint({"step": torch.tensor(1)}, best)
+    share_file(last, best)
+    assert best.stat().st_ino == last.stat().st_ino
+    assert torch.load(best, weights_only=True)["rows"] == 2
+    io.save_checkpoint({"step": torch.tensor(2)}, last)  # a rename: best keeps the bytes of step 1
+    assert best.stat().st_ino != last.stat().st_ino
+    assert torch.load(best, weights_only=True)["step"] == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["epoch_000.ckpt", "last.ckpt"]
 
 
 def test_an_interrupted_checkpoint_write_leaves_the_previous_file(tmp_path: Path, monkeypatch) -> None:
@@ -282,15 +310,17 @@ def test_a_moved_run_directory_resumes_where_it_is_now(tmp_path: Path) -> None:
     assert resumed.trainer.max_epochs == 5
 
 
-def test_a_resume_from_a_checkpoint_without_its_rows_keeps_metrics_csv_aside(tmp_path: Path) -> None:
+@pytest.mark.parametrize("rows", [None, 2])
+def test_a_resume_from_a_best_checkpoint_keeps_metrics_csv_aside(rows: int | None, tmp_path: Path) -> None:
+    """A best checkpoint records no rows, or last.ckpt's when it shares its file: the later history is rewritten."""
     run = compose_train([])
     with open_dict(run):
         run.paths.output_dir = str(tmp_path)
     check_resume(run, tmp_path, write=True)
     (tmp_path / "metrics.csv").write_text("epoch,step,val/loss\n0,1,0.5\n1,3,0.4\n")
     (tmp_path / "checkpoints").mkdir()
-    best = tmp_path / "checkpoints" / "epoch_000.ckpt"  # a ModelCheckpoint file: it records no metrics rows
-    torch.save({"state_dict": {}, "global_step": 1}, best)
+    best = tmp_path / "checkpoints" / "epoch_000.ckpt"  # a ModelCheckpoint file
+    torch.save({"state_dict": {}, "global_step": 1, **({"metrics_csv_rows": rows} if rows else {})}, best)
     stale = tmp_path / "checkpoints" / ".last.ckpt.0123456789ab.tmp"  # left by a kill during a write
     stale.write_bytes(b"half a checkpoint")
     with open_dict(run):

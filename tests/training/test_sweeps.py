@@ -87,6 +87,27 @@ def test_each_task_has_a_search_in_its_primary_metric_direction(task: str) -> No
         assert OmegaConf.select(cfg, key, default="<absent>") != "<absent>", key
 
 
+@needs_optuna
+def test_a_redirected_search_logs_optuna_and_not_alembic_through_the_command() -> None:
+    """Not a terminal (captured here): Optuna's messages go through the command's logging (its own handler would
+    write colour codes), and alembic's "setup plugin" lines, imported with Optuna, are below the level shown."""
+    import optuna  # the sweep extra (checked above)
+
+    from airfisheye_bench.sweeps import BestTrialReport
+
+    cfg = _compose(["hparams_search=seg_optuna"])
+    assert "best_trial" in cfg.hydra.callbacks and "run_dir" in cfg.hydra.callbacks
+    for logging_config in (cfg.hydra.hydra_logging, cfg.hydra.job_logging):
+        assert logging_config.loggers.alembic.level == "WARNING"
+    library = optuna.logging._get_library_root_logger()
+    try:
+        BestTrialReport().on_multirun_start(cfg)
+        assert library.propagate and not library.handlers
+    finally:
+        optuna.logging.enable_default_handler()
+        optuna.logging.disable_propagation()
+
+
 @needs_submitit
 def test_the_slurm_launcher_submits_multi_node_ddp_jobs(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch

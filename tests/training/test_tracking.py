@@ -151,6 +151,27 @@ def test_a_run_logged_to_a_server_is_read_back(
     assert client.get_experiment_by_name("airfisheye-seg").experiment_id == run.info.experiment_id
 
 
+@pytest.mark.integration
+def test_each_job_of_a_multirun_logs_to_its_own_store(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """MLflow puts the store in use into $MLFLOW_TRACKING_URI: the next job in the process keeps its own store, while
+    a store the user set there is still the one used."""
+    from airfisheye_bench.tracking import RunMLFlowLogger
+
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    first = RunMLFlowLogger(str(tmp_path / "0"), "airfisheye-seg")
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", first._tracking_uri)  # what mlflow.set_tracking_uri does
+    second = RunMLFlowLogger(str(tmp_path / "1"), "airfisheye-seg")
+    assert (first._tracking_uri, second._tracking_uri) == (
+        local_store(tmp_path / "0")[0],
+        local_store(tmp_path / "1")[0],
+    )
+    chosen = f"sqlite:///{tmp_path / 'shared.db'}"
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", chosen)
+    assert RunMLFlowLogger(str(tmp_path / "2"), "airfisheye-seg")._tracking_uri == chosen
+
+
 @pytest.mark.slow
 def test_the_default_store_is_under_the_run_directory(tiny_dataset: Path, tmp_path: Path) -> None:
     """Without a tracking URI the run logs to its own SQLite store; a resume continues that MLflow run."""

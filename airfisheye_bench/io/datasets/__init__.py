@@ -13,7 +13,13 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.io.datasets.base import DatasetSource, DepthPoints, check_options, modalities_of
+from airfisheye_bench.io.datasets.base import (
+    DatasetSource,
+    DepthPoints,
+    check_options,
+    modalities_of,
+    unserved_modality,
+)
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.io.datasets.omni360 import Omni360Source
 from airfisheye_bench.io.datasets.tartanair import TartanAirSource
@@ -48,4 +54,5 @@ __all__ = [
     "check_options",
     "modalities_of",
     "open_dataset",
+    "unserved_modality",
 ]

@@ -11,7 +11,8 @@ LiDAR spec). The datamodule never looks at file names; the error messages of a s
 Optional members (looked up with ``getattr``; a source without them is served as before):
 
 - ``modalities``: the fisheye image modalities the source has (``rgb``, ``seg``, ``depth``; default all three). A
-  task whose target needs a missing one is refused with ``missing_reason(<modality>)``.
+  task whose target needs a missing one is refused with ``missing_reason(<modality>)`` before any root is read
+  (:func:`unserved_modality`), so a source that leaves one out defines ``missing_reason`` as a classmethod.
 - ``deskew(sample_id, points) -> points``: the scan's points (``[M, 3]``, any subset of ``lidar_scan``'s, in its
   order) moved to where they were at the scan's reference time, the time ``T_cam_lidar`` refers to (a spinning
   LiDAR's raw scan is recorded over a revolution). Applied with ``data.motion_compensation``.
@@ -21,6 +22,7 @@ Optional members (looked up with ``getattr``; a source without them is served as
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar, Protocol, runtime_checkable
@@ -116,6 +118,33 @@ def modalities_of(source: object) -> tuple[str, ...]:
     return tuple(getattr(source, "modalities", DENSE_MODALITIES))
 
 
+#: Sample key -> the dense map it is read from.
+_MAP_OF_KEY = {"label": "seg", "depth": "depth"}
+
+
+def unserved_modality(source: object, keys: Iterable[str]) -> str | None:
+    """The first dense map that ``keys`` (sample keys a task needs) are read from and that ``source`` (a source or
+    its class) does not have (:func:`modalities_of`), or ``None``; a depth target given as points
+    (``depth_points``) needs no depth map.
+
+    Asked of the class before a root is read (WoodScape has no depth at all): the class's ``missing_reason`` then
+    says why, so a source whose ``modalities`` leave a map out defines it as a classmethod.
+
+    Example:
+        >>> class RgbOnly:
+        ...     modalities = ("rgb",)
+        >>> unserved_modality(RgbOnly, {"label"}), unserved_modality(RgbOnly, {"sparse_depth"})
+        ('seg', None)
+    """
+    modalities = modalities_of(source)
+    from_points = callable(getattr(source, "depth_points", None))
+    for key in sorted(set(keys) & set(_MAP_OF_KEY)):
+        modality = _MAP_OF_KEY[key]
+        if modality not in modalities and not (modality == "depth" and from_points):
+            return modality
+    return None
+
+
 def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> dict:
     """``data.format_options`` of a source: unknown keys refused, unset ones from ``allowed``'s defaults.
 
@@ -132,4 +161,11 @@ def check_options(format_name: str, given: dict, allowed: dict[str, object]) -> 
     return {key: default if given.get(key) is None else given[key] for key, default in allowed.items()}
 
 
-__all__ = ["DENSE_MODALITIES", "DatasetSource", "DepthPoints", "check_options", "modalities_of"]
+__all__ = [
+    "DENSE_MODALITIES",
+    "DatasetSource",
+    "DepthPoints",
+    "check_options",
+    "modalities_of",
+    "unserved_modality",
+]

@@ -162,7 +162,8 @@ class Kitti360Source:
             description="KITTI-360 fisheye images and Velodyne scans (CC BY-NC-SA 3.0)",
         )
 
-    def missing_reason(self, content: str) -> str:
+    @classmethod  # asked of the class before a root is read (base.unserved_modality)
+    def missing_reason(cls, content: str) -> str:
         if content in ("seg", "label"):
             return _NO_LABELS
         if content == "cubemap":

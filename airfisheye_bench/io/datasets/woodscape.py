@@ -45,7 +45,7 @@ from typing import ClassVar
 import numpy as np
 import torch
 
-from airfisheye_bench.errors import MissingFileError
+from airfisheye_bench.errors import ConfigError, MissingFileError
 from airfisheye_bench.geometry.cameras import camera_from_dict
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES, BENCHMARK_ID
@@ -112,7 +112,7 @@ def woodscape_spec(classes: str = "dataset") -> DatasetSpec:
         train = BENCHMARK_CLASSES
         mapping = {c.id: BENCHMARK_ID[BENCHMARK_MAP[c.name]] for c in CLASSES if c.name in BENCHMARK_MAP}
     else:
-        raise ValueError(f"data.format_options.classes={classes!r}: expected dataset or benchmark")
+        raise ConfigError(f"data.format_options.classes={classes!r}: expected dataset or benchmark")
     return DatasetSpec(
         name=f"woodscape-{classes}",
         raw_classes=CLASSES,
@@ -163,9 +163,11 @@ class WoodScapeSource:
             raise ValueError(f"root must be an existing WoodScape folder, got {str(self.root)!r}")
         views = [views] if isinstance(views, str) else list(views)
         if not views or any(v not in VIEWS for v in views):
-            raise ValueError(f"data.format_options.views={views}: expected a non-empty list of {list(VIEWS)}")
+            raise ConfigError(
+                f"data.format_options.views={views}: expected a non-empty list of {list(VIEWS)}"
+            )
         if isinstance(calib_tolerance, bool) or not float(calib_tolerance) > 0:
-            raise ValueError(
+            raise ConfigError(
                 f"data.format_options.calib_tolerance={calib_tolerance!r}: expected a number > 0"
             )
         self.views = tuple(v for v in VIEWS if v in views)
@@ -204,8 +206,9 @@ class WoodScapeSource:
     def split(self, name: str) -> list[str]:
         """Sample ids ``<id>_<CAM>`` of ``name`` (of the chosen views), in file order; the cameras checked."""
         if name not in self.split_names:
-            raise ValueError(
-                f"split must be one of {self.split_names} for data.format=woodscape, got {name!r}"
+            raise ConfigError(
+                f"data.splits: no split {name!r} in data.format=woodscape (it has {', '.join(self.split_names)}; a "
+                "test split needs data.format_options.split_lists, a folder holding test.txt)"
             )
         if name not in self._split_cache:
             if self.split_lists is not None:
@@ -338,7 +341,8 @@ class WoodScapeSource:
             return self.calib_dir / f"{sample_id}.json"
         return self.rgb_dir / f"{sample_id}.png"
 
-    def missing_reason(self, content: str) -> str:
+    @classmethod  # asked of the class before a root is read (base.unserved_modality)
+    def missing_reason(cls, content: str) -> str:
         if content in ("lidar", "depth", "lidar_visible", "lidar_beam", "lidar_scan"):
             return _NO_DEPTH
         if content == "cubemap":
