@@ -214,6 +214,10 @@ class AirFisheyeDataset(Dataset):
                 raise ConfigError(f"{self.reader.missing_reason(content)}; task={task} needs it")
         # A source without dense depth images may give its depth target as LiDAR points (``depth_points``).
         self._depth_from_points = callable(getattr(self.reader, "depth_points", None))
+        # And what this download lacks (an Omni360 scene without its depth folder), now that it is read.
+        modality = unserved_modality(self.reader, needed)
+        if modality is not None:
+            raise ConfigError(f"{self.reader.missing_reason(modality)}; task={task} needs it")
         if needed - set(SAMPLE_KEYS):
             raise ValueError(
                 f"task={task} needs sample keys {sorted(needed - set(SAMPLE_KEYS))} that the dataset cannot serve "
