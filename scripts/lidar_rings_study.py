@@ -8,7 +8,7 @@ order (laser by laser, top first, from azimuth 0), and ``ordering`` runs with th
 over the frames: the share of in-view returns each source removes, the hidden returns it keeps and the visible
 ones it drops (against the ray-cast truth), and how many returns get their laser's ring.
 
-    python scripts/lidar_rings_study.py --preset tiny --lidar hdl64e --json docs/figures/lidar_rings_study.json
+    python scripts/lidar_rings_study.py --preset tiny --lidar hdl64e --json docs/figures/lidar_rings_study_tiny_hdl64e.json
     python scripts/generate_synthetic.py preset=occlusion out=DIR lidar.preset=hdl64e total_frames=48
     python scripts/lidar_rings_study.py --root DIR --json docs/figures/lidar_rings_study_occlusion_hdl64e.json
 
