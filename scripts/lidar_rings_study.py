@@ -8,19 +8,24 @@ order (laser by laser, top first, from azimuth 0), and ``ordering`` runs with th
 over the frames: the share of in-view returns each source removes, the hidden returns it keeps and the visible
 ones it drops (against the ray-cast truth), and how many returns get their laser's ring.
 
-    python scripts/lidar_rings_study.py --preset tiny --lidar hdl64e --json docs/figures/lidar_rings_study.json
+    python scripts/lidar_rings_study.py --preset tiny --lidar hdl64e --json docs/figures/lidar_rings_study_tiny_hdl64e.json
     python scripts/generate_synthetic.py preset=occlusion out=DIR lidar.preset=hdl64e total_frames=48
-    python scripts/lidar_rings_study.py --root DIR
+    python scripts/lidar_rings_study.py --root DIR --json docs/figures/lidar_rings_study_occlusion_hdl64e.json
+
+The JSON carries its provenance (commit, command, the dataset's content identity).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
 from airfisheye_bench.geometry.occlusion import occlusion_mask
@@ -48,7 +53,7 @@ def sources(points: np.ndarray, truth: np.ndarray, spec: LidarSpec) -> dict[str,
     }
 
 
-def main() -> None:
+def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--preset", default="tiny")
     parser.add_argument("--lidar", default="hdl64e")
@@ -58,9 +63,10 @@ def main() -> None:
     parser.add_argument(
         "--root", type=Path, default=None, help="a generated dataset instead of --preset/--lidar"
     )
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
 
     root = args.root or ensure_dataset(args.preset, lidar_preset=args.lidar, progress=False)
+    source = provenance("scripts/lidar_rings_study.py", argv, root, root.name)  # before any output is written
     reader = DatasetReader(root)
     totals: dict[str, dict[str, int]] = {}
     frames = 0
@@ -116,9 +122,8 @@ def main() -> None:
             f"| {row['hidden_kept']} | {row['visible_dropped']} |"
         )
     if args.json:
-        args.json.write_text(
-            json.dumps({"dataset": root.name, "frames": frames, "totals": totals}, indent=1) + "\n"
-        )
+        record = {"dataset": root.name, "frames": frames, "totals": totals, "provenance": source}
+        atomic_write_text(args.json, json.dumps(record, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ buffers leave the resident set at once and each peak is the call's own.
 
     python scripts/bench_occlusion_memory.py                 # 512^2 and 1536^2, every method, a markdown table
     python scripts/bench_occlusion_memory.py --sizes 512 --methods ordering zbuffer
+    python scripts/bench_occlusion_memory.py --json docs/figures/occlusion_memory.json   # also the rows, with provenance
 """
 
 from __future__ import annotations
@@ -31,11 +32,13 @@ import subprocess
 import sys
 import time
 import tracemalloc
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.benchmarks.lidar_scene import SCENES, camera_rig, scan, structured_scene
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
@@ -112,14 +115,15 @@ def run_child(method: str, size: int, repeats: int, seed: int) -> dict[str, floa
     return json.loads(out.strip().splitlines()[-1])
 
 
-def main() -> None:
+def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[512, 1536])
     parser.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS))
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", type=Path, help="also write the rows here, with their provenance")
     parser.add_argument("--child", choices=METHODS, help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.child:
         print(json.dumps(measure(args.child, args.sizes[0], args.repeats, args.seed)))
         return
@@ -129,14 +133,24 @@ def main() -> None:
         "| ms (CPU) | kept / points |"
     )
     print("|---|---|---|---|---|---|---|---|")
+    source = None
+    if args.json is not None:
+        from airfisheye_bench.benchmarks.provenance import provenance  # git and the machine: the parent only
+
+        source = provenance("scripts/bench_occlusion_memory.py", argv)
+    rows = []
     for size in args.sizes:
         for method in args.methods:
             r = run_child(method, size, args.repeats, args.seed)
+            rows.append({"size": size, "method": method, **r})
             print(
                 f"| {size}^2 | {method} | {r['cache_mib']:.1f} | {r['first_peak_mib']:.1f} "
                 f"| {r['steady_peak_mib']:.1f} | {r['numpy_peak_mib']:.1f} | {r['cpu_ms']:.1f} "
                 f"| {r['kept']} / {r['points']} |"
             )
+    if args.json is not None:
+        record = {"scene": "structured", "repeats": args.repeats, "seed": args.seed, "rows": rows}
+        atomic_write_text(args.json, json.dumps({**record, "provenance": source}, indent=2) + "\n")
 
 
 if __name__ == "__main__":  # the fresh process of run_child

@@ -352,13 +352,34 @@ def export(argv: Sequence[str] | None = None) -> int:
         return 2
     print(report.summary())
     if report_json:
-        atomic_write_text(report_json, json.dumps(report.to_dict(), indent=2) + "\n")
+        record = report.to_dict()
+        record["provenance"] = _export_provenance(argv, report.checkpoint)
+        atomic_write_text(report_json, json.dumps(record, indent=2) + "\n")
         print(f"wrote {report_json}")
     if mlflow_run:
         log_export(report, mlflow_run, mlflow_uri)
     if report.quantization is not None and not report.quantization.ok:
         return 3
     return 0
+
+
+def _export_provenance(argv: Sequence[str] | None, checkpoint: Path) -> dict[str, Any]:
+    """Where an export report comes from: the export's commit and command, and how its checkpoint was trained
+    (``trained``: the run's ``benchmark.json`` of ``scripts/quickstart_benchmark.py`` or ``provenance.json`` of
+    ``scripts/occlusion_ablation.py``, when the run has one; ``null`` when it does not, which a report citing it
+    must then say)."""
+    from airfisheye_bench.benchmarks.provenance import provenance
+    from airfisheye_bench.runs import run_directory
+
+    record = provenance("scripts/export_onnx.py", argv)
+    run = run_directory(checkpoint)
+    trained = None
+    for name in ("benchmark.json", "provenance.json"):
+        if run is not None and (run / name).is_file():
+            trained = {"record": name, **json.loads((run / name).read_text(encoding="utf-8"))}
+            break
+    record["trained"] = trained
+    return record
 
 
 # ------------------------------------------------------------------------------------------------ predict

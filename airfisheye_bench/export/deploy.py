@@ -47,6 +47,7 @@ from airfisheye_bench.export.quantize import (
 from airfisheye_bench.export.validation import validation_frames
 from airfisheye_bench.io.deployment import deployment_metadata
 from airfisheye_bench.io.manifest import sha256_file
+from airfisheye_bench.io.results import dataset_identity
 from airfisheye_bench.runs import resolve_checkpoint, run_config, run_directory
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
@@ -111,6 +112,8 @@ class DeploymentReport:
         rtol: relative tolerance of the parity check.
         dynamic_spatial: whether height and width are symbolic in the graph.
         quantization: the int8 report, or ``None`` with ``quantize=none``.
+        dataset: the identity of the data its frames came from
+            (:func:`~airfisheye_bench.io.results.dataset_identity`; one per source for a run of several sources).
     """
 
     path: Path
@@ -124,6 +127,7 @@ class DeploymentReport:
     rtol: float
     dynamic_spatial: bool
     quantization: QuantizationReport | None = None
+    dataset: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The report as plain JSON values (paths as written, ``nan`` as ``None``), for a committed record."""
@@ -172,6 +176,8 @@ class DeploymentReport:
                 "batch": q.batch,
                 "notes": list(q.notes),
             }
+        if self.dataset is not None:
+            record["dataset"] = self.dataset
         return record
 
     def summary(self) -> str:
@@ -286,6 +292,7 @@ def export_deployment(
         rtol=rtol,
         dynamic_spatial=dynamic_spatial,
         quantization=quantization,
+        dataset=_dataset(datamodule),
     )
 
 
@@ -316,6 +323,17 @@ def _run_data(checkpoint: Path) -> DictConfig:
             "the checkpoint inside it)"
         )
     return cfg.data
+
+
+def _dataset(datamodule) -> dict[str, Any]:
+    """The identity of the data the parity and int8 frames came from (the validation split's dataset)."""
+    if getattr(datamodule, "sources", None):
+        val = datamodule.split_dataset("val")
+        return {
+            name: dataset_identity(root, val.datasets[name].spec.name)
+            for name, root in datamodule.source_roots().items()
+        }
+    return dataset_identity(datamodule.dataset_root(), datamodule.split_dataset("val").spec.name)
 
 
 def _repeat_to(x: Tensor, n: int) -> Tensor:

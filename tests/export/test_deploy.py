@@ -148,6 +148,11 @@ def test_seg_export_writes_its_report_as_json(seg_export) -> None:
         assert int8["metrics_int8"][key] == (None if value != value else pytest.approx(value)), key
     assert int8["speedup"] == pytest.approx(report.quantization.speedup)
     assert int8["int8_bytes"] == out.with_name("seg.int8.onnx").stat().st_size
+    # where it comes from: the export's commit and command, the data of its frames, how the checkpoint was trained
+    assert record["dataset"] == report.dataset and record["dataset"]["content_sha256"]
+    source = record["provenance"]
+    assert source["command"].startswith("python scripts/export_onnx.py ckpt_path=") and source["commit"]
+    assert source["trained"] is None  # the tiny run has no benchmark.json or provenance.json
 
 
 def test_seg_export_has_a_dynamic_batch(seg_export, seg_run: Path, tiny_dataset: Path) -> None:
