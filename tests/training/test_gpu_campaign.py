@@ -98,3 +98,12 @@ def test_smoke_loader(smoke: dict) -> None:
     expected = {(t, w, "worker") for t in TASKS for w in (0, 2)} | {(t, 2, "device") for t in TASKS}
     assert set(rows) == expected
     assert all(r["samples"] > 0 and r["samples_per_s"] > 0 and r["startup_s"] >= 0 for r in rows.values())
+
+
+def test_a_finished_campaign_leaves_its_process_alive(tmp_path: Path) -> None:
+    """The watchdog ends a campaign's process only past the budget: one that finished stands it down (main() runs
+    inside test workers, which must outlive it)."""
+    record = CampaignRecord(tmp_path / "r.json", budget_s=0.2, data={}, grace_s=0.05)
+    record.finish()
+    time.sleep(0.6)  # past budget + 2 x grace: a live watchdog would have ended this process
+    assert json.loads((tmp_path / "r.json").read_text())["status"] == "complete"
