@@ -40,6 +40,7 @@ import torch
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.benchmarks.lidar_scene import SCENES, camera_rig, scan, structured_scene
+from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion import occlusion_mask
@@ -135,8 +136,6 @@ def main(argv: Sequence[str] | None = None) -> None:
     print("|---|---|---|---|---|---|---|---|")
     source = None
     if args.json is not None:
-        from airfisheye_bench.benchmarks.provenance import provenance  # git and the machine: the parent only
-
         source = provenance("scripts/bench_occlusion_memory.py", argv)
     rows = []
     for size in args.sizes:

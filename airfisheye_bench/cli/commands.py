@@ -368,8 +368,9 @@ def _export_provenance(argv: Sequence[str] | None, checkpoint: Path) -> dict[str
     (``trained``: the run's ``benchmark.json`` of ``scripts/quickstart_benchmark.py`` or ``provenance.json`` of
     ``scripts/occlusion_ablation.py``, when the run has one; ``null`` when it does not, which a report citing it
     must then say)."""
+    # Deferred: only an export that writes a report needs git's answer and the run's records.
     from airfisheye_bench.benchmarks.provenance import provenance
-    from airfisheye_bench.runs import run_directory
+    from airfisheye_bench.runs import run_directory  # deferred with it
 
     record = provenance("scripts/export_onnx.py", argv)
     run = run_directory(checkpoint)
