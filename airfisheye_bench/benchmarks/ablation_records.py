@@ -33,6 +33,7 @@ __all__ = [
     "FAMILY_METRICS",
     "build_record",
     "load_records",
+    "mean_std",
     "summarise",
     "summary_tables",
     "validation_curve",
@@ -103,7 +104,13 @@ def _frame_values(record: Mapping[str, Any], name: str) -> dict[str, float]:
     }
 
 
-def _mean_std(values: Sequence[float]) -> dict[str, float]:
+def mean_std(values: Sequence[float]) -> dict[str, float]:
+    """Mean and sample standard deviation (``ddof = 1``; NaN for a single value).
+
+    Example:
+        >>> mean_std([1.0, 2.0, 3.0])
+        {'mean': 2.0, 'std': 1.0, 'n': 3}
+    """
     n = len(values)
     mean = sum(values) / n
     std = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1)) if n > 1 else math.nan
@@ -128,7 +135,7 @@ def summarise(
                 if values:
                     seed_means.append(sum(values.values()) / len(values))
             if seed_means:
-                per_metric[name] = _mean_std(seed_means)
+                per_metric[name] = mean_std(seed_means)
         arms[arm] = {
             "seeds": sorted(runs),
             "epochs_trained": [runs[s].get("epochs_trained") for s in sorted(runs)],
@@ -165,7 +172,7 @@ def summarise(
     for by_metric in differences.values():
         for entry in by_metric.values():
             entry.update(cluster_difference(entry["per_flight"], family_size=family))
-            entry["seed_spread"] = _mean_std(entry["per_seed"])
+            entry["seed_spread"] = mean_std(entry["per_seed"])
     adjusted = holm({f"{arm}|{name}": e["p"] for arm, m in differences.items() for name, e in m.items()})
     for key, p in adjusted.items():
         arm, name = key.split("|")

@@ -45,6 +45,7 @@ from typing import Any
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.benchmarks import ablation_records
+from airfisheye_bench.benchmarks.ablation_records import mean_std
 from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.evaluation.crossover import run_frame_scores, run_region_scores
 from airfisheye_bench.evaluation.paired import paired_differences, paired_table
@@ -282,19 +283,6 @@ def paired(runs: Sequence[Run], reference: str = "none") -> dict[str, Any]:
     if reference not in values:
         return {}
     return paired_differences(values, reference)
-
-
-def mean_std(values: Sequence[float]) -> dict[str, float]:
-    """Mean and sample standard deviation (``ddof = 1``; NaN for a single value).
-
-    Example:
-        >>> mean_std([1.0, 2.0, 3.0])
-        {'mean': 2.0, 'std': 1.0, 'n': 3}
-    """
-    n = len(values)
-    mean = sum(values) / n
-    std = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1)) if n > 1 else math.nan
-    return {"mean": mean, "std": std, "n": n}
 
 
 def markdown_table(summary: dict[str, dict[str, Any]], metrics: Sequence[str] = TABLE_METRICS) -> str:

@@ -39,6 +39,7 @@ from airfisheye_bench.geometry.remap_table import (
     apply_table,
     check_rotation,
     clear_table_cache,
+    filled_mask,
     interleaved_view,
     load_or_build,
     pack_table,
@@ -174,9 +175,7 @@ class CubemapToFisheye:
     @property
     def valid_mask(self) -> torch.Tensor:
         """``[H, W]`` bool: inside the FOV and landing on one of the five faces."""
-        mask = torch.zeros(self.camera.height * self.camera.width, dtype=torch.bool)
-        mask[self.table("nearest").pixels] = True
-        return mask.view(self.camera.height, self.camera.width)
+        return filled_mask(self.table("nearest"), self.camera.height, self.camera.width)
 
     def remap(self, faces: ArrayLike, mode: str = "bilinear", fill: float = 0) -> ArrayLike:
         """Map stacked faces ``[5, C, S, S]`` or ``[B, 5, C, S, S]`` to ``[C, H, W]`` or ``[B, C, H, W]``.

@@ -74,6 +74,7 @@ from airfisheye_bench.geometry.remap_table import (
     RemapTable,
     apply_table,
     check_rotation,
+    filled_mask,
     interleaved_view,
     load_or_build,
     pack_table,
@@ -226,9 +227,7 @@ class EquirectToFisheye:
     @property
     def valid_mask(self) -> torch.Tensor:
         """``[H, W]`` bool: the pixels the remap fills (the camera's valid region: every ray meets the sphere)."""
-        mask = torch.zeros(self.camera.height * self.camera.width, dtype=torch.bool)
-        mask[self.table("nearest").pixels] = True
-        return mask.view(self.camera.height, self.camera.width)
+        return filled_mask(self.table("nearest"), self.camera.height, self.camera.width)
 
     def remap(self, erp: ArrayLike, mode: str = "bilinear", fill: float = 0) -> ArrayLike:
         """Map a panorama ``[C, H, W]`` or ``[B, C, H, W]`` to the camera image ``[C, h, w]`` or ``[B, C, h, w]``.

@@ -51,6 +51,13 @@ def pack_table(pixels: torch.Tensor, index: torch.Tensor, weight: torch.Tensor) 
     return RemapTable(pixels, index.T.to(torch.int32).contiguous(), weight.T.to(torch.float32).contiguous())
 
 
+def filled_mask(table: RemapTable, height: int, width: int) -> torch.Tensor:
+    """``[height, width]`` bool: the output pixels a table fills (a source's ``valid_mask``)."""
+    mask = torch.zeros(height * width, dtype=torch.bool)
+    mask[table.pixels] = True
+    return mask.view(height, width)
+
+
 def apply_table(
     planar: Callable[[], torch.Tensor], interleaved: torch.Tensor | None, lut: RemapTable, out: torch.Tensor
 ) -> None:
@@ -221,6 +228,7 @@ __all__ = [
     "apply_table",
     "check_rotation",
     "clear_table_cache",
+    "filled_mask",
     "interleaved_view",
     "load_or_build",
     "pack_table",
