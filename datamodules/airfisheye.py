@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,21 +26,21 @@ from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
-from airfisheye_bench.io.lidar_spec import load_lidar_spec
+from airfisheye_bench.io.datasets import DatasetSource
+from airfisheye_bench.io.lidar_spec import lidar_preset_problem, load_lidar_spec
 from airfisheye_bench.io.spec import remap_site_problem
 from airfisheye_bench.synth.cache import ensure_dataset
 from datamodules.augment import FisheyeAugment
-from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate
+from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate, open_reader
 from datamodules.device_remap import CubeFaces, DeviceRemap
 from datamodules.multi_source import MultiSourceDataset, open_split, training_sampler
 from datamodules.sampling import (
-    EpochSeededSampler,
     EvaluationLoader,
     batches_per_rank,
     evaluation_sampler,
     training_position,
 )
-from datamodules.sources import check_location, resolve_sources
+from datamodules.sources import SourceConfig, naming_source, resolve_sources, single_source
 
 log = logging.getLogger(__name__)
 
@@ -144,15 +145,14 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.remap_on = remap_on
         self._device_remap: DeviceRemap | None = None
         location = {"format": format, "root": root, "format_options": format_options, "preset": preset}
-        self.sources = resolve_sources(sources, source_options, {**location, "dataset_seed": dataset_seed})
-        if not self.sources:
-            check_location(format, root, preset)
+        location["dataset_seed"] = dataset_seed
+        # One path for one dataset and several: a run without data.sources has one source, the top-level keys'
+        # (its samples are served as they are: no source name, no prefix).
+        self.mixture = bool(sources)
+        self.sources = resolve_sources(sources, source_options, location) or (single_source(location),)
         self.task = task
-        self.root = Path(root) if root is not None else None
-        self.preset = preset
         self.cache_dir = cache_dir
         self.seed = seed
-        self.dataset_seed = dataset_seed
         self.camera_config = CameraConfig(
             **_options(
                 "camera",
@@ -161,17 +161,16 @@ class AirFisheyeDataModule(L.LightningDataModule):
                 ("k",),
             )
         )
-        self.camera_config.calibrated_lens()  # a bad calibration file is refused before any data is generated
+        _ = (
+            self.camera_config.lens
+        )  # read once, now: a bad calibration file is refused before any data exists
         augment_kwargs = _options(
             "augment", augment or {}, {"hflip", "rotate_deg", "color_jitter"}, ("color_jitter",)
         )
         self.augment = FisheyeAugment(**augment_kwargs) if augment is not None else None
         lidar_opts = _options("lidar", dict(lidar or {}), {"preset", "min_range", "density"}, ())
-        self.lidar_preset, lidar_spec = _lidar_spec(lidar_opts.get("preset"), root)
-        # Every source of a mixture is served with data.lidar.preset's sensor (synthetic: generated with it).
-        self.source_lidar = {
-            src.name: _lidar_spec(lidar_opts.get("preset"), src.root) for src in self.sources
-        }
+        #: data.lidar.preset: the sensor served for every source (synthetic ones are generated with it).
+        self.lidar = _lidar(lidar_opts.get("preset"), self.sources, self.mixture)
         min_range = lidar_opts.get("min_range")
         min_range = DEFAULT_MIN_RANGE if min_range is None else min_range
         if isinstance(min_range, bool) or not isinstance(min_range, (int, float)) or not min_range >= 0:
@@ -188,11 +187,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
             motion_compensation=motion_compensation,
             max_depth=max_depth,
             skip_bad_frames=skip_bad_frames,
-            lidar_spec=lidar_spec,
             lidar_min_range=float(min_range),
             lidar_density=density,
-            dataset_format=format,
-            format_options=dict(format_options or {}),
         )
         try:
             self.gimbal = Gimbal.parse(gimbal)
@@ -210,12 +206,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.datasets: dict[str, AirFisheyeDataset | MultiSourceDataset] = {}
         self._resume_position: tuple[int, int] | None = None
         self._source_roots: dict[str, Path] | None = None
+        self._readers: dict[str, DatasetSource] = {}
         self._camera_lines: set[str] = set()
 
     # ----------------------------------------------------------------------------------- Lightning hooks
     def prepare_data(self) -> None:
         """Generate the synthetic dataset (or sources) on first use (once per node)."""
-        self.source_roots() if self.sources else self.dataset_root()
+        self.source_roots()
 
     def setup(self, stage: str | None = None) -> None:
         wanted = {"fit": (0, 1), "validate": (1,), "test": (2,), "predict": (2,), None: (0, 1, 2)}[stage]
@@ -243,21 +240,28 @@ class AirFisheyeDataModule(L.LightningDataModule):
     ) -> AirFisheyeDataset | MultiSourceDataset:
         # Training draws a view per sample and epoch; validation and test serve fixed views.
         gimbal = self.gimbal.for_split(training=index == 0) if self.gimbal is not None else None
-        kwargs = {**self.dataset_kwargs, "gimbal": gimbal}
-        if self.sources:
-            lidar = {name: spec for name, (_, spec) in self.source_lidar.items()}
-            return open_split(
-                self.sources,
-                self.source_roots(),
-                index,
-                self.split_names,
-                self.seed,
-                augment,
-                kwargs,
-                lidar,
-            )
-        name = self.split_names[index]
-        return AirFisheyeDataset(self.dataset_root(), name, augment=augment, seed=self.seed, **kwargs)
+        return open_split(
+            self.sources,
+            self._open_readers(),
+            index,
+            self.split_names,
+            self.seed,
+            augment,
+            {**self.dataset_kwargs, "gimbal": gimbal},
+            self.lidar.spec,
+            self.mixture,
+        )
+
+    def _open_readers(self) -> dict[str, DatasetSource]:
+        """Each source's reader, opened once (its ``dataset.yaml`` read and checked) for every split."""
+        roots = self.source_roots()
+        for src in self.sources:
+            if src.name not in self._readers:
+                with naming_source(src, self.mixture):
+                    self._readers[src.name] = open_reader(
+                        roots[src.name], src.format, src.format_options, self.task
+                    )
+        return self._readers
 
     def _check_device_remap(self, dataset: AirFisheyeDataset) -> None:
         """Every split is finished by one :class:`DeviceRemap` (a batch does not say which split it is from)."""
@@ -283,10 +287,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
 
     def train_dataloader(self) -> DataLoader:
         dataset = self._dataset(0)
-        if self.sources:
-            sampler = training_sampler(dataset, self.sources, self.seed)
-        else:
-            sampler = EpochSeededSampler(len(dataset), self.seed)
+        sampler = training_sampler(dataset, self.sources, self.seed)
         if self._resume_position is not None:
             # Lightning creates the first iterator before it sets the epoch of a resumed run: set it here.
             epoch, batches_done = self._resume_position
@@ -348,29 +349,21 @@ class AirFisheyeDataModule(L.LightningDataModule):
     def dataset_root(self) -> Path:
         """The dataset folder (generating the synthetic preset if needed); a run of several sources has one per
         source (:meth:`source_roots`)."""
-        if self.sources:
+        if self.mixture:
             raise ConfigError(
                 "data.sources: a run of several sources has one dataset root per source (source_roots())"
             )
-        if self.root is not None:
-            return self.root
-
-        self.root = ensure_dataset(
-            self.preset, root=self.cache_dir, seed=self.dataset_seed, lidar_preset=self.lidar_preset
-        )
-        return self.root
+        return self.source_roots()[self.sources[0].name]
 
     def source_roots(self) -> dict[str, Path]:
-        """The dataset folder of each source of ``data.sources`` (generating synthetic ones if needed)."""
+        """The dataset folder of each source (generating synthetic ones if needed, with ``data.lidar.preset``'s
+        sensor)."""
         if self._source_roots is None:
             self._source_roots = {
                 src.name: Path(src.root)
                 if src.root is not None
                 else ensure_dataset(
-                    src.preset,
-                    root=self.cache_dir,
-                    seed=src.dataset_seed,
-                    lidar_preset=self.source_lidar[src.name][0],
+                    src.preset, root=self.cache_dir, seed=src.dataset_seed, lidar_preset=self.lidar.preset
                 )
                 for src in self.sources
             }
@@ -379,7 +372,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
     @property
     def source_names(self) -> list[str]:
         """The names of ``data.sources`` (empty for a single-dataset run)."""
-        return [src.name for src in self.sources]
+        return [src.name for src in self.sources] if self.mixture else []
 
     def camera_of(self, source: str | None = None) -> CameraModel:
         """The served camera of one source (``None``: the run's camera, the first source's)."""
@@ -438,22 +431,30 @@ def _occlusion(method: str, options: dict[str, Any] | None) -> Occlusion | str:
     return ORACLE
 
 
-def _lidar_spec(value: Any, root: str | Path | None) -> tuple[str | None, LidarSpec | None]:
-    """``data.lidar.preset`` -> (the generator's sensor for synthetic data, the spec served for a real root)."""
+@dataclass(frozen=True)
+class LidarChoice:
+    """``data.lidar.preset`` resolved once: the named sensor the synthetic sources are generated with (``None``:
+    each preset's own; a spec file serves ``data.root`` releases only), and the spec that replaces ``calib.yaml``'s
+    for a ``data.root`` source (``None``: its own)."""
+
+    preset: str | None = None
+    spec: LidarSpec | None = None
+
+
+def _lidar(value: Any, sources: tuple[SourceConfig, ...], mixture: bool) -> LidarChoice:
+    """``data.lidar.preset`` for every source of the run, read once (:func:`lidar_preset_problem` is its rule)."""
     if value is None:
-        return None, None
+        return LidarChoice()
+    for src in sources:
+        problem = lidar_preset_problem(value, synthetic=src.root is None)
+        if problem is not None:
+            where = f" (data.sources: source {src.describe()})" if mixture else ""
+            raise ConfigError(f"data.lidar.preset={value!r}: {problem}{where}")
     try:
         spec = load_lidar_spec(value)
     except ValueError as err:  # DatasetFormatError (a spec file) is a ValueError too, naming the file
         raise ConfigError(f"data.lidar.preset={value!r}: {err}") from None
-    if root is not None:
-        return None, spec
-    if value not in LIDAR_PRESETS:
-        raise ConfigError(
-            f"data.lidar.preset={value!r}: the synthetic data simulates a named sensor only; expected one of "
-            f"{', '.join(sorted(LIDAR_PRESETS))} (a spec file describes the LiDAR of a data.root release)"
-        )
-    return str(value), None
+    return LidarChoice(str(value) if value in LIDAR_PRESETS else None, spec)
 
 
 def _own_generator() -> torch.Generator:

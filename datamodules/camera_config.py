@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict, ideal_camera
@@ -37,8 +38,11 @@ class CameraConfig:
     camera: str | int | None = None
     fit: str = "pad"
 
-    def calibrated_lens(self) -> CameraModel | None:
-        """The camera of ``calibration`` at its own size (``None`` without one).
+    @cached_property
+    def lens(self) -> CameraModel | None:
+        """The camera of ``calibration`` at its own size (``None`` without one), read from the file once: the
+        datamodule asks first (a bad file is refused before any data is generated), and every split and source
+        it opens serves this same lens.
 
         Raises:
             ConfigError: naming ``data.camera.calibration``, the file, its key and what is supported.
@@ -64,7 +68,7 @@ class CameraConfig:
         """The camera to serve (and how it maps onto the calibrated sensor), given the release's calibrated
         fisheye (each split resolves it: the datamodule logs :meth:`describe` once)."""
         lens_changed = any(v is not None for v in (self.model, self.fov_deg, self.k))
-        lens = self.calibrated_lens()
+        lens = self.lens
         if lens is not None:
             if lens_changed:
                 raise ConfigError(

@@ -65,7 +65,7 @@ from airfisheye_bench.geometry.remap_table import reserve_tables
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.io import DatasetFormatError, EmptySplitError
-from airfisheye_bench.io.datasets import DATASET_FORMATS, open_dataset, unserved_modality
+from airfisheye_bench.io.datasets import DatasetSource, dataset_format, open_dataset, unserved_modality
 from airfisheye_bench.io.spec import IMAGE_SOURCES, REMAP_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import AugmentParams, FisheyeAugment, augment_sample, rotation_about_optical_axis
@@ -87,7 +87,8 @@ class AirFisheyeDataset(Dataset):
     """One split of an AirFisheye-layout dataset, for one task.
 
     Args:
-        root: Dataset root (holds ``dataset.yaml``).
+        root: Dataset root (holds ``dataset.yaml``), or its reader opened already (:func:`open_reader`: what the
+            datamodule hands each split of a source, so that the folder is read and checked once).
         split: Split name (``train``, ``val``, ``test``).
         task: A registered task (``seg``, ``depth``, ``completion``, see :mod:`airfisheye_bench.specs`).
         source: ``cubemap`` or ``equirect`` (remap the cube faces or the panoramas on the fly) or ``fisheye``
@@ -108,8 +109,8 @@ class AirFisheyeDataset(Dataset):
             :func:`collate` drops it and counts it.
         lidar_spec: The LiDAR that recorded the scans; ``None``: each trajectory's ``calib.yaml``.
         lidar_min_range: Returns closer than this (metres) are self-hits: removed and counted.
-        dataset_format: How ``root`` is laid out (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`:
-            ``airfisheye``, or a public dataset's own layout).
+        format: How ``root`` is laid out (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`: ``airfisheye``,
+            or a public dataset's own layout). Not with a reader, which knows its format.
         format_options: That format's options (``data.format_options``; unset ones take their defaults).
         lidar_density: ``native`` serves every return; ``paper`` a fixed subset of the scan's beams with which the
             served image gets the returns per pixel of the paper's sensor on its 1536^2 image
@@ -130,7 +131,7 @@ class AirFisheyeDataset(Dataset):
 
     def __init__(
         self,
-        root: str | Path,
+        root: str | Path | DatasetSource,
         split: str,
         task: str,
         source: str = "cubemap",
@@ -144,7 +145,7 @@ class AirFisheyeDataset(Dataset):
         seed: int = 0,
         lidar_spec: LidarSpec | None = None,
         lidar_min_range: float = DEFAULT_MIN_RANGE,
-        dataset_format: str = "airfisheye",
+        format: str = "airfisheye",
         format_options: Mapping | None = None,
         lidar_density: str = "native",
         gimbal: Gimbal | None = None,
@@ -162,15 +163,10 @@ class AirFisheyeDataset(Dataset):
                 "data.gimbal turns the camera of a remap source: it needs data.source=cubemap or equirect "
                 "(pre-rendered fisheye images have a fixed orientation)"
             )
-        needed = {task_spec.target, *task_spec.inputs} - {"image"}
-        # A map the format never has (WoodScape's depth) is refused before the folder is read: a wrong or empty
-        # root would otherwise be reported first, for a command that cannot run on any root of that format.
-        if dataset_format in DATASET_FORMATS:
-            fixed = DATASET_FORMATS[dataset_format]
-            modality = unserved_modality(fixed, needed)
-            if modality is not None:
-                raise ConfigError(f"{fixed.missing_reason(modality)}; task={task} needs it")
-        self.reader = open_dataset(root, dataset_format, dict(format_options or {}))
+        needed = _needed_keys(task)
+        self.reader = (
+            open_reader(root, format, format_options, task) if isinstance(root, (str, Path)) else root
+        )
         self.spec = self.reader.spec
         self.split = split
         self.task = task
@@ -233,7 +229,7 @@ class AirFisheyeDataset(Dataset):
                 self.spec.name,
             )
         elif occlusion == ORACLE and "sparse_depth" in self.sample_keys:
-            require_visibility(self.reader, root)
+            require_visibility(self.reader, self.reader.root)
 
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
@@ -679,6 +675,34 @@ class AirFisheyeDataset(Dataset):
         return self.reader.path_of(sample_id, modality, self.source)
 
 
+def open_reader(
+    root: str | Path,
+    format: str = "airfisheye",
+    format_options: Mapping | None = None,
+    task: str | None = None,
+) -> DatasetSource:
+    """The reader of a dataset folder for ``task``: what each split of it reads (the datamodule opens it once per
+    source). A map the format never has (WoodScape's depth) is refused before the folder is read: a wrong or empty
+    root would otherwise be reported first, for a command that cannot run on any root of that format.
+
+    Raises:
+        ConfigError: ``data.format`` unknown, or a map ``task`` needs that the format never has.
+        DatasetFormatError: the folder does not hold a dataset of that format (naming the file).
+    """
+    if task is not None:
+        fixed = dataset_format(format)
+        modality = unserved_modality(fixed, _needed_keys(task))
+        if modality is not None:
+            raise ConfigError(f"{fixed.missing_reason(modality)}; task={task} needs it")
+    return open_dataset(root, format, dict(format_options or {}))
+
+
+def _needed_keys(task: str) -> set[str]:
+    """The sample keys besides the image that ``task`` trains on (its target and its model inputs)."""
+    spec = get_task(task)
+    return {spec.target, *spec.inputs} - {"image"}
+
+
 def _turned(T_cam_lidar: np.ndarray, turn: np.ndarray | None) -> np.ndarray:
     """``T_cam_lidar`` of the camera turned by a gimbal view (``turn = R_src_cam``; ``None``: not turned)."""
     if turn is None:
@@ -711,4 +735,4 @@ def collate(samples: list[dict | None]) -> dict:
     return batch
 
 
-__all__ = ["SAMPLE_KEYS", "AirFisheyeDataset", "CameraConfig", "collate"]
+__all__ = ["SAMPLE_KEYS", "AirFisheyeDataset", "CameraConfig", "collate", "open_reader"]

@@ -13,7 +13,6 @@ from __future__ import annotations
 import bisect
 import logging
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,13 +21,14 @@ import torch.nn.functional as F
 from torch.utils.data import Dataset
 
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
-from airfisheye_bench.errors import ConfigError, UserError
+from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.serving import serve_camera
-from airfisheye_bench.io import DatasetFormatError
+from airfisheye_bench.io.datasets import DatasetSource
 from airfisheye_bench.specs import get_task
 from datamodules.dataset import AirFisheyeDataset
 from datamodules.sampling import EpochSeededSampler, draw_seed
-from datamodules.sources import CommonClasses, SourceConfig, class_lut
+from datamodules.sources import CommonClasses, SourceConfig, class_lut, naming_source
 
 log = logging.getLogger(__name__)
 
@@ -123,21 +123,25 @@ def _pad_rows(sample: dict, rows: int, ignore_index: int) -> None:
 
 def open_split(
     sources: Sequence[SourceConfig],
-    roots: Mapping[str, Path],
+    readers: Mapping[str, DatasetSource],
     split_index: int,
     default_splits: Sequence[str],
     seed: int,
     augment: Any,
     dataset_kwargs: Mapping[str, Any],
-    lidar_specs: Mapping[str, Any],
-) -> MultiSourceDataset:
-    """One split of every source, checked to serve the same image size and classes, as one dataset.
+    lidar_spec: LidarSpec | None = None,
+    mixture: bool = True,
+) -> AirFisheyeDataset | MultiSourceDataset:
+    """One split of every source (each read through its opened reader), as one dataset.
 
-    Each source's augmentation draws get their own seed (``draw_seed(seed, -3, k)`` for the ``k``-th source), so
-    frame ``i`` of two sources is not augmented alike.
+    A run of one source (``mixture`` false: no ``data.sources``) is that source's dataset itself, seeded with
+    ``seed``. A mixture's sources are checked to serve the same image size and classes; each source's augmentation
+    draws get their own seed (``draw_seed(seed, -3, k)`` for the ``k``-th source), so frame ``i`` of two sources
+    is not augmented alike. ``lidar_spec`` (``data.lidar.preset``) replaces the ``calib.yaml`` spec of every source
+    read from a root (a synthetic one was generated with that sensor).
 
     Raises:
-        UserError: a source that cannot be served, its name in front of the reason.
+        UserError: a source that cannot be served, with (in a mixture) its name in front of the reason.
     """
     common = CommonClasses.benchmark(" + ".join(s.name for s in sources))
     datasets: dict[str, AirFisheyeDataset] = {}
@@ -146,24 +150,23 @@ def open_split(
     for k, src in enumerate(sources):
         split = (src.splits or tuple(default_splits))[split_index]
         kwargs = dict(dataset_kwargs)
-        kwargs |= {"dataset_format": src.format, "format_options": dict(src.format_options)}
-        kwargs["lidar_spec"] = lidar_specs.get(src.name)
+        kwargs["lidar_spec"] = lidar_spec if src.root is not None else None
         if src.source is not None:
             kwargs["source"] = src.source
-        else:  # data.source, or the raw recording this dataset has (a preset's cube faces beside panoramas)
+        elif (
+            mixture
+        ):  # data.source, or the raw recording this dataset has (a preset's cube faces beside panoramas)
             kwargs["source_fallback"] = True
-        try:
+        with naming_source(src, mixture):
             dataset = AirFisheyeDataset(
-                roots[src.name], split, augment=augment, seed=draw_seed(seed, -3, k), **kwargs
+                readers[src.name],
+                split,
+                augment=augment,
+                seed=draw_seed(seed, -3, k) if mixture else seed,
+                **kwargs,
             )
-        except DatasetFormatError as err:  # built from its file and message: the file stays first
-            raise type(err)(
-                err.path, f"{err.message} (data.sources: source {src.describe()})", err.key
-            ) from None
-        except UserError as err:
-            raise type(err)(f"data.sources: source {src.describe()}: {err}") from None
-        except ValueError as err:
-            raise ConfigError(f"data.sources: source {src.describe()}: {err}") from None
+        if not mixture:
+            return dataset
         datasets[src.name] = dataset
         luts[src.name] = (
             class_lut(src, dataset.spec.train_class_names, dataset.spec.ignore_index, common)
@@ -288,9 +291,9 @@ def _proportional_counts(weights: Sequence[float], total: int) -> list[int]:
 
 
 def training_sampler(
-    dataset: MultiSourceDataset, sources: Sequence[SourceConfig], seed: int
+    dataset: AirFisheyeDataset | MultiSourceDataset, sources: Sequence[SourceConfig], seed: int
 ) -> EpochSeededSampler:
-    """The training sampler of a mixture: weighted when the sources have weights, else the plain epoch order."""
+    """The training sampler: weighted when the sources have weights (a mixture), else the plain epoch order."""
     if sources and sources[0].weight is not None:
         return SourceMixtureSampler(dataset.sizes, [s.weight for s in sources], seed)
     return EpochSeededSampler(len(dataset), seed)

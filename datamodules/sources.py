@@ -29,10 +29,11 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,8 +41,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.io.datasets import DATASET_FORMATS
+from airfisheye_bench.errors import ConfigError, UserError
+from airfisheye_bench.io import DatasetFormatError
+from airfisheye_bench.io.datasets import DATASET_FORMATS, dataset_format, root_description
 from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.synth.classes import TRAIN_CLASSES
 from airfisheye_bench.synth.presets import PRESETS
@@ -60,6 +62,8 @@ SOURCE_KEYS = (
 )
 #: The names a source takes by itself besides the presets and the formats.
 SYNTHETIC = "synthetic"
+#: The name of a run's one source when ``data.sources`` is unset (never shown: its samples are served unprefixed).
+SINGLE = "data"
 #: The preset of ``synthetic`` when ``data.preset`` is null (configs/data/synthetic.yaml's).
 DEFAULT_PRESET = "quickstart"
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
@@ -80,8 +84,7 @@ def check_location(format: str, root: str | Path | None, preset: str | None, key
         ...
         airfisheye_bench.errors.ConfigError: data.preset='tny': expected one of tiny, quickstart, ... (or give data.root)
     """
-    if format not in DATASET_FORMATS:
-        raise ConfigError(f"{key}.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
+    dataset_format(format, f"{key}.format")
     if root is None and format != "airfisheye":
         raise ConfigError(
             f"{key}.format={format} reads that dataset from disk: give {key}.root=/path/to/it (see the dataset "
@@ -96,13 +99,7 @@ def check_location(format: str, root: str | Path | None, preset: str | None, key
             f"{key}.preset={preset!r}: expected one of {', '.join(PRESETS)} (or give {key}.root)"
         )
     if root is not None and not Path(root).is_dir():
-        expected = (
-            "a dataset in the AirFisheye layout (holding dataset.yaml) or leave it unset to use the synthetic "
-            "dataset"
-            if format == "airfisheye"
-            else f"the root of the {format} dataset"
-        )
-        raise ConfigError(f"{key}.root={str(root)!r} is not a folder; point it at {expected}")
+        raise ConfigError(f"{key}.root={str(root)!r} is not a folder; point it at {root_description(format)}")
 
 
 @dataclass(frozen=True)
@@ -156,6 +153,45 @@ class SourceConfig:
         if self.weight is not None:
             out["weight"] = self.weight
         return out
+
+
+def single_source(location: Mapping[str, Any]) -> SourceConfig:
+    """The one source of a run without ``data.sources``: the top-level ``data.format``, ``root``,
+    ``format_options``, ``preset`` and ``dataset_seed``, checked by :func:`check_location` (messages name ``data.*``).
+
+    Example:
+        >>> single_source({"preset": "tiny"})
+        SourceConfig(name='data', format='airfisheye', root=None, format_options={}, preset='tiny', dataset_seed=0, splits=None, source=None, class_map=None, weight=None)
+    """
+    fmt, root, preset = location.get("format") or "airfisheye", location.get("root"), location.get("preset")
+    check_location(fmt, root, preset)
+    return SourceConfig(
+        name=SINGLE,
+        format=fmt,
+        root=str(root) if root is not None else None,
+        format_options=_plain(dict(location.get("format_options") or {})),
+        preset=preset if root is None else None,
+        dataset_seed=int(location.get("dataset_seed") or 0),
+    )
+
+
+@contextlib.contextmanager
+def naming_source(source: SourceConfig, mixture: bool) -> Iterator[None]:
+    """Name ``source`` in front of a user error raised inside (a run of several sources: which one failed); a run
+    of one source keeps the message as it is."""
+    if not mixture:
+        yield
+        return
+    try:
+        yield
+    except DatasetFormatError as err:  # built from its file and message: the file stays first
+        raise type(err)(
+            err.path, f"{err.message} (data.sources: source {source.describe()})", err.key
+        ) from None
+    except UserError as err:
+        raise type(err)(f"data.sources: source {source.describe()}: {err}") from None
+    except ValueError as err:
+        raise ConfigError(f"data.sources: source {source.describe()}: {err}") from None
 
 
 def resolve_sources(
@@ -393,6 +429,7 @@ def mixture_identity(sources: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
 
 __all__ = [
     "DEFAULT_PRESET",
+    "SINGLE",
     "SOURCE_KEYS",
     "SYNTHETIC",
     "CommonClasses",
@@ -400,5 +437,7 @@ __all__ = [
     "check_location",
     "class_lut",
     "mixture_identity",
+    "naming_source",
     "resolve_sources",
+    "single_source",
 ]

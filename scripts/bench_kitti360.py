@@ -72,7 +72,7 @@ def main() -> None:
                 task,
                 source="fisheye",
                 camera=CameraConfig(size=args.size),
-                dataset_format="kitti360",
+                format="kitti360",
                 format_options={"accumulate": accumulate},
             )
             ds[0]  # compile the numba kernels and fill the caches first

@@ -57,7 +57,7 @@ def loader(root: Path, fmt: str, options: dict, task: str, size: int) -> AirFish
         source="cubemap",
         camera=CameraConfig(size=size, model="equidistant", fov_deg=190.0),
         augment=FisheyeAugment(hflip=0.5, rotate_deg=10.0),
-        dataset_format=fmt,
+        format=fmt,
         format_options=options,
     )
     ds.warm_up()

@@ -611,6 +611,11 @@ SCHEMA_TABLE = [
     ("train", ["data.batch_size=0"], "data.batch_size=0: expected an integer >= 1"),
     ("train", ["data.motion_compensation=maybe"], "data.motion_compensation='maybe': expected true or false"),
     ("train", ["data.root=/nonexistent/airfisheye"], "data.root='/nonexistent/airfisheye': no such folder"),
+    (  # the folder a format reads is described as that format lays it out
+        "train",
+        ["data=kitti360", "task=completion", "data.root=/nonexistent/kitti360"],
+        "data.root='/nonexistent/kitti360': no such folder (the root of the kitti360 dataset",
+    ),
     ("train", ["ckpt_path=/nonexistent.ckpt"], "ckpt_path='/nonexistent.ckpt': no such file or folder"),
     ("train", ["model.encoder_weights=/nonexistent/r18.pth"], "model.encoder_weights='/nonexistent/r18.pth'"),
     (

@@ -121,22 +121,22 @@ def _format_options_problem(value: Any, format_name: Any) -> str | None:
     return None
 
 
-def _lidar_preset_problem(value: Any, root: Any) -> str | None:
-    """``data.lidar.preset``: a named sensor, or (with ``data.root``) a spec file, whose contents the datamodule
-    reads, once."""
-    from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS  # imports torch: only when checked
+def _root_problem(value: Any, format_name: Any) -> str | None:
+    """``data.root``: a folder, described as ``data.format`` lays it out (the formats' own description)."""
+    from airfisheye_bench.io.datasets import root_description  # imports torch: only when checked
 
-    if value in LIDAR_PRESETS:
+    path = Path(str(value)).expanduser()
+    if path.is_dir():
         return None
-    names = ", ".join(sorted(LIDAR_PRESETS))
-    if not Path(str(value)).expanduser().is_file():
-        return f"expected one of {names}, or a LiDAR spec file (YAML, JSON or Ouster metadata)"
-    if root is None:
-        return (
-            f"the synthetic data simulates a named sensor only; expected one of {names} (a spec file describes "
-            "the LiDAR of a data.root release)"
-        )
-    return None
+    problem = "is a file, expected a folder" if path.exists() else "no such folder"
+    return f"{problem} ({root_description(str(format_name or 'airfisheye'))})"
+
+
+def _lidar_preset_problem(value: Any, root: Any) -> str | None:
+    """``data.lidar.preset``: the LiDAR's own rule (a named sensor, or with ``data.root`` a spec file)."""
+    from airfisheye_bench.io.lidar_spec import lidar_preset_problem  # imports torch: only when checked
+
+    return lidar_preset_problem(value, synthetic=root is None)
 
 
 def _image_sources() -> tuple[str, ...]:
@@ -285,11 +285,6 @@ RULES: dict[str, ValueRule] = {
     "callbacks.progress.every_n_steps": ValueRule(
         "int", minimum=0, nullable=True, hint="0 or null: epochs only"
     ),
-    "data.root": ValueRule(
-        "folder",
-        nullable=True,
-        hint="a dataset in the AirFisheye layout, holding dataset.yaml; null: the synthetic data.preset",
-    ),
     "data.camera.size": ValueRule("int", minimum=8, nullable=True, hint="pixels, the served image side"),
     "data.camera.fov_deg": ValueRule("number", minimum=1, nullable=True, hint="degrees; null: the release's"),
     "data.camera.k": ValueRule(
@@ -357,6 +352,7 @@ RULES: dict[str, ValueRule] = {
         hint="the sparse input's returns per pixel: the scan's, or the paper's",
     ),
     "data.format": ValueRule("choice", choices=_dataset_formats, hint="how data.root is laid out"),
+    "data.root": ValueRule("custom", check=_root_problem, uses=("data.format",), nullable=True),
     "data.format_options": ValueRule(
         "custom",
         check=_format_options_problem,

@@ -327,7 +327,7 @@ def _run_data(checkpoint: Path) -> DictConfig:
 
 def _dataset(datamodule) -> dict[str, Any]:
     """The identity of the data the parity and int8 frames came from (the validation split's dataset)."""
-    if getattr(datamodule, "sources", None):
+    if getattr(datamodule, "source_names", None):  # a run of several sources: one identity each
         val = datamodule.split_dataset("val")
         return {
             name: dataset_identity(root, val.datasets[name].spec.name)
@@ -385,7 +385,7 @@ def _portable_data_config(data_cfg: DictConfig, datamodule) -> dict:
     config = OmegaConf.to_container(data_cfg, resolve=True)
     camera = config.get("camera") or {}
     if isinstance(camera.get("calibration"), str):
-        lens = datamodule.camera_config.calibrated_lens()
+        lens = datamodule.camera_config.lens
         config["camera"] = {**camera, "calibration": lens.to_dict(), "camera": None}
     return config
 

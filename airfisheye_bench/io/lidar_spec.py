@@ -59,6 +59,30 @@ def load_lidar_spec(value: LidarSpec | str | Path | dict[str, Any]) -> LidarSpec
     return read_lidar_spec_file(path)
 
 
+def lidar_preset_problem(value: Any, synthetic: bool) -> str | None:
+    """``data.lidar.preset``'s one rule (the config check and the datamodule both ask it): a named sensor serves
+    any dataset; a spec file describes the LiDAR of a ``data.root`` release only, since the synthetic data is
+    generated with a named sensor. ``None``: allowed (a file's contents are checked when it is read, once).
+
+    Example:
+        >>> lidar_preset_problem("hdl64e", synthetic=True) is None
+        True
+        >>> lidar_preset_problem("hdl65e", synthetic=False)  # doctest: +ELLIPSIS
+        'expected one of hdl32e, hdl64e, ..., or a LiDAR spec file (YAML, JSON or Ouster metadata)'
+    """
+    if value in LIDAR_PRESETS:
+        return None
+    names = ", ".join(sorted(LIDAR_PRESETS))
+    if not Path(str(value)).expanduser().is_file():
+        return f"expected one of {names}, or a LiDAR spec file (YAML, JSON or Ouster metadata)"
+    if synthetic:
+        return (
+            f"the synthetic data simulates a named sensor only; expected one of {names} (a spec file describes "
+            "the LiDAR of a data.root release)"
+        )
+    return None
+
+
 def read_lidar_spec_file(path: str | Path) -> LidarSpec:
     """A spec from a YAML / JSON file (a ``LidarSpec`` mapping), an Ouster metadata JSON or a Velodyne driver's
     calibration YAML."""

@@ -42,7 +42,7 @@ def test_the_exported_data_config_carries_the_lens_not_the_file(tmp_path) -> Non
     data = OmegaConf.create(
         {"camera": {"size": 64, "calibration": str(camchain), "camera": "cam1", "fit": "pad"}}
     )
-    datamodule = SimpleNamespace(camera_config=SimpleNamespace(calibrated_lens=lambda: lens))
+    datamodule = SimpleNamespace(camera_config=SimpleNamespace(lens=lens))
     portable = _portable_data_config(data, datamodule)
     assert portable["camera"] == {"size": 64, "calibration": lens.to_dict(), "camera": None, "fit": "pad"}
     plain = OmegaConf.create({"camera": {"size": 64, "calibration": None}})

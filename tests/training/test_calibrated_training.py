@@ -17,6 +17,7 @@ from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.training import train
 from tests.helpers.configs import compose_eval, compose_train
+from tests.helpers.file_access import opened_files
 from tests.helpers.runs import tiny_run_overrides
 from tests.io import calibration_fixtures as fx
 
@@ -32,8 +33,11 @@ def ds_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> tupl
     )
     with open_dict(cfg):
         cfg.paths.output_dir = str(tmp / "run")
-    results = train(cfg)
+    with opened_files() as opened:
+        results = train(cfg)
     assert "rmse" in results["metrics"]
+    # The lens is read from the file once, where the datamodule is built; every split serves that one lens.
+    assert opened.count(camchain.resolve()) == 1
     return tmp / "run", camchain
 
 

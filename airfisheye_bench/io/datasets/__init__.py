@@ -37,14 +37,36 @@ DATASET_FORMATS: dict[str, type] = {
 }
 
 
+def root_description(format: str) -> str:
+    """What ``data.root`` must point at in ``format`` (said wherever a root is refused: the config check, the
+    datamodule).
+
+    Example:
+        >>> root_description("kitti360")
+        'the root of the kitti360 dataset, as the dataset table of docs/datasets.md shows it'
+    """
+    if format not in DATASET_FORMATS or format == "airfisheye":
+        return "a dataset in the AirFisheye layout, holding dataset.yaml; null: the synthetic data.preset"
+    return f"the root of the {format} dataset, as the dataset table of docs/datasets.md shows it"
+
+
 def open_dataset(
     root: str | Path, format: str = "airfisheye", options: dict[str, Any] | None = None
 ) -> DatasetSource:
     """The :class:`DatasetSource` of ``root`` in ``format`` (its ``data.format_options`` in ``options``)."""
-    if format not in DATASET_FORMATS:
-        raise ConfigError(f"data.format={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
-    cls = DATASET_FORMATS[format]
+    cls = dataset_format(format)
     return cls(root, **check_options(format, dict(options or {}), cls.OPTIONS))
+
+
+def dataset_format(format: str, key: str = "data.format") -> type:
+    """The reader class of ``format``: the one rule of ``data.format`` (``key`` names it in the message).
+
+    Raises:
+        ConfigError: ``format`` is none of :data:`DATASET_FORMATS`.
+    """
+    if format not in DATASET_FORMATS:
+        raise ConfigError(f"{key}={format!r}: expected one of {', '.join(DATASET_FORMATS)}")
+    return DATASET_FORMATS[format]
 
 
 __all__ = [
@@ -52,7 +74,9 @@ __all__ = [
     "DatasetSource",
     "DepthPoints",
     "check_options",
+    "dataset_format",
     "modalities_of",
     "open_dataset",
+    "root_description",
     "unserved_modality",
 ]

@@ -409,7 +409,7 @@ def _dataset(root: Path, task: str, size: int = 48, view: list[float] | None = N
         "train",
         task,
         camera=CameraConfig(size=size),
-        dataset_format="omni360",
+        format="omni360",
         format_options={"scenes": ["NYC"], **options},
         **{"source": "equirect", **kwargs},
     )

@@ -422,7 +422,7 @@ def test_sparse_depth_lands_on_the_dense_depth(fixture_root: Path, lidar: str) -
         "train",
         "completion",
         camera=CameraConfig(size=128),
-        dataset_format="tartanair",
+        format="tartanair",
         format_options={"split_period": 3, "lidar": lidar},
     )
     sample = ds[0]
