@@ -30,6 +30,8 @@ from airfisheye_bench.geometry.cameras.params import FOV_DEG, Param
 
 #: Step (radians) of the central differences behind :meth:`CameraModel.pixels_per_radian`.
 _PPR_STEP = 1e-6
+#: Pixels per chunk of :meth:`CameraModel.pixels_per_radian` (bounds its temporaries to a few tens of MiB).
+_PPR_CHUNK = 1 << 17
 _ARG = inspect.Parameter.POSITIONAL_OR_KEYWORD
 
 
@@ -232,24 +234,10 @@ class CameraModel:
     @cached_property
     def _pixels_per_radian(self) -> torch.Tensor:
         rays = self._rays64.reshape(-1, 3)
-        has_ray = torch.isfinite(rays).all(-1)
-        axis = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
-        d = torch.where(has_ray[:, None], rays, axis)
-        # Two unit tangents orthogonal to d: e1 = normalise(d x a) with a helper axis not parallel to d, e2 = d x e1.
-        helper = torch.where(d[:, 2:3].abs() < 0.9, axis, torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64))
-        e1 = torch.linalg.cross(d, helper)
-        e1 = e1 / e1.norm(dim=-1, keepdim=True)
-        e2 = torch.linalg.cross(d, e1)
-        h = _PPR_STEP
-        cols = []
-        for e in (e1, e2):
-            plus, _ = self.project(d * math.cos(h) + e * math.sin(h))
-            minus, _ = self.project(d * math.cos(h) - e * math.sin(h))
-            cols.append((plus - minus) / (2.0 * h))
-        # Largest singular value of the 2x2 Jacobian [c1 c2]: sqrt of the largest eigenvalue of J^T J.
-        a, b, c = (cols[0] * cols[0]).sum(-1), (cols[0] * cols[1]).sum(-1), (cols[1] * cols[1]).sum(-1)
-        scale = torch.sqrt(0.5 * (a + c) + torch.sqrt(0.25 * (a - c) ** 2 + b * b))
-        ok = torch.isfinite(scale) & has_ray
+        # In chunks of pixels: a whole 1536^2 image's float64 temporaries (tangents, four projections) peaked at
+        # ~630 MiB above the rays themselves; the result is the same, element by element.
+        scale = torch.cat([_largest_local_scale(self, chunk) for chunk in rays.split(_PPR_CHUNK)])
+        ok = torch.isfinite(scale) & torch.isfinite(rays).all(-1)
         if not ok.all():
             scale = torch.where(ok, scale, self._axis_scale())
         return scale.view(self.height, self.width)
@@ -361,6 +349,28 @@ def _plain(value: Any) -> Any:
     if isinstance(value, Sequence) and not isinstance(value, str):
         return [float(v) for v in value]
     return float(value)
+
+
+def _largest_local_scale(camera: CameraModel, rays: torch.Tensor) -> torch.Tensor:
+    """``[N]``: the larger singular value of ``camera``'s projection Jacobian at unit rays ``[N, 3]`` (rays
+    that are not finite take the optical axis), by central differences along two tangents."""
+    has_ray = torch.isfinite(rays).all(-1)
+    axis = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
+    d = torch.where(has_ray[:, None], rays, axis)
+    # Two unit tangents orthogonal to d: e1 = normalise(d x a) with a helper axis not parallel to d, e2 = d x e1.
+    helper = torch.where(d[:, 2:3].abs() < 0.9, axis, torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64))
+    e1 = torch.linalg.cross(d, helper)
+    e1 = e1 / e1.norm(dim=-1, keepdim=True)
+    e2 = torch.linalg.cross(d, e1)
+    h = _PPR_STEP
+    cols = []
+    for e in (e1, e2):
+        plus, _ = camera.project(d * math.cos(h) + e * math.sin(h))
+        minus, _ = camera.project(d * math.cos(h) - e * math.sin(h))
+        cols.append((plus - minus) / (2.0 * h))
+    # Largest singular value of the 2x2 Jacobian [c1 c2]: sqrt of the largest eigenvalue of J^T J.
+    a, b, c = (cols[0] * cols[0]).sum(-1), (cols[0] * cols[1]).sum(-1), (cols[1] * cols[1]).sum(-1)
+    return torch.sqrt(0.5 * (a + c) + torch.sqrt(0.25 * (a - c) ** 2 + b * b))
 
 
 __all__ = ["CameraModel"]
