@@ -3,18 +3,25 @@
 A reader (or a resumed generator) therefore never sees a half-written file: a path either does not exist or
 holds complete contents. Renames within one folder are atomic on POSIX and Windows (``os.replace``).
 Stray temporaries from a killed process match :data:`TEMP_GLOB` and can be removed with
-:func:`remove_stale_temporaries`.
+:func:`remove_stale_temporaries`. Work that several processes may start at once (generating a cached dataset, a
+test session's shared run) is done once under :func:`exclusive_lock`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from airfisheye_bench.errors import OutputError
+
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks; callers rely on the atomic rename of what they finish
+    fcntl = None
 
 #: Glob matching the temporary names used by :func:`atomic_write_bytes` (``.<name>.<hex>.tmp``).
 TEMP_GLOB = ".*.tmp"
@@ -114,3 +121,30 @@ def remove_stale_temporaries(root: str | Path) -> int:
             tmp.unlink(missing_ok=True)
             count += 1
     return count
+
+
+@contextlib.contextmanager
+def exclusive_lock(path: str | Path) -> Iterator[None]:
+    """Hold an exclusive inter-process lock on the file ``path`` (created, with its folders) for a ``with`` block.
+
+    Blocks until no other process holds it (``fcntl.flock``, POSIX); elsewhere it locks nothing (best effort: the
+    callers' results are renamed into place when complete).
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> lock = pathlib.Path(tempfile.mkdtemp()) / "a" / "work.lock"
+        >>> with exclusive_lock(lock):
+        ...     lock.is_file()
+        True
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a+") as handle:
+        if fcntl is None:
+            yield
+            return
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_UN)

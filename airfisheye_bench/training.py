@@ -34,7 +34,6 @@ from airfisheye_bench.atomic import atomic_write_text, remove_stale_temporaries
 from airfisheye_bench.checkpointing import METRIC_ROWS_KEY, AtomicCheckpointIO
 from airfisheye_bench.config_checks import check_train_config
 from airfisheye_bench.errors import ConfigError, MissingFileError, UserError
-from airfisheye_bench.io.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.progress import console_is_terminal
 from airfisheye_bench.runs import (
@@ -46,6 +45,7 @@ from airfisheye_bench.runs import (
     run_label,
     run_log,
 )
+from airfisheye_bench.runs.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.sweeps import job_sweep_overrides
 from airfisheye_bench.tracking import log_run_outputs, start_tracking

@@ -26,9 +26,9 @@ from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
+from airfisheye_bench.io.dataset_spec import remap_site_problem
 from airfisheye_bench.io.datasets import DatasetSource
 from airfisheye_bench.io.lidar_spec import lidar_preset_problem, load_lidar_spec
-from airfisheye_bench.io.spec import remap_site_problem
 from airfisheye_bench.synth.cache import ensure_dataset
 from datamodules.augment import FisheyeAugment
 from datamodules.dataset import AirFisheyeDataset, CameraConfig, collate, open_reader

@@ -36,7 +36,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from datamodules import _kernels
+from datamodules import augment_kernel
 
 
 @dataclass(frozen=True)
@@ -144,7 +144,7 @@ def augment_sample(
     image = torch.empty(3, h, w)
     moved = torch.empty(h, w, dtype=torch.bool)
     moved_maps = torch.empty(maps.shape)
-    _kernels.warp_and_colour(
+    augment_kernel.warp_and_colour(
         rgb.contiguous().numpy(),
         valid.contiguous().numpy(),
         maps.to(torch.float32).contiguous().numpy(),

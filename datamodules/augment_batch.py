@@ -2,7 +2,7 @@
 
 With ``data.remap_on=device`` the cube faces become fisheye images only after the batch reached the model's device,
 so the augmentation that follows the remap (flip, rotation, colour jitter) runs there too. :func:`augment_batch`
-does what :func:`datamodules.augment.augment_sample` (the fused CPU kernel ``_kernels.warp_and_colour``) does to
+does what :func:`datamodules.augment.augment_sample` (the fused CPU kernel ``augment_kernel.warp_and_colour``) does to
 each sample, in the same order and arithmetic: source coordinates in float64, nearest copies of the valid mask,
 labels and depth (round half to even), bilinear RGB with zero padding in float32, then the colour transform,
 clamped, and zero outside the moved mask. The colour jitter's mean grey is taken from the remapped image before

@@ -65,8 +65,8 @@ from airfisheye_bench.geometry.remap_table import reserve_tables
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
 from airfisheye_bench.io import DatasetFormatError, EmptySplitError
+from airfisheye_bench.io.dataset_spec import IMAGE_SOURCES, REMAP_SOURCES
 from airfisheye_bench.io.datasets import DatasetSource, dataset_format, open_dataset, unserved_modality
-from airfisheye_bench.io.spec import IMAGE_SOURCES, REMAP_SOURCES
 from airfisheye_bench.specs import get_task
 from datamodules.augment import AugmentParams, FisheyeAugment, augment_sample, rotation_about_optical_axis
 from datamodules.augment_batch import pack_params

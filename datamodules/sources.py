@@ -43,8 +43,8 @@ import torch
 
 from airfisheye_bench.errors import ConfigError, UserError
 from airfisheye_bench.io import DatasetFormatError
+from airfisheye_bench.io.dataset_spec import IMAGE_SOURCES
 from airfisheye_bench.io.datasets import DATASET_FORMATS, dataset_format, root_description
-from airfisheye_bench.io.spec import IMAGE_SOURCES
 from airfisheye_bench.synth.classes import TRAIN_CLASSES
 from airfisheye_bench.synth.presets import PRESETS
 

@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from airfisheye_bench.evaluation.quickstart import git_commit, machine
+from airfisheye_bench.benchmarks.provenance import git_commit, machine
 
 ROOT = Path(__file__).resolve().parents[1]
 SUITES = {"default": [], "slow": ["-m", "slow"]}

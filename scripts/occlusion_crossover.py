@@ -1,6 +1,6 @@
 """Test-time cross-over: one trained completion model tested with every sparse input, by region.
 
-The logic is :mod:`airfisheye_bench.evaluation.crossover`; this script builds the inputs and prints the tables.
+The logic is :mod:`airfisheye_bench.benchmarks.crossover`; this script builds the inputs and prints the tables.
 
     # one model, every input, on the test split of the data it was trained on, served at 256²
     python scripts/occlusion_crossover.py --ckpt runs/xover --size 256 --json docs/figures/occlusion_crossover_256.json
@@ -25,9 +25,7 @@ from typing import Any
 import torch
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.benchmarks.provenance import provenance
-from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.evaluation.crossover import (
+from airfisheye_bench.benchmarks.crossover import (
     CROSSOVER_ARMS,
     arm_datasets,
     arm_datasets_from_config,
@@ -37,6 +35,8 @@ from airfisheye_bench.evaluation.crossover import (
     paired_frames_table,
     window_radius_share,
 )
+from airfisheye_bench.benchmarks.provenance import provenance
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor
 from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
 from airfisheye_bench.runs import resolve_checkpoint, run_config

@@ -8,7 +8,7 @@ Each run is ``python train.py task=<task> seed=<seed> hydra.run.dir=<out>/<task>
 command); finished runs are skipped, so an interrupted benchmark resumes, and the seeds of the existing record
 whose runs are not in ``--out`` are kept (``--fresh`` drops them). ``--tasks`` picks some of
 ``seg depth completion``; everything after ``--`` goes to ``train.py`` (then the results are not the quick start's).
-The logic is :mod:`airfisheye_bench.evaluation.quickstart`.
+The logic is :mod:`airfisheye_bench.benchmarks.quickstart`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.evaluation import quickstart, quickstart_report
+from airfisheye_bench.benchmarks import quickstart, quickstart_report
+from airfisheye_bench.benchmarks.provenance import git_commit
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_JSON = REPO / "docs" / "quickstart_results.json"
@@ -87,7 +88,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.json.is_file() and not args.fresh:
             previous = json.loads(args.json.read_text(encoding="utf-8"))
         try:
-            record = quickstart.summarize(runs, baselines, command, quickstart.git_commit(REPO), previous)
+            record = quickstart.summarize(runs, baselines, command, git_commit(REPO), previous)
         except ValueError as err:
             print(f"error: {err} (or pass --fresh to drop {args.json}'s seeds)", file=sys.stderr)
             return 2

@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.evaluation.quickstart import git_commit
+from airfisheye_bench.benchmarks.provenance import git_commit
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.io.content import content_identity

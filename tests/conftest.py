@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from tests.helpers.runs import locked, shared_export, shared_run
+from airfisheye_bench.atomic import exclusive_lock
+from tests.helpers.runs import shared_export, shared_run
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -49,7 +50,7 @@ def _tiny(shared_dir: Path, seed: int) -> Path:
     from airfisheye_bench.synth.writer import generate_dataset
 
     root = shared_dir / "datasets" / (f"tiny_seed{seed}" if seed else "tiny")
-    with locked(root.with_name(root.name + ".lock")):
+    with exclusive_lock(root.with_name(root.name + ".lock")):
         if not (root / "manifest.json").is_file():
             generate_dataset("tiny", root, seed=seed, workers=1, progress=False)
     return root

@@ -287,6 +287,8 @@ def _strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
     [
         ("airfisheye_bench.io.codecs", "io"),
         ("airfisheye_bench.runs", "runs"),
+        ("airfisheye_bench.runs.results", "runs"),
+        ("airfisheye_bench.benchmarks.paired", "benchmarks"),
         ("models.nlspn.model", "models"),
     ],
 )

@@ -29,9 +29,9 @@ from airfisheye_bench.evaluation import (
 from airfisheye_bench.evaluation.leaderboard import csv_columns
 from airfisheye_bench.evaluation.predictors import to_prediction
 from airfisheye_bench.export.deploy import parity_tolerance
-from airfisheye_bench.io.deployment import deployment_metadata, parse_deployment_metadata
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DepthMetrics
 from airfisheye_bench.metrics.scorer import TaskScorer
+from airfisheye_bench.runs.deployment import deployment_metadata, parse_deployment_metadata
 from airfisheye_bench.specs import (
     RANGE,
     ExportSpec,

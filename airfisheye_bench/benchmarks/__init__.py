@@ -1,4 +1,5 @@
-"""What the benchmark and study scripts of ``scripts/`` run, under public names, so that tests import it.
+"""The study code: what the benchmark and study scripts of ``scripts/`` run, under public names, so that tests import
+it.
 
 Each ``scripts/<name>.py`` is a thin entry point to one module here (``bench_evaluate`` ->
 :mod:`~.evaluation_speed`, ``bench_lightning`` -> :mod:`~.lightning_overhead`, ``bench_loader`` ->
@@ -6,7 +7,12 @@ Each ``scripts/<name>.py`` is a thin entry point to one module here (``bench_eva
 :mod:`~.occlusion_memory`, ``occlusion_study``, ``occlusion_ablation``, ``gpu_campaign`` -> :mod:`~.gpu_campaign`,
 which times training steps with :mod:`~.train_throughput` and keeps its time-boxed record with
 :mod:`~.campaign_record`, ``check_real_rings`` -> :mod:`~.real_rings`); :mod:`~.lidar_scene` is the analytic LiDAR
-scene the LiDAR benchmarks and tests share.
+scene the LiDAR benchmarks and tests share. The studies' own logic and statistics are here too: the quick-start
+benchmark and its report tables (:mod:`~.quickstart`, :mod:`~.quickstart_report`; ``quickstart_benchmark``), the
+occlusion cross-over (:mod:`~.crossover`; ``occlusion_crossover``), the ablation's records
+(:mod:`~.ablation_records`) and hidden-point detection (:mod:`~.hidden_detection`), paired differences between
+training arms (:mod:`~.paired`) and with the flight as the unit (:mod:`~.clustered`), and the ``provenance`` block
+of every record (:mod:`~.provenance`).
 They run from a checkout: the benchmarks write their tables into its ``docs/benchmarks.md`` and the ablation
 drives its ``train.py``. Nothing is imported here: ``occlusion_memory`` measures each method in a fresh
 ``python -m`` process, which loads only its own module.

@@ -3,7 +3,7 @@
 Each finished run of :mod:`airfisheye_bench.benchmarks.occlusion_ablation` leaves one small JSON under the record
 folder (``docs/figures/occlusion_ablation/<method>_seed<s>.json``): the commit and command it was trained with,
 the data's identity, its test metrics, its validation curve (to show it had flattened) and its best checkpoint's
-per-frame scores on every region of :data:`~airfisheye_bench.evaluation.crossover.FRAME_REGIONS`. The study is
+per-frame scores on every region of :data:`~airfisheye_bench.benchmarks.crossover.FRAME_REGIONS`. The study is
 the set of these files: :func:`summarise` reads nothing else, so it never depends on a run folder that was not
 committed, and it grows run by run across sessions.
 
@@ -14,7 +14,7 @@ The summary (:func:`summarise`):
 * per arm against ``none``, paired by seed and frame: per test flight, the mean over its frames and the seeds of
   ``arm - none``; the mean over the flights with a t-interval over the flights (``n`` = flights), its p-value,
   Holm-adjusted over the whole family (every arm x metric reported) and the Bonferroni interval at the family's
-  level (:mod:`airfisheye_bench.evaluation.clustered`); beside it, the mean difference per seed, whose spread is
+  level (:mod:`airfisheye_bench.benchmarks.clustered`); beside it, the mean difference per seed, whose spread is
   what the training noise alone does.
 """
 
@@ -27,7 +27,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.evaluation.clustered import cluster_difference, flight_of, holm
+from airfisheye_bench.benchmarks.clustered import cluster_difference, flight_of, holm
 
 __all__ = [
     "FAMILY_METRICS",

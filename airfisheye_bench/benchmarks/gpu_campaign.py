@@ -54,6 +54,7 @@ from omegaconf import DictConfig
 from torch.utils.data import DataLoader, RandomSampler
 
 from airfisheye_bench.benchmarks.campaign_record import CampaignRecord, Phase
+from airfisheye_bench.benchmarks.provenance import git_commit, machine
 from airfisheye_bench.benchmarks.train_throughput import (
     Stepper,
     amp_of,
@@ -63,7 +64,6 @@ from airfisheye_bench.benchmarks.train_throughput import (
     to_device,
 )
 from airfisheye_bench.constants import config_dir
-from airfisheye_bench.evaluation.quickstart import git_commit, machine
 from airfisheye_bench.training import build
 from datamodules.dataset import AirFisheyeDataset, collate
 from datamodules.device_remap import CubeFaces

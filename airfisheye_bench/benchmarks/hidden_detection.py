@@ -10,7 +10,7 @@ Per frame (from :func:`airfisheye_bench.benchmarks.occlusion_study.measure_frame
 
 Counts are pooled per flight (frames of one flight are not independent), precision / recall / F1 computed per
 flight, and each reported as the mean over the flights with a t-interval over the flights; methods are compared
-pairwise, flight by flight, with a Holm correction over the pairs (:mod:`airfisheye_bench.evaluation.clustered`).
+pairwise, flight by flight, with a Holm correction over the pairs (:mod:`airfisheye_bench.benchmarks.clustered`).
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from airfisheye_bench.evaluation.clustered import cluster_difference, holm
+from airfisheye_bench.benchmarks.clustered import cluster_difference, holm
 
-__all__ = ["detection_counts", "detection_table", "hidden_detection"]
+__all__ = ["detection_counts", "detection_table", "hidden_detection", "precision_recall_f1", "ratio"]
 
 SCORES = ("precision", "recall", "f1")
 
@@ -38,11 +38,23 @@ def detection_counts(row: Mapping[str, float], hidden: int) -> dict[str, int]:
     return {"tp": hidden - kept_hidden, "fp": int(row["truth"]) - int(row["tp"]), "fn": kept_hidden}
 
 
-def _scores(c: Mapping[str, int]) -> dict[str, float]:
-    precision = c["tp"] / (c["tp"] + c["fp"]) if c["tp"] + c["fp"] else math.nan
-    recall = c["tp"] / (c["tp"] + c["fn"]) if c["tp"] + c["fn"] else math.nan
-    f1 = 2 * precision * recall / (precision + recall) if precision + recall > 0 else math.nan
-    return {"precision": precision, "recall": recall, "f1": f1}
+def ratio(num: float, den: float) -> float:
+    """``num / den``, NaN where ``den`` is not positive."""
+    return num / den if den > 0 else math.nan
+
+
+def precision_recall_f1(tp: float, predicted: float, actual: float) -> dict[str, float]:
+    """Precision ``tp / predicted``, recall ``tp / actual`` and their harmonic mean; NaN where a ratio has no
+    denominator (nothing predicted, nothing to find) or F1 none (both 0).
+
+    Example:
+        >>> precision_recall_f1(4, 8, 6)  # detection_counts' tp, tp + fp, tp + fn
+        {'precision': 0.5, 'recall': 0.6666666666666666, 'f1': 0.5714285714285715}
+        >>> precision_recall_f1(0, 0, 6)["precision"], precision_recall_f1(0, 3, 6)["f1"]
+        (nan, nan)
+    """
+    precision, recall = ratio(tp, predicted), ratio(tp, actual)
+    return {"precision": precision, "recall": recall, "f1": ratio(2 * precision * recall, precision + recall)}
 
 
 def _over_flights(values: Mapping[str, float]) -> dict[str, Any]:
@@ -68,7 +80,9 @@ def hidden_detection(
             frames = rows.get(method, [])
             if frames:
                 pooled = {k: sum(int(f[k]) for f in frames) for k in ("tp", "fp", "fn")}
-                per_flight[method][flight] = _scores(pooled)
+                per_flight[method][flight] = precision_recall_f1(
+                    pooled["tp"], pooled["tp"] + pooled["fp"], pooled["tp"] + pooled["fn"]
+                )
     scores = {
         method: {name: _over_flights({f: s[name] for f, s in flights.items()}) for name in SCORES}
         for method, flights in per_flight.items()

@@ -37,8 +37,8 @@ from pathlib import Path
 import torch
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.evaluation.quickstart import git_commit, machine
-from airfisheye_bench.io.spec import REMAP_SITES
+from airfisheye_bench.benchmarks.provenance import git_commit, machine
+from airfisheye_bench.io.dataset_spec import REMAP_SITES
 from airfisheye_bench.specs import task_names
 from airfisheye_bench.synth.cache import ensure_dataset
 from datamodules import AirFisheyeDataset, CameraConfig, FisheyeAugment

@@ -13,7 +13,7 @@ input on the regions where the methods differ (``regions.json``: the pixels whos
 and the oracle, dilated by ``--radius``, and the near range below ``--near`` m; see
 :mod:`airfisheye_bench.metrics.regions`), collects both and reports per method the mean ± sample standard
 deviation over the seeds, and per method the paired difference against ``none`` seed by seed with its 95 %
-t-interval (:mod:`airfisheye_bench.evaluation.paired`). Runs whose ``results.json`` / ``regions.json`` exist are
+t-interval (:mod:`airfisheye_bench.benchmarks.paired`). Runs whose ``results.json`` / ``regions.json`` exist are
 skipped, so an interrupted ablation resumes; a failed run stops the script.
 
     python scripts/occlusion_ablation.py --out runs/ablation_occlusion --seeds 0 1 2 3 4 -- \\
@@ -46,10 +46,9 @@ from typing import Any
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.benchmarks import ablation_records
 from airfisheye_bench.benchmarks.ablation_records import mean_std
-from airfisheye_bench.benchmarks.provenance import provenance
-from airfisheye_bench.evaluation.crossover import run_frame_scores, run_region_scores
-from airfisheye_bench.evaluation.paired import paired_differences, paired_table
-from airfisheye_bench.evaluation.quickstart import git_commit
+from airfisheye_bench.benchmarks.crossover import run_frame_scores, run_region_scores
+from airfisheye_bench.benchmarks.paired import paired_differences, paired_table
+from airfisheye_bench.benchmarks.provenance import git_commit, provenance
 from airfisheye_bench.geometry import occlusion
 from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
 
@@ -275,7 +274,7 @@ def run_metrics(run: Run, record: dict[str, Any] | None = None) -> dict[str, flo
 
 
 def paired(runs: Sequence[Run], reference: str = "none") -> dict[str, Any]:
-    """Paired differences against ``reference`` per seed (:func:`~airfisheye_bench.evaluation.paired.paired_differences`)."""
+    """Paired differences against ``reference`` per seed (:func:`~airfisheye_bench.benchmarks.paired.paired_differences`)."""
     values: dict[str, dict[int, dict[str, float]]] = {}
     for run in runs:
         if run.results.is_file():

@@ -56,12 +56,18 @@ import yaml
 from PIL import Image, ImageDraw
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.benchmarks.hidden_detection import detection_counts, detection_table, hidden_detection
+from airfisheye_bench.benchmarks.clustered import flight_of
+from airfisheye_bench.benchmarks.hidden_detection import (
+    detection_counts,
+    detection_table,
+    hidden_detection,
+    precision_recall_f1,
+    ratio,
+)
 from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
-from airfisheye_bench.evaluation.clustered import flight_of
 from airfisheye_bench.geometry import CameraModel, LidarSpec, lidar_depth_map, occlusion, project_lidar
-from airfisheye_bench.io.spec import DatasetSpec
+from airfisheye_bench.io.dataset_spec import DatasetSpec
 from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.viz import denormalize, make_panel, save_png
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
@@ -246,16 +252,10 @@ def measure_frame(
     return rows
 
 
-def ratio(num: float, den: float) -> float:
-    return num / den if den > 0 else math.nan
-
-
 def ratios(c: dict[str, float]) -> dict[str, float]:
-    precision, recall = ratio(c["tp"], c["kept"]), ratio(c["tp"], c["truth"])
+    """A row's point-level scores (the visible points kept: ``tp`` of ``kept``, of ``truth``) and depth-map fractions."""
     return {
-        "precision": precision,
-        "recall": recall,
-        "f1": ratio(2 * precision * recall, precision + recall),
+        **precision_recall_f1(c["tp"], c["kept"], c["truth"]),
         "sparse_wrong_frac": ratio(c["sparse_wrong"], c["sparse_gt"]),
         "sparse_no_gt_frac": ratio(c["sparse_no_gt"], c["sparse_px"]),
     }

@@ -2,20 +2,27 @@
 
 A number in the docs is only as good as the file it is read from: the file names the commit that computed it (full,
 ``+dirty`` when tracked files differed, which the docs never cite), the command, the machine, and the dataset's
-content identity when data were involved (:func:`airfisheye_bench.io.results.dataset_identity`).
+content identity when data were involved (:func:`airfisheye_bench.runs.results.dataset_identity`). The commit and the
+machine are :func:`git_commit` and :func:`machine`, which the quick-start record and the benchmarks write too.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import platform
+import subprocess
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.evaluation.quickstart import git_commit, machine
-from airfisheye_bench.io.results import dataset_identity
+import numpy as np
+import torch
 
-__all__ = ["REPO", "provenance"]
+from airfisheye_bench.runs.results import dataset_identity
+
+__all__ = ["REPO", "git_commit", "machine", "provenance"]
 
 #: The checkout the studies run from.
 REPO = Path(__file__).resolve().parents[2]
@@ -43,3 +50,38 @@ def provenance(
     if dataset is not None:
         out["dataset"] = dataset_identity(dataset, dataset_name or Path(dataset).name)
     return out
+
+
+def git_commit(repo: str | Path) -> str:
+    """``<sha>`` of ``repo``'s HEAD, ``<sha>+dirty`` when tracked files differ from it, ``unknown`` without git."""
+    try:
+        sha = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=repo, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=repo, capture_output=True, text=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return sha + ("+dirty" if dirty else "")
+
+
+def machine() -> str:
+    """What the record was made on: architecture, CPU model and cores, torch and numpy (data and kernels may
+    differ between CPUs and library versions, so a record says where its numbers came from)."""
+    return (
+        f"{platform.machine()}, {_cpu_model()}, {_cpu_count()} CPU cores, torch {torch.__version__}, "
+        f"numpy {np.__version__}"
+    )
+
+
+def _cpu_model() -> str:
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.processor() or "unknown CPU"
+
+
+def _cpu_count() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)

@@ -16,7 +16,7 @@ caller hands them directly, once, in their constructor (docs/design.md, "Layers"
 Every choice list is read the same way: from the module that defines it (the lens models of
 :mod:`airfisheye_bench.geometry.cameras.ideal`, the fits of :mod:`airfisheye_bench.geometry.serving`, the occlusion methods
 and options of :mod:`airfisheye_bench.geometry.occlusion`, the LiDAR presets, the image sources of
-:mod:`airfisheye_bench.io.spec`, the task and model registries, Lightning's accelerators and precisions), imported
+:mod:`airfisheye_bench.io.dataset_spec`, the task and model registries, Lightning's accelerators and precisions), imported
 inside the function that reads it, when its key is checked. Importing this module costs a fifth of a second; its
 owners import torch (2 s), the model zoo (8 s) or Lightning: a mistyped ``trainer.max_epochs`` is answered before
 any of them, and the rules are ordered so that the costly imports come last, after every cheap key passed. Options
@@ -140,14 +140,14 @@ def _lidar_preset_problem(value: Any, root: Any) -> str | None:
 
 
 def _image_sources() -> tuple[str, ...]:
-    from airfisheye_bench.io.spec import IMAGE_SOURCES  # imports torch: only when checked
+    from airfisheye_bench.io.dataset_spec import IMAGE_SOURCES  # imports torch: only when checked
 
     return IMAGE_SOURCES
 
 
 def _remap_site_problem(value: Any, source: Any, sources: Any, gimbal: Any) -> str | None:
-    """``data.remap_on``: a site the data can be remapped at (``io.spec``'s own check)."""
-    from airfisheye_bench.io.spec import remap_site_problem  # imports torch: only when checked
+    """``data.remap_on``: a site the data can be remapped at (``io.dataset_spec``'s own check)."""
+    from airfisheye_bench.io.dataset_spec import remap_site_problem  # imports torch: only when checked
 
     return remap_site_problem(value, source or "cubemap", sources, gimbal)
 

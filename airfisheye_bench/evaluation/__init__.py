@@ -1,5 +1,5 @@
 """Evaluation: prediction sources, submissions and the leaderboard; ``results.json`` is
-:mod:`airfisheye_bench.io.results` (training writes it too), re-exported here with the leaderboard that reads it.
+:mod:`airfisheye_bench.runs.results` (training writes it too), re-exported here with the leaderboard that reads it.
 
 The evaluation command itself is :func:`airfisheye_bench.evaluation.command.evaluate` (``scripts/evaluate.py``).
 """
@@ -23,7 +23,7 @@ from airfisheye_bench.evaluation.submission import (
     write_prediction,
     write_submission,
 )
-from airfisheye_bench.io.results import (
+from airfisheye_bench.runs.results import (
     RESULTS_VERSION,
     dataset_identity,
     load_results,

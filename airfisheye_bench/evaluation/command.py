@@ -43,11 +43,11 @@ from airfisheye_bench.evaluation.predictors import (
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
 from airfisheye_bench.evaluation.trained import run_datamodule
 from airfisheye_bench.io.calibration_files import camera_mismatch
-from airfisheye_bench.io.deployment import read_deployment_metadata
-from airfisheye_bench.io.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.runs import checkpoint_run_name, resolve_checkpoint, run_config, run_directory
+from airfisheye_bench.runs.deployment import read_deployment_metadata
+from airfisheye_bench.runs.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.specs import UnknownTaskError, get_task, task_names
 from airfisheye_bench.sweeps import run_sweep_overrides
 from airfisheye_bench.tasks.checkpoint import load_task

@@ -18,8 +18,8 @@ from torch.utils.data import Dataset
 
 from airfisheye_bench.errors import MissingFileError
 from airfisheye_bench.evaluation.submission import read_prediction, validate_submission
-from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.io.manifest import sha256_file
+from airfisheye_bench.runs.deployment import read_deployment_metadata
 from airfisheye_bench.specs import get_task
 
 __all__ = [

@@ -5,7 +5,7 @@
 :class:`~airfisheye_bench.evaluation.predictors.OnnxPredictor`) with the camera the model was trained for, the input
 normalisation, the class names and colours (seg) and the depth range (depth, completion).
 
-An ONNX model carries all of it in its metadata (:mod:`airfisheye_bench.io.deployment`). A checkpoint carries the
+An ONNX model carries all of it in its metadata (:mod:`airfisheye_bench.runs.deployment`). A checkpoint carries the
 model, its classes, palette and depth range; its camera is the one its run's data config serves
 (:func:`run_datamodule`: the run's ``config.yaml``, and the dataset it names, whose calibration the camera is
 resolved against), as for ``airfisheye-evaluate`` and ``airfisheye-export``.
@@ -25,8 +25,8 @@ from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import ConfigError, InputFileError
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor, OnnxPredictor, Predictor
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
-from airfisheye_bench.io.deployment import read_deployment_metadata
 from airfisheye_bench.runs import resolve_checkpoint, run_config
+from airfisheye_bench.runs.deployment import read_deployment_metadata
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
 from datamodules.config import apply_data_overrides, instantiate_datamodule

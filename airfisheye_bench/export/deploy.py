@@ -6,7 +6,7 @@
 1. rebuild the task from the checkpoint (:func:`~airfisheye_bench.tasks.checkpoint.load_task`) and its data
    module from the run's ``config.yaml`` (``data.*`` overrides applied, e.g. another lens or size);
 2. export the zoo model (:func:`~airfisheye_bench.export.onnx.export_onnx`): one file, dynamic batch, fixed or
-   dynamic spatial size, named inputs/output, the metadata of :mod:`airfisheye_bench.io.deployment`;
+   dynamic spatial size, named inputs/output, the metadata of :mod:`airfisheye_bench.runs.deployment`;
 3. check ONNX Runtime (CPU) against PyTorch on real validation frames (no augmentation): segmentation logits
    within 1e-4 absolute, depth within 1e-3 relative (+ 1e-4 m). The file is written under a temporary name and
    only renamed to ``out`` once it passes, so a failed export never leaves a bad model behind;
@@ -45,10 +45,10 @@ from airfisheye_bench.export.quantize import (
     quantize_model,
 )
 from airfisheye_bench.export.validation import validation_frames
-from airfisheye_bench.io.deployment import deployment_metadata
 from airfisheye_bench.io.manifest import sha256_file
-from airfisheye_bench.io.results import dataset_identity
 from airfisheye_bench.runs import resolve_checkpoint, run_config, run_directory
+from airfisheye_bench.runs.deployment import deployment_metadata
+from airfisheye_bench.runs.results import dataset_identity
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.tracking import log_to_run, resolve_run
@@ -105,7 +105,7 @@ class DeploymentReport:
         task: ``seg``, ``depth`` or ``completion``.
         model: registry name of the model.
         checkpoint: the source checkpoint file.
-        metadata: the ``metadata_props`` written (see :mod:`airfisheye_bench.io.deployment`).
+        metadata: the ``metadata_props`` written (see :mod:`airfisheye_bench.runs.deployment`).
         parity: ONNX Runtime vs PyTorch on ``parity_frames`` validation frames (one batch).
         parity_frames: validation frames in the parity batch.
         atol: absolute tolerance of the parity check.
@@ -113,7 +113,7 @@ class DeploymentReport:
         dynamic_spatial: whether height and width are symbolic in the graph.
         quantization: the int8 report, or ``None`` with ``quantize=none``.
         dataset: the identity of the data its frames came from
-            (:func:`~airfisheye_bench.io.results.dataset_identity`; one per source for a run of several sources).
+            (:func:`~airfisheye_bench.runs.results.dataset_identity`; one per source for a run of several sources).
     """
 
     path: Path

@@ -134,7 +134,7 @@ def export_onnx(
         >>> net = torch.nn.Conv2d(3, 2, 1)
         >>> path = export_onnx(net, {"input": torch.randn(2, 3, 8, 8)}, tempfile.mkdtemp() + "/conv.onnx",
         ...                    output_name="logits", metadata={"task": "seg"})
-        >>> from airfisheye_bench.io.deployment import read_onnx_metadata
+        >>> from airfisheye_bench.runs.deployment import read_onnx_metadata
         >>> read_onnx_metadata(path)["task"]
         'seg'
     """

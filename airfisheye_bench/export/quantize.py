@@ -25,7 +25,7 @@ from torch import Tensor
 
 from airfisheye_bench.export.onnx import first_line, median_ms, size_mb
 from airfisheye_bench.export.validation import validation_batches, validation_frames
-from airfisheye_bench.io.deployment import read_onnx_metadata
+from airfisheye_bench.runs.deployment import read_onnx_metadata
 from airfisheye_bench.specs import get_task
 
 __all__ = ["QUANTIZE_MODES", "QuantizationReport", "quantization_lines", "quantize_model"]

@@ -1,13 +1,14 @@
 """Geometry: camera models, cubemap- and panorama-to-fisheye remapping, rigid transforms, LiDAR projection and occlusion."""
 
-from airfisheye_bench.geometry.camera import FisheyeCamera, incidence_angle
 from airfisheye_bench.geometry.cameras import (
     CAMERA_MODELS,
     LENS_MODELS,
     CameraModel,
     camera_from_dict,
     ideal_camera,
+    incidence_angle,
 )
+from airfisheye_bench.geometry.cameras.ideal import FisheyeCamera
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, CubemapToFisheye, face_rays, face_rotation
 from airfisheye_bench.geometry.equirect import EquirectToFisheye
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates

@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from airfisheye_bench.geometry import _kernels
+from airfisheye_bench.geometry import numba_kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.lidar import LidarSpec, as_points64, like, spherical_coordinates
 
@@ -99,7 +99,7 @@ def rings_from_elevation(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> np.n
 def _nearest_from_origins(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> tuple[np.ndarray, np.ndarray]:
     """The channel whose beam, from its own origin, points nearest each point, and that residual (radians).
 
-    A fixed point instead of all ``N x N_C`` residuals (compiled, ``_kernels.nearest_channel``): the table's
+    A fixed point instead of all ``N x N_C`` residuals (compiled, ``numba_kernels.nearest_channel``): the table's
     nearest channel seen from the mean origin, then from the origin of the channel found (three rounds: origins
     differ by centimetres, so the channel settles), then the best of it and its two neighbours.
     ``channels_exhaustive`` checks it against the full search in the tests.
@@ -108,7 +108,7 @@ def _nearest_from_origins(r: np.ndarray, el: np.ndarray, spec: LidarSpec) -> tup
     tan_mids = np.tan((table[1:] + table[:-1]) / 2.0)  # elevations within +-90 deg: tan keeps their order
     origins = spec.channel_origins()
     ring, residual = np.empty(len(r), dtype=np.int64), np.empty(len(r))
-    _kernels.nearest_channel(
+    numba_kernels.nearest_channel(
         r * np.sin(el),
         r * np.cos(el),
         tan_mids,
@@ -166,7 +166,7 @@ def layout_from_angles(
 ) -> ScanLayout:
     """:func:`organize_scan` from the points' spherical coordinates (see :func:`spherical_coordinates`).
 
-    The numpy reference of the compiled ``_kernels.lidar_layout`` (bit-identical: the same float64
+    The numpy reference of the compiled ``numba_kernels.lidar_layout`` (bit-identical: the same float64
     operations); numpy in, numpy out. ``rings``: every point's ring (checked), else :func:`rings_from_elevation`.
     """
     ring = rings_from_elevation(r, el, spec) if rings is None else np.asarray(rings, dtype=np.int64).copy()

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from airfisheye_bench.atomic import atomic_write
-from airfisheye_bench.geometry import _kernels
+from airfisheye_bench.geometry import numba_kernels
 
 #: Interpolation modes of every remap: ``nearest`` (labels, depth: values copied exactly) and ``bilinear`` (images).
 MODES = ("nearest", "bilinear")
@@ -80,15 +80,15 @@ def apply_table(
         return
     pixels, index, weight = lut.pixels.numpy(), lut.index.numpy(), lut.weight.numpy()
     if index.shape[1] == 1:
-        _kernels.copy_nearest(planar().numpy(), pixels, index[:, 0].copy(), out.numpy())
+        numba_kernels.copy_nearest(planar().numpy(), pixels, index[:, 0].copy(), out.numpy())
         return
     is_int = not out.is_floating_point()
     lo, hi = (float(torch.iinfo(out.dtype).min), float(torch.iinfo(out.dtype).max)) if is_int else (0.0, 0.0)
     args = (pixels, index, weight, out.numpy(), is_int, np.float32(lo), np.float32(hi))
     if interleaved is not None:
-        _kernels.blend_interleaved3(interleaved.numpy(), *args)
+        numba_kernels.blend_interleaved3(interleaved.numpy(), *args)
     else:
-        _kernels.blend_planar(planar().numpy(), *args)
+        numba_kernels.blend_planar(planar().numpy(), *args)
 
 
 def interleaved_view(source: torch.Tensor) -> torch.Tensor | None:

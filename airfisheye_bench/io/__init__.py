@@ -6,7 +6,7 @@ This package is the one place that knows file names and encodings; the generator
 datamodules read through it (:class:`DatasetReader`).
 """
 
-from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.calibration_files import load_camera, read_calibration, save_camera
 from airfisheye_bench.io.codecs import (
     read_depth,
@@ -22,12 +22,7 @@ from airfisheye_bench.io.codecs import (
     write_rgb,
     write_visibility,
 )
-from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError, EmptySplitError
-from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
-from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
-from airfisheye_bench.io.reader import DatasetReader
-from airfisheye_bench.io.scan import Scan, load_scan
-from airfisheye_bench.io.spec import (
+from airfisheye_bench.io.dataset_spec import (
     DATASET_YAML,
     ClassDef,
     DatasetSpec,
@@ -35,6 +30,11 @@ from airfisheye_bench.io.spec import (
     SplitsSpec,
     classes_from,
 )
+from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError, EmptySplitError
+from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
+from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
+from airfisheye_bench.io.reader import DatasetReader
+from airfisheye_bench.io.scan import Scan, load_scan
 from airfisheye_bench.io.splits import parse_sample_id, read_split, write_split
 
 __all__ = [

@@ -13,7 +13,7 @@ Example:
 
 from __future__ import annotations
 
-from airfisheye_bench.io.spec import ClassDef
+from airfisheye_bench.io.dataset_spec import ClassDef
 
 __all__ = ["BENCHMARK_CLASSES", "BENCHMARK_ID"]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from airfisheye_bench.geometry.cubemap import FACE_NAMES
-from airfisheye_bench.io.spec import DATASET_YAML, DEFAULT_LAYOUT, FileEncodings
+from airfisheye_bench.io.dataset_spec import DATASET_YAML, DEFAULT_LAYOUT, FileEncodings
 from airfisheye_bench.io.splits import parse_sample_id
 
 MODALITIES = ("rgb", "seg", "depth")

@@ -9,12 +9,12 @@ import numpy as np
 
 from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.io import codecs
-from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calib_yaml import Calibration
+from airfisheye_bench.io.dataset_spec import DatasetSpec
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
 from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
 from airfisheye_bench.io.scan import Scan, load_scan
-from airfisheye_bench.io.spec import DatasetSpec
 from airfisheye_bench.io.splits import parse_sample_id, read_split
 
 

@@ -45,10 +45,10 @@ from pathlib import Path
 from airfisheye_bench.atomic import TEMP_GLOB
 from airfisheye_bench.errors import OutputExistsError
 from airfisheye_bench.io import codecs
+from airfisheye_bench.io.dataset_spec import DATASET_YAML, DEPTH_ENCODINGS, RGB_ENCODINGS, FileEncodings
 from airfisheye_bench.io.layout import MANIFEST_NAME
 from airfisheye_bench.io.manifest import create_manifest
 from airfisheye_bench.io.reader import DatasetReader
-from airfisheye_bench.io.spec import DATASET_YAML, DEPTH_ENCODINGS, RGB_ENCODINGS, FileEncodings
 
 #: Layout templates whose files carry a ``{modality}`` and an ``{ext}`` (the ones that can be re-encoded).
 _ENCODED_TEMPLATES = ("cubemap", "fisheye")

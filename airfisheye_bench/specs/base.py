@@ -78,7 +78,7 @@ class ExportSpec:
 
     Attributes:
         metadata: Task-specific deployment metadata keys, without the ``airfisheye.`` prefix (their values come
-            from the task module and the data config; see ``io/deployment.py``).
+            from the task module and the data config; see ``runs/deployment.py``).
         atol: Absolute parity tolerance: ``|ort - torch| <= atol + rtol * |torch|`` element-wise.
         rtol: Relative parity tolerance.
         headline: Metrics shown in the int8 quantisation report.

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_text, exclusive_lock
 from airfisheye_bench.io.manifest import sha256_file
 from airfisheye_bench.synth.presets import GENERATOR_VERSION, SynthConfig, get_preset
 from airfisheye_bench.synth.writer import generate_dataset, stale_file
@@ -90,7 +90,7 @@ def ensure_dataset(
     if _is_current(target, config, seed, device):
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
-    with _exclusive_lock(target.with_name(target.name + ".lock")):
+    with exclusive_lock(target.with_name(target.name + ".lock")):
         if _is_current(target, config, seed, device, warn=False):  # another process finished meanwhile
             return target
         partial = target.with_name(target.name + ".partial")
@@ -174,19 +174,3 @@ def _code_fingerprint() -> str:
     for path in sorted(package.rglob("*.py")):
         h.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
     return h.hexdigest()
-
-
-@contextlib.contextmanager
-def _exclusive_lock(path: Path):
-    """Blocking inter-process lock on ``path`` (``fcntl`` on POSIX; best effort elsewhere)."""
-    with open(path, "a+") as f:
-        try:
-            import fcntl  # POSIX only
-        except ImportError:  # Windows: rely on the atomic rename of the finished dataset
-            yield
-            return
-        fcntl.flock(f.fileno(), fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(f.fileno(), fcntl.LOCK_UN)

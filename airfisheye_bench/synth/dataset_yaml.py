@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from airfisheye_bench.geometry import FACE_NAMES
-from airfisheye_bench.io.spec import DatasetSpec, FileEncodings, SplitsSpec, classes_from
+from airfisheye_bench.io.dataset_spec import DatasetSpec, FileEncodings, SplitsSpec, classes_from
 from airfisheye_bench.synth.classes import IGNORE_ID, RAW_CLASSES, RAW_TO_TRAIN, TRAIN_CLASSES
 from airfisheye_bench.synth.presets import GENERATOR_VERSION, SPLIT_NAMES, SynthConfig, TrajectoryPlan
 from airfisheye_bench.synth.sensors import VISIBILITY_DEFINITION

@@ -39,13 +39,13 @@ from airfisheye_bench.atomic import atomic_write_bytes, atomic_write_text, remov
 from airfisheye_bench.geometry import FACE_NAMES, CameraModel, CubemapToFisheye, ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.io import codecs
-from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.content import decoded_content
+from airfisheye_bench.io.dataset_spec import DATASET_YAML, DatasetSpec, FileEncodings
 from airfisheye_bench.io.layout import DatasetLayout
 from airfisheye_bench.io.manifest import FileEntry, sha256_bytes, sha256_file, write_manifest
 from airfisheye_bench.io.poses import ImuTable, PoseTable
 from airfisheye_bench.io.progress_report import ProgressReport
-from airfisheye_bench.io.spec import DATASET_YAML, DatasetSpec, FileEncodings
 from airfisheye_bench.io.splits import write_split
 from airfisheye_bench.synth.dataset_yaml import dataset_spec, generator_identity
 from airfisheye_bench.synth.presets import (

@@ -13,7 +13,7 @@ from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.gimbal import Gimbal
 from airfisheye_bench.io import DatasetFormatError
-from airfisheye_bench.io.spec import remap_site_problem
+from airfisheye_bench.io.dataset_spec import remap_site_problem
 from airfisheye_bench.training import train
 from datamodules import AirFisheyeDataModule, AirFisheyeDataset, CameraConfig, FisheyeAugment, collate
 from datamodules.augment import AugmentParams, augment_sample

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from airfisheye_bench.evaluation.clustered import (
+from airfisheye_bench.benchmarks.clustered import (
     cluster_difference,
     flight_means,
     holm,
@@ -14,7 +14,7 @@ from airfisheye_bench.evaluation.clustered import (
     t_quantile,
     t_two_sided_p,
 )
-from airfisheye_bench.evaluation.paired import T975
+from airfisheye_bench.benchmarks.paired import T975
 
 
 def test_t_quantiles_equal_the_nist_table() -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from airfisheye_bench.evaluation.crossover import (
+from airfisheye_bench.benchmarks.crossover import (
     CROSSOVER_ARMS,
     arm_datasets,
     arm_datasets_from_config,

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from airfisheye_bench.evaluation.paired import (
+from airfisheye_bench.benchmarks.paired import (
     T975,
     paired_difference,
     paired_differences,

@@ -20,7 +20,7 @@ from airfisheye_bench.evaluation.footage_inputs import frame_preparer
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.cameras import camera_from_dict
 from airfisheye_bench.io.calibration_files import save_camera
-from airfisheye_bench.io.deployment import read_deployment_metadata
+from airfisheye_bench.runs.deployment import read_deployment_metadata
 from tests.helpers.commands import PREDICT, Outcome, assert_one_line_error, run_in_process
 from tests.io import calibration_fixtures as fx
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from airfisheye_bench.evaluation import quickstart, quickstart_report
+from airfisheye_bench.benchmarks import quickstart, quickstart_report
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMITTED = ROOT / "docs" / "quickstart_results.json"

@@ -25,7 +25,8 @@ from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import OutputError
 from airfisheye_bench.export import verify_onnx
 from airfisheye_bench.geometry.cameras import CAMERA_MODELS, camera_from_dict
-from airfisheye_bench.io.deployment import (
+from airfisheye_bench.runs import resolve_checkpoint
+from airfisheye_bench.runs.deployment import (
     COMMON_KEYS,
     KEY_WEIGHTS,
     PREFIX,
@@ -34,7 +35,6 @@ from airfisheye_bench.io.deployment import (
     read_deployment_metadata,
     read_onnx_metadata,
 )
-from airfisheye_bench.runs import resolve_checkpoint
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.training import build

@@ -7,7 +7,7 @@ import torch
 from torch import nn
 
 from airfisheye_bench.export import OnnxParityError, export_onnx, verify_onnx
-from airfisheye_bench.io.deployment import read_onnx_metadata
+from airfisheye_bench.runs.deployment import read_onnx_metadata
 
 pytestmark = pytest.mark.integration  # ONNX exports: seconds each
 

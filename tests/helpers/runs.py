@@ -10,15 +10,14 @@ that changes a run works on a copy (:func:`copy_run`). Each task's run is export
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import io
 import json
 import shutil
-from collections.abc import Iterator
 from pathlib import Path
 
 from omegaconf import open_dict
 
+from airfisheye_bench.atomic import exclusive_lock
 from tests.helpers.configs import compose_train
 
 SMALL = {
@@ -51,18 +50,6 @@ def shared_run_overrides(task: str, root: Path) -> list[str]:
     return [*tiny_run_overrides(task, root), "logger=csv"]
 
 
-@contextlib.contextmanager
-def locked(path: Path) -> Iterator[None]:
-    """An exclusive lock on ``path`` (created), held across processes (pytest-xdist workers)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
-
-
 def shared_run(task: str, dataset: Path, folder: Path) -> Path:
     """The run of :func:`shared_run_overrides` in ``folder``, trained by the first caller of the session.
 
@@ -70,7 +57,7 @@ def shared_run(task: str, dataset: Path, folder: Path) -> Path:
     """
     from airfisheye_bench.training import train
 
-    with locked(folder.with_name(folder.name + ".lock")):
+    with exclusive_lock(folder.with_name(folder.name + ".lock")):
         if not (folder / DONE).is_file():
             shutil.rmtree(folder, ignore_errors=True)  # an interrupted attempt
             cfg = compose_train(shared_run_overrides(task, dataset))
@@ -94,7 +81,7 @@ def shared_export(task: str, run: Path, folder: Path) -> tuple[Path, int, str]:
 
     out = folder / f"{task}.onnx"
     record = folder / "command.json"
-    with locked(folder.with_name(folder.name + ".lock")):
+    with exclusive_lock(folder.with_name(folder.name + ".lock")):
         if not record.is_file():
             shutil.rmtree(folder, ignore_errors=True)
             folder.mkdir(parents=True)

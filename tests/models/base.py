@@ -27,7 +27,7 @@ from torch import Tensor, nn
 import models
 from airfisheye_bench.export import export_onnx, verify_onnx
 from airfisheye_bench.export.deploy import parity_tolerance
-from airfisheye_bench.io.deployment import read_onnx_metadata
+from airfisheye_bench.runs.deployment import read_onnx_metadata
 
 _PRIMARY_KEY = {"seg": "logits", "depth": "depth", "completion": "depth"}
 

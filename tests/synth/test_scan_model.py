@@ -11,8 +11,8 @@ import torch
 
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.io import DatasetReader
+from airfisheye_bench.io.dataset_spec import DatasetSpec
 from airfisheye_bench.io.inspect import inspect_dataset
-from airfisheye_bench.io.spec import DatasetSpec
 from airfisheye_bench.synth import writer
 from airfisheye_bench.synth.presets import PRESETS, SynthConfig, get_preset
 from airfisheye_bench.synth.sensors import ScanModel

@@ -14,7 +14,7 @@ from omegaconf import open_dict
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.io.calibration_files import load_camera
-from airfisheye_bench.io.deployment import read_deployment_metadata
+from airfisheye_bench.runs.deployment import read_deployment_metadata
 from airfisheye_bench.training import train
 from tests.helpers.configs import compose_eval, compose_train
 from tests.helpers.file_access import opened_files

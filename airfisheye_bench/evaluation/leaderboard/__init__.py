@@ -8,7 +8,7 @@ design contract plus the outermost incidence-angle ring (the fisheye rim, ``ring
 where fisheye distortion hurts most.
 
 Each row says what was evaluated (``evaluated``: a checkpoint, ``ONNX fp32`` / ``ONNX int8``, a prediction
-folder, with ``flip TTA`` when used; :func:`~airfisheye_bench.io.results.evaluated_label`) and the run it
+folder, with ``flip TTA`` when used; :func:`~airfisheye_bench.runs.results.evaluated_label`) and the run it
 comes from (``run``: the training run of the weights, or the ``name=`` given to the evaluation), so an ONNX export
 and its checkpoint are two rows of one run. Rows share a rank when their primary metric prints the same
 (competition ranking: 1, 2, 2, 4; :func:`competition_ranks`), the markdown, CSV and HTML alike.

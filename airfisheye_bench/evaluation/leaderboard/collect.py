@@ -12,8 +12,8 @@ from typing import Any
 
 from airfisheye_bench.errors import MissingFileError, UserError
 from airfisheye_bench.io.calibration_files import camera_label
-from airfisheye_bench.io.results import RESULTS_VERSION, evaluated_label, load_results, source_records
 from airfisheye_bench.runs import checkpoint_run_name
+from airfisheye_bench.runs.results import RESULTS_VERSION, evaluated_label, load_results, source_records
 from airfisheye_bench.specs import UnknownTaskError, all_tasks, get_task
 
 __all__ = [
@@ -63,7 +63,7 @@ class LeaderboardEntry:
         predictor: What produced the predictions: ``checkpoint``, ``onnx`` or ``predictions`` (``model.source``
             of the results; empty when unknown or for the paper's rows).
         evaluated: The row's label of what was evaluated, e.g. ``checkpoint epoch_003``, ``ONNX int8, flip TTA``
-            or ``predictions`` (:func:`~airfisheye_bench.io.results.evaluated_label`; empty when unknown).
+            or ``predictions`` (:func:`~airfisheye_bench.runs.results.evaluated_label`; empty when unknown).
         camera: The served camera, ``<model> <W>x<H>`` (``config.camera`` of the results; empty when unknown or
             for the paper's rows).
         dataset_root: ``dataset.root`` of the results: where the dataset was on the machine that measured it

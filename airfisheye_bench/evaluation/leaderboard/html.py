@@ -49,7 +49,7 @@ from airfisheye_bench.evaluation.leaderboard.columns import (
 )
 from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
 from airfisheye_bench.evaluation.leaderboard.rank import GROUPING, TaskTable
-from airfisheye_bench.io.results import load_results
+from airfisheye_bench.runs.results import load_results
 
 __all__ = ["render_html", "short_override", "write_html"]
 

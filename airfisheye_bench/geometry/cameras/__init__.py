@@ -5,7 +5,7 @@ its flat dict, ``ideal_camera`` the ideal lenses by the config's spelling. See d
 every model's parameters and the code it follows, and "Adding a camera model".
 """
 
-from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.base import CameraModel, incidence_angle
 from airfisheye_bench.geometry.cameras.division import Division
 from airfisheye_bench.geometry.cameras.double_sphere import DoubleSphere
 from airfisheye_bench.geometry.cameras.eucm import EUCM
@@ -48,4 +48,5 @@ __all__ = [
     "Unified",
     "camera_from_dict",
     "ideal_camera",
+    "incidence_angle",
 ]

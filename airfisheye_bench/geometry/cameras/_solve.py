@@ -25,7 +25,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry import _kernels
+from airfisheye_bench.geometry import numba_kernels
 
 _TABLE_SIZE = 1 << 14
 #: Samples of the dense grids behind :func:`increasing_limit` and :class:`MonotoneInverse` (no more than torch's
@@ -426,7 +426,7 @@ class RadtanInverse:
             # One fused loop, each point until it converges (several times faster than the masked steps below).
             xn, yn = x.numpy(), y.numpy()
             xdn, ydn = xd.contiguous().numpy(), yd.contiguous().numpy()
-            _kernels.newton_radtan(xn, yn, xdn, ydn, k1, k2, p1, p2, k3, k4, k5, k6, 40)
+            numba_kernels.newton_radtan(xn, yn, xdn, ydn, k1, k2, p1, p2, k3, k4, k5, k6, 40)
         elif distorted:
             active = None  # all points
             for _ in range(max_steps):

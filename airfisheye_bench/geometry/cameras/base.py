@@ -373,4 +373,17 @@ def _largest_local_scale(camera: CameraModel, rays: torch.Tensor) -> torch.Tenso
     return torch.sqrt(0.5 * (a + c) + torch.sqrt(0.25 * (a - c) ** 2 + b * b))
 
 
-__all__ = ["CameraModel"]
+def incidence_angle(points: ArrayLike) -> ArrayLike:
+    """Angle (radians) between camera-frame points ``[..., 3]`` and the optical axis.
+
+    Example:
+        >>> import numpy as np
+        >>> incidence_angle(np.array([[0.0, 0.0, 2.0], [1.0, 0.0, 0.0]])).round(4).tolist()
+        [0.0, 1.5708]
+    """
+    p, was_numpy = as_tensor(points, "points")
+    check_last_dim(p, 3, "points")
+    return back(torch.atan2(torch.hypot(p[..., 0], p[..., 1]), p[..., 2]), was_numpy)
+
+
+__all__ = ["CameraModel", "incidence_angle"]

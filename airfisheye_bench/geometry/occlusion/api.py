@@ -11,7 +11,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry import _kernels
+from airfisheye_bench.geometry import numba_kernels
 from airfisheye_bench.geometry._arrays import ArrayLike
 from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.lidar import LidarSpec, as_points64, like
@@ -204,7 +204,7 @@ def lidar_depth_map(
     keep = np.flatnonzero(keep)
     depth = np.full(camera.height * camera.width, np.inf, dtype=np.float32)
     pix = pixel_index(np.take(uv, keep, axis=0), camera)
-    _kernels.scatter_min(rng[keep].astype(np.float32), pix, depth)
+    numba_kernels.scatter_min(rng[keep].astype(np.float32), pix, depth)
     depth[np.isinf(depth)] = 0.0
     return like(depth.reshape(camera.height, camera.width), points_lidar)
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from airfisheye_bench.geometry import _kernels
+from airfisheye_bench.geometry import numba_kernels
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import ScanLayout, column_range, rings_from_elevation
 from airfisheye_bench.geometry.occlusion.projection import Projection
@@ -125,7 +125,7 @@ def layout_numba(
     ring = np.empty(n, dtype=np.int64) if rings is None else np.array(rings, dtype=np.int64)
     first_col, n_cols = column_range(spec)
     wrap_last = spec.points_per_channel - 1 if spec.hfov_deg == 360.0 else -1
-    _kernels.lidar_layout(
+    numba_kernels.lidar_layout(
         r,
         az,
         el,
@@ -151,7 +151,7 @@ def ordering_numba(prob: OrderingProblem, aw: int | None, ew: int | None, tol: f
     keep = np.empty(len(prob.ids), dtype=bool)
     az_win = row_len if aw is None else min(aw, row_len)
     el_win = n_c if ew is None else min(ew, n_c)
-    _kernels.ordering_keep(
+    numba_kernels.ordering_keep(
         prob.row, prob.pos, prob.col, prob.theta, prob.phi, n_c, row_len, n_cols, az_win, el_win, tol, keep
     )
     return keep

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import torch
 
-from airfisheye_bench.geometry import _kernels
+from airfisheye_bench.geometry import numba_kernels
 from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion.projection import Projection, pixel_index
@@ -54,7 +54,7 @@ def zbuffer_mask(
     pix = pixel_index(np.take(proj.uv, ids, axis=0), camera)
     rng = proj.range[ids].astype(np.float32)
     depth = np.full(camera.height * camera.width, np.inf, dtype=np.float32)
-    _kernels.scatter_min(rng, pix, depth)  # per-pixel nearest
+    numba_kernels.scatter_min(rng, pix, depth)  # per-pixel nearest
     scale = _pixels_per_radian(camera)[pix]
     # kernel=None: half the LiDAR's angular spacing, in pixels at each point's pixel
     radius = _window_radius(spec, scale) if kernel is None else np.full(len(ids), kernel // 2, dtype=np.int64)
@@ -64,7 +64,7 @@ def zbuffer_mask(
     else:
         margin = np.full(len(ids), threshold, dtype=np.float32)
     keep = np.empty(len(ids), dtype=bool)
-    _kernels.zbuffer_keep(depth, camera.width, pix, rng, radius, relative, margin, keep)
+    numba_kernels.zbuffer_keep(depth, camera.width, pix, rng, radius, relative, margin, keep)
     mask = np.zeros(len(proj.valid), dtype=bool)
     mask[ids] = keep
     return mask

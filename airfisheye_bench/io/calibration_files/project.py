@@ -46,7 +46,7 @@ def _read(f: Fields) -> tuple[dict[str, Any], dict]:
 FORMAT = CalibrationFormat(
     name="airfisheye",
     summary="the project's camera dict (save_camera's file) or a dataset's calib.yaml (its camera section)",
-    source="docs/design.md (Fisheye camera, Calibration files); airfisheye_bench/io/calib.py",
+    source="docs/design.md (Fisheye camera, Calibration files); airfisheye_bench/io/calib_yaml.py",
     detect=_detect,
     cameras=_cameras,
 )

@@ -5,7 +5,7 @@ KITTI-360, WoodScape) is one class of this shape, registered in :data:`airfishey
 A source turns its dataset's files into the project's conventions (``docs/design.md``): cube faces in
 :data:`~airfisheye_bench.geometry.cubemap.FACE_NAMES` order and orientation, depth as range in metres (0 invalid),
 raw label ids that ``spec.raw_to_train`` maps to training classes, LiDAR points in the LiDAR's FLU frame, and a
-:class:`~airfisheye_bench.io.calib.Calibration` per frame (the camera model, ``T_body_cam``, ``T_body_lidar``, the
+:class:`~airfisheye_bench.io.calib_yaml.Calibration` per frame (the camera model, ``T_body_cam``, ``T_body_lidar``, the
 LiDAR spec). The datamodule never looks at file names; the error messages of a source name the file.
 
 Optional members (looked up with ``getattr``; a source without them is served as before):
@@ -30,9 +30,9 @@ from typing import ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calib_yaml import Calibration
+from airfisheye_bench.io.dataset_spec import DatasetSpec
 from airfisheye_bench.io.scan import Scan
-from airfisheye_bench.io.spec import DatasetSpec
 
 
 @runtime_checkable
@@ -44,7 +44,7 @@ class DatasetSource(Protocol):
         OPTIONS: The source's ``data.format_options`` and their defaults (the constructor's keyword arguments).
         root: The dataset root.
         spec: Classes (raw ids and the training classes they map to), the contents present
-            (:data:`~airfisheye_bench.io.spec.KNOWN_CONTENTS`), the ignore index.
+            (:data:`~airfisheye_bench.io.dataset_spec.KNOWN_CONTENTS`), the ignore index.
         modalities: The dense maps its images come with, of ``rgb``, ``seg``, ``depth`` (WoodScape has no depth,
             KITTI-360 no fisheye labels); a task needing another is refused with :meth:`missing_reason`. Read it
             with :func:`modalities_of` (a source that leaves it out has all three).

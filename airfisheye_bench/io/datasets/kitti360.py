@@ -17,7 +17,7 @@ Transforms, as ``viewer/kitti360Viewer3DRaw.py`` ``loadExtrinsics`` builds them 
 ``T_pose_velo = T_pose_cam0 @ inv(T_velo_cam0)`` (``TrVeloToPose``), and for camera X
 ``T_camX_velo = inv(T_velo_cam0 @ inv(T_pose_cam0) @ T_pose_camX)`` (``TrVeloToCam``); a fisheye camera has no
 rectification (``projectVeloToImage``: ``TrVeloToRect = TrVeloToCam`` for cameras 2, 3). Here the "body" of the
-:class:`~airfisheye_bench.io.calib.Calibration` is that pose frame (axes as ``poses.txt`` has them, not re-axed):
+:class:`~airfisheye_bench.io.calib_yaml.Calibration` is that pose frame (axes as ``poses.txt`` has them, not re-axed):
 ``T_body_cam = T_pose_camX``, ``T_body_lidar = T_pose_velo``. The Velodyne frame is x forward, y left, z up
 (KITTI's), the project's FLU LiDAR frame, so scans are used as read (:func:`~airfisheye_bench.io.scan.load_scan`,
 rings from the ``.bin`` firing order).
@@ -50,8 +50,9 @@ from airfisheye_bench.geometry.deskew import curl_points, fraction_transform, sc
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.transforms import invert_rigid
 from airfisheye_bench.io import codecs
-from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.calibration_files import load_camera
+from airfisheye_bench.io.dataset_spec import ClassDef, DatasetSpec, SplitsSpec
 from airfisheye_bench.io.datasets.base import DepthPoints
 from airfisheye_bench.io.datasets.kitti360_files import (
     read_cam_to_pose,
@@ -68,7 +69,6 @@ from airfisheye_bench.io.datasets.kitti360_splits import (
 )
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan, load_scan
-from airfisheye_bench.io.spec import ClassDef, DatasetSpec, SplitsSpec
 
 log = logging.getLogger(__name__)
 

@@ -47,7 +47,8 @@ from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, make_transform
 from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES
-from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calib_yaml import Calibration
+from airfisheye_bench.io.dataset_spec import DatasetSpec, SplitsSpec
 from airfisheye_bench.io.datasets.omni360_files import (
     DEPTH_EXTS,
     LABEL_EXTS,
@@ -72,7 +73,6 @@ from airfisheye_bench.io.datasets.omni360_labels import (
 )
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan
-from airfisheye_bench.io.spec import DatasetSpec, SplitsSpec
 from airfisheye_bench.io.splits import frame_blocks
 
 __all__ = ["CLASS_SETS", "SPLITS", "Omni360Source"]

@@ -36,8 +36,8 @@ import numpy as np
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES, BENCHMARK_ID
+from airfisheye_bench.io.dataset_spec import ClassDef
 from airfisheye_bench.io.errors import DatasetFormatError
-from airfisheye_bench.io.spec import ClassDef
 
 __all__ = [
     "BACKGROUND_ID",

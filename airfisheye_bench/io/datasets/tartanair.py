@@ -51,11 +51,11 @@ from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, make_transform, quaternion_to_matrix
-from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calib_yaml import Calibration
+from airfisheye_bench.io.dataset_spec import ClassDef, DatasetSpec, SplitsSpec
 from airfisheye_bench.io.datasets.tartanair_labels import IGNORE, TRAIN_CLASSES, label_lut
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan, load_scan
-from airfisheye_bench.io.spec import ClassDef, DatasetSpec, SplitsSpec
 from airfisheye_bench.io.splits import frame_blocks
 
 log = logging.getLogger(__name__)

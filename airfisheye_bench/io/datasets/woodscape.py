@@ -49,11 +49,11 @@ from airfisheye_bench.errors import ConfigError, MissingFileError
 from airfisheye_bench.geometry.cameras import camera_from_dict
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES, BENCHMARK_ID
-from airfisheye_bench.io.calib import Calibration
+from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.calibration_files import read_calibration
+from airfisheye_bench.io.dataset_spec import ClassDef, DatasetSpec, SplitsSpec
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan
-from airfisheye_bench.io.spec import ClassDef, DatasetSpec, SplitsSpec
 
 __all__ = ["BENCHMARK_MAP", "CALIB_DIRS", "CLASSES", "VIEWS", "WoodScapeSource"]
 

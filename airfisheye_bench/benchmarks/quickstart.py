@@ -20,11 +20,9 @@ agree.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
-import platform
 import re
 import subprocess
 import sys
@@ -34,10 +32,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
 from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.benchmarks.provenance import git_commit, machine
 from airfisheye_bench.evaluation.baselines import fit_baseline
 from airfisheye_bench.evaluation.evaluator import evaluate_predictions
 from airfisheye_bench.io.content import content_identity
@@ -129,20 +127,6 @@ def plan(out: str | Path, tasks: Sequence[str], seeds: Sequence[int]) -> list[Qu
     if unknown:
         raise ValueError(f"unknown quick-start task(s) {unknown}; expected some of {list(QUICKSTART_TASKS)}")
     return [QuickstartRun(t, int(s), Path(out) / t / f"seed{int(s)}") for s in seeds for t in tasks]
-
-
-def git_commit(repo: str | Path) -> str:
-    """``<sha>`` of ``repo``'s HEAD, ``<sha>+dirty`` when tracked files differ from it, ``unknown`` without git."""
-    try:
-        sha = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=repo, capture_output=True, text=True, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=repo, capture_output=True, text=True
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return sha + ("+dirty" if dirty else "")
 
 
 #: Environment variables that choose the CPU kernels of torch, oneDNN, MKL and numpy; a run records those it had.
@@ -364,27 +348,6 @@ def _carry_over(tasks: dict[str, Any], previous: dict[str, Any], dataset: dict[s
             continue
         check_same_data(f"{task} seeds {list(entry['seeds'])}")
         tasks[task] = json.loads(json.dumps(entry))
-
-
-def machine() -> str:
-    """What the record was made on: architecture, CPU model and cores, torch and numpy (data and kernels may
-    differ between CPUs and library versions, so a record says where its numbers came from)."""
-    return (
-        f"{platform.machine()}, {_cpu_model()}, {_cpu_count()} CPU cores, torch {torch.__version__}, "
-        f"numpy {np.__version__}"
-    )
-
-
-def _cpu_model() -> str:
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    return platform.processor() or "unknown CPU"
-
-
-def _cpu_count() -> int:
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def beats_baseline(entry: dict[str, Any]) -> dict[str, bool]:

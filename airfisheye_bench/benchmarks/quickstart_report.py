@@ -3,7 +3,7 @@
 The reproduction report compares the quick starts with the paper (section 2), checks the paper's central claim,
 occlusion-corrected LiDAR against monocular depth (section 3), breaks them down by incidence angle (section 5), and
 shows their ONNX exports (section 6). Sections 2
-and 3 read only ``docs/quickstart_results.json`` (:func:`airfisheye_bench.evaluation.quickstart.summarize`) and the
+and 3 read only ``docs/quickstart_results.json`` (:func:`airfisheye_bench.benchmarks.quickstart.summarize`) and the
 paper's published rows of the task specs (:attr:`airfisheye_bench.specs.TaskSpec.baselines`); section 6 reads the
 export reports ``docs/figures/deployment/<task>.json`` (``airfisheye-export ... report_json=``). So every number they
 print is traceable to a committed file: ``scripts/quickstart_benchmark.py --readme`` writes them between their
@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.evaluation.quickstart import QUICKSTART_TASKS, mean_std, replace_table
+from airfisheye_bench.benchmarks.quickstart import QUICKSTART_TASKS, mean_std, replace_table
 from airfisheye_bench.specs import get_task
 
 __all__ = [

@@ -23,8 +23,8 @@ from omegaconf import DictConfig
 from torch import Tensor
 from torch.utils.data import DataLoader, Dataset, Subset
 
+from airfisheye_bench.benchmarks.paired import paired_differences
 from airfisheye_bench.errors import MissingFileError
-from airfisheye_bench.evaluation.paired import paired_differences
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor
 from airfisheye_bench.geometry.occlusion import ORACLE, SPARSE_INPUTS
 from airfisheye_bench.geometry.occlusion.zbuffer import derived_window_radius

@@ -10,6 +10,10 @@ accept the directory or a ``.ckpt`` file (:func:`resolve_checkpoint`); the run's
 (:func:`run_config`). The command's log file is written only once the run directory is (:func:`run_log`). Kept
 light (no torch import at module level): the entry points register
 :func:`register_resolvers` before Hydra composes.
+
+What a run writes beside its checkpoints has its own modules here: ``results.json`` (:mod:`.results`, written by
+training and evaluation alike) and the deployed ONNX model's metadata (:mod:`.deployment`, written by export, read by
+evaluation and prediction).
 """
 
 from __future__ import annotations

@@ -306,6 +306,8 @@ class DatasetSpec:
         path = Path(path)
         if path.is_dir():
             path = path / DATASET_YAML
+        # The module's first name (io/spec.py): the header is in every written dataset.yaml and so in the checksums
+        # of its manifest.json; it stays as the datasets were written.
         header = (
             f"AirFisheye dataset description ({self.name}). Schema: airfisheye_bench.io.spec.DatasetSpec."
         )

@@ -16,7 +16,8 @@ keys existed stay readable: a missing key is inferred where it can be (an ``.int
 directory of the checkpoint) and left out of the label otherwise.
 
 Training (its test at the end of a run) and evaluation write and read the record through this module, and print it
-with :func:`format_results_table`; it sits in ``io``, below both, so neither depends on the other.
+with :func:`format_results_table`; it sits in ``runs``, beside the run directories it is written into and below
+both, so neither depends on the other.
 """
 
 from __future__ import annotations
