@@ -8,7 +8,6 @@ from airfisheye_bench.geometry.cameras import (
     ideal_camera,
     incidence_angle,
 )
-from airfisheye_bench.geometry.cameras.ideal import FisheyeCamera
 from airfisheye_bench.geometry.cubemap import FACE_NAMES, CubemapToFisheye, face_rays, face_rotation
 from airfisheye_bench.geometry.equirect import EquirectToFisheye
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
@@ -43,7 +42,6 @@ __all__ = [
     "CameraModel",
     "CubemapToFisheye",
     "EquirectToFisheye",
-    "FisheyeCamera",
     "LidarProjection",
     "LidarSpec",
     "camera_from_dict",

@@ -5,22 +5,17 @@ Conventions (docs/design.md): the default principal point is the image centre ``
 ``focal`` is given it is chosen so that the image circle (``theta = fov_deg / 2``) is inscribed in the image:
 ``r_max = min(W, H) / 2``.
 
-``FisheyeCamera`` is the deprecated name of :func:`ideal_camera`. It was once the camera class; since the camera
-models got their package it only built a :class:`CameraModel`. It stays, a function that warns
-(``DeprecationWarning``) and calls ``ideal_camera`` with the same arguments, so that code, notebooks and configs
-written against it keep working; ``FisheyeCamera.from_dict`` is ``camera_from_dict``. Annotate cameras as
-``CameraModel``, build the ideal lenses with ``ideal_camera`` and any model with ``camera_from_dict``.
+Cameras are annotated as :class:`CameraModel`; the ideal lenses are built with ``ideal_camera``, any model with
+``camera_from_dict`` (``FisheyeCamera``, the class these replaced, is gone: ``ideal_camera`` takes its arguments).
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.kannala_brandt import KannalaBrandt
 from airfisheye_bench.geometry.cameras.radial import RADIAL_MODELS
-from airfisheye_bench.geometry.cameras.registry import camera_from_dict
 
 #: The lens models :func:`ideal_camera` builds (``data.camera.model``).
 LENS_MODELS = (*RADIAL_MODELS, KannalaBrandt.model)
@@ -71,36 +66,4 @@ def ideal_camera(
     return RADIAL_MODELS[model](width, height, fov_deg, cx, cy, focal)
 
 
-def FisheyeCamera(  # the historical class name
-    width: int,
-    height: int,
-    fov_deg: float = 190.0,
-    model: str = "equidistant",
-    cx: float | None = None,
-    cy: float | None = None,
-    focal: float | None = None,
-    k: Sequence[float] | None = None,
-) -> CameraModel:
-    """Deprecated: :func:`ideal_camera`, which takes the same arguments.
-
-    Example:
-        >>> import warnings
-        >>> with warnings.catch_warnings():
-        ...     warnings.simplefilter("ignore", DeprecationWarning)
-        ...     cam = FisheyeCamera(512, 512, fov_deg=190.0)
-        >>> cam == ideal_camera(512, 512, fov_deg=190.0), type(cam).__name__
-        (True, 'Equidistant')
-    """
-    warnings.warn(
-        "FisheyeCamera is deprecated: build the lens with airfisheye_bench.geometry.ideal_camera (same arguments) "
-        "and annotate cameras as CameraModel",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    return ideal_camera(width, height, fov_deg, model, cx, cy, focal, k)
-
-
-FisheyeCamera.from_dict = camera_from_dict  # type: ignore[attr-defined]
-
-
-__all__ = ["LENS_MODELS", "FisheyeCamera", "ideal_camera"]
+__all__ = ["LENS_MODELS", "ideal_camera"]
