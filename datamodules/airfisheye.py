@@ -144,8 +144,9 @@ class AirFisheyeDataModule(L.LightningDataModule):
             raise ConfigError(f"data.remap_on={remap_on!r}: {problem}")
         self.remap_on = remap_on
         self._device_remap: DeviceRemap | None = None
-        location = {"format": format, "root": root, "format_options": format_options, "preset": preset}
-        location["dataset_seed"] = dataset_seed
+        location = dict(
+            format=format, root=root, format_options=format_options, preset=preset, dataset_seed=dataset_seed
+        )
         # One path for one dataset and several: a run without data.sources has one source, the top-level keys'
         # (its samples are served as they are: no source name, no prefix).
         self.mixture = bool(sources)
@@ -161,9 +162,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
                 ("k",),
             )
         )
-        _ = (
-            self.camera_config.lens
-        )  # read once, now: a bad calibration file is refused before any data exists
+        # The lens is read once, now: a bad calibration file is refused before any data exists.
+        _ = self.camera_config.lens
         augment_kwargs = _options(
             "augment", augment or {}, {"hflip", "rotate_deg", "color_jitter"}, ("color_jitter",)
         )
