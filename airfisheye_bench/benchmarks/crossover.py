@@ -263,6 +263,19 @@ def crossover(
     }
 
 
+def _trained_run(run_dir: str | Path) -> tuple[Path, Any, CheckpointPredictor, str]:
+    """A trained run's best checkpoint, its config, its predictor and its own arm (``data.occlusion``).
+
+    Raises:
+        MissingFileError: no ``config.yaml`` of the run next to the checkpoint.
+    """
+    checkpoint = resolve_checkpoint(run_dir)
+    run = run_config(checkpoint)
+    if run is None:
+        raise MissingFileError(f"{checkpoint}: no config.yaml of its run next to it (its data is unknown)")
+    return checkpoint, run, CheckpointPredictor(load_task(checkpoint), checkpoint), str(run.data.occlusion)
+
+
 def run_region_scores(
     run_dir: str | Path,
     split: str = "test",
@@ -275,15 +288,9 @@ def run_region_scores(
     Returns:
         ``{"arm", "checkpoint", "radius_px", "near_m", "frames", "regions": {region: {metric: value, ...}}}``.
     """
-    checkpoint = resolve_checkpoint(run_dir)
-    run = run_config(checkpoint)
-    if run is None:
-        raise MissingFileError(f"{checkpoint}: no config.yaml of its run next to it (its data is unknown)")
-    module = load_task(checkpoint)
-    arm = str(run.data.occlusion)
+    checkpoint, run, predictor, arm = _trained_run(run_dir)
     datasets = arm_datasets_from_config(run.data, split, list(dict.fromkeys(("none", ORACLE, arm))))
     max_depth = float(run.data.get("max_depth", 120.0))
-    predictor = CheckpointPredictor(module, checkpoint)
     result = crossover(predictor, datasets, radius, near_m, max_depth, batch_size, score=[arm])
     return {
         "arm": arm,
@@ -425,15 +432,8 @@ def run_frame_scores(
     Returns:
         ``{"arm", "checkpoint", "radius_px", "near_m", "frames": [rows]}``.
     """
-    checkpoint = resolve_checkpoint(run_dir)
-    run = run_config(checkpoint)
-    if run is None:
-        raise MissingFileError(f"{checkpoint}: no config.yaml of its run next to it (its data is unknown)")
-    module = load_task(checkpoint)
-    arm = str(run.data.occlusion)
+    checkpoint, run, predictor, arm = _trained_run(run_dir)
     datasets = arm_datasets_from_config(run.data, split, CROSSOVER_ARMS)
     max_depth = float(run.data.get("max_depth", 120.0))
-    rows = frame_scores(
-        CheckpointPredictor(module, checkpoint), datasets, arm, radius, near_m, max_depth, batch_size
-    )
+    rows = frame_scores(predictor, datasets, arm, radius, near_m, max_depth, batch_size)
     return {"arm": arm, "checkpoint": str(checkpoint), "radius_px": radius, "near_m": near_m, "frames": rows}

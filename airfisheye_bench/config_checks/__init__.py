@@ -125,11 +125,8 @@ def _root_problem(value: Any, format_name: Any) -> str | None:
     """``data.root``: a folder, described as ``data.format`` lays it out (the formats' own description)."""
     from airfisheye_bench.io.datasets import root_description  # imports torch: only when checked
 
-    path = Path(str(value)).expanduser()
-    if path.is_dir():
-        return None
-    problem = "is a file, expected a folder" if path.exists() else "no such folder"
-    return f"{problem} ({root_description(str(format_name or 'airfisheye'))})"
+    problem = ValueRule("folder").problem(value)
+    return None if problem is None else f"{problem} ({root_description(str(format_name or 'airfisheye'))})"
 
 
 def _lidar_preset_problem(value: Any, root: Any) -> str | None:
