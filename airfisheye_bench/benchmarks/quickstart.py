@@ -6,7 +6,7 @@ and every seed, one run of exactly the README's command plus the seed,
     python train.py task=<task> seed=<seed> hydra.run.dir=<out>/<task>/seed<seed>
 
 which tests its best checkpoint on the test split and writes ``results.json``. Beside it the script writes
-``benchmark.json`` (wall time, commit, command), so an interrupted benchmark resumes where it stopped and each run
+``benchmark.json`` (wall time, commit, command, what else ran on the machine meanwhile), so an interrupted benchmark resumes where it stopped and each run
 says which code trained it. The task's trivial baseline (:mod:`airfisheye_bench.evaluation.baselines`) is fitted on
 the training split of the same data (the run's own ``config.yaml``, without augmentation) and scored on the test
 split by the same metric object as the run (its checkpoint's ``make_metric``).
@@ -24,6 +24,7 @@ import json
 import math
 import os
 import re
+import resource
 import subprocess
 import sys
 import time
@@ -72,7 +73,7 @@ QUICKSTART_TASKS: dict[str, tuple[str, ...]] = {
 MODELS = {
     "seg": "DeepLabV3+ / ResNet18, 128², 8 epochs",
     "depth": "AdaBins / ResNet18, 256 bins, SI loss (no bins Chamfer term), 128², 8 epochs",
-    "completion": "NLSPN / ResNet18, 6 steps, TGASS, 128², 2 epochs",
+    "completion": "NLSPN / ResNet18, 6 steps, TGASS, 128², the paper sensor's LiDAR density, 2 epochs",
 }
 RESULTS_FORMAT = "airfisheye-quickstart-results/1"
 #: The breakdown entries a seed's record keeps: the headline metrics by incidence-angle ring and by depth range
@@ -143,6 +144,9 @@ def train_missing(
 ) -> None:
     """Train every run without a ``benchmark.json``; a failed run stops (its error is the trainer's).
 
+    Each ``benchmark.json`` holds the command, the commit, the wall time and :func:`sharing`'s account of the
+    machine (the run's CPU seconds, the cores other work kept busy beside it).
+
     ``threads`` sets ``OMP_NUM_THREADS`` (torch's intra-op threads) of the runs: on a CPU shared with other work,
     one thread per run wastes far less time spin-waiting than one per core. The results do not depend on it
     beyond floating-point round-off.
@@ -158,6 +162,7 @@ def train_missing(
         argv = run.command(overrides)
         log(f"[{k}/{len(runs)}] {run.task} seed {run.seed}: python {' '.join(argv)}")
         commit = git_commit(repo)
+        busy, own = machine_busy_s(), children_cpu_s()
         start = time.perf_counter()
         runner([sys.executable, *argv], Path(repo), env)
         seconds = time.perf_counter() - start
@@ -168,12 +173,53 @@ def train_missing(
             "commit": commit,
             "wall_s": round(seconds, 1),
             "omp_num_threads": env.get("OMP_NUM_THREADS"),
+            **sharing(seconds, busy, own),
         }
         kernels = {k: env[k] for k in CPU_KERNEL_SWITCHES if k in env}
         if kernels:  # the run's CPU kernels were limited: a result depends on them as well as on the seed
             record["cpu_kernels"] = kernels
         atomic_write_text(run.record, json.dumps(record, indent=2) + "\n")
         log(f"[{k}/{len(runs)}] {run.task} seed {run.seed}: {seconds / 60:.1f} min")
+
+
+#: A run whose machine spent less than this many other cores on other work, on average, ran alone: its wall time
+#: is what a user of an idle machine waits.
+ALONE_OTHER_CORES = 0.1
+
+
+def machine_busy_s() -> float | None:
+    """CPU seconds every core of this machine has spent busy since boot (``/proc/stat``; None off Linux)."""
+    try:
+        fields = Path("/proc/stat").read_text(encoding="ascii").split("\n", 1)[0].split()[1:]
+    except OSError:
+        return None
+    ticks = [int(f) for f in fields]
+    idle = ticks[3] + (ticks[4] if len(ticks) > 4 else 0)  # idle + iowait
+    return (sum(ticks[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+
+def children_cpu_s() -> float:
+    """CPU seconds of this process's finished children (and theirs: a run's loader workers are reaped by it)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def sharing(wall_s: float, busy_before: float | None, own_before: float) -> dict[str, float]:
+    """What a run cost and what else ran beside it: ``cpu_s`` (the run's own CPU seconds) and, on Linux,
+    ``other_cores`` (the cores other work kept busy on average). A wall time is comparable with another only when
+    both ran alone (``other_cores`` below :data:`ALONE_OTHER_CORES`)."""
+    own = children_cpu_s() - own_before
+    out = {"cpu_s": round(own, 1)}
+    busy_after = machine_busy_s()
+    if busy_before is not None and busy_after is not None and wall_s > 0:
+        out["other_cores"] = round(max(busy_after - busy_before - own, 0.0) / wall_s, 2)
+    return out
+
+
+def ran_alone(seed: dict[str, Any]) -> bool | None:
+    """Whether a seed's run had the machine to itself (None: not recorded)."""
+    other = seed.get("other_cores")
+    return None if other is None else other < ALONE_OTHER_CORES
 
 
 def _run_subprocess(argv: list[str], cwd: Path, env: dict[str, str]) -> None:
@@ -276,6 +322,12 @@ def summarize(
             "commit": record["commit"],
             "command": record["command"],
         }
+        for key in ("cpu_s", "other_cores"):
+            if key in record:
+                entry["seeds"][str(run.seed)][key] = record[key]
+        if results.get("sparse_coverage"):  # completion: the LiDAR input's share of the pixels per ring
+            density = results.get("config", {}).get("data", {}).get("lidar", {}).get("density")
+            entry["seeds"][str(run.seed)].update(lidar_density=density, sparse_coverage=results["sparse_coverage"])
         if record.get("cpu_kernels"):
             entry["seeds"][str(run.seed)]["cpu_kernels"] = record["cpu_kernels"]
         breakdown = {
@@ -306,6 +358,9 @@ def summarize(
         entry["summary"] = {k: mean_std([s["metrics"][k] for s in seeds]) for k in keys}
         if seeds:
             entry["summary"]["wall_s"] = mean_std([s["wall_s"] for s in seeds])
+            alone = [s["wall_s"] for s in seeds if ran_alone(s)]
+            if alone:  # what a user of an idle machine waits: only the runs that had it to themselves
+                entry["summary"]["wall_s_alone"] = mean_std(alone)
         if task in baselines:
             entry["baseline"] = {k: v for k, v in baselines[task].items() if not k.startswith("dataset_")}
         elif previous is not None and "baseline" in previous.get("tasks", {}).get(task, {}):
@@ -386,6 +441,41 @@ def _mean_pm_std(key: str, stat: dict[str, Any]) -> str:
     )
 
 
+def _minutes(seconds: float) -> str:
+    seconds = round(seconds)
+    return f"{seconds // 60} min {seconds % 60:02d} s"
+
+
+def _wall_text(entry: dict[str, Any]) -> str:
+    """The wall-time cell: the runs that had the machine to themselves, else all of them and how shared it was."""
+    summary, seeds = entry["summary"], list(entry["seeds"].values())
+    if "wall_s_alone" in summary:
+        n = summary["wall_s_alone"]["n"]
+        return f"{_minutes(summary['wall_s_alone']['mean'])} (alone; {n} run{'s' if n != 1 else ''})"
+    shared = [s["other_cores"] for s in seeds if "other_cores" in s]
+    text = _minutes(summary["wall_s"]["mean"])
+    if shared:
+        text += f" (beside other work using {sum(shared) / len(shared):.1f} cores on average)"
+    return text
+
+
+def _coverage_text(entry: dict[str, Any]) -> str:
+    """Completion: the share of pixels the LiDAR input covers per incidence ring (the same data for every seed).
+
+    Example:
+        >>> seed = {"lidar_density": "paper", "sparse_coverage": {"ring_0-30": 0.115, "ring_30-60": 0.085}}
+        >>> _coverage_text({"seeds": {"0": seed}})
+        '; LiDAR input (paper density) on 11.5 / 8.5 % of the pixels by incidence ring (0-30-60°)'
+    """
+    seed = next((s for s in entry["seeds"].values() if s.get("sparse_coverage")), None)
+    if seed is None:
+        return ""
+    rings = list(seed["sparse_coverage"])  # "ring_0-30", "ring_30-60", ...
+    shares = " / ".join(f"{100 * seed['sparse_coverage'][r]:.1f}" for r in rings)
+    edges = "-".join([rings[0].removeprefix("ring_").split("-")[0], *(r.split("-")[-1] for r in rings)])
+    return f"; LiDAR input ({seed.get('lidar_density')} density) on {shares} % of the pixels by incidence ring ({edges}°)"
+
+
 def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.json") -> str:
     """The README's quick-start table (markdown) from a :func:`summarize` record."""
     lines = [
@@ -402,10 +492,10 @@ def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.
         else:
             result = ", ".join(_mean_pm_std(k, summary[k]) for k in QUICKSTART_TASKS[task] if k in summary)
             result += f" ({n} seed{'s' if n != 1 else ''}: {', '.join(entry['seeds'])})"
-            seconds = round(summary["wall_s"]["mean"])
-            wall = f"{seconds // 60} min {seconds % 60:02d} s"
+            wall = _wall_text(entry)
         if missing:
             result += f"; seed{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} not yet in the record"
+        result += _coverage_text(entry)
         base = entry.get("baseline")
         base_text = "–"
         if base is not None:

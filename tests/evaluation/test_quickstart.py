@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -82,6 +84,41 @@ def test_a_run_records_the_cpu_kernels_it_was_limited_to(tmp_path: Path, monkeyp
     assert json.loads(run.record.read_text())["cpu_kernels"] == {"ATEN_CPU_CAPABILITY": "avx2"}
     record = quickstart.summarize([run], {}, "python scripts/quickstart_benchmark.py", "0123456789abcdef")
     assert record["tasks"]["seg"]["seeds"]["0"]["cpu_kernels"] == {"ATEN_CPU_CAPABILITY": "avx2"}
+
+
+@pytest.mark.skipif(quickstart.machine_busy_s() is None, reason="needs /proc/stat (Linux)")
+def test_a_run_records_its_cpu_time_and_the_other_work_beside_it(tmp_path: Path) -> None:
+    """A wall time is what a user waits only if the run had the machine: the record says how shared it was."""
+    (run,) = quickstart.plan(tmp_path / "runs", ["seg"], [0])
+    spin = "import time\nt = time.process_time()\nwhile time.process_time() - t < 0.4: pass"
+
+    def runner(argv: list[str], cwd: Path, env: dict[str, str]) -> None:
+        subprocess.run([sys.executable, "-c", spin], check=True)  # the run: a child's CPU time
+        exec(spin)  # other work beside it: this process, not a child of the benchmark's runs
+        run.out.mkdir(parents=True)
+        run.results.write_text(json.dumps({"task": "seg", "metrics": {"mIoU": 0.2}, "dataset": {}}))
+
+    quickstart.train_missing([run], ROOT, runner=runner, log=lambda _: None)
+    saved = json.loads(run.record.read_text())
+    assert 0.35 <= saved["cpu_s"] < saved["wall_s"] + 0.5
+    assert saved["other_cores"] >= 0.3  # 0.4 s of the parent's CPU over a ~0.9 s run (more if the machine is busy)
+    assert quickstart.ran_alone(saved) is False
+
+
+def test_the_wall_time_cell_uses_the_runs_that_had_the_machine_alone() -> None:
+    def entry(*seeds: dict) -> dict:
+        seeds_ = {str(k): s for k, s in enumerate(seeds)}
+        summary = {"wall_s": quickstart.mean_std([s["wall_s"] for s in seeds])}
+        alone = [s["wall_s"] for s in seeds if quickstart.ran_alone(s)]
+        if alone:
+            summary["wall_s_alone"] = quickstart.mean_std(alone)
+        return {"seeds": seeds_, "summary": summary}
+
+    mixed = entry({"wall_s": 600.0, "other_cores": 0.02}, {"wall_s": 900.0, "other_cores": 1.0})
+    assert quickstart._wall_text(mixed) == "10 min 00 s (alone; 1 run)"
+    shared = entry({"wall_s": 900.0, "other_cores": 0.8}, {"wall_s": 960.0, "other_cores": 1.0})
+    assert quickstart._wall_text(shared) == "15 min 30 s (beside other work using 0.9 cores on average)"
+    assert quickstart._wall_text(entry({"wall_s": 725.0})) == "12 min 05 s"  # a record from before the account
 
 
 def test_plan_refuses_an_unknown_task(tmp_path: Path) -> None:
@@ -256,3 +293,15 @@ def test_rings_table_averages_the_seeds_that_recorded_a_breakdown(record: dict) 
     assert "| monocular depth RMSE (m) | 2.50 | 0 |" in table  # by range
     del seeds["0"]["breakdown"], seeds["1"]["breakdown"], record["tasks"]["depth"]["seeds"]["0"]["breakdown"]
     assert "no per-ring breakdown" in quickstart_report.rings_tables(record, coverage)
+
+
+def test_the_ratio_to_monocular_compares_with_the_papers_only_at_its_density_and_quality() -> None:
+    depth = {"model": "AdaBins", "seeds": {"0": {"metrics": {"delta1": 0.46}}}}
+    completion = {"seeds": {"0": {"metrics": {}, "lidar_density": "paper"}}}
+    (reason,) = quickstart_report.ratio_not_comparable(depth, completion, paper_delta1=0.865)
+    assert "monocular" in reason and "0.460 against 0.865" in reason
+    depth["seeds"]["0"]["metrics"]["delta1"] = 0.85
+    assert quickstart_report.ratio_not_comparable(depth, completion, paper_delta1=0.865) == []
+    completion["seeds"]["1"] = {"metrics": {}}  # trained before the key existed: every return
+    (reason,) = quickstart_report.ratio_not_comparable(depth, completion, paper_delta1=0.865)
+    assert "density native, paper" in reason
