@@ -327,7 +327,9 @@ def summarize(
                 entry["seeds"][str(run.seed)][key] = record[key]
         if results.get("sparse_coverage"):  # completion: the LiDAR input's share of the pixels per ring
             density = results.get("config", {}).get("data", {}).get("lidar", {}).get("density")
-            entry["seeds"][str(run.seed)].update(lidar_density=density, sparse_coverage=results["sparse_coverage"])
+            entry["seeds"][str(run.seed)].update(
+                lidar_density=density, sparse_coverage=results["sparse_coverage"]
+            )
         if record.get("cpu_kernels"):
             entry["seeds"][str(run.seed)]["cpu_kernels"] = record["cpu_kernels"]
         breakdown = {

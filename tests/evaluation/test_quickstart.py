@@ -101,7 +101,9 @@ def test_a_run_records_its_cpu_time_and_the_other_work_beside_it(tmp_path: Path)
     quickstart.train_missing([run], ROOT, runner=runner, log=lambda _: None)
     saved = json.loads(run.record.read_text())
     assert 0.35 <= saved["cpu_s"] < saved["wall_s"] + 0.5
-    assert saved["other_cores"] >= 0.3  # 0.4 s of the parent's CPU over a ~0.9 s run (more if the machine is busy)
+    assert (
+        saved["other_cores"] >= 0.3
+    )  # 0.4 s of the parent's CPU over a ~0.9 s run (more if the machine is busy)
     assert quickstart.ran_alone(saved) is False
 
 
@@ -118,7 +120,9 @@ def test_the_wall_time_cell_uses_the_runs_that_had_the_machine_alone() -> None:
     assert quickstart._wall_text(mixed) == "10 min 00 s (alone; 1 run)"
     shared = entry({"wall_s": 900.0, "other_cores": 0.8}, {"wall_s": 960.0, "other_cores": 1.0})
     assert quickstart._wall_text(shared) == "15 min 30 s (beside other work using 0.9 cores on average)"
-    assert quickstart._wall_text(entry({"wall_s": 725.0})) == "12 min 05 s"  # a record from before the account
+    assert (
+        quickstart._wall_text(entry({"wall_s": 725.0})) == "12 min 05 s"
+    )  # a record from before the account
 
 
 def test_plan_refuses_an_unknown_task(tmp_path: Path) -> None:
