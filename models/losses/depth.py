@@ -100,20 +100,37 @@ class BinsChamferLoss(nn.Module):
     squared distances, ``mean_c min_y (c - y)^2 + mean_y min_c (y - c)^2`` per image (``y`` over the valid pixels
     only), averaged over the images that have a valid pixel.
 
+    The distances are in metres, so the term grows with the square of the depth range while its weight (AdaBins'
+    0.1) was set on NYU (10 m) and KITTI (80 m). ``reference_range`` measures them instead in fractions of the bins'
+    range (``max_depth``) times that reference, so a weight means at any range what it means at the reference:
+    the term is multiplied by ``(reference_range / max_depth)^2``.
+
     Args:
         min_depth: targets ``<= min_depth`` are invalid (the official code keeps ``gt >= 1e-3``).
         max_depth: targets above it are invalid (``None``: no upper bound).
+        reference_range: the depth range (m) the term is normalised to (``None``: metres, as upstream; needs
+            ``max_depth``).
 
     Example:
         >>> edges = torch.tensor([[0.0, 2.0, 4.0]])  # centres 1 and 3
         >>> gt = torch.tensor([[[[1.0, 3.0], [0.0, 0.0]]]])  # 0 = invalid
         >>> float(BinsChamferLoss()(edges, gt))
         0.0
+        >>> gt = torch.tensor([[[[2.0, 3.0]]]])  # centre 1 is 1 m from the nearest depth, depth 2 1 m from a centre
+        >>> float(BinsChamferLoss()(edges, gt)), float(BinsChamferLoss(max_depth=20.0, reference_range=10.0)(edges, gt))
+        (1.0, 0.25)
     """
 
-    def __init__(self, min_depth: float = 1e-3, max_depth: float | None = 120.0) -> None:
+    def __init__(
+        self, min_depth: float = 1e-3, max_depth: float | None = 120.0, reference_range: float | None = None
+    ) -> None:
         super().__init__()
+        if reference_range is not None and (max_depth is None or reference_range <= 0):
+            raise ValueError(
+                f"reference_range={reference_range} needs a positive value and a max_depth (got {max_depth})"
+            )
         self.min_depth, self.max_depth = min_depth, max_depth
+        self.scale = 1.0 if reference_range is None else (reference_range / max_depth) ** 2
 
     def forward(self, bin_edges: Tensor, target: Tensor) -> Tensor:
         """``bin_edges`` ``[B, n_bins + 1]``, ``target`` ``[B, 1, H, W]`` or ``[B, H, W]`` (any resolution)."""
@@ -141,7 +158,7 @@ class BinsChamferLoss(nn.Module):
         sorted_centers = centers.sort(dim=1).values
         from_points = (_nearest_sq_dist(points, sorted_centers) * valid).sum(dim=1) / count.clamp_min(1)
         per_image = to_points + from_points
-        return per_image[has_points].mean()
+        return self.scale * per_image[has_points].mean()
 
 
 def _nearest_sq_dist(queries: Tensor, sorted_refs: Tensor) -> Tensor:
@@ -164,6 +181,7 @@ class AdaBinsLoss(nn.Module):
         w_chamfer: weight of the Chamfer term (0.1; 0 disables it).
         lambd: SILog scale-term weight (0.85).
         min_depth, max_depth: the valid ground-truth range.
+        chamfer_reference_range: :class:`BinsChamferLoss`'s ``reference_range`` (None: metres, as upstream).
 
     Example:
         >>> import models
@@ -182,11 +200,12 @@ class AdaBinsLoss(nn.Module):
         lambd: float = 0.85,
         min_depth: float = 1e-3,
         max_depth: float | None = 120.0,
+        chamfer_reference_range: float | None = None,
     ) -> None:
         super().__init__()
         self.w_chamfer = w_chamfer
         self.silog = SILogLoss(lambd=lambd, min_depth=min_depth, max_depth=max_depth)
-        self.chamfer = BinsChamferLoss(min_depth=min_depth, max_depth=max_depth)
+        self.chamfer = BinsChamferLoss(min_depth, max_depth, reference_range=chamfer_reference_range)
 
     def terms(self, outputs: Mapping[str, Tensor], target: Tensor) -> dict[str, Tensor]:
         """``{"loss", "silog", "chamfer"}`` from ``model.forward_with_aux(...)`` outputs (``"depth"``,

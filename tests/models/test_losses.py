@@ -135,6 +135,15 @@ def test_chamfer_handles_unsorted_centres_and_targets_without_channel_dim():
     torch.testing.assert_close(BinsChamferLoss()(reversed_edges, gt[:, 0]), _chamfer_reference(edges, gt))
 
 
+def test_a_range_normalised_chamfer_is_the_metric_one_scaled_to_its_reference_range():
+    edges, gt = _random_edges(2, 16), torch.rand(2, 1, 8, 8) * 120
+    metric = BinsChamferLoss()(edges, gt)
+    normalised = BinsChamferLoss(max_depth=120.0, reference_range=10.0)(edges, gt)
+    torch.testing.assert_close(normalised, metric * (10.0 / 120.0) ** 2)
+    with pytest.raises(ValueError, match="reference_range"):
+        BinsChamferLoss(max_depth=None, reference_range=10.0)
+
+
 def test_chamfer_is_zero_when_centres_and_depths_coincide():
     edges = torch.tensor([[1.0, 3.0, 5.0, 9.0]])  # centres 2, 4, 7
     gt = torch.tensor([2.0, 4.0, 7.0, 7.0, 0.0, 2.0]).view(1, 1, 2, 3)
