@@ -36,6 +36,7 @@ from typing import Any
 import torch
 
 from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.benchmarks.ablation_records import validation_curve
 from airfisheye_bench.benchmarks.provenance import git_commit, machine
 from airfisheye_bench.evaluation.baselines import fit_baseline
 from airfisheye_bench.evaluation.evaluator import evaluate_predictions
@@ -325,6 +326,9 @@ def summarize(
         for key in ("cpu_s", "other_cores"):
             if key in record:
                 entry["seeds"][str(run.seed)][key] = record[key]
+        curve = validation_curve(run.out / "metrics.csv", f"val/{entry['primary_metric']}")
+        if curve:  # how far from converged the run ended: its primary metric after each epoch
+            entry["seeds"][str(run.seed)]["validation_curve"] = curve
         if results.get("sparse_coverage"):  # completion: the LiDAR input's share of the pixels per ring
             density = results.get("config", {}).get("data", {}).get("lidar", {}).get("density")
             entry["seeds"][str(run.seed)].update(

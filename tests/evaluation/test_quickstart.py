@@ -56,6 +56,16 @@ def test_summary_has_mean_std_per_seed_values_and_the_missing_seeds(record: dict
     assert quickstart.beats_baseline(seg) == {"0": True, "1": True}
 
 
+def test_a_seed_keeps_its_validation_curve(tmp_path: Path) -> None:
+    data = tmp_path / "data"
+    data.mkdir()
+    (run,) = quickstart.plan(tmp_path / "runs", ["completion"], [0])
+    _fake_run(run, {"rmse": 7.0}, data)
+    (run.out / "metrics.csv").write_text("epoch,train/loss,val/rmse\n0,5.0,\n0,,9.5\n1,,8.0\n")
+    seed = quickstart.summarize([run], {}, "collect", "0123")["tasks"]["completion"]["seeds"]["0"]
+    assert seed["validation_curve"] == [{"epoch": 0, "val/rmse": 9.5}, {"epoch": 1, "val/rmse": 8.0}]
+
+
 def test_readme_table_shows_the_spread_and_round_trips(record: dict) -> None:
     table = quickstart.readme_table(record)
     assert "mIoU 0.250 ± 0.071" in table and "(2 seeds: 0, 1)" in table
@@ -157,6 +167,8 @@ def test_every_number_of_the_readme_table_is_in_the_committed_results() -> None:
                     expected.add(f"{value:.{digits}f}")
         for key, value in entry.get("baseline", {}).get("metrics", {}).items():
             expected.add(f"{value:.{quickstart._DIGITS.get(key, 3)}f}")
+        for seed in entry["seeds"].values():  # completion: the LiDAR input's coverage per ring, in per cent
+            expected |= {f"{100 * v:.1f}" for v in seed.get("sparse_coverage", {}).values()}
     rows = [line for line in shown.splitlines() if line.startswith("| `")]
     assert rows, "the README table has no rows"
     for row in rows:
