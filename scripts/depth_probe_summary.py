@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import statistics
 import sys
 from pathlib import Path
@@ -30,17 +29,6 @@ def _mean_sd(values: list[float]) -> str:
     if len(values) < 2:
         return f"{values[0]:.3f}"
     return f"{statistics.mean(values):.3f} ± {statistics.stdev(values):.3f}"
-
-
-def _without_nan(value: object) -> object:
-    """JSON has no NaN: a single pair's undefined interval is written as null."""
-    if isinstance(value, float) and math.isnan(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _without_nan(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_without_nan(v) for v in value]
-    return value
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -72,16 +60,15 @@ def main(argv: list[str] | None = None) -> int:
     ]
     paired = summary["paired_vs_w0"]
     if paired:
-        lines.append(
-            paired_table(paired, ["rmse", "abs_rel", "delta1"]).replace("arm − none", "setting − w0")
-        )
+        lines.append(paired_table(paired, ["rmse", "abs_rel", "delta1"], reference="w0", arm="setting"))
     print("\n".join(lines))
     if args.json:
         summary = {
             **provenance("scripts/depth_probe_summary.py", argv if argv is not None else sys.argv[1:]),
             **summary,
         }
-        text = json.dumps(_without_nan(summary), indent=1, allow_nan=False)
+        clean = json.loads(json.dumps(summary), parse_constant=lambda _: None)  # NaN (one pair) -> null
+        text = json.dumps(clean, indent=1, allow_nan=False)
         atomic_write_text(args.json, text + "\n")
     return 0
 

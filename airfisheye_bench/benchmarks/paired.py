@@ -112,10 +112,19 @@ def paired_differences(
     return out
 
 
-def paired_table(differences: Mapping[str, Mapping[str, Mapping[str, Any]]], metrics: Sequence[str]) -> str:
-    """Markdown: per arm, ``mean [lo, hi]`` of each metric's paired difference (``n`` pairs)."""
+def paired_table(
+    differences: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    metrics: Sequence[str],
+    reference: str = "none",
+    arm: str = "arm",
+) -> str:
+    """Markdown: per arm, ``mean [lo, hi]`` of each metric's paired difference against ``reference`` (``n`` pairs);
+    ``arm`` names what the rows are (the header reads ``arm − reference``)."""
     present = [m for m in metrics if any(m in d for d in differences.values())]
-    lines = ["| arm − none | pairs | " + " | ".join(present) + " |", "|---|---|" + "---:|" * len(present)]
+    lines = [
+        f"| {arm} − {reference} | pairs | " + " | ".join(present) + " |",
+        "|---|---|" + "---:|" * len(present),
+    ]
     for arm, by_metric in differences.items():
         cells, n = [], 0
         for metric in present:

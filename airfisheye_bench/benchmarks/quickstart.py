@@ -317,7 +317,7 @@ def summarize(
             continue
         results = json.loads(run.results.read_text(encoding="utf-8"))
         record = json.loads(run.record.read_text(encoding="utf-8"))
-        entry["seeds"][str(run.seed)] = {
+        seed = entry["seeds"][str(run.seed)] = {
             "metrics": {k: v for k, v in results["metrics"].items() if isinstance(v, int | float)},
             "wall_s": record["wall_s"],
             "commit": record["commit"],
@@ -325,24 +325,22 @@ def summarize(
         }
         for key in ("cpu_s", "other_cores"):
             if key in record:
-                entry["seeds"][str(run.seed)][key] = record[key]
+                seed[key] = record[key]
         curve = validation_curve(run.out / "metrics.csv", f"val/{entry['primary_metric']}")
         if curve:  # how far from converged the run ended: its primary metric after each epoch
-            entry["seeds"][str(run.seed)]["validation_curve"] = curve
+            seed["validation_curve"] = curve
         if results.get("sparse_coverage"):  # completion: the LiDAR input's share of the pixels per ring
             density = results.get("config", {}).get("data", {}).get("lidar", {}).get("density")
-            entry["seeds"][str(run.seed)].update(
-                lidar_density=density, sparse_coverage=results["sparse_coverage"]
-            )
+            seed.update(lidar_density=density, sparse_coverage=results["sparse_coverage"])
         if record.get("cpu_kernels"):
-            entry["seeds"][str(run.seed)]["cpu_kernels"] = record["cpu_kernels"]
+            seed["cpu_kernels"] = record["cpu_kernels"]
         breakdown = {
             k: v
             for k, v in results.get("breakdown", {}).items()
             if isinstance(v, int | float) and BREAKDOWN_KEY.match(k)
         }
         if breakdown:  # the fisheye view of the run: its headline metrics by ring and by range
-            entry["seeds"][str(run.seed)]["breakdown"] = breakdown
+            seed["breakdown"] = breakdown
         root = results.get("dataset", {}).get("root")
         if root and root not in identities:
             identities[root] = {"name": results["dataset"].get("name"), **content_identity(root)}
