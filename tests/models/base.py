@@ -255,11 +255,13 @@ class BaseModelTester:
             dynamic_spatial=True,
         )
         atol, rtol = self.tolerances()
+        # One image per size: the batch axis is checked by test_onnx_matches_pytorch_with_dynamic_batch (and a batch
+        # of 1 against an export at 2 still exercises it).
         for i, size in enumerate(self.input_sizes):
             report = verify_onnx(
-                path, model, self.make_inputs(3, size, seed=i), atol=atol, rtol=rtol, measure_latency=False
+                path, model, self.make_inputs(1, size, seed=i), atol=atol, rtol=rtol, measure_latency=False
             )
-            assert report.output_shape == (3, self.out_channels, *size)
+            assert report.output_shape == (1, self.out_channels, *size)
 
     # ------------------------------------------------------------------ paper configuration (slow)
 
@@ -293,9 +295,9 @@ class BaseModelTester:
         report = verify_onnx(
             path,
             model,
-            self.make_inputs(3, self.paper_input_size, seed=3),
+            self.make_inputs(1, self.paper_input_size, seed=3),  # one image at 512^2: other batches, above
             atol=atol,
             rtol=rtol,
             measure_latency=False,
         )
-        assert report.output_shape[0] == 3
+        assert report.output_shape[0] == 1

@@ -1,6 +1,8 @@
 """``scripts/gpu_campaign.py``: the time boxes of its record, and the whole campaign in ``--smoke`` mode on the CPU.
 
-The smoke run checks the record's fields (what a GPU run will fill in), not its numbers.
+The smoke run checks the record's fields (what a GPU run will fill in), not its numbers. It trains three recipes and
+starts loader workers (about a minute of CPU for a script that only a GPU machine runs), so it is in the ``slow``
+suite, which CI runs on every landing.
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ def smoke(tmp_path_factory: pytest.TempPathFactory) -> dict:
     return json.loads(out.read_text())
 
 
-@pytest.mark.integration
+@pytest.mark.slow
 def test_smoke_record(smoke: dict) -> None:
     assert smoke["mode"] == "smoke" and smoke["status"] == "complete", smoke["phases"]
     prov = smoke["provenance"]
@@ -68,7 +70,7 @@ def test_smoke_record(smoke: dict) -> None:
     assert set(smoke["phases"]) == {"data", "loader", *(f"train:{t}" for t in TASKS)}
 
 
-@pytest.mark.integration
+@pytest.mark.slow
 @pytest.mark.parametrize("task", TASKS)
 def test_smoke_task(smoke: dict, task: str) -> None:
     entry = smoke["tasks"][task]
@@ -92,7 +94,7 @@ def test_smoke_task(smoke: dict, task: str) -> None:
     assert entry["summary"]["ceiling_images_per_s"] == entry["cached"]["images_per_s"]
 
 
-@pytest.mark.integration
+@pytest.mark.slow
 def test_smoke_loader(smoke: dict) -> None:
     rows = {(r["task"], r["workers"], r["remap_on"]): r for r in smoke["loader"]}
     expected = {(t, w, "worker") for t in TASKS for w in (0, 2)} | {(t, 2, "device") for t in TASKS}
