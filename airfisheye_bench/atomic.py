@@ -10,6 +10,7 @@ test session's shared run) is done once under :func:`exclusive_lock`.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import tempfile
 import uuid
@@ -65,6 +66,23 @@ def atomic_write(path: str | Path, write: Callable[[Path], object]) -> None:
 def atomic_write_text(path: str | Path, text: str) -> None:
     """Write UTF-8 ``text`` to ``path`` atomically (``\\n`` line endings on every platform)."""
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_json(path: str | Path, payload: object, indent: int = 2) -> None:
+    """Write ``payload`` as JSON to ``path`` atomically, NaN and infinities as ``null``.
+
+    A study's summary holds NaN where a statistic has no value (the spread of one seed, an interval of one pair);
+    Python would write ``NaN``, which is not JSON and which other readers reject.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> p = pathlib.Path(tempfile.mkdtemp()) / "s.json"
+        >>> atomic_write_json(p, {"sd": float("nan"), "n": 1}, indent=None)
+        >>> p.read_text()
+        '{"sd": null, "n": 1}\\n'
+    """
+    clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)
+    atomic_write_text(path, json.dumps(clean, indent=indent, allow_nan=False) + "\n")
 
 
 def check_writable(path: str | Path, key: str = "out") -> Path:

@@ -11,12 +11,11 @@ is :mod:`airfisheye_bench.benchmarks.depth_probe`.
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 from pathlib import Path
 
-from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_json
 from airfisheye_bench.benchmarks import depth_probe
 from airfisheye_bench.benchmarks.paired import paired_table
 from airfisheye_bench.benchmarks.provenance import provenance
@@ -67,9 +66,7 @@ def main(argv: list[str] | None = None) -> int:
             **provenance("scripts/depth_probe_summary.py", argv if argv is not None else sys.argv[1:]),
             **summary,
         }
-        clean = json.loads(json.dumps(summary), parse_constant=lambda _: None)  # NaN (one pair) -> null
-        text = json.dumps(clean, indent=1, allow_nan=False)
-        atomic_write_text(args.json, text + "\n")
+        atomic_write_json(args.json, summary, indent=1)  # NaN (one pair) -> null
     return 0
 
 

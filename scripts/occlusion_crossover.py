@@ -16,7 +16,6 @@ served size (default: the run's). Without it, ``--preset`` (generated if missing
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -24,7 +23,7 @@ from typing import Any
 
 import torch
 
-from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_json
 from airfisheye_bench.benchmarks.crossover import (
     CROSSOVER_ARMS,
     arm_datasets,
@@ -160,9 +159,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             )
             print(paired_frames_table(result))
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)  # NaN -> null
-        atomic_write_text(args.json, json.dumps(clean, indent=2, allow_nan=False) + "\n")
+        atomic_write_json(args.json, payload)
     return payload
 
 

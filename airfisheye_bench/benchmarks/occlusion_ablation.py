@@ -43,7 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_json, atomic_write_text
 from airfisheye_bench.benchmarks import ablation_records
 from airfisheye_bench.benchmarks.ablation_records import mean_std
 from airfisheye_bench.benchmarks.crossover import run_frame_scores, run_region_scores
@@ -377,9 +377,7 @@ def main(
         "paired_vs_none": differences,
     }
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)  # NaN (one seed) -> null
-        atomic_write_text(args.json, json.dumps(clean, indent=2, allow_nan=False) + "\n")
+        atomic_write_json(args.json, payload)  # NaN (one seed) -> null
     return payload
 
 
@@ -399,6 +397,5 @@ def summarise_records(args: argparse.Namespace, argv: Sequence[str] | None) -> d
         **summary,
     }
     if args.json is not None:
-        clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)  # NaN -> null
-        atomic_write_text(args.json, json.dumps(clean, indent=2, allow_nan=False) + "\n")
+        atomic_write_json(args.json, payload)
     return payload

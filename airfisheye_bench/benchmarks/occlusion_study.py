@@ -41,7 +41,6 @@ seeds), is ``scripts/occlusion_ablation.py``.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -55,7 +54,7 @@ import torch
 import yaml
 from PIL import Image, ImageDraw
 
-from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.atomic import atomic_write_json
 from airfisheye_bench.benchmarks.clustered import flight_of
 from airfisheye_bench.benchmarks.hidden_detection import (
     detection_counts,
@@ -374,13 +373,6 @@ def markdown_table(results: dict[str, dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def write_json(path: Path, payload: dict[str, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # NaN (e.g. no frame kept anything) is not JSON: write null.
-    clean = json.loads(json.dumps(payload), parse_constant=lambda _: None)
-    atomic_write_text(path, json.dumps(clean, indent=2, allow_nan=False) + "\n")
-
-
 # ------------------------------------------------------------------------------------------------ figure
 def draw_points(image: np.ndarray, uv: np.ndarray, colors: np.ndarray, scale: int) -> np.ndarray:
     """2x2-pixel dots at pixel coordinates ``uv`` of the unscaled image, on ``image`` upscaled ``scale`` x."""
@@ -521,5 +513,5 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         payload["figure"]["path"] = str(args.figure)
         print(f"\nfigure: {args.figure} ({payload['figure']['sample_id']})")
     if args.json is not None:
-        write_json(args.json, payload)
+        atomic_write_json(args.json, payload)  # NaN (e.g. no frame kept anything) -> null
     return payload
