@@ -25,6 +25,7 @@ import math
 import os
 import sys
 import time
+from collections.abc import Iterable
 from pathlib import Path
 
 import hydra
@@ -137,30 +138,28 @@ def _mean_depth_baseline(train: list, val: list) -> tuple[float, float, float]:
     valid = (depths > 1e-3) & (depths <= 120)
     total, count = (depths * valid).sum(0), valid.sum(0)
     mean = torch.where(count > 0, total / count.clamp_min(1), depths[valid].mean())
-    sq = rel = hits = n = 0.0
-    for _, y in val:
-        m = (y > 1e-3) & (y <= 120)
-        p, g = mean.expand_as(y)[m], y[m]
-        sq += (p - g).square().sum().item()
-        rel += ((p - g).abs() / g).sum().item()
-        hits += (torch.maximum(p / g, g / p) < 1.25).sum().item()
-        n += m.sum().item()
-    return math.sqrt(sq / n), rel / n, hits / n
+    return _pooled_scores((mean.expand_as(y), y) for _, y in val)
 
 
 @torch.no_grad()
 def _validate(net: torch.nn.Module, val: list, train_mode: bool) -> tuple[float, float, float]:
     net.train(train_mode)
+    scores = _pooled_scores((net(x), y) for x, y in val)
+    net.train()
+    return scores
+
+
+def _pooled_scores(pairs: Iterable[tuple[torch.Tensor, torch.Tensor]]) -> tuple[float, float, float]:
+    """RMSE, AbsRel and δ1 over every valid pixel of ``(prediction, ground truth)`` batches, pooled (the probe's
+    quick comparison between settings; the project's metrics average per image: ``airfisheye_bench.metrics``)."""
     sq = rel = hits = n = 0.0
-    for x, y in val:
-        pred = net(x)
+    for pred, y in pairs:
         m = (y > 1e-3) & (y <= 120)
         p, g = pred[m], y[m]
         sq += (p - g).square().sum().item()
         rel += ((p - g).abs() / g).sum().item()
         hits += (torch.maximum(p / g, g / p) < 1.25).sum().item()
         n += m.sum().item()
-    net.train()
     return math.sqrt(sq / n), rel / n, hits / n
 
 
