@@ -1,0 +1,107 @@
+"""How far a quick-start result moves with the CPU's kernels, beside how far it moves with the seed.
+
+The quick-start record (``docs/quickstart_results.json``) is trained on the machine's own kernels; the records under
+``docs/figures/quickstart_kernels/`` repeat some of its seeds with the kernels limited (each of their seeds names the
+switches it ran with, ``cpu_kernels``; a record whose seeds name none is a re-run on the machine's own kernels).
+Seed ``s`` on the limited kernels pairs with seed ``s`` of the record: same data, same initial weights and data order,
+so the per-seed difference is what the kernels alone do (:func:`~airfisheye_bench.benchmarks.paired.paired_difference`).
+Beside it: each path's mean and sample standard deviation over its seeds, and the last validation score of each run
+(validation and test are different flights, so a shift seen on one split only is the split's, not the model's).
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.benchmarks.paired import paired_differences
+
+__all__ = ["kernel_runs", "kernel_spread", "load_records"]
+
+_RECORD = "record"
+
+
+def kernel_runs(record: Mapping[str, Any], others: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, dict]]:
+    """``task -> path -> seed -> run`` of the record (path ``"record"``) and of every limited-kernel run in
+    ``others`` (path: torch's ``ATEN_CPU_CAPABILITY`` among its ``cpu_kernels`` switches, e.g. ``"avx2"``); a run of
+    another record without switches is a re-run of the record's path and is left out (the record holds that path)."""
+    out: dict[str, dict[str, dict]] = {}
+    for task, entry in record["tasks"].items():
+        out.setdefault(task, {})[_RECORD] = dict(entry["seeds"])
+    for other in others:
+        for task, entry in other["tasks"].items():
+            for seed, run in entry["seeds"].items():
+                switches = run.get("cpu_kernels")
+                if switches:
+                    out.setdefault(task, {}).setdefault(_path_name(switches), {})[seed] = run
+    return out
+
+
+def _path_name(switches: Mapping[str, str]) -> str:
+    """``"avx2"`` for torch's ``ATEN_CPU_CAPABILITY=avx2`` (the switch every limited run sets); else every switch."""
+    if "ATEN_CPU_CAPABILITY" in switches:
+        return str(switches["ATEN_CPU_CAPABILITY"])
+    return " ".join(f"{k}={v}" for k, v in sorted(switches.items()))
+
+
+def _spread(values: list[float]) -> dict[str, Any]:
+    return {
+        "n": len(values),
+        "values": values,
+        "mean": statistics.mean(values),
+        "std": statistics.stdev(values) if len(values) > 1 else float("nan"),
+    }
+
+
+def kernel_spread(
+    runs: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]], metrics: Mapping[str, list[str]]
+) -> dict[str, Any]:
+    """Per task: each path's spread over its seeds (test ``metrics[task]`` and the last validation score), and
+    every limited path paired by seed with the record.
+
+    Example:
+        >>> def run(rmse, val):
+        ...     return {"metrics": {"rmse": rmse}, "validation_curve": [{"epoch": 0, "val/rmse": val}]}
+        >>> runs = {"depth": {"record": {"0": run(15.0, 18.0), "1": run(16.0, 19.0)},
+        ...                   "X=avx2": {"0": run(14.0, 18.5), "1": run(14.5, 18.5)}}}
+        >>> out = kernel_spread(runs, {"depth": ["rmse"]})["depth"]
+        >>> out["paths"]["X=avx2"]["rmse"]["mean"], out["paired"]["X=avx2"]["rmse"]["diffs"]
+        (14.25, [-1.0, -1.5])
+        >>> out["paired"]["X=avx2"]["val/rmse"]["diffs"]
+        [0.5, -0.5]
+    """
+    result: dict[str, Any] = {}
+    for task, paths in runs.items():
+        names = list(metrics[task])
+        values: dict[str, dict[int, dict[str, float]]] = {}
+        summary: dict[str, dict[str, Any]] = {}
+        for path, seeds in paths.items():
+            values[path] = {}
+            for seed, run in seeds.items():
+                row = {m: float(run["metrics"][m]) for m in names if m in run["metrics"]}
+                curve = run.get("validation_curve") or []
+                for key in curve[-1] if curve else ():
+                    if key.startswith("val/"):
+                        row[key] = float(curve[-1][key])
+                values[path][int(seed)] = row
+            keys = sorted({k for row in values[path].values() for k in row})
+            switches = {json.dumps(run.get("cpu_kernels"), sort_keys=True) for run in seeds.values()}
+            summary[path] = {
+                "seeds": sorted(values[path]),
+                "cpu_kernels": [json.loads(s) for s in sorted(switches)],
+                "commits": sorted({run.get("commit", "") for run in seeds.values()}),
+                **{k: _spread([row[k] for row in values[path].values() if k in row]) for k in keys},
+            }
+        paired = paired_differences(values, reference=_RECORD) if len(values) > 1 else {}
+        result[task] = {"paths": summary, "paired": paired}
+    return result
+
+
+def load_records(record_path: Path, folder: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The quick-start record and every record in ``folder`` (``*.json``, a summary of this module's aside)."""
+    record = json.loads(record_path.read_text())
+    others = [json.loads(p.read_text()) for p in sorted(folder.glob("*.json")) if p.name != "summary.json"]
+    return record, others

@@ -1,0 +1,70 @@
+"""How far each quick-start result moves with the CPU's kernels, beside its seeds' spread.
+
+    python scripts/quickstart_kernels.py
+    python scripts/quickstart_kernels.py --json docs/figures/quickstart_kernels/summary.json
+
+Reads ``docs/quickstart_results.json`` (the machine's own kernels) and the limited-kernel runs of
+``docs/figures/quickstart_kernels/``; prints, per task, each kernel path's mean ± sample std over its seeds (test
+metrics and the last validation score) and the per-seed paired differences (limited − record) with 95 % t-intervals.
+``--json`` also writes them, with provenance. The logic is :mod:`airfisheye_bench.benchmarks.quickstart_kernels`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from airfisheye_bench.atomic import atomic_write_json
+from airfisheye_bench.benchmarks import quickstart_kernels
+from airfisheye_bench.benchmarks.paired import paired_table
+from airfisheye_bench.benchmarks.provenance import provenance
+
+REPO = Path(__file__).resolve().parents[1]
+METRICS = {
+    "seg": ["mIoU", "pixel_acc"],
+    "depth": ["rmse", "abs_rel", "delta1"],
+    "completion": ["rmse", "mae", "abs_rel", "delta1"],
+}
+
+
+def _cell(entry: dict) -> str:
+    if math.isnan(entry["std"]):
+        return f"{entry['mean']:.3f}"
+    return f"{entry['mean']:.3f} ± {entry['std']:.3f}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--record", type=Path, default=REPO / "docs" / "quickstart_results.json")
+    parser.add_argument("--folder", type=Path, default=REPO / "docs" / "figures" / "quickstart_kernels")
+    parser.add_argument("--json", type=Path, help="also write the summary here")
+    args = parser.parse_args(argv)
+    record, others = quickstart_kernels.load_records(args.record, args.folder)
+    runs = quickstart_kernels.kernel_runs(record, others)
+    summary = quickstart_kernels.kernel_spread(runs, METRICS)
+    for task, entry in summary.items():
+        shown = [m for m in METRICS[task] if m in entry["paths"]["record"]] + [
+            k for k in entry["paths"]["record"] if k.startswith("val/")
+        ]
+        print(f"\n### {task}\n")
+        print("| kernels | seeds | " + " | ".join(shown) + " |")
+        print("|---|---|" + "---:|" * len(shown))
+        for path, spread in entry["paths"].items():
+            cells = [_cell(spread[k]) if k in spread else "-" for k in shown]
+            print(f"| {path} | {', '.join(map(str, spread['seeds']))} | " + " | ".join(cells) + " |")
+        if entry["paired"]:
+            print()
+            print(paired_table(entry["paired"], shown, reference="record", arm="kernels"))
+    if args.json:
+        payload = {
+            **provenance("scripts/quickstart_kernels.py", argv if argv is not None else sys.argv[1:]),
+            **summary,
+        }
+        atomic_write_json(args.json, payload)  # NaN (one seed) -> null
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
