@@ -323,8 +323,8 @@ def summarize(
             "commit": record["commit"],
             "command": record["command"],
         }
-        for key in ("cpu_s", "other_cores"):
-            if key in record:
+        for key in ("cpu_s", "other_cores", "omp_num_threads"):
+            if record.get(key) is not None:
                 seed[key] = record[key]
         curve = validation_curve(run.out / "metrics.csv", f"val/{entry['primary_metric']}")
         if curve:  # how far from converged the run ended: its primary metric after each epoch
@@ -455,12 +455,28 @@ def _wall_text(entry: dict[str, Any]) -> str:
     summary, seeds = entry["summary"], list(entry["seeds"].values())
     if "wall_s_alone" in summary:
         n = summary["wall_s_alone"]["n"]
-        return f"{_minutes(summary['wall_s_alone']['mean'])} (alone; {n} run{'s' if n != 1 else ''})"
+        alone = [s for s in seeds if ran_alone(s)]
+        return f"{_minutes(summary['wall_s_alone']['mean'])} (alone; {n} run{'s' if n != 1 else ''}{_threads_text(alone)})"
     shared = [s["other_cores"] for s in seeds if "other_cores" in s]
     text = _minutes(summary["wall_s"]["mean"])
     if shared:
-        text += f" (beside other work using {sum(shared) / len(shared):.1f} cores on average)"
+        text += f" (beside other work using {sum(shared) / len(shared):.1f} cores on average{_threads_text(seeds)})"
     return text
+
+
+def _threads_text(seeds: list[dict[str, Any]]) -> str:
+    """``", 1 thread each"`` where every run had ``OMP_NUM_THREADS`` set to the same value (a wall time depends on it);
+    nothing where a run used torch's choice or the runs differ.
+
+    Example:
+        >>> _threads_text([{"omp_num_threads": "1"}, {"omp_num_threads": "1"}]), _threads_text([{}])
+        (', 1 thread each', '')
+    """
+    threads = {s.get("omp_num_threads") for s in seeds}
+    if len(threads) != 1 or None in threads:
+        return ""
+    (n,) = threads
+    return f", {n} thread{'s' if str(n) != '1' else ''} each"
 
 
 def _coverage_text(entry: dict[str, Any]) -> str:

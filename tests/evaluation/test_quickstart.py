@@ -133,6 +133,17 @@ def test_the_wall_time_cell_uses_the_runs_that_had_the_machine_alone() -> None:
     assert (
         quickstart._wall_text(entry({"wall_s": 725.0})) == "12 min 05 s"
     )  # a record from before the account
+    one_thread = {"omp_num_threads": "1"}
+    assert (
+        quickstart._wall_text(entry({"wall_s": 600.0, "other_cores": 0.02, **one_thread}))
+        == "10 min 00 s (alone; 1 run, 1 thread each)"
+    )
+    assert quickstart._wall_text(
+        entry(
+            {"wall_s": 900.0, "other_cores": 0.8, **one_thread},
+            {"wall_s": 960.0, "other_cores": 1.0, **one_thread},
+        )
+    ) == ("15 min 30 s (beside other work using 0.9 cores on average, 1 thread each)")
 
 
 def test_plan_refuses_an_unknown_task(tmp_path: Path) -> None:
