@@ -465,18 +465,18 @@ def _wall_text(entry: dict[str, Any]) -> str:
 
 
 def _threads_text(seeds: list[dict[str, Any]]) -> str:
-    """``", 1 thread each"`` where every run had ``OMP_NUM_THREADS`` set to the same value (a wall time depends on it);
+    """``", 1 thread each"`` (``", 1 thread"`` for one run) where every run had ``OMP_NUM_THREADS`` set to the same value (a wall time depends on it);
     nothing where a run used torch's choice or the runs differ.
 
     Example:
-        >>> _threads_text([{"omp_num_threads": "1"}, {"omp_num_threads": "1"}]), _threads_text([{}])
-        (', 1 thread each', '')
+        >>> _threads_text([{"omp_num_threads": "1"}] * 2), _threads_text([{"omp_num_threads": "1"}]), _threads_text([{}])
+        (', 1 thread each', ', 1 thread', '')
     """
     threads = {s.get("omp_num_threads") for s in seeds}
     if len(threads) != 1 or None in threads:
         return ""
     (n,) = threads
-    return f", {n} thread{'s' if str(n) != '1' else ''} each"
+    return f", {n} thread{'s' if str(n) != '1' else ''}{' each' if len(seeds) > 1 else ''}"
 
 
 def _coverage_text(entry: dict[str, Any]) -> str:

@@ -136,7 +136,7 @@ def test_the_wall_time_cell_uses_the_runs_that_had_the_machine_alone() -> None:
     one_thread = {"omp_num_threads": "1"}
     assert (
         quickstart._wall_text(entry({"wall_s": 600.0, "other_cores": 0.02, **one_thread}))
-        == "10 min 00 s (alone; 1 run, 1 thread each)"
+        == "10 min 00 s (alone; 1 run, 1 thread)"
     )
     assert quickstart._wall_text(
         entry(
