@@ -12,7 +12,6 @@ metrics and the last validation score) and the per-seed paired differences (limi
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
@@ -30,7 +29,7 @@ METRICS = {
 
 
 def _cell(entry: dict) -> str:
-    if math.isnan(entry["std"]):
+    if entry["std"] is None:
         return f"{entry['mean']:.3f}"
     return f"{entry['mean']:.3f} ± {entry['std']:.3f}"
 

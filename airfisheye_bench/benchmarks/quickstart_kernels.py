@@ -12,12 +12,12 @@ Beside it: each path's mean and sample standard deviation over its seeds, and th
 from __future__ import annotations
 
 import json
-import statistics
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.benchmarks.paired import paired_differences
+from airfisheye_bench.benchmarks.quickstart import mean_std
 
 __all__ = ["kernel_runs", "kernel_spread", "load_records"]
 
@@ -48,12 +48,7 @@ def _path_name(switches: Mapping[str, str]) -> str:
 
 
 def _spread(values: list[float]) -> dict[str, Any]:
-    return {
-        "n": len(values),
-        "values": values,
-        "mean": statistics.mean(values),
-        "std": statistics.stdev(values) if len(values) > 1 else float("nan"),
-    }
+    return {**mean_std(values), "values": values}
 
 
 def kernel_spread(
