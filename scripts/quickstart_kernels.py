@@ -2,16 +2,21 @@
 
     python scripts/quickstart_kernels.py
     python scripts/quickstart_kernels.py --json docs/figures/quickstart_kernels/summary.json
+    python scripts/quickstart_kernels.py --cross-evaluate RUN [RUN ...] --cross-json FILE
 
 Reads ``docs/quickstart_results.json`` (the machine's own kernels) and the limited-kernel runs of
 ``docs/figures/quickstart_kernels/``; prints, per task, each kernel path's mean ± sample std over its seeds (test
 metrics and the last validation score) and the per-seed paired differences (limited − record) with 95 % t-intervals.
-``--json`` also writes them, with provenance. The logic is :mod:`airfisheye_bench.benchmarks.quickstart_kernels`.
+``--json`` also writes them, with provenance. ``--cross-evaluate`` scores the test split with each given quick-start
+run's best checkpoint under every kernel setting those runs were trained with (each in a fresh process, one thread)
+and prints how far any score moves with the setting: whether the kernels act on the evaluation or on the training.
+The logic is :mod:`airfisheye_bench.benchmarks.quickstart_kernels`.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -23,7 +28,13 @@ from airfisheye_bench.benchmarks.provenance import provenance
 REPO = Path(__file__).resolve().parents[1]
 METRICS = {
     "seg": ["mIoU", "pixel_acc"],
-    "depth": ["rmse", "abs_rel", "delta1"],
+    # and the depth bands, where the paths part (docs/results.md, section 2)
+    "depth": [
+        "rmse",
+        "abs_rel",
+        "delta1",
+        *(f"range_{band}/rmse" for band in ("0-10", "10-20", "20-40", "40-80", "80-120")),
+    ],
     "completion": ["rmse", "mae", "abs_rel", "delta1"],
 }
 
@@ -39,7 +50,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--record", type=Path, default=REPO / "docs" / "quickstart_results.json")
     parser.add_argument("--folder", type=Path, default=REPO / "docs" / "figures" / "quickstart_kernels")
     parser.add_argument("--json", type=Path, help="also write the summary here")
+    parser.add_argument(
+        "--cross-evaluate", type=Path, nargs="+", metavar="RUN", help="quick-start run folders"
+    )
+    parser.add_argument("--cross-json", type=Path, help="write the --cross-evaluate scores here")
     args = parser.parse_args(argv)
+    if args.cross_evaluate:
+        return _cross_evaluate(args.cross_evaluate, args.cross_json, argv)
     record, others = quickstart_kernels.load_records(args.record, args.folder)
     runs = quickstart_kernels.kernel_runs(record, others)
     summary = quickstart_kernels.kernel_spread(runs, METRICS)
@@ -62,6 +79,38 @@ def main(argv: list[str] | None = None) -> int:
             **summary,
         }
         atomic_write_json(args.json, payload)  # NaN (one seed) -> null
+    return 0
+
+
+def _cross_evaluate(runs: list[Path], out: Path | None, argv: list[str] | None) -> int:
+    missing = [str(r) for r in runs if not (r / "benchmark.json").is_file()]
+    if missing:
+        print(
+            f"error: not quick-start run folders (no benchmark.json): {', '.join(missing)}", file=sys.stderr
+        )
+        return 2
+    result = quickstart_kernels.cross_evaluate(
+        runs, lambda run, kernels: quickstart_kernels.evaluate_under(run, kernels, REPO)
+    )
+    for run in result["runs"]:
+        cells = ", ".join(
+            f"{name}: rmse {s.get('rmse', float('nan')):.4f}" for name, s in run["scores"].items()
+        )
+        print(
+            f"{run['run']} (trained {run['trained_with']}): {cells}; largest change {run['largest_change']:.2e}"
+        )
+    if out:
+        dataset = json.loads((runs[0] / "results.json").read_text())["dataset"]
+        dataset = {
+            k: v for k, v in dataset.items() if k != "root"
+        }  # the identity, not this machine's cache path
+        script = "scripts/quickstart_kernels.py"
+        payload = {
+            **provenance(script, argv if argv is not None else sys.argv[1:]),
+            "dataset": dataset,
+            **result,
+        }
+        atomic_write_json(out, payload)
     return 0
 
 

@@ -7,19 +7,27 @@ Seed ``s`` on the limited kernels pairs with seed ``s`` of the record: same data
 so the per-seed difference is what the kernels alone do (:func:`~airfisheye_bench.benchmarks.paired.paired_difference`).
 Beside it: each path's mean and sample standard deviation over its seeds, and the last validation score of each run
 (validation and test are different flights, so a shift seen on one split only is the split's, not the model's).
+A metric that is not among a run's test ``metrics`` is read from its ``breakdown`` (e.g. ``range_80-120/rmse``).
+
+:func:`cross_evaluate` separates the two places the kernels could act: it scores each trained model under every
+kernel setting, so a score that moves with the setting is the evaluation's, and one that does not is the training's.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Mapping
+import os
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.benchmarks.paired import paired_differences
-from airfisheye_bench.benchmarks.quickstart import mean_std
+from airfisheye_bench.benchmarks.quickstart import CPU_KERNEL_SWITCHES, mean_std
 
-__all__ = ["kernel_runs", "kernel_spread", "load_records"]
+__all__ = ["cross_evaluate", "evaluate_under", "kernel_runs", "kernel_spread", "load_records"]
 
 _RECORD = "record"
 
@@ -76,7 +84,8 @@ def kernel_spread(
         for path, seeds in paths.items():
             values[path] = {}
             for seed, run in seeds.items():
-                row = {m: float(run["metrics"][m]) for m in names if m in run["metrics"]}
+                scores = {**run.get("breakdown", {}), **run["metrics"]}
+                row = {m: float(scores[m]) for m in names if scores.get(m) is not None}
                 curve = run.get("validation_curve") or []
                 for key in curve[-1] if curve else ():
                     if key.startswith("val/"):
@@ -100,3 +109,74 @@ def load_records(record_path: Path, folder: Path) -> tuple[dict[str, Any], list[
     record = json.loads(record_path.read_text())
     others = [json.loads(p.read_text()) for p in sorted(folder.glob("*.json")) if p.name != "summary.json"]
     return record, others
+
+
+#: One kernel setting: the switches of :data:`~airfisheye_bench.benchmarks.quickstart.CPU_KERNEL_SWITCHES` it sets
+#: (none: the machine's own kernels).
+Kernels = Mapping[str, str]
+
+
+def evaluate_under(run_dir: Path, kernels: Kernels, repo: Path) -> dict[str, float]:
+    """Test ``metrics`` and ``breakdown`` of ``run_dir``'s best checkpoint, scored by ``scripts/evaluate.py`` in a
+    fresh process whose CPU kernels are ``kernels`` (every other switch unset), on one thread and no loader workers,
+    so that nothing else differs between two settings."""
+    env = {k: v for k, v in os.environ.items() if k not in CPU_KERNEL_SWITCHES}
+    env.update(kernels, OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    with tempfile.TemporaryDirectory(prefix="kernels-eval-") as out:
+        argv = [sys.executable, "scripts/evaluate.py", f"ckpt_path={run_dir}", "split=test", "device=cpu"]
+        argv += ["num_workers=0", "num_panels=0", f"hydra.run.dir={out}"]
+        subprocess.run(argv, cwd=repo, env=env, check=True, stdout=subprocess.DEVNULL)
+        results = json.loads((Path(out) / "results.json").read_text())
+    return {k: float(v) for k, v in {**results["breakdown"], **results["metrics"]}.items() if v is not None}
+
+
+def cross_evaluate(
+    run_dirs: Sequence[Path], evaluate: Callable[[Path, Kernels], Mapping[str, float]]
+) -> dict[str, Any]:
+    """Score every run of ``run_dirs`` under every kernel setting any of them was trained with.
+
+    A run's setting is its ``benchmark.json``'s ``cpu_kernels`` (none: the machine's own). ``largest_change`` is,
+    per run, the largest absolute change of any score between the settings: 0 when the evaluation does not depend
+    on the kernels.
+
+    Example:
+        >>> import json, tempfile
+        >>> root = Path(tempfile.mkdtemp())
+        >>> for name, kernels in (("a", None), ("b", {"ATEN_CPU_CAPABILITY": "avx2"})):
+        ...     (root / name).mkdir()
+        ...     _ = (root / name / "benchmark.json").write_text(json.dumps({"cpu_kernels": kernels}))
+        >>> scores = {"a": 15.0, "b": 14.0}
+        >>> out = cross_evaluate([root / "a", root / "b"], lambda run, kernels: {"rmse": scores[run.name]})
+        >>> out["settings"], out["runs"][1]["scores"], out["largest_change"]
+        (['native', 'avx2'], {'native': {'rmse': 14.0}, 'avx2': {'rmse': 14.0}}, 0.0)
+    """
+    trained: list[tuple[Path, dict[str, str], dict[str, Any]]] = []
+    for run in run_dirs:
+        record = json.loads((Path(run) / "benchmark.json").read_text())
+        trained.append((Path(run), dict(record.get("cpu_kernels") or {}), record))
+    settings: dict[str, dict[str, str]] = {}
+    for _, kernels, _ in trained:
+        settings.setdefault(_path_name(kernels) if kernels else "native", kernels)
+    runs = []
+    for run, kernels, record in trained:
+        scores = {name: dict(evaluate(run, setting)) for name, setting in settings.items()}
+        keys = set.intersection(*(set(s) for s in scores.values()))
+        change = max(
+            (max(s[k] for s in scores.values()) - min(s[k] for s in scores.values()) for k in keys),
+            default=0.0,
+        )
+        runs.append(
+            {
+                "run": str(run),
+                "trained_with": _path_name(kernels) if kernels else "native",
+                "trained": {"commit": record.get("commit"), "command": record.get("command")},
+                "scores": scores,
+                "largest_change": change,
+            }
+        )
+    return {
+        "settings": list(settings),
+        "kernels": settings,
+        "runs": runs,
+        "largest_change": max((r["largest_change"] for r in runs), default=0.0),
+    }

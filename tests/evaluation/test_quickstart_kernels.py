@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 from pathlib import Path
 
@@ -51,3 +52,23 @@ def test_the_committed_kernel_runs_are_on_the_records_data() -> None:
         for path, spread in fresh[task]["paths"].items():
             key = "mIoU" if task == "seg" else "rmse"
             assert summary[task]["paths"][path][key]["mean"] == pytest.approx(spread[key]["mean"])
+
+
+def test_a_metric_missing_from_the_test_metrics_is_read_from_the_breakdown() -> None:
+    record = _record("depth", {"0": 15.0})
+    record["tasks"]["depth"]["seeds"]["0"]["breakdown"] = {"range_80-120/rmse": 31.0}
+    other = _record("depth", {"0": 14.0}, AVX2)
+    other["tasks"]["depth"]["seeds"]["0"]["breakdown"] = {"range_80-120/rmse": 26.0}
+    out = kernel_spread(kernel_runs(record, [other]), {"depth": ["rmse", "range_80-120/rmse"]})["depth"]
+    assert out["paired"]["avx2"]["range_80-120/rmse"]["diffs"] == [-5.0]
+
+
+def test_cross_evaluation_refuses_a_folder_that_is_no_quick_start_run(tmp_path, capsys) -> None:
+    spec = importlib.util.spec_from_file_location(
+        "quickstart_kernels_script", REPO / "scripts" / "quickstart_kernels.py"
+    )
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    assert script.main(["--cross-evaluate", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert str(tmp_path) in err and "benchmark.json" in err
