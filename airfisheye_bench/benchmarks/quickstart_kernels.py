@@ -105,10 +105,11 @@ def kernel_spread(
 
 
 def load_records(record_path: Path, folder: Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """The quick-start record and every record in ``folder`` (``*.json``, a summary of this module's aside)."""
+    """The quick-start record and every quick-start record in ``folder`` (``*.json`` with ``tasks``: the summary and
+    the cross-evaluation kept beside them are not runs)."""
     record = json.loads(record_path.read_text())
-    others = [json.loads(p.read_text()) for p in sorted(folder.glob("*.json")) if p.name != "summary.json"]
-    return record, others
+    others = [json.loads(p.read_text()) for p in sorted(folder.glob("*.json"))]
+    return record, [other for other in others if "tasks" in other]
 
 
 #: One kernel setting: the switches of :data:`~airfisheye_bench.benchmarks.quickstart.CPU_KERNEL_SWITCHES` it sets
