@@ -117,6 +117,10 @@ def load_records(record_path: Path, folder: Path) -> tuple[dict[str, Any], list[
 Kernels = Mapping[str, str]
 
 
+def _setting_name(kernels: Kernels) -> str:
+    return _path_name(kernels) if kernels else "native"
+
+
 def evaluate_under(run_dir: Path, kernels: Kernels, repo: Path) -> dict[str, float]:
     """Test ``metrics`` and ``breakdown`` of ``run_dir``'s best checkpoint, scored by ``scripts/evaluate.py`` in a
     fresh process whose CPU kernels are ``kernels`` (every other switch unset), on one thread and no loader workers,
@@ -157,7 +161,7 @@ def cross_evaluate(
         trained.append((Path(run), dict(record.get("cpu_kernels") or {}), record))
     settings: dict[str, dict[str, str]] = {}
     for _, kernels, _ in trained:
-        settings.setdefault(_path_name(kernels) if kernels else "native", kernels)
+        settings.setdefault(_setting_name(kernels), kernels)
     runs = []
     for run, kernels, record in trained:
         scores = {name: dict(evaluate(run, setting)) for name, setting in settings.items()}
@@ -169,7 +173,7 @@ def cross_evaluate(
         runs.append(
             {
                 "run": str(run),
-                "trained_with": _path_name(kernels) if kernels else "native",
+                "trained_with": _setting_name(kernels),
                 "trained": {"commit": record.get("commit"), "command": record.get("command")},
                 "scores": scores,
                 "largest_change": change,
