@@ -100,16 +100,10 @@ def _cross_evaluate(runs: list[Path], out: Path | None, argv: list[str] | None) 
             f"{run['run']} (trained {run['trained_with']}): {cells}; largest change {run['largest_change']:.2e}"
         )
     if out:
-        dataset = json.loads((runs[0] / "results.json").read_text())["dataset"]
-        dataset = {
-            k: v for k, v in dataset.items() if k != "root"
-        }  # the identity, not this machine's cache path
-        script = "scripts/quickstart_kernels.py"
-        payload = {
-            **provenance(script, argv if argv is not None else sys.argv[1:]),
-            "dataset": dataset,
-            **result,
-        }
+        # the runs' data, identified from its files as every figure's is
+        data = json.loads((runs[0] / "results.json").read_text())["dataset"]
+        script, args = "scripts/quickstart_kernels.py", argv if argv is not None else sys.argv[1:]
+        payload = {**provenance(script, args, dataset=data["root"], dataset_name=data["name"]), **result}
         atomic_write_json(out, payload)
     return 0
 
