@@ -76,6 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         payload = {
             **provenance("scripts/quickstart_kernels.py", argv if argv is not None else sys.argv[1:]),
+            "datasets": quickstart_kernels.datasets([record, *others]),  # what every run was measured on
             **summary,
         }
         atomic_write_json(args.json, payload)  # NaN (one seed) -> null

@@ -112,6 +112,22 @@ def load_records(record_path: Path, folder: Path) -> tuple[dict[str, Any], list[
     return record, [other for other in others if "tasks" in other]
 
 
+def datasets(records: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """The data identities (``dataset``) the records were measured on, each once, in order of first appearance.
+
+    Example:
+        >>> same = {"name": "q", "content_sha256": "8cf0"}
+        >>> datasets([{"dataset": same}, {"dataset": dict(same)}, {"tasks": {}}])
+        [{'name': 'q', 'content_sha256': '8cf0'}]
+    """
+    seen: list[dict[str, Any]] = []
+    for record in records:
+        identity = record.get("dataset")
+        if identity is not None and identity not in seen:
+            seen.append(dict(identity))
+    return seen
+
+
 #: One kernel setting: the switches of :data:`~airfisheye_bench.benchmarks.quickstart.CPU_KERNEL_SWITCHES` it sets
 #: (none: the machine's own kernels).
 Kernels = Mapping[str, str]
