@@ -15,7 +15,8 @@ median over the repeats of the mean CPU time per sample (single runs on a shared
 
 Several datasets at once: ``--root A B --size 512 1024`` serves ``A`` at 512^2 and ``B`` at 1024^2 (one size for
 every root, or one root at every size, also work). ``--out FILE`` writes the rows as JSON with their provenance
-(commit, command, machine, the load average before and after).
+(commit, command, machine, the load average before and after, and each root's dataset identity under ``datasets``:
+name, root and content SHA-256, :func:`~airfisheye_bench.runs.results.dataset_identity`).
 
 Usage:
     python scripts/bench_loader.py [--root DIR ... | --preset small] [--size 512 ...] [--samples 40] [--repeats 5]
@@ -39,6 +40,7 @@ import torch
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.benchmarks.provenance import git_commit, machine
 from airfisheye_bench.io.dataset_spec import REMAP_SITES
+from airfisheye_bench.runs.results import dataset_identity
 from airfisheye_bench.specs import task_names
 from airfisheye_bench.synth.cache import ensure_dataset
 from datamodules import AirFisheyeDataset, CameraConfig, FisheyeAugment
@@ -178,6 +180,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
             "repeats": args.repeats,
             "load_average_before": list(load_before),
             "load_average_after": list(os.getloadavg()),
+            "datasets": [dataset_identity(root, Path(root).name) for root in dict.fromkeys(map(str, roots))],
             "results": results,
         }
         atomic_write_text(args.out, json.dumps(record, indent=1) + "\n")

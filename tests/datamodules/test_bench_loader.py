@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from airfisheye_bench.benchmarks import loader_speed
+from airfisheye_bench.io.content import content_identity
 
 
 @pytest.mark.integration
@@ -63,3 +64,7 @@ def test_per_core_json(tiny_dataset: Path, tmp_path: Path) -> None:
     assert record["command"].startswith("python scripts/bench_loader.py --root")
     assert record["commit"] and "CPU cores" in record["machine"] and len(record["load_average_after"]) == 3
     assert all(r["samples_per_s_per_core"] > 0 and r["face_size"] == 48 for r in record["results"])
+    # One root served at two sizes: one identity, that of the files the rows read.
+    (identity,) = record["datasets"]
+    assert identity["root"] == str(tiny_dataset)
+    assert identity["content_sha256"] == content_identity(tiny_dataset)["content_sha256"]
