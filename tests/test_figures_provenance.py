@@ -1,5 +1,7 @@
 """Every result file under ``docs/figures/`` names where it comes from: a full, clean commit and the command that
-wrote it, at its top level or under ``provenance`` (``docs/results.md`` cites numbers only from such files)."""
+wrote it, at its top level or under ``provenance`` (``docs/results.md`` cites numbers only from such files), and the
+identity of the data it read: a dataset's content SHA-256 (``dataset``, ``datasets`` or ``content_sha256``), or a
+real file's SHA-256 (``scan``)."""
 
 from __future__ import annotations
 
@@ -12,6 +14,14 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = sorted((ROOT / "docs" / "figures").rglob("*.json"))
 _FULL_COMMIT = re.compile(r"[0-9a-f]{40}")
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+_IDENTITY_KEYS = {"dataset", "datasets", "content_sha256", "scan"}
+
+#: The figures that read no data files, and what they measure instead.
+READS_NO_DATA = {
+    "test_suite.json": "the test suite's wall time and coverage",
+    "occlusion_memory.json": "occlusion methods' memory on a scene built in memory from its name and seed",
+}
 
 
 @pytest.mark.parametrize("path", FIGURES, ids=lambda p: str(p.relative_to(ROOT / "docs" / "figures")))
@@ -21,6 +31,34 @@ def test_a_figure_names_a_clean_full_commit_and_its_command(path: Path) -> None:
     commit, command = source.get("commit"), source.get("command")
     assert isinstance(commit, str) and _FULL_COMMIT.fullmatch(commit), f"{path}: commit {commit!r}"
     assert isinstance(command, str) and "python " in command, f"{path}: command {command!r}"
+
+
+def _identities(node: object, under_identity_key: bool = False) -> set[str]:
+    """Every SHA-256 held (at any depth) under one of :data:`_IDENTITY_KEYS`."""
+    if isinstance(node, dict):
+        return set().union(
+            *(_identities(v, under_identity_key or k in _IDENTITY_KEYS) for k, v in node.items())
+        )
+    if isinstance(node, list):
+        return set().union(*(_identities(v, under_identity_key) for v in node))
+    return {node} if under_identity_key and isinstance(node, str) and _SHA256.fullmatch(node) else set()
+
+
+@pytest.mark.parametrize("path", FIGURES, ids=lambda p: str(p.relative_to(ROOT / "docs" / "figures")))
+def test_a_figure_names_the_data_it_read(path: Path) -> None:
+    if path.name in READS_NO_DATA:
+        return
+    assert _identities(json.loads(path.read_text())), (
+        f"{path}: no dataset content SHA-256 (or real file SHA-256) under {sorted(_IDENTITY_KEYS)}"
+    )
+
+
+def test_the_identity_finder() -> None:
+    digest = "a" * 64
+    assert _identities({"dataset": {"root": "/x", "content_sha256": digest}}) == {digest}
+    assert _identities({"datasets": [digest]}) == {digest}
+    assert _identities({"results": [{"sha256": digest}]}) == set()  # a file checksum outside an identity key
+    assert _identities({"dataset": {"name": "tiny"}}) == set()
 
 
 def test_there_are_figures() -> None:
