@@ -15,7 +15,9 @@ The summary (:func:`summarise`):
   ``arm - none``; the mean over the flights with a t-interval over the flights (``n`` = flights), its p-value,
   Holm-adjusted over the whole family (every arm x metric reported) and the Bonferroni interval at the family's
   level (:mod:`airfisheye_bench.benchmarks.clustered`); beside it, the mean difference per seed, whose spread is
-  what the training noise alone does.
+  what the training noise alone does;
+* per run (:func:`run_overview`): how its training went (epochs, whether early stopping ended it, its validation
+  RMSE first, best and last, its test RMSE) and what it cost (running time over its segments).
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ __all__ = [
     "build_record",
     "load_records",
     "mean_std",
+    "run_overview",
+    "runs_table",
     "summarise",
     "summary_tables",
     "validation_curve",
@@ -177,7 +181,91 @@ def summarise(
     for key, p in adjusted.items():
         arm, name = key.split("|")
         differences[arm][name]["p_holm"] = p
-    return {"reference": reference, "family_size": family, "arms": arms, "paired": differences}
+    return {
+        "reference": reference,
+        "family_size": family,
+        "arms": arms,
+        "paired": differences,
+        "runs": [run_overview(r) for arm in by_arm.values() for r in arm.values()],
+    }
+
+
+def run_overview(record: Mapping[str, Any], metric: str = "val/rmse") -> dict[str, Any]:
+    """How a recorded run trained and what it cost: epochs (of the command's ``trainer.max_epochs``; fewer: early
+    stopping ended it), the validation ``metric`` after the first epoch, at its best (1-based epoch, the checkpoint
+    tested) and after the last, the test RMSE, and the running time summed over its segments (a segment's
+    ``wall_s`` less the time it was stopped, ``paused_s``; a cut segment's ``span_s`` from its log, or its
+    ``fit_wall_s``), ``None`` where a segment states none.
+
+    Example:
+        >>> record = {"method": "none", "seed": 0, "metrics": {"rmse": 7.5}, "epochs_trained": 3,
+        ...           "validation_curve": [{"epoch": e, "val/rmse": v} for e, v in enumerate([9.0, 7.0, 8.0])],
+        ...           "provenance": {"command": "python train.py trainer.max_epochs=30", "segments": [
+        ...               {"span_s": 100.0}, {"wall_s": 500.0, "paused_s": 200.0}]}}
+        >>> o = run_overview(record)
+        >>> o["early_stopped"], o["best_epoch"], o["val_best"], o["running_s"], o["segments"]
+        (True, 2, 7.0, 400.0, 2)
+    """
+    curve = [float(c[metric]) for c in record.get("validation_curve") or []]
+    best = min(range(len(curve)), key=curve.__getitem__) if curve else None
+    provenance = record.get("provenance") or {}
+    max_epochs = next(
+        (
+            int(arg.split("=", 1)[1])
+            for arg in str(provenance.get("command", "")).split()
+            if arg.startswith("trainer.max_epochs=")
+        ),
+        None,
+    )
+    segments = provenance.get("segments") or [{"wall_s": record.get("wall_s")}]
+    running = [_running_s(segment) for segment in segments]
+    epochs = record.get("epochs_trained")
+    return {
+        "method": record["method"],
+        "seed": int(record["seed"]),
+        "epochs_trained": epochs,
+        "max_epochs": max_epochs,
+        "early_stopped": None if epochs is None or max_epochs is None else epochs < max_epochs,
+        "val_first": curve[0] if curve else None,
+        "val_best": curve[best] if best is not None else None,
+        "best_epoch": best + 1 if best is not None else None,
+        "val_last": curve[-1] if curve else None,
+        "test_rmse": (record.get("metrics") or {}).get("rmse"),
+        "running_s": None if None in running else sum(running),
+        "segments": len(segments),
+    }
+
+
+def _running_s(segment: Mapping[str, Any]) -> float | None:
+    """How long one segment ran: its wall time less any time it was stopped; a cut one's span or fit time."""
+    if segment.get("wall_s") is not None:
+        return float(segment["wall_s"]) - float(segment.get("paused_s") or 0.0)
+    for key in ("span_s", "fit_wall_s"):
+        if segment.get(key) is not None:
+            return float(segment[key])
+    return None
+
+
+def runs_table(records: Iterable[Mapping[str, Any]]) -> str:
+    """Markdown: one row per recorded run (:func:`run_overview`), by arm and seed."""
+    lines = [
+        "| input | seed | epochs | ended by | val RMSE: first, best (epoch), last | test RMSE | running time (segments) |",
+        "|---|---:|---:|---|---|---:|---|",
+    ]
+    for o in map(run_overview, records):
+        ended = "-" if o["early_stopped"] is None else "early stopping" if o["early_stopped"] else "the cap"
+        val = (
+            f"{o['val_first']:.2f}, {o['val_best']:.2f} ({o['best_epoch']}), {o['val_last']:.2f}"
+            if o["val_best"] is not None
+            else "-"
+        )
+        test = "-" if o["test_rmse"] is None else f"{o['test_rmse']:.3f}"
+        running = "-" if o["running_s"] is None else f"{o['running_s']:,.0f} s"
+        lines.append(
+            f"| `{o['method']}` | {o['seed']} | {o['epochs_trained']} | {ended} | {val} | {test} "
+            f"| {running} ({o['segments']}) |"
+        )
+    return "\n".join(lines)
 
 
 def summary_tables(summary: Mapping[str, Any], metrics: Sequence[str] = FAMILY_METRICS) -> str:

@@ -265,6 +265,12 @@ def test_recorded_ablation_writes_one_record_a_run_and_summarises_by_flight(
     assert payload["family_size"] == len(payload["paired"]["ordering"])
     assert all("p_holm" in e for e in payload["paired"]["ordering"].values())
     assert json.loads((tmp_path / "summary.json").read_text())["records"][0] == "none_seed0.json"
+    # Each run's training and cost, one row per record.
+    assert [(r["method"], r["seed"], r["best_epoch"], r["val_best"]) for r in payload["runs"]] == [
+        (m, s, 2, 8.5) for m in ("none", "ordering") for s in (0, 1)
+    ]
+    table = ablation.ablation_records.runs_table(ablation.ablation_records.load_records(record))
+    assert table.count("\n| `") == 4 and "9.00, 8.50 (2), 8.50" in table
 
     # The records alone are the study: the run folders can go.
     import shutil
