@@ -209,14 +209,8 @@ def run_overview(record: Mapping[str, Any], metric: str = "val/rmse") -> dict[st
     curve = [float(c[metric]) for c in record.get("validation_curve") or []]
     best = min(range(len(curve)), key=curve.__getitem__) if curve else None
     provenance = record.get("provenance") or {}
-    max_epochs = next(
-        (
-            int(arg.split("=", 1)[1])
-            for arg in str(provenance.get("command", "")).split()
-            if arg.startswith("trainer.max_epochs=")
-        ),
-        None,
-    )
+    overrides = dict(arg.split("=", 1) for arg in str(provenance.get("command", "")).split() if "=" in arg)
+    max_epochs = int(overrides["trainer.max_epochs"]) if "trainer.max_epochs" in overrides else None
     segments = provenance.get("segments") or [{"wall_s": record.get("wall_s")}]
     running = [_running_s(segment) for segment in segments]
     epochs = record.get("epochs_trained")
@@ -246,13 +240,13 @@ def _running_s(segment: Mapping[str, Any]) -> float | None:
     return None
 
 
-def runs_table(records: Iterable[Mapping[str, Any]]) -> str:
-    """Markdown: one row per recorded run (:func:`run_overview`), by arm and seed."""
+def runs_table(overviews: Iterable[Mapping[str, Any]]) -> str:
+    """Markdown: one row per recorded run, from its :func:`run_overview` (the summary's ``runs``)."""
     lines = [
         "| input | seed | epochs | ended by | val RMSE: first, best (epoch), last | test RMSE | running time (segments) |",
         "|---|---:|---:|---|---|---:|---|",
     ]
-    for o in map(run_overview, records):
+    for o in overviews:
         ended = "-" if o["early_stopped"] is None else "early stopping" if o["early_stopped"] else "the cap"
         val = (
             f"{o['val_first']:.2f}, {o['val_best']:.2f} ({o['best_epoch']}), {o['val_last']:.2f}"

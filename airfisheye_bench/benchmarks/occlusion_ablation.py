@@ -388,7 +388,7 @@ def summarise_records(args: argparse.Namespace, argv: Sequence[str] | None) -> d
     if not records:
         raise SystemExit(f"no run records under {args.record}: nothing to summarise")
     summary = ablation_records.summarise(records)
-    print(ablation_records.runs_table(records) + "\n")
+    print(ablation_records.runs_table(summary["runs"]) + "\n")
     print(ablation_records.summary_tables(summary))
     payload = {
         "provenance": provenance("scripts/occlusion_ablation.py", argv),

@@ -269,7 +269,7 @@ def test_recorded_ablation_writes_one_record_a_run_and_summarises_by_flight(
     assert [(r["method"], r["seed"], r["best_epoch"], r["val_best"]) for r in payload["runs"]] == [
         (m, s, 2, 8.5) for m in ("none", "ordering") for s in (0, 1)
     ]
-    table = ablation.ablation_records.runs_table(ablation.ablation_records.load_records(record))
+    table = ablation.ablation_records.runs_table(payload["runs"])
     assert table.count("\n| `") == 4 and "9.00, 8.50 (2), 8.50" in table
 
     # The records alone are the study: the run folders can go.
