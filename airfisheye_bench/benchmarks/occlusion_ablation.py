@@ -131,15 +131,13 @@ def execute(
                 )
             argv = run.argv(overrides)
             command = " ".join(["python", *(Path(a).name if a == argv[1] else a for a in argv[1:])])
-            segments_path = (
-                run.out.parent / f"{run.out.name}.segments.json"
-            )  # beside the run: train.py owns it
+            # Beside the run, not in it: train.py owns the run's folder.
+            segments_path = run.out.parent / f"{run.out.name}.segments.json"
             segments = (
                 json.loads(segments_path.read_text(encoding="utf-8")) if segments_path.is_file() else []
             )
-            if (
-                run.out / "checkpoints" / "last.ckpt"
-            ).is_file():  # killed earlier (a session's end): resume it
+            killed_earlier = (run.out / "checkpoints" / "last.ckpt").is_file()  # a session's end cut it
+            if killed_earlier:  # resume it
                 argv = [argv[0], argv[1], "ckpt_path=last", f"hydra.run.dir={run.out}"]
             print(
                 f"[{k}/{len(runs)}] {run.method} seed {run.seed}" + (" (resumed)" if segments else ""),
@@ -153,15 +151,26 @@ def execute(
             record = {
                 "commit": segments[0]["commit"],
                 "command": command,
-                "wall_s": round(
-                    sum(seg.get("wall_s") or 0.0 for seg in segments), 1
-                ),  # a killed segment's is unknown
+                "wall_s": total_wall(segments),
                 # A run killed and resumed (ckpt_path=last: exact on one CPU process) trained in several segments.
                 "segments": [{"commit": seg["commit"], "wall_s": seg.get("wall_s")} for seg in segments],
             }
             atomic_write_text(run.out / "provenance.json", json.dumps(record, indent=2) + "\n")
         if after is not None:
             after(run)
+
+
+def total_wall(segments: Sequence[dict[str, Any]]) -> float | None:
+    """The run's wall time over its segments, or ``None`` when a segment's is unknown (one killed before it
+    could write it): an unknown part is not counted as 0.
+
+    >>> total_wall([{"wall_s": 10.0}, {"wall_s": 2.5}])
+    12.5
+    >>> total_wall([{"wall_s": 10.0}, {}]) is None
+    True
+    """
+    walls = [seg.get("wall_s") for seg in segments]
+    return None if any(w is None for w in walls) else round(sum(walls), 1)
 
 
 def write_record(

@@ -339,4 +339,5 @@ def test_a_killed_run_is_resumed_exactly_and_its_segments_recorded(
     assert calls[1][2:] == ["ckpt_path=last", f"hydra.run.dir={tmp_path / 'none' / 'seed0'}"]
     record = json.loads((tmp_path / "none" / "seed0" / "provenance.json").read_text())
     assert len(record["segments"]) == 2 and record["segments"][0]["wall_s"] is None
+    assert record["wall_s"] is None  # the killed segment's time is unknown, not 0
     assert record["command"].startswith("python train.py task=completion data.occlusion=none seed=0")
