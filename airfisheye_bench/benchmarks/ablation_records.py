@@ -37,6 +37,7 @@ __all__ = [
     "load_records",
     "mean_std",
     "run_overview",
+    "running_time",
     "runs_table",
     "summarise",
     "summary_tables",
@@ -212,7 +213,6 @@ def run_overview(record: Mapping[str, Any], metric: str = "val/rmse") -> dict[st
     overrides = dict(arg.split("=", 1) for arg in str(provenance.get("command", "")).split() if "=" in arg)
     max_epochs = int(overrides["trainer.max_epochs"]) if "trainer.max_epochs" in overrides else None
     segments = provenance.get("segments") or [{"wall_s": record.get("wall_s")}]
-    running = [_running_s(segment) for segment in segments]
     epochs = record.get("epochs_trained")
     return {
         "method": record["method"],
@@ -225,9 +225,23 @@ def run_overview(record: Mapping[str, Any], metric: str = "val/rmse") -> dict[st
         "best_epoch": best + 1 if best is not None else None,
         "val_last": curve[-1] if curve else None,
         "test_rmse": (record.get("metrics") or {}).get("rmse"),
-        "running_s": None if None in running else sum(running),
+        "running_s": running_time(segments),
         "segments": len(segments),
     }
+
+
+def running_time(segments: Iterable[Mapping[str, Any]]) -> float | None:
+    """A run's running time summed over its segments (:func:`_running_s`), or ``None`` when a segment's is
+    unknown (one killed before it could write it): an unknown part is never counted as 0.
+
+    Example:
+        >>> running_time([{"wall_s": 10.0}, {"wall_s": 5.0, "paused_s": 2.5}])
+        12.5
+        >>> running_time([{"wall_s": 10.0}, {}]) is None
+        True
+    """
+    running = [_running_s(segment) for segment in segments]
+    return None if None in running else sum(running)
 
 
 def _running_s(segment: Mapping[str, Any]) -> float | None:

@@ -148,29 +148,17 @@ def execute(
             atomic_write_text(segments_path, json.dumps(segments, indent=2) + "\n")
             runner(argv)
             segments[-1]["wall_s"] = round(time.time() - segments[-1]["started"], 1)
+            wall = ablation_records.running_time(segments)  # None: a killed segment's is unknown
             record = {
                 "commit": segments[0]["commit"],
                 "command": command,
-                "wall_s": total_wall(segments),
+                "wall_s": None if wall is None else round(wall, 1),
                 # A run killed and resumed (ckpt_path=last: exact on one CPU process) trained in several segments.
                 "segments": [{"commit": seg["commit"], "wall_s": seg.get("wall_s")} for seg in segments],
             }
             atomic_write_text(run.out / "provenance.json", json.dumps(record, indent=2) + "\n")
         if after is not None:
             after(run)
-
-
-def total_wall(segments: Sequence[dict[str, Any]]) -> float | None:
-    """The run's wall time over its segments, or ``None`` when a segment's is unknown (one killed before it
-    could write it): an unknown part is not counted as 0.
-
-    >>> total_wall([{"wall_s": 10.0}, {"wall_s": 2.5}])
-    12.5
-    >>> total_wall([{"wall_s": 10.0}, {}]) is None
-    True
-    """
-    walls = [seg.get("wall_s") for seg in segments]
-    return None if any(w is None for w in walls) else round(sum(walls), 1)
 
 
 def write_record(
