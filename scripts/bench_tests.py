@@ -1,7 +1,8 @@
 """Time the test suites and measure their coverage of the packages; write the result into ``docs/benchmarks.md``.
 
 ``python scripts/bench_tests.py`` runs ``pytest`` (the README's command) and ``pytest -m slow`` one after the other,
-each in a fresh process, and records each suite's wall time, its closing line and its slowest tests.
+each in a fresh process, and records each suite's wall time, its closing line and its slowest tests
+(``--suites default``: the default suite only).
 ``--coverage`` runs both under coverage.py (branch coverage of ``airfisheye_bench``, ``datamodules`` and ``models``,
 the subprocesses and pytest-xdist workers included) and adds the combined coverage of the two suites, as the
 line-and-branch percentage ``coverage report`` prints. ``--baseline REV`` does the same, in the same run, on a
@@ -62,9 +63,9 @@ def _coverage_rc(data_file: Path, tree: Path) -> Path:
     return rc
 
 
-def run_suites(tree: Path, coverage: bool, scratch: Path) -> dict:
-    """Both suites in ``tree``: wall time, closing line, slowest tests each; with ``coverage``, the combined
-    line-and-branch coverage of the packages over the two."""
+def run_suites(tree: Path, coverage: bool, scratch: Path, suites: tuple[str, ...] = tuple(SUITES)) -> dict:
+    """The ``suites`` in ``tree``: wall time, closing line, slowest tests each; with ``coverage``, the combined
+    line-and-branch coverage of the packages over them."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST_", "COVERAGE_"))}
     prefix = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q"]
     if coverage:
@@ -72,7 +73,8 @@ def run_suites(tree: Path, coverage: bool, scratch: Path) -> dict:
         env["COVERAGE_RCFILE"] = str(rc)
         prefix = [sys.executable, "-m", "coverage", "run", "-m", "pytest", "-p", "no:cacheprovider", "-q"]
     result: dict = {"tree": str(tree), "suites": {}}
-    for name, args in SUITES.items():
+    for name in suites:
+        args = SUITES[name]
         started = time.perf_counter()
         done = subprocess.run([*prefix, *args], cwd=tree, env=env, capture_output=True, text=True)
         wall = time.perf_counter() - started
@@ -101,7 +103,7 @@ def run_suites(tree: Path, coverage: bool, scratch: Path) -> dict:
 
 def _markdown(record: dict) -> str:
     rows = [
-        "| tree | suite | wall | closing line | coverage of the packages (both suites) |",
+        "| tree | suite | wall | closing line | coverage of the packages (the suites run) |",
         "|---|---|---:|---|---|",
     ]
     for label, result in record["trees"].items():
@@ -145,6 +147,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--baseline", metavar="REV", help="also measure a worktree of this commit, in the same run"
     )
+    parser.add_argument(
+        "--suites",
+        nargs="+",
+        choices=list(SUITES),
+        default=list(SUITES),
+        help="the suites to run (default: both)",
+    )
     parser.add_argument("--no-docs", action="store_true", help="print only; write neither JSON nor docs")
     args = parser.parse_args(argv)
     record = {
@@ -165,11 +174,13 @@ def main(argv: list[str] | None = None) -> int:
             )
             try:
                 (scratch / "b").mkdir()
-                record["trees"][f"baseline {args.baseline}"] = run_suites(base, args.coverage, scratch / "b")
+                record["trees"][f"baseline {args.baseline}"] = run_suites(
+                    base, args.coverage, scratch / "b", tuple(args.suites)
+                )
             finally:
                 subprocess.run(["git", "worktree", "remove", "--force", str(base)], cwd=ROOT, check=False)
         (scratch / "c").mkdir()
-        record["trees"]["this tree"] = run_suites(ROOT, args.coverage, scratch / "c")
+        record["trees"]["this tree"] = run_suites(ROOT, args.coverage, scratch / "c", tuple(args.suites))
     print(json.dumps(record, indent=2))
     if not args.no_docs:
         out = ROOT / "docs" / "figures" / "test_suite.json"

@@ -30,7 +30,7 @@ CAMCHAIN = """cam0:
 """
 
 
-@pytest.fixture(scope="session")  # once per worker: xdist may tear a module fixture down between batches
+@pytest.fixture(scope="module")  # built once: --dist loadscope runs a module on one worker (pyproject.toml)
 def fresh_train(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
     """A fresh ``python train.py`` run in its own process (the console is what is tested): its console output and
     run directory, shared by the tests below. The callbacks are the default ones (the progress bar too), the
