@@ -53,6 +53,15 @@ def _slowest(output: str, n: int = 5) -> list[str]:
     )
 
 
+def _failed(output: str) -> list[str]:
+    r"""The tests ``-ra``'s summary lists as failed or in error, so that a record says which.
+
+    >>> _failed("FAILED tests/test_a.py::test_b - assert 1 == 2\nERROR tests/test_c.py::test_d\n1 failed")
+    ['tests/test_a.py::test_b', 'tests/test_c.py::test_d']
+    """
+    return re.findall(r"^(?:FAILED|ERROR) (\S+)", output, flags=re.MULTILINE)
+
+
 def _coverage_rc(data_file: Path, tree: Path) -> Path:
     rc = data_file.parent / "coveragerc"
     rc.write_text(
@@ -85,8 +94,9 @@ def run_suites(tree: Path, coverage: bool, scratch: Path, suites: tuple[str, ...
             "wall_s": round(wall, 1),
             "closing_line": _closing(output),
             "slowest": _slowest(output),
+            "failed": _failed(output),
         }
-        print(f"{tree} {name}: {wall:.0f} s, {_closing(output)}", flush=True)
+        print(f"{tree} {name}: {wall:.0f} s, {_closing(output)}", *_failed(output), sep="\n  ", flush=True)
     if coverage:
         cov = [sys.executable, "-m", "coverage"]
         subprocess.run([*cov, "combine", "-q"], cwd=tree, env=env, check=True)
