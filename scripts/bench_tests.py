@@ -88,15 +88,16 @@ def run_suites(tree: Path, coverage: bool, scratch: Path, suites: tuple[str, ...
         done = subprocess.run([*prefix, *args], cwd=tree, env=env, capture_output=True, text=True)
         wall = time.perf_counter() - started
         output = done.stdout + done.stderr
+        failed = _failed(output)
         result["suites"][name] = {
             "command": shlex.join(["pytest", *args]),
             "exit_status": done.returncode,
             "wall_s": round(wall, 1),
             "closing_line": _closing(output),
             "slowest": _slowest(output),
-            "failed": _failed(output),
+            "failed": failed,
         }
-        print(f"{tree} {name}: {wall:.0f} s, {_closing(output)}", *_failed(output), sep="\n  ", flush=True)
+        print(f"{tree} {name}: {wall:.0f} s, {_closing(output)}", *failed, sep="\n  ", flush=True)
     if coverage:
         cov = [sys.executable, "-m", "coverage"]
         subprocess.run([*cov, "combine", "-q"], cwd=tree, env=env, check=True)
