@@ -86,6 +86,9 @@ class Plan:
     warmup: int
     steps: int
     fp32_steps: int
+    cached_warm_s: float  # the ceiling's warm-up, at least (clocks, cuDNN)
+    fed_drain_s: float  # the loader-fed warm-up's wait for the workers' store to empty, at most
+    window_s: float  # each timed run of steps, at least
     loader_warm_s: float
     loader_window_s: float
     budget_s: float
@@ -109,6 +112,9 @@ FULL = Plan(
     warmup=3,
     steps=20,
     fp32_steps=8,
+    cached_warm_s=2.0,
+    fed_drain_s=12.0,
+    window_s=3.0,
     loader_warm_s=1.0,
     loader_window_s=3.5,
     budget_s=540.0,
@@ -123,6 +129,9 @@ SMOKE = Plan(
     warmup=1,
     steps=2,
     fp32_steps=1,
+    cached_warm_s=0.0,
+    fed_drain_s=1.0,
+    window_s=0.0,
     loader_warm_s=0.2,
     loader_window_s=0.5,
     budget_s=240.0,
@@ -328,29 +337,32 @@ def train_task(
     try:
         stepper = Stepper(module, device, amp_dtype, scaler, clip)
         batch = to_device(collate([dataset[i % len(dataset)] for i in range(batch_size)]), device)
-        record.set(*key, "cached", value=cached_steps(stepper, batch, plan.warmup, plan.steps, phase))
+        timing = {"warm_s": plan.cached_warm_s, "window_s": plan.window_s}
+        record.set(
+            *key, "cached", value=cached_steps(stepper, batch, plan.warmup, plan.steps, phase, **timing)
+        )
         record.set(*key, "amp_parity", value=amp_parity(stepper, batch))
         if not phase.expired("float32 steps"):
             fp32 = Stepper(module, device, None, False, clip)
-            record.set(*key, "cached_fp32", value=cached_steps(fp32, batch, 1, plan.fp32_steps, phase))
+            record.set(
+                *key, "cached_fp32", value=cached_steps(fp32, batch, 1, plan.fp32_steps, phase, **timing)
+            )
             del fp32
         for site in REMAP_SITES:
             if phase.expired(f"loader-fed steps, remap_on={site}"):
                 break
             finish = dataset.device_remap() if site == "device" else (lambda b: b)
             loader = stream(
-                served(dataset, site),
-                batch_size,
-                plan.train_workers,
-                plan.warmup + 2 * plan.train_workers + plan.steps + 2,
-                pin=device.type == "cuda",
+                served(dataset, site), batch_size, plan.train_workers, 100_000, pin=device.type == "cuda"
             )
             iterator = iter(loader)
-            # The warm-up also drains what the workers prefetched while they started (2 batches each), so the
-            # measured steps get what the loader produces, not a buffer.
+            # At least the batches the workers prefetched while they started (2 each), then until their store is
+            # empty (fed_steps): the measured steps get what the loader produces, not a buffer.
             warmup = plan.warmup + 2 * plan.train_workers
             try:
-                result = fed_steps(stepper, iterator, finish, warmup, plan.steps, phase)
+                result = fed_steps(
+                    stepper, iterator, finish, warmup, plan.steps, phase, plan.fed_drain_s, plan.window_s
+                )
             finally:
                 del iterator
             record.set(*key, "fed", site, value=result | {"workers": plan.train_workers})
@@ -365,7 +377,8 @@ def train_task(
 def task_summary(entry: dict[str, Any]) -> dict[str, Any]:
     """The answer for one recipe: the ceiling, what the loader gives with either remap site, and whether it keeps up.
 
-    The loader keeps up when the fed images/s reach 95 % of the cached ceiling.
+    The loader keeps up when the fed images/s reach 95 % of the cached ceiling; ``drained`` says whether the
+    workers' store of prefetched batches emptied before the measurement (``fed_steps``).
     """
     ceiling = (entry.get("cached") or {}).get("images_per_s")
     out: dict[str, Any] = {"ceiling_images_per_s": ceiling}
@@ -373,6 +386,7 @@ def task_summary(entry: dict[str, Any]) -> dict[str, Any]:
         rate = fed.get("images_per_s")
         out[f"fed_{site}_images_per_s"] = rate
         out[f"fed_{site}_device_idle_share"] = fed.get("device_idle_share")
+        out[f"fed_{site}_drained"] = fed.get("drained")
         if rate and ceiling:
             out[f"fed_{site}_keeps_up"] = rate >= 0.95 * ceiling
     return out

@@ -119,17 +119,31 @@ class _Marks:
         return a.elapsed_time(b) if self.cuda else (b - a) * 1e3
 
 
-def cached_steps(stepper: Stepper, batch: dict, warmup: int, steps: int, phase: Phase) -> dict[str, Any]:
-    """Steps on one batch kept on the device: the model's own ceiling (no loader), and its peak memory."""
+def cached_steps(
+    stepper: Stepper,
+    batch: dict,
+    warmup: int,
+    steps: int,
+    phase: Phase,
+    warm_s: float = 0.0,
+    window_s: float = 0.0,
+) -> dict[str, Any]:
+    """Steps on one batch kept on the device: the model's own ceiling (no loader), and its peak memory.
+
+    The warm-up runs ``warmup`` steps and at least ``warm_s`` seconds (a GPU's clocks ramp up and cuDNN settles its
+    algorithms over the first second or so); the measurement ``steps`` steps and at least ``window_s`` seconds.
+    """
     device = stepper.device
     if device.type == "cuda":
         torch.cuda.reset_peak_memory_stats(device)
-    for _ in range(warmup):
+    warm_started, warmed = time.perf_counter(), 0
+    while (warmed < warmup or time.perf_counter() - warm_started < warm_s) and not phase.expired("warm-up"):
         stepper(batch)
+        warmed += 1
     synchronize(device)
     size = int(batch["image"].shape[0])
     done, losses, started = 0, [], time.perf_counter()
-    for _ in range(steps):
+    while done < steps or time.perf_counter() - started < window_s:
         if phase.expired("cached steps"):
             break
         losses.append(stepper(batch))
@@ -138,6 +152,7 @@ def cached_steps(stepper: Stepper, batch: dict, warmup: int, steps: int, phase: 
     wall = time.perf_counter() - started
     out: dict[str, Any] = {
         "batch": size,
+        "warmup_steps": warmed,
         "steps": done,
         "step_ms": wall / max(done, 1) * 1e3,
         "images_per_s": size * done / wall if done else None,
@@ -153,8 +168,18 @@ def fed_steps(
     warmup: int,
     steps: int,
     phase: Phase,
+    drain_s: float = 0.0,
+    window_s: float = 0.0,
+    empty_ms: float = 1.0,
 ) -> dict[str, Any]:
     """Steps fed by ``batches`` (a loader's iterator); ``finish`` runs on the device after the transfer.
+
+    A loader's workers hold batches they made ahead (``prefetch_factor`` each), and a device that consumes faster
+    than they produce eats that store before it waits: a short window after a short warm-up measures the store, not
+    the loader. So the warm-up runs ``warmup`` steps, then goes on, for up to ``drain_s`` seconds, until ``next()``
+    first waits longer than ``empty_ms`` (the store is empty: from then on each batch comes as it is made);
+    ``drained`` says whether that happened (if not, the loader kept the store filled for ``drain_s``: it keeps up,
+    or nearly). The measurement runs ``steps`` steps and at least ``window_s`` seconds.
 
     Returns images/s, the host's wait in ``next()`` (share and ms per step), the device's idle share between steps,
     the device time of the transfer and finish, and of the step.
@@ -163,12 +188,20 @@ def fed_steps(
     marks = _Marks(device)
     if device.type == "cuda":
         torch.cuda.reset_peak_memory_stats(device)
-    for _ in range(warmup):
-        stepper(finish(to_device(next(batches), device)))
+    warm_started, warmed, drained = time.perf_counter(), 0, False
+    while warmed < warmup or (not drained and time.perf_counter() - warm_started < drain_s):
+        if phase.expired("loader-fed warm-up"):
+            break
+        t0 = time.perf_counter()
+        batch = next(batches)
+        drained |= warmed >= warmup and time.perf_counter() - t0 > empty_ms / 1e3
+        stepper(finish(to_device(batch, device)))
+        warmed += 1
     synchronize(device)
+    warm_s = time.perf_counter() - warm_started
     size, waits, points = 0, [], []
     started = time.perf_counter()
-    for _ in range(steps):
+    while len(points) < steps or time.perf_counter() - started < window_s:
         if phase.expired("loader-fed steps"):
             break
         t0 = time.perf_counter()
@@ -190,6 +223,9 @@ def fed_steps(
     span = marks.ms(points[0][0], points[-1][2])
     out: dict[str, Any] = {
         "batch": size,
+        "warmup_steps": warmed,
+        "warmup_s": round(warm_s, 2),
+        "drained": drained,
         "steps": done,
         "step_ms": wall / done * 1e3,
         "images_per_s": size * done / wall,

@@ -88,6 +88,8 @@ def test_smoke_task(smoke: dict, task: str) -> None:
     for site in ("worker", "device"):
         fed = entry["fed"][site]
         assert fed["steps"] == 2 and fed["images_per_s"] > 0
+        # No workers: every batch is made when asked for, so the first one after the warm-up waits.
+        assert fed["drained"] is True and fed["warmup_steps"] == 2
         assert 0 <= fed["host_wait_share"] <= 1 and 0 <= fed["device_idle_share"] <= 1
         assert fed["device_step_ms"] > 0 and fed["device_transfer_and_finish_ms"] >= 0
         assert isinstance(entry["summary"][f"fed_{site}_keeps_up"], bool)
