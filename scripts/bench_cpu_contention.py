@@ -1,0 +1,108 @@
+"""How much a recipe's training step slows when the host's other cores are busy, as a loader's workers keep them.
+
+``python scripts/bench_cpu_contention.py --task seg --busy 0 15 0 15 --out FILE`` on a machine with a GPU: the
+recipe (``experiment=paper/<task> trainer=gpu``, random weights) steps on one batch kept on the device (the GPU
+campaign's ceiling, :func:`~airfisheye_bench.benchmarks.train_throughput.cached_steps`) while ``N`` processes spin
+on the CPU, for each ``N`` of ``--busy`` in order (repeat a value to see the run-to-run spread). A step is launched
+from the host: when the loader's workers take every core, the launches wait, and the GPU idles *inside* the step,
+which the campaign's idle share between steps does not see. The batch comes from the ``tiny`` preset served at the
+recipe's size (generated on first use).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import os
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import torch
+from hydra import compose, initialize_config_dir
+
+from airfisheye_bench.benchmarks.campaign_record import Phase
+from airfisheye_bench.benchmarks.gpu_campaign import provenance
+from airfisheye_bench.benchmarks.train_throughput import Stepper, amp_of, cached_steps, to_device
+from airfisheye_bench.constants import config_dir
+from airfisheye_bench.training import build
+from datamodules.dataset import collate
+
+
+def _spin(stop) -> None:
+    while not stop.is_set():
+        pass
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="seg", choices=("seg", "depth", "completion"))
+    parser.add_argument(
+        "--busy", type=int, nargs="+", default=[0, 15, 0, 15], help="spinning processes, in order"
+    )
+    parser.add_argument("--window-s", type=float, default=4.0, help="each timed run, at least")
+    parser.add_argument("--steps", type=int, default=10, help="each timed run, at least")
+    parser.add_argument(
+        "overrides", nargs="*", help="more config overrides (a CPU check: data.camera.size=64 ...)"
+    )
+    parser.add_argument("--commit", default=None, help="the commit measured (default: the checkout's HEAD)")
+    parser.add_argument("--out", required=True, help="the JSON record")
+    args = parser.parse_args()
+    device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    command = shlex.join(["python", "scripts/bench_cpu_contention.py", *sys.argv[1:]])
+    overrides = [
+        f"experiment=paper/{args.task}",
+        "trainer=gpu",
+        "data.preset=tiny",
+        "model.encoder_weights=null",
+        "data.num_workers=0",
+        *args.overrides,
+    ]
+    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
+        cfg = compose(config_name="train", overrides=overrides)
+    datamodule, module = build(cfg)
+    dataset = datamodule.split_dataset("train")
+    amp_dtype, scaler, _ = amp_of(str(cfg.trainer.precision), device)
+    clip = cfg.trainer.get("gradient_clip_val")
+    stepper = Stepper(module, device, amp_dtype, scaler, clip)
+    batch_size = int(cfg.data.batch_size)
+    batch = to_device(collate([dataset[i % len(dataset)] for i in range(batch_size)]), device)
+    phase = Phase("contention", time.monotonic() + 3600.0)
+    cached_steps(stepper, batch, 3, 1, phase, warm_s=2.0 if device.type == "cuda" else 0.0)  # clocks, cuDNN
+    rows = []
+    for busy in args.busy:
+        stop = mp.Event()
+        spinners = [mp.Process(target=_spin, args=(stop,), daemon=True) for _ in range(busy)]
+        for p in spinners:
+            p.start()
+        try:
+            time.sleep(0.5 if busy else 0.0)
+            row = cached_steps(stepper, batch, 3, args.steps, phase, warm_s=0.5, window_s=args.window_s)
+        finally:
+            stop.set()
+            for p in spinners:
+                p.join()
+        rows.append({"busy_processes": busy} | row)
+        print(f"busy {busy:2d}: {row['step_ms']:.1f} ms/step, {row['images_per_s']:.1f} images/s", flush=True)
+    record = {
+        "provenance": provenance(command, args.commit, device),
+        "recipe": {
+            "experiment": f"paper/{args.task}",
+            "batch": batch_size,
+            "size": int(cfg.data.camera.size),
+        },
+        "data": "the tiny preset's training split, served at the recipe's size",
+        "cpu_count": os.cpu_count(),
+        "rows": rows,
+    }
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, indent=2) + "\n")
+    tmp.replace(out)
+
+
+if __name__ == "__main__":
+    main()
