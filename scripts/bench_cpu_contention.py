@@ -92,6 +92,7 @@ def main() -> None:
             "experiment": f"paper/{args.task}",
             "batch": batch_size,
             "size": int(cfg.data.camera.size),
+            "overrides": args.overrides,
         },
         "data": "the tiny preset's training split, served at the recipe's size",
         "cpu_count": os.cpu_count(),
