@@ -27,6 +27,7 @@ from airfisheye_bench.benchmarks.campaign_record import Phase
 from airfisheye_bench.benchmarks.gpu_campaign import provenance
 from airfisheye_bench.benchmarks.train_throughput import Stepper, amp_of, cached_steps, to_device
 from airfisheye_bench.constants import config_dir
+from airfisheye_bench.runs.results import dataset_identity
 from airfisheye_bench.training import build
 from datamodules.dataset import collate
 
@@ -64,6 +65,7 @@ def main() -> None:
         cfg = compose(config_name="train", overrides=overrides)
     datamodule, module = build(cfg)
     dataset = datamodule.split_dataset("train")
+    root = datamodule.dataset_root()
     amp_dtype, scaler, _ = amp_of(str(cfg.trainer.precision), device)
     clip = cfg.trainer.get("gradient_clip_val")
     stepper = Stepper(module, device, amp_dtype, scaler, clip)
@@ -95,6 +97,7 @@ def main() -> None:
             "overrides": args.overrides,
         },
         "data": "the tiny preset's training split, served at the recipe's size",
+        "dataset": {k: v for k, v in dataset_identity(root, "tiny").items() if k != "root"},
         "cpu_count": os.cpu_count(),
         "rows": rows,
     }

@@ -64,6 +64,7 @@ from airfisheye_bench.benchmarks.train_throughput import (
     to_device,
 )
 from airfisheye_bench.constants import config_dir
+from airfisheye_bench.runs.results import dataset_identity
 from airfisheye_bench.training import build
 from datamodules.dataset import AirFisheyeDataset, collate
 from datamodules.device_remap import CubeFaces
@@ -252,6 +253,8 @@ def generate_data(record: CampaignRecord, phase: Phase, plan: Plan, root: Path) 
             "workers": workers,
             "seconds": round(time.monotonic() - started, 1),
             "frames": frames,
+            # What the generator wrote, by content: the same data give the same identity on any machine.
+            "dataset": {k: v for k, v in dataset_identity(root, "campaign").items() if k != "root"},
             "served_size": plan.size,
             **plan.data,
         },

@@ -67,6 +67,7 @@ def test_smoke_record(smoke: dict) -> None:
     assert prov["cpu_count"] >= 1 and prov["torch"] and prov["device_name"] == "cpu"
     assert {"cuda", "cudnn", "machine", "tf32"} <= set(prov)
     assert smoke["data"]["frames"]["train"] > 0 and smoke["data"]["served_size"] == 64
+    assert len(smoke["data"]["dataset"]["content_sha256"]) == 64  # the data it measured, by content
     assert set(smoke["phases"]) == {"data", "loader", *(f"train:{t}" for t in TASKS)}
 
 
