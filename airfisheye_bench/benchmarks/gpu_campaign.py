@@ -9,8 +9,9 @@
 2. **train:<task>** -- for ``experiment=paper/seg|depth|completion`` at 512^2 with the recipe's batch and precision
    (``trainer=gpu``: 16-mixed), random initial weights (the machine is offline): steps on one batch kept on the
    device (the model's own ceiling: images/s, peak memory); the recipe's AMP against float32 on that batch (loss
-   and output parity, and float32's images/s); then steps fed by the recipe's loader (15 workers, pinned memory)
-   with ``remap_on=worker`` and with ``remap_on=device``: images/s, the host's wait in ``next()`` and the GPU's
+   and output parity, and float32's images/s); then steps fed by the recipe's loader (15 workers, the recipe's
+   ``data.pin_memory``) with ``remap_on=worker`` and with ``remap_on=device``, and on a GPU with ``remap_on=worker``
+   pinned (``worker_pinned``) where the recipe does not pin: images/s, the host's wait in ``next()`` and the GPU's
    measured idle share (:mod:`~airfisheye_bench.benchmarks.train_throughput`).
 3. **loader** -- the loader alone (no model): samples/s of each task's training loader with 4, 8 and 15 workers
    (decode, remap, occlusion-corrected LiDAR, augmentation), and what the workers give under ``remap_on=device``
@@ -24,7 +25,7 @@ The record carries its provenance: the full commit (``--commit``, else the check
 CUDA and cuDNN versions, the driver, the CPU model and count.
 
 ``--smoke`` does the same on the CPU at toy sizes (the ``tiny`` preset at 64^2, small models, batch 2, a few steps,
-0 and 2 workers) in about a minute: the default test suite runs it and checks the record's fields.
+0 and 2 workers) in about a minute: the slow test suite runs it and checks the record's fields.
 """
 
 from __future__ import annotations
@@ -351,13 +352,16 @@ def train_task(
                 *key, "cached_fp32", value=cached_steps(fp32, batch, 1, plan.fp32_steps, phase, **timing)
             )
             del fp32
-        for site in REMAP_SITES:
-            if phase.expired(f"loader-fed steps, remap_on={site}"):
+        # The training's own loader (the recipe's data.pin_memory) at each remap site; on a GPU, also pinned.
+        recipe_pin = bool(cfg.data.get("pin_memory", False)) and device.type == "cuda"
+        variants = [(site, recipe_pin, site) for site in REMAP_SITES]
+        if device.type == "cuda" and not recipe_pin:
+            variants.append(("worker", True, "worker_pinned"))
+        for site, pin, name in variants:
+            if phase.expired(f"loader-fed steps, {name}"):
                 break
             finish = dataset.device_remap() if site == "device" else (lambda b: b)
-            loader = stream(
-                served(dataset, site), batch_size, plan.train_workers, 100_000, pin=device.type == "cuda"
-            )
+            loader = stream(served(dataset, site), batch_size, plan.train_workers, 100_000, pin=pin)
             iterator = iter(loader)
             # At least the batches the workers prefetched while they started (2 each), then until their store is
             # empty (fed_steps): the measured steps get what the loader produces, not a buffer.
@@ -368,7 +372,7 @@ def train_task(
                 )
             finally:
                 del iterator
-            record.set(*key, "fed", site, value=result | {"workers": plan.train_workers})
+            record.set(*key, "fed", name, value=result | {"workers": plan.train_workers, "pin_memory": pin})
         record.set(*key, "summary", value=task_summary(record.data["tasks"][task]))
     finally:
         del datamodule, module

@@ -91,6 +91,7 @@ def test_smoke_task(smoke: dict, task: str) -> None:
         assert fed["steps"] == 2 and fed["images_per_s"] > 0
         # No workers: every batch is made when asked for, so the first one after the warm-up waits.
         assert fed["drained"] is True and fed["warmup_steps"] == 2
+        assert fed["pin_memory"] is False  # the recipe does not pin, and a CPU has no pinned variant
         assert 0 <= fed["host_wait_share"] <= 1 and 0 <= fed["device_idle_share"] <= 1
         assert fed["device_step_ms"] > 0 and fed["device_transfer_and_finish_ms"] >= 0
         assert isinstance(entry["summary"][f"fed_{site}_keeps_up"], bool)
