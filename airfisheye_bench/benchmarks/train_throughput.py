@@ -176,7 +176,7 @@ def fed_steps(
 
     A loader's workers hold batches they made ahead (``prefetch_factor`` each), and a device that consumes faster
     than they produce eats that store before it waits: a short window after a short warm-up measures the store, not
-    the loader. So the warm-up runs ``warmup`` steps, then goes on, for up to ``drain_s`` seconds, until ``next()``
+    the loader. So the warm-up runs ``warmup`` steps, then goes on, for up to ``drain_s`` more seconds, until ``next()``
     first waits longer than ``empty_ms`` (the store is empty: from then on each batch comes as it is made);
     ``drained`` says whether that happened (if not, the loader kept the store filled for ``drain_s``: it keeps up,
     or nearly). The measurement runs ``steps`` steps and at least ``window_s`` seconds.
@@ -189,7 +189,9 @@ def fed_steps(
     if device.type == "cuda":
         torch.cuda.reset_peak_memory_stats(device)
     warm_started, warmed, drained = time.perf_counter(), 0, False
-    while warmed < warmup or (not drained and time.perf_counter() - warm_started < drain_s):
+    # The wait for an empty store counts from the end of the minimum warm-up (a slow warm-up does not use it up).
+    drain_started = warm_started if warmup <= 0 else None
+    while warmed < warmup or (not drained and time.perf_counter() - drain_started < drain_s):
         if phase.expired("loader-fed warm-up"):
             break
         t0 = time.perf_counter()
@@ -197,6 +199,8 @@ def fed_steps(
         drained |= warmed >= warmup and time.perf_counter() - t0 > empty_ms / 1e3
         stepper(finish(to_device(batch, device)))
         warmed += 1
+        if warmed == warmup:
+            drain_started = time.perf_counter()
     synchronize(device)
     warm_s = time.perf_counter() - warm_started
     size, waits, points = 0, [], []

@@ -65,3 +65,24 @@ def test_a_loader_that_keeps_up_is_never_drained() -> None:
 def test_the_window_runs_at_least_window_s() -> None:
     out = fed_steps(_CountingStep(), _loader(0, 0.01), lambda b: b, 1, 1, _phase(), window_s=0.1)
     assert out["steps"] > 1 and out["steps"] * out["step_ms"] >= 100.0
+
+
+def test_the_wait_for_an_empty_store_counts_after_a_slow_minimum_warm_up() -> None:
+    """A minimum warm-up longer than ``drain_s`` still leaves it its ``drain_s`` (a loaded CPU, a slow model)."""
+
+    class SlowStep(_CountingStep):
+        def __call__(self, batch: dict) -> torch.Tensor:
+            time.sleep(0.03)
+            return super().__call__(batch)
+
+    out = fed_steps(
+        SlowStep(), _loader(3, MAKE_S), lambda b: b, 3, 1, _phase(), drain_s=0.06, empty_ms=EMPTY_MS
+    )
+    assert out["drained"] and out["warmup_steps"] == 4
+
+
+def test_no_minimum_warm_up() -> None:
+    out = fed_steps(
+        _CountingStep(), _loader(0, MAKE_S), lambda b: b, 0, 1, _phase(), drain_s=1.0, empty_ms=EMPTY_MS
+    )
+    assert out["drained"] and out["warmup_steps"] == 1
