@@ -12,7 +12,6 @@ recipe's size (generated on first use).
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing as mp
 import os
 import shlex
@@ -23,8 +22,9 @@ from pathlib import Path
 import torch
 from hydra import compose, initialize_config_dir
 
+from airfisheye_bench.atomic import atomic_write_json
 from airfisheye_bench.benchmarks.campaign_record import Phase
-from airfisheye_bench.benchmarks.gpu_campaign import provenance
+from airfisheye_bench.benchmarks.gpu_campaign import clip_norm, provenance
 from airfisheye_bench.benchmarks.train_throughput import Stepper, amp_of, cached_steps, to_device
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.runs.results import dataset_identity
@@ -67,8 +67,7 @@ def main() -> None:
     dataset = datamodule.split_dataset("train")
     root = datamodule.dataset_root()
     amp_dtype, scaler, _ = amp_of(str(cfg.trainer.precision), device)
-    clip = cfg.trainer.get("gradient_clip_val")
-    stepper = Stepper(module, device, amp_dtype, scaler, clip)
+    stepper = Stepper(module, device, amp_dtype, scaler, clip_norm(cfg))
     batch_size = int(cfg.data.batch_size)
     batch = to_device(collate([dataset[i % len(dataset)] for i in range(batch_size)]), device)
     phase = Phase("contention", time.monotonic() + 3600.0)
@@ -101,11 +100,8 @@ def main() -> None:
         "cpu_count": os.cpu_count(),
         "rows": rows,
     }
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, indent=2) + "\n")
-    tmp.replace(out)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(args.out, record)
 
 
 if __name__ == "__main__":

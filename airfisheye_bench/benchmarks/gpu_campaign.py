@@ -264,6 +264,13 @@ def generate_data(record: CampaignRecord, phase: Phase, plan: Plan, root: Path) 
 
 
 # ---------------------------------------------------------------------------------------------------- recipes
+def clip_norm(cfg: DictConfig) -> float | None:
+    """The recipe's gradient-norm clipping (``trainer.gradient_clip_val`` when the algorithm is ``norm``)."""
+    if cfg.trainer.get("gradient_clip_algorithm", "norm") != "norm":
+        return None
+    return cfg.trainer.get("gradient_clip_val")
+
+
 def recipe_config(task: str, plan: Plan, root: Path) -> DictConfig:
     """``experiment=paper/<task> trainer=gpu`` on the campaign's data, random weights, the plan's loader."""
     overrides = [
@@ -314,11 +321,7 @@ def train_task(
     datamodule, module = build(cfg)
     dataset = datamodule.split_dataset("train")
     amp_dtype, scaler, note = amp_of(str(cfg.trainer.precision), device)
-    clip = (
-        cfg.trainer.get("gradient_clip_val")
-        if cfg.trainer.get("gradient_clip_algorithm", "norm") == "norm"
-        else None
-    )
+    clip = clip_norm(cfg)
     batch_size = int(cfg.data.batch_size)
     key = ("tasks", task)
     record.set(
