@@ -20,16 +20,13 @@ import time
 from pathlib import Path
 
 import torch
-from hydra import compose, initialize_config_dir
 
 from airfisheye_bench.atomic import atomic_write_json
 from airfisheye_bench.benchmarks.campaign_record import Phase
-from airfisheye_bench.benchmarks.gpu_campaign import clip_norm, provenance
-from airfisheye_bench.benchmarks.train_throughput import Stepper, amp_of, cached_steps, to_device
-from airfisheye_bench.constants import config_dir
-from airfisheye_bench.runs.results import dataset_identity
+from airfisheye_bench.benchmarks.gpu_campaign import compose_recipe, kept_batch_stepper, provenance
+from airfisheye_bench.benchmarks.train_throughput import cached_steps
+from airfisheye_bench.runs.results import portable_identity
 from airfisheye_bench.training import build
-from datamodules.dataset import collate
 
 
 def _spin(stop) -> None:
@@ -53,23 +50,13 @@ def main() -> None:
     args = parser.parse_args()
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     command = shlex.join(["python", "scripts/bench_cpu_contention.py", *sys.argv[1:]])
-    overrides = [
-        f"experiment=paper/{args.task}",
-        "trainer=gpu",
-        "data.preset=tiny",
-        "model.encoder_weights=null",
-        "data.num_workers=0",
-        *args.overrides,
-    ]
-    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
-        cfg = compose(config_name="train", overrides=overrides)
+    data = ["data.preset=tiny", "data.num_workers=0"]
+    cfg = compose_recipe(args.task, [*data, *args.overrides])
     datamodule, module = build(cfg)
     dataset = datamodule.split_dataset("train")
     root = datamodule.dataset_root()
-    amp_dtype, scaler, _ = amp_of(str(cfg.trainer.precision), device)
-    stepper = Stepper(module, device, amp_dtype, scaler, clip_norm(cfg))
+    stepper, batch = kept_batch_stepper(cfg, module, dataset, device)
     batch_size = int(cfg.data.batch_size)
-    batch = to_device(collate([dataset[i % len(dataset)] for i in range(batch_size)]), device)
     phase = Phase("contention", time.monotonic() + 3600.0)
     cached_steps(stepper, batch, 3, 1, phase, warm_s=2.0 if device.type == "cuda" else 0.0)  # clocks, cuDNN
     rows = []
@@ -96,7 +83,7 @@ def main() -> None:
             "overrides": args.overrides,
         },
         "data": "the tiny preset's training split, served at the recipe's size",
-        "dataset": {k: v for k, v in dataset_identity(root, "tiny").items() if k != "root"},
+        "dataset": portable_identity(root, "tiny"),
         "cpu_count": os.cpu_count(),
         "rows": rows,
     }

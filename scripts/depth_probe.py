@@ -37,7 +37,7 @@ from omegaconf import OmegaConf
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.constants import config_dir
-from airfisheye_bench.runs.results import dataset_identity
+from airfisheye_bench.runs.results import portable_identity
 from airfisheye_bench.training import build
 from models.losses import AdaBinsLoss
 
@@ -63,7 +63,7 @@ def main(argv: list[str]) -> None:
         datamodule.setup("validate")
         val = [(b["image"], b["depth"]) for _, b in zip(range(6), datamodule.val_dataloader(), strict=False)]
         root = datamodule.dataset_root()
-        dataset = {k: v for k, v in dataset_identity(root, Path(root).name).items() if k != "root"}
+        dataset = portable_identity(root, Path(root).name)
         torch.save({"tr": train, "va": val, "dataset": dataset}, cache)
     else:
         model_cfg = OmegaConf.to_container(cfg.model, resolve=True)

@@ -65,7 +65,7 @@ from airfisheye_bench.benchmarks.train_throughput import (
     to_device,
 )
 from airfisheye_bench.constants import config_dir
-from airfisheye_bench.runs.results import dataset_identity
+from airfisheye_bench.runs.results import portable_identity
 from airfisheye_bench.training import build
 from datamodules.dataset import AirFisheyeDataset, collate
 from datamodules.device_remap import CubeFaces
@@ -255,7 +255,7 @@ def generate_data(record: CampaignRecord, phase: Phase, plan: Plan, root: Path) 
             "seconds": round(time.monotonic() - started, 1),
             "frames": frames,
             # What the generator wrote, by content: the same data give the same identity on any machine.
-            "dataset": {k: v for k, v in dataset_identity(root, "campaign").items() if k != "root"},
+            "dataset": portable_identity(root, "campaign"),
             "served_size": plan.size,
             **plan.data,
         },
@@ -271,20 +271,31 @@ def clip_norm(cfg: DictConfig) -> float | None:
     return cfg.trainer.get("gradient_clip_val")
 
 
-def recipe_config(task: str, plan: Plan, root: Path) -> DictConfig:
-    """``experiment=paper/<task> trainer=gpu`` on the campaign's data, random weights, the plan's loader."""
-    overrides = [
-        f"experiment=paper/{task}",
-        "trainer=gpu",
-        f"data.root={root}",
-        "data.preset=null",
-        f"data.camera.size={plan.size}",
-        "model.encoder_weights=null",
-        f"data.num_workers={plan.train_workers}",
-        *plan.overrides.get(task, []),
-    ]
+def compose_recipe(task: str, overrides: list[str]) -> DictConfig:
+    """``experiment=paper/<task> trainer=gpu`` with random initial weights (these machines are offline), then
+    ``overrides`` (the data, the loader)."""
+    recipe = [f"experiment=paper/{task}", "trainer=gpu", "model.encoder_weights=null", *overrides]
     with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
-        return compose(config_name="train", overrides=overrides)
+        return compose(config_name="train", overrides=recipe)
+
+
+def recipe_config(task: str, plan: Plan, root: Path) -> DictConfig:
+    """The recipe on the campaign's data at the plan's size, with the plan's loader and overrides."""
+    data = [f"data.root={root}", "data.preset=null", f"data.camera.size={plan.size}"]
+    return compose_recipe(
+        task, [*data, f"data.num_workers={plan.train_workers}", *plan.overrides.get(task, [])]
+    )
+
+
+def kept_batch_stepper(
+    cfg: DictConfig, module: torch.nn.Module, dataset, device: torch.device
+) -> tuple[Stepper, dict[str, Any]]:
+    """The recipe's training step (its precision and gradient clipping) and one batch of the recipe's size kept on
+    ``device``: what the model's own ceiling is measured on."""
+    amp_dtype, scaler, _ = amp_of(str(cfg.trainer.precision), device)
+    stepper = Stepper(module, device, amp_dtype, scaler, clip_norm(cfg))
+    batch_size = int(cfg.data.batch_size)
+    return stepper, to_device(collate([dataset[i % len(dataset)] for i in range(batch_size)]), device)
 
 
 def stream(dataset, batch_size: int, workers: int, batches: int, pin: bool, seed: int = 0) -> DataLoader:
@@ -320,7 +331,7 @@ def train_task(
     cfg = recipe_config(task, plan, root)
     datamodule, module = build(cfg)
     dataset = datamodule.split_dataset("train")
-    amp_dtype, scaler, note = amp_of(str(cfg.trainer.precision), device)
+    amp_dtype, _, note = amp_of(str(cfg.trainer.precision), device)
     clip = clip_norm(cfg)
     batch_size = int(cfg.data.batch_size)
     key = ("tasks", task)
@@ -342,8 +353,7 @@ def train_task(
         },
     )
     try:
-        stepper = Stepper(module, device, amp_dtype, scaler, clip)
-        batch = to_device(collate([dataset[i % len(dataset)] for i in range(batch_size)]), device)
+        stepper, batch = kept_batch_stepper(cfg, module, dataset, device)
         timing = {"warm_s": plan.cached_warm_s, "window_s": plan.window_s}
         record.set(
             *key, "cached", value=cached_steps(stepper, batch, plan.warmup, plan.steps, phase, **timing)

@@ -154,6 +154,12 @@ def dataset_identity(root: str | Path, name: str) -> dict[str, Any]:
     return identity
 
 
+def portable_identity(root: str | Path, name: str) -> dict[str, Any]:
+    """:func:`dataset_identity` less the root: what a committed record names (a path of one machine's cache means
+    nothing on another's)."""
+    return {key: value for key, value in dataset_identity(root, name).items() if key != "root"}
+
+
 def source_records(record: Mapping[str, Any]) -> list[dict[str, Any]]:
     """The records a ``results.json`` stands for: itself, and for a run of several sources (``sources``) one more
     per source, holding that source's dataset identity, metrics and breakdown; its ``model.scored_on`` says which
