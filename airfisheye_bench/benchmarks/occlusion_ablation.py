@@ -26,7 +26,8 @@ With ``--record DIR`` each finished run also leaves its record in ``DIR`` (``<me
 :mod:`airfisheye_bench.benchmarks.ablation_records`: commit, command, data identity, validation curve, per-frame
 scores on every region, the method-neutral ``changed`` one included), ``--commit-records`` commits it to git at
 once, and ``--collect-only --record DIR`` summarises the records alone, with the test flight as the unit and a
-Holm correction over the family. A run is refused when the checkout has uncommitted changes (a result is never
+Holm correction over the family; with ``--json FILE --report REPORT.md`` the summary is written and the report's
+generated block (its runs, the arms' means, the paired comparisons) rewritten from it. A run is refused when the checkout has uncommitted changes (a result is never
 trained from code that no commit holds); ``--allow-dirty`` is for trying the tool.
 """
 
@@ -35,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import subprocess
 import sys
 import time
@@ -49,6 +51,7 @@ from airfisheye_bench.benchmarks.ablation_records import mean_std
 from airfisheye_bench.benchmarks.crossover import run_frame_scores, run_region_scores
 from airfisheye_bench.benchmarks.paired import paired_differences, paired_table
 from airfisheye_bench.benchmarks.provenance import git_commit, provenance
+from airfisheye_bench.benchmarks.quickstart import replace_table
 from airfisheye_bench.geometry import occlusion
 from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
 
@@ -331,6 +334,11 @@ def parse_args(argv: Sequence[str] | None) -> tuple[argparse.Namespace, list[str
         "--commit-records", action="store_true", help="git-commit each record as it is written"
     )
     parser.add_argument(
+        "--report",
+        type=Path,
+        help="with --record and --json: rewrite the summary's generated block in this Markdown file",
+    )
+    parser.add_argument(
         "--allow-dirty", action="store_true", help="train even with uncommitted changes (not for results)"
     )
     return parser.parse_args(argv), overrides
@@ -396,4 +404,31 @@ def summarise_records(args: argparse.Namespace, argv: Sequence[str] | None) -> d
     }
     if args.json is not None:
         atomic_write_json(args.json, payload)
+    if args.report is not None:
+        write_report(args.report, payload, args.json)
     return payload
+
+
+def write_report(report: Path, summary: dict[str, Any], source: Path | None) -> None:
+    """Replace the generated block of ``report`` (:func:`~airfisheye_bench.benchmarks.ablation_records.report_block`)
+    with the summary's, its link relative to the report; the report must already hold the markers."""
+    if source is None:
+        raise SystemExit("--report needs --json: the block links the summary file it shows")
+    try:
+        text = report.read_text(encoding="utf-8")
+    except OSError as error:
+        raise SystemExit(f"--report {report}: {error.strerror}") from None
+    link = Path(os.path.relpath(source.resolve(), report.resolve().parent)).as_posix()
+    try:
+        text = replace_table(
+            text,
+            ablation_records.report_block(summary, link),
+            ablation_records.REPORT_BEGIN,
+            ablation_records.REPORT_END,
+        )
+    except ValueError:
+        raise SystemExit(
+            f"--report {report}: no generated block to rewrite; expected the lines\n"
+            f"{ablation_records.REPORT_BEGIN}\n{ablation_records.REPORT_END}"
+        ) from None
+    atomic_write_text(report, text)

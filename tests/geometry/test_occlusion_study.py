@@ -289,6 +289,27 @@ def test_recorded_ablation_writes_one_record_a_run_and_summarises_by_flight(
     )
     assert again["paired"]["ordering"]["all/rmse"]["mean"] == pytest.approx(-0.7)
 
+    # --report rewrites the report's generated block, and only that, with a link relative to the report.
+    records = ablation.ablation_records
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    report = docs / "results.md"
+    report.write_text(f"# Results\nbefore\n{records.REPORT_BEGIN}\nold\n{records.REPORT_END}\nafter\n")
+    collect = ["--out", str(tmp_path / "runs"), "--record", str(record), "--collect-only"]
+    collect += ["--json", str(tmp_path / "summary.json"), "--report", str(report)]
+    written = ablation.main(collect)
+    text = report.read_text()
+    assert text.startswith("# Results\nbefore\n") and text.endswith(f"{records.REPORT_END}\nafter\n")
+    block = text.split(records.REPORT_BEGIN)[1].split(records.REPORT_END)[0].strip("\n")
+    assert block == records.report_block(written, "../summary.json")
+    assert "| `ordering` | RMSE, whole image | 0,1 | \u22120.700 |" in block  # the typographic minus
+
+    # A report without the markers is refused, named, and left as it was.
+    report.write_text("no block here\n")
+    with pytest.raises(SystemExit, match=r"--report .*results.md: no generated block"):
+        ablation.main(collect)
+    assert report.read_text() == "no block here\n"
+
 
 def test_a_recorded_run_refuses_uncommitted_code(
     ablation: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
