@@ -27,8 +27,9 @@ With ``--record DIR`` each finished run also leaves its record in ``DIR`` (``<me
 scores on every region, the method-neutral ``changed`` one included), ``--commit-records`` commits it to git at
 once, and ``--collect-only --record DIR`` summarises the records alone, with the test flight as the unit and a
 Holm correction over the family; with ``--json FILE --report REPORT.md`` the summary is written and the report's
-generated block (its runs, the arms' means, the paired comparisons) rewritten from it. A run is refused when the checkout has uncommitted changes (a result is never
-trained from code that no commit holds); ``--allow-dirty`` is for trying the tool.
+generated block (its runs, the arms' means, the paired comparisons) rewritten from it. A run is refused when the
+checkout has uncommitted changes (a result is never trained from code that no commit holds); ``--allow-dirty`` is
+for trying the tool.
 """
 
 from __future__ import annotations
