@@ -50,9 +50,9 @@ from airfisheye_bench.atomic import atomic_write_json, atomic_write_text
 from airfisheye_bench.benchmarks import ablation_records
 from airfisheye_bench.benchmarks.ablation_records import mean_std
 from airfisheye_bench.benchmarks.crossover import run_frame_scores, run_region_scores
+from airfisheye_bench.benchmarks.generated_blocks import replace_block
 from airfisheye_bench.benchmarks.paired import paired_differences, paired_table
 from airfisheye_bench.benchmarks.provenance import git_commit, provenance
-from airfisheye_bench.benchmarks.quickstart import replace_table
 from airfisheye_bench.geometry import occlusion
 from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
 
@@ -421,7 +421,7 @@ def write_report(report: Path, summary: dict[str, Any], source: Path | None) -> 
         raise SystemExit(f"--report {report}: {error.strerror}") from None
     link = Path(os.path.relpath(source.resolve(), report.resolve().parent)).as_posix()
     try:
-        text = replace_table(
+        text = replace_block(
             text,
             ablation_records.report_block(summary, link),
             ablation_records.REPORT_BEGIN,

@@ -37,6 +37,7 @@ import torch
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.benchmarks.ablation_records import validation_curve
+from airfisheye_bench.benchmarks.generated_blocks import block_in, replace_block
 from airfisheye_bench.benchmarks.provenance import git_commit, machine
 from airfisheye_bench.evaluation.baselines import fit_baseline
 from airfisheye_bench.evaluation.evaluator import evaluate_predictions
@@ -537,23 +538,10 @@ def readme_table(record: dict[str, Any], source: str = "docs/quickstart_results.
 
 
 def replace_table(text: str, table: str, begin: str = TABLE_BEGIN, end: str = TABLE_END) -> str:
-    """``text`` with the part between the markers ``begin`` and ``end`` replaced by ``table``.
-
-    Example:
-        >>> replace_table(f"a\\n{TABLE_BEGIN}\\nold\\n{TABLE_END}\\nb", "new").splitlines()[2]
-        'new'
-    """
-    try:
-        head, rest = text.split(begin, 1)
-        _, tail = rest.split(end, 1)
-    except ValueError:
-        raise ValueError(f"the text has no generated-table markers ({begin} ... {end})") from None
-    return f"{head}{begin}\n{table}\n{end}{tail}"
+    """``text`` with the README's quick-start table (or the block between ``begin`` and ``end``) replaced."""
+    return replace_block(text, table, begin, end)
 
 
 def table_in(text: str, begin: str = TABLE_BEGIN, end: str = TABLE_END) -> str:
-    """The generated table between the markers ``begin`` and ``end`` of ``text``."""
-    try:
-        return text.split(begin, 1)[1].split(end, 1)[0].strip("\n")
-    except IndexError:
-        raise ValueError(f"the text has no generated-table markers ({begin} ... {end})") from None
+    """The README's quick-start table (or the block between ``begin`` and ``end``) of ``text``."""
+    return block_in(text, begin, end)

@@ -18,7 +18,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.benchmarks.quickstart import QUICKSTART_TASKS, mean_std, replace_table
+from airfisheye_bench.benchmarks.generated_blocks import replace_block
+from airfisheye_bench.benchmarks.quickstart import QUICKSTART_TASKS, mean_std
 from airfisheye_bench.specs import get_task
 
 __all__ = [
@@ -303,12 +304,12 @@ def deployment_records(docs: str | Path) -> dict[str, dict[str, Any]]:
 
 def regenerate(text: str, record: dict[str, Any], docs: str | Path) -> str:
     """``docs/results.md``'s text with its generated blocks rewritten from the committed files under ``docs``."""
-    text = replace_table(text, results_tables(record), RESULTS_BEGIN, RESULTS_END)
-    text = replace_table(text, claim_table(record), CLAIM_BEGIN, CLAIM_END)
+    text = replace_block(text, results_tables(record), RESULTS_BEGIN, RESULTS_END)
+    text = replace_block(text, claim_table(record), CLAIM_BEGIN, CLAIM_END)
     coverage_file = Path(docs) / "figures" / "sparse_coverage.json"
     coverage = json.loads(coverage_file.read_text(encoding="utf-8")) if coverage_file.is_file() else None
-    text = replace_table(text, rings_tables(record, coverage), RINGS_BEGIN, RINGS_END)
-    return replace_table(text, deployment_tables(deployment_records(docs)), DEPLOY_BEGIN, DEPLOY_END)
+    text = replace_block(text, rings_tables(record, coverage), RINGS_BEGIN, RINGS_END)
+    return replace_block(text, deployment_tables(deployment_records(docs)), DEPLOY_BEGIN, DEPLOY_END)
 
 
 RINGS_BEGIN = (

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from airfisheye_bench.benchmarks import ablation_records
+from airfisheye_bench.benchmarks.generated_blocks import block_in
 
 ROOT = Path(__file__).resolve().parents[2]
 ABLATION = ROOT / "docs" / "figures" / "occlusion_ablation"
@@ -33,6 +34,6 @@ def test_the_report_shows_the_summary(summary: dict) -> None:
     report = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
     begin, end = ablation_records.REPORT_BEGIN, ablation_records.REPORT_END
     assert report.count(begin) == 1 and report.count(end) == 1
-    block = report.split(begin)[1].split(end)[0].strip("\n")
+    block = block_in(report, begin, end)
     assert block == ablation_records.report_block(summary, "figures/occlusion_ablation/summary.json")
     assert summary["provenance"]["commit"] in block  # the report names the summary it quotes

@@ -13,6 +13,7 @@ import pytest
 from PIL import Image
 
 from airfisheye_bench.benchmarks import occlusion_ablation, occlusion_study
+from airfisheye_bench.benchmarks.generated_blocks import block_in
 from airfisheye_bench.geometry.occlusion import OCCLUSION_METHODS
 
 
@@ -300,7 +301,7 @@ def test_recorded_ablation_writes_one_record_a_run_and_summarises_by_flight(
     written = ablation.main(collect)
     text = report.read_text()
     assert text.startswith("# Results\nbefore\n") and text.endswith(f"{records.REPORT_END}\nafter\n")
-    block = text.split(records.REPORT_BEGIN)[1].split(records.REPORT_END)[0].strip("\n")
+    block = block_in(text, records.REPORT_BEGIN, records.REPORT_END)
     assert block == records.report_block(written, "../summary.json")
     assert "| `ordering` | RMSE, whole image | 0,1 | \u22120.700 |" in block  # the typographic minus
 
