@@ -12,6 +12,7 @@ import typing
 from pathlib import Path
 
 import pytest
+from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
 from airfisheye_bench.cli import commands
@@ -99,9 +100,11 @@ class _OneFlag:
 
 @pytest.mark.parametrize(("text", "value"), BOOLEANS.items())
 def test_the_schemas_grammar_reads_every_boolean_spelling(text: str, value: bool) -> None:
-    """The spellings, through the grammar every command's options go through (a structured config's ``bool``)."""
+    """The spellings, the way a command's compose reads them: Hydra's override parser types the text (a bool, an
+    int or a string), then ``OmegaConf.update`` sets it on a structured config's ``bool``."""
+    (override,) = OverridesParser.create().parse_overrides([f"flag={text}"])
     cfg = OmegaConf.structured(_OneFlag)
-    cfg.merge_with_dotlist([f"flag={text}"])
+    OmegaConf.update(cfg, "flag", override.value(), merge=True)
     assert cfg.flag is value
 
 
