@@ -67,6 +67,25 @@ def read_run_record(run_dir: str | os.PathLike) -> dict[str, str] | None:
 _LOCAL_STORES: set[str] = set()
 
 
+def choose_store(
+    save_dir: str | os.PathLike, tracking_uri: str | None = None, artifact_location: str | None = None
+) -> tuple[str, str | None]:
+    """The store a run logs to and where a new experiment keeps its artifacts: ``(tracking URI, location)``.
+
+    ``tracking_uri`` when given, else ``$MLFLOW_TRACKING_URI`` when the user set it, else the run's own SQLite store
+    (:func:`local_store`, its artifacts beside it unless ``artifact_location`` says otherwise). A store chosen this
+    way is remembered (:data:`_LOCAL_STORES`): MLflow exports it as ``$MLFLOW_TRACKING_URI``, which the next run in
+    this process must not take for the user's choice.
+    """
+    from_env = os.environ.get("MLFLOW_TRACKING_URI")
+    tracking_uri = tracking_uri or (from_env if from_env not in _LOCAL_STORES else None)
+    if tracking_uri is None:
+        tracking_uri, default_artifacts = local_store(save_dir)
+        _LOCAL_STORES.add(tracking_uri)
+        artifact_location = artifact_location or default_artifacts
+    return tracking_uri, artifact_location
+
+
 class RunMLFlowLogger(MLFlowLogger):
     """``MLFlowLogger`` storing into the run directory unless given a tracking URI; resumes the run's MLflow run.
 
@@ -92,13 +111,9 @@ class RunMLFlowLogger(MLFlowLogger):
     ) -> None:
         # "Creating initial MLflow database tables...", "Updating database tables": every run's own new store.
         logging.getLogger("mlflow.store.db.utils").setLevel(logging.WARNING)
-        from_env = os.environ.get("MLFLOW_TRACKING_URI")
-        tracking_uri = tracking_uri or (from_env if from_env not in _LOCAL_STORES else None)
-        if tracking_uri is None:
-            tracking_uri, default_artifacts = local_store(save_dir)
-            _LOCAL_STORES.add(tracking_uri)
-            artifact_location = artifact_location or default_artifacts
-            Path(default_artifacts).parent.mkdir(parents=True, exist_ok=True)
+        tracking_uri, artifact_location = choose_store(save_dir, tracking_uri, artifact_location)
+        if tracking_uri == local_store(save_dir)[0]:  # SQLite creates the database, not its folder
+            Path(save_dir, "mlflow").mkdir(parents=True, exist_ok=True)
         record = read_run_record(save_dir)
         # A resumed run directory continues its MLflow run (the same store), instead of starting a second one.
         run_id = record["run_id"] if record and record.get("tracking_uri") == tracking_uri else None

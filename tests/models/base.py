@@ -54,6 +54,10 @@ class BaseModelTester:
     #: ONNX parity tolerances; ``None`` picks the task default (seg: abs 1e-4; depth: rel 1e-3).
     onnx_atol: ClassVar[float | None] = None
     onnx_rtol: ClassVar[float | None] = None
+    #: The default-suite test that exports this model through ``airfisheye-export`` and runs it in ONNX Runtime
+    #: (``"tests/<file>.py::<test>"``), or ``None``. Set, the ONNX tests here (the same checks on another
+    #: configuration) are ``slow`` (``tests/models/conftest.py``): one export of each model in the default suite.
+    deployed_by: ClassVar[str | None] = None
     #: Whether the ONNX export with symbolic H and W is expected to work (checked by a ``slow`` test).
     supports_dynamic_spatial: ClassVar[bool] = True
     #: Kwargs of the paper configuration and its input size, for the ``slow`` tests (``None`` skips them).

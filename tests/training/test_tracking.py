@@ -1,9 +1,10 @@
 """``logger=mlflow``: a run logged to a real ``mlflow server`` on the loopback interface, read back through MLflow's
-client; evaluation and export log to the same run (``mlflow_run=auto``). Skipped when mlflow is not installed
-(``pip install -e ".[mlflow]"``)."""
+client; evaluation and export log to the same run (``mlflow_run=auto``). The tests that log are skipped when mlflow
+is not installed (``pip install -e ".[mlflow]"``)."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import socket
@@ -16,13 +17,14 @@ from pathlib import Path
 
 import pytest
 
-from airfisheye_bench.tracking import RUN_RECORD, local_store, read_run_record
+from airfisheye_bench.tracking import RUN_RECORD, choose_store, local_store, read_run_record
 from tests.helpers.runs import tiny_run_overrides
 
 # No network in tests: MLflow 3 sends usage telemetry unless told not to (inherited by the commands and the server).
 os.environ["MLFLOW_DISABLE_TELEMETRY"] = "true"
-pytest.importorskip("mlflow", reason='the mlflow extra: pip install -e ".[mlflow]"')
-from mlflow.tracking import MlflowClient  # after the skip: an optional dependency
+needs_mlflow = pytest.mark.skipif(
+    importlib.util.find_spec("mlflow") is None, reason='the mlflow extra: pip install -e ".[mlflow]"'
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 SERVER_START_S = 120  # a cold `mlflow server` imports for seconds, then migrates its SQLite store
@@ -85,13 +87,20 @@ def _run(script: str, args: list[str], cwd: Path) -> subprocess.CompletedProcess
     return done
 
 
-def _artifacts(client: MlflowClient, run_id: str, path: str | None = None) -> set[str]:
+def _client(tracking_uri: str):
+    from mlflow.tracking import MlflowClient  # the optional extra, imported by the tests that log only
+
+    return MlflowClient(tracking_uri=tracking_uri)
+
+
+def _artifacts(client, run_id: str, path: str | None = None) -> set[str]:
     found: set[str] = set()
     for item in client.list_artifacts(run_id, path):
         found |= _artifacts(client, run_id, item.path) if item.is_dir else {item.path}
     return found
 
 
+@needs_mlflow
 @pytest.mark.slow
 def test_a_run_logged_to_a_server_is_read_back(
     mlflow_server: str, tiny_dataset: Path, tmp_path: Path
@@ -103,7 +112,7 @@ def test_a_run_logged_to_a_server_is_read_back(
     record = read_run_record(run_dir)
     assert record is not None and record["tracking_uri"] == mlflow_server
     results = json.loads((run_dir / "results.json").read_text())
-    client = MlflowClient(tracking_uri=mlflow_server)
+    client = _client(mlflow_server)
     run = client.get_run(record["run_id"])
     assert run.info.status == "FINISHED" and run.info.run_name == "run"
     assert client.get_experiment(run.info.experiment_id).name == "airfisheye-seg"
@@ -151,27 +160,24 @@ def test_a_run_logged_to_a_server_is_read_back(
     assert client.get_experiment_by_name("airfisheye-seg").experiment_id == run.info.experiment_id
 
 
-@pytest.mark.integration
 def test_each_job_of_a_multirun_logs_to_its_own_store(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """MLflow puts the store in use into $MLFLOW_TRACKING_URI: the next job in the process keeps its own store, while
-    a store the user set there is still the one used."""
-    from airfisheye_bench.tracking import RunMLFlowLogger
-
+    a store the user set there is still the one used (what :class:`RunMLFlowLogger` logs to)."""
     monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
-    first = RunMLFlowLogger(str(tmp_path / "0"), "airfisheye-seg")
-    monkeypatch.setenv("MLFLOW_TRACKING_URI", first._tracking_uri)  # what mlflow.set_tracking_uri does
-    second = RunMLFlowLogger(str(tmp_path / "1"), "airfisheye-seg")
-    assert (first._tracking_uri, second._tracking_uri) == (
-        local_store(tmp_path / "0")[0],
-        local_store(tmp_path / "1")[0],
-    )
+    first = choose_store(tmp_path / "0")
+    assert first == local_store(tmp_path / "0")
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", first[0])  # what mlflow.set_tracking_uri does
+    assert choose_store(tmp_path / "1") == local_store(tmp_path / "1")
     chosen = f"sqlite:///{tmp_path / 'shared.db'}"
     monkeypatch.setenv("MLFLOW_TRACKING_URI", chosen)
-    assert RunMLFlowLogger(str(tmp_path / "2"), "airfisheye-seg")._tracking_uri == chosen
+    assert choose_store(tmp_path / "2") == (chosen, None)
+    assert choose_store(tmp_path / "3", artifact_location="s3://bucket/a") == (chosen, "s3://bucket/a")
+    assert choose_store(tmp_path / "4", "http://127.0.0.1:5000") == ("http://127.0.0.1:5000", None)
 
 
+@needs_mlflow
 @pytest.mark.slow
 def test_the_default_store_is_under_the_run_directory(tiny_dataset: Path, tmp_path: Path) -> None:
     """Without a tracking URI the run logs to its own SQLite store; a resume continues that MLflow run."""
@@ -182,7 +188,7 @@ def test_the_default_store_is_under_the_run_directory(tiny_dataset: Path, tmp_pa
     uri, artifacts = local_store(run_dir)
     assert record is not None and record["tracking_uri"] == uri
     assert (run_dir / "mlflow" / "mlflow.db").is_file() and not (tmp_path / "mlruns").exists()
-    client = MlflowClient(tracking_uri=uri)
+    client = _client(uri)
     run = client.get_run(record["run_id"])
     stored = Path(run.info.artifact_uri.removeprefix("file://"))
     assert stored.is_relative_to(artifacts) and (stored / "results.json").is_file()
