@@ -467,8 +467,9 @@ def test_seg_is_refused_in_one_line(root: Path, tmp_path: Path) -> None:
     assert not (tmp_path / "results.json").exists()
 
 
+# depth reads what completion reads (the image, the dense depth) and trains AdaBins, which the tiny runs cover: slow
 @pytest.mark.integration
-@pytest.mark.parametrize("task", ["depth", "completion"])
+@pytest.mark.parametrize("task", [pytest.param("depth", marks=pytest.mark.slow), "completion"])
 def test_training_end_to_end(root: Path, tmp_path: Path, task: str) -> None:
     overrides = [
         *tiny_run_overrides(task, root, size=64),

@@ -510,8 +510,9 @@ def train_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_omni360_fixture(tmp_path_factory.mktemp("omni360_train") / "root", height=32, frames=5)
 
 
+# depth reads what completion reads (the image, the dense depth) and trains AdaBins, which the tiny runs cover: slow
 @pytest.mark.integration
-@pytest.mark.parametrize("task", ["seg", "depth", "completion"])
+@pytest.mark.parametrize("task", ["seg", pytest.param("depth", marks=pytest.mark.slow), "completion"])
 def test_train_runs_every_task_on_omni360(task: str, train_root: Path, tmp_path: Path) -> None:
     """``python train.py task=<task> data=omni360 data.root=<fixture> trainer=debug ...`` writes its metrics."""
     import json

@@ -325,8 +325,9 @@ def test_bad_files_and_options(writable_root: Path, tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------------------------------- end to end
+# depth reads what completion reads (the image, the dense depth) and trains AdaBins, which the tiny runs cover: slow
 @pytest.mark.integration
-@pytest.mark.parametrize("task", ["seg", "depth", "completion"])
+@pytest.mark.parametrize("task", ["seg", pytest.param("depth", marks=pytest.mark.slow), "completion"])
 def test_train_runs_every_task_on_tartanair(task: str, fixture_root: Path, tmp_path: Path) -> None:
     """``python train.py task=<task> data=tartanair data.root=<fixture> trainer=debug ...`` writes its metrics."""
     from airfisheye_bench.training import train
