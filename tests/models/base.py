@@ -31,6 +31,15 @@ from airfisheye_bench.runs.deployment import read_onnx_metadata
 
 _PRIMARY_KEY = {"seg": "logits", "depth": "depth", "completion": "depth"}
 
+#: Models that a default-suite test exports through ``airfisheye-export`` and runs in ONNX Runtime: model name -> that
+#: test. Their ONNX tests here (the same checks on another configuration) are ``slow`` (``tests/models/conftest.py``),
+#: so that the default suite exports each model once. NLSPN is not one: its tester perturbs the propagation, which a
+#: seconds-long run leaves close to its zero initialisation.
+DEPLOYED_BY = {
+    "deeplabv3plus": "tests/export/test_deploy.py::test_seg_export_has_a_dynamic_batch",
+    "adabins": "tests/export/test_deploy.py::test_depth_tasks_export_through_the_cli",
+}
+
 
 class BaseModelTester:
     """Mixin of model tests; subclasses set the class attributes below (only ``model_name`` and ``task`` are
@@ -54,10 +63,6 @@ class BaseModelTester:
     #: ONNX parity tolerances; ``None`` picks the task default (seg: abs 1e-4; depth: rel 1e-3).
     onnx_atol: ClassVar[float | None] = None
     onnx_rtol: ClassVar[float | None] = None
-    #: The default-suite test that exports this model through ``airfisheye-export`` and runs it in ONNX Runtime
-    #: (``"tests/<file>.py::<test>"``), or ``None``. Set, the ONNX tests here (the same checks on another
-    #: configuration) are ``slow`` (``tests/models/conftest.py``): one export of each model in the default suite.
-    deployed_by: ClassVar[str | None] = None
     #: Whether the ONNX export with symbolic H and W is expected to work (checked by a ``slow`` test).
     supports_dynamic_spatial: ClassVar[bool] = True
     #: Kwargs of the paper configuration and its input size, for the ``slow`` tests (``None`` skips them).

@@ -4,10 +4,17 @@ from __future__ import annotations
 
 import pytest
 
+from tests.models.base import DEPLOYED_BY, BaseModelTester
+
 
 @pytest.hookimpl(tryfirst=True)  # before ``-m`` deselects by mark
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         cls = getattr(item, "cls", None)
-        if getattr(cls, "deployed_by", None) and getattr(item, "originalname", "").startswith("test_onnx_"):
+        if (
+            isinstance(cls, type)
+            and issubclass(cls, BaseModelTester)
+            and cls.model_name in DEPLOYED_BY
+            and item.name.startswith("test_onnx_")
+        ):
             item.add_marker(pytest.mark.slow)

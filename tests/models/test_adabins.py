@@ -34,7 +34,6 @@ class TestAdaBins(BaseModelTester):
     output_stride = 32
     aux_keys = ("bin_edges", "depth_lowres")
     paper_kwargs: ClassVar[dict] = {}  # the registered defaults are the paper configuration
-    deployed_by = "tests/export/test_deploy.py::test_depth_tasks_export_through_the_cli"
 
 
 def _tiny(**overrides):

@@ -18,7 +18,6 @@ class TestDeepLabV3Plus(BaseModelTester):
     input_sizes = ((64, 64), (64, 96), (96, 48))
     output_stride = 16
     paper_kwargs: ClassVar[dict] = {"num_classes": 13}
-    deployed_by = "tests/export/test_deploy.py::test_seg_export_has_a_dynamic_batch"
 
 
 class TestSmpGeneric(BaseModelTester):

@@ -2,23 +2,36 @@
 
 from __future__ import annotations
 
-import importlib
+import ast
+from pathlib import Path
 
 import pytest
 
-from tests.models import test_adabins, test_nlspn, test_segmentation  # noqa: F401  (their tester classes)
-from tests.models.base import BaseModelTester
+import models
+from tests.models.base import DEPLOYED_BY
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
-@pytest.mark.parametrize(
-    "tester", [c for c in BaseModelTester.__subclasses__() if c.deployed_by], ids=lambda c: c.__name__
-)
-def test_a_model_deployed_elsewhere_is_exported_by_a_default_test(tester: type[BaseModelTester]) -> None:
-    """``deployed_by`` names a test that exists and is not ``slow``: the model keeps one export in the default
-    suite while its own ONNX tests run with ``-m slow``."""
-    path, name = tester.deployed_by.split("::")
-    module = importlib.import_module(path.removesuffix(".py").replace("/", "."))
-    test = getattr(module, name)
-    assert callable(test)
-    marks = [getattr(obj, "pytestmark", []) for obj in (module, test)]  # a mark or a list of them
-    assert "slow" not in {m.name for ms in marks for m in (ms if isinstance(ms, list) else [ms])}
+def _marks(node: ast.AST) -> set[str]:
+    """The ``pytest.mark.<name>`` names in the decorators or the ``pytestmark`` value ``node`` holds."""
+    return {
+        n.attr
+        for n in ast.walk(node)
+        if isinstance(n, ast.Attribute) and isinstance(n.value, ast.Attribute) and n.value.attr == "mark"
+    }
+
+
+@pytest.mark.parametrize("model", sorted(DEPLOYED_BY))
+def test_a_model_deployed_elsewhere_is_exported_by_a_default_test(model: str) -> None:
+    """Each entry names a registered model and a test of the default suite (it exists, and neither it nor its module
+    is ``slow``): the model keeps one export in the default suite while its tester's ONNX tests run with
+    ``-m slow``."""
+    assert model in models.list_models()
+    path, name = DEPLOYED_BY[model].split("::")
+    tree = ast.parse((ROOT / path).read_text())
+    (test,) = [n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == name]
+    module_marks = [
+        n for n in tree.body if isinstance(n, ast.Assign) and "pytestmark" in ast.dump(n.targets[0])
+    ]
+    assert not any("slow" in _marks(node) for node in [*test.decorator_list, *module_marks])
