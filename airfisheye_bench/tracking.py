@@ -73,9 +73,10 @@ def choose_store(
     """The store a run logs to and where a new experiment keeps its artifacts: ``(tracking URI, location)``.
 
     ``tracking_uri`` when given, else ``$MLFLOW_TRACKING_URI`` when the user set it, else the run's own SQLite store
-    (:func:`local_store`, its artifacts beside it unless ``artifact_location`` says otherwise). A store chosen this
-    way is remembered (:data:`_LOCAL_STORES`): MLflow exports it as ``$MLFLOW_TRACKING_URI``, which the next run in
-    this process must not take for the user's choice.
+    (:func:`local_store`, its artifacts beside it unless ``artifact_location`` says otherwise; its folder is created:
+    SQLite creates the database, not its folder). A store chosen this way is remembered (:data:`_LOCAL_STORES`):
+    MLflow exports it as ``$MLFLOW_TRACKING_URI``, which the next run in this process must not take for the user's
+    choice.
     """
     from_env = os.environ.get("MLFLOW_TRACKING_URI")
     tracking_uri = tracking_uri or (from_env if from_env not in _LOCAL_STORES else None)
@@ -83,6 +84,7 @@ def choose_store(
         tracking_uri, default_artifacts = local_store(save_dir)
         _LOCAL_STORES.add(tracking_uri)
         artifact_location = artifact_location or default_artifacts
+        Path(default_artifacts).parent.mkdir(parents=True, exist_ok=True)
     return tracking_uri, artifact_location
 
 
@@ -112,8 +114,6 @@ class RunMLFlowLogger(MLFlowLogger):
         # "Creating initial MLflow database tables...", "Updating database tables": every run's own new store.
         logging.getLogger("mlflow.store.db.utils").setLevel(logging.WARNING)
         tracking_uri, artifact_location = choose_store(save_dir, tracking_uri, artifact_location)
-        if tracking_uri == local_store(save_dir)[0]:  # SQLite creates the database, not its folder
-            Path(save_dir, "mlflow").mkdir(parents=True, exist_ok=True)
         record = read_run_record(save_dir)
         # A resumed run directory continues its MLflow run (the same store), instead of starting a second one.
         run_id = record["run_id"] if record and record.get("tracking_uri") == tracking_uri else None
