@@ -21,10 +21,10 @@ import torch
 
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, beam_pixels, paper_camera
-from airfisheye_bench.io.reader import DatasetReader
+from airfisheye_bench.io.datasets.airfisheye import DatasetReader
 from airfisheye_bench.metrics import RingCoverage, ring_edges_for
 from airfisheye_bench.specs import get_task
-from datamodules.airfisheye import AirFisheyeDataModule
+from datamodules.datamodule import AirFisheyeDataModule
 from datamodules.dataset import AirFisheyeDataset
 from datamodules.multi_source import MultiSourceDataset
 

@@ -2,7 +2,7 @@
 
 ``python scripts/bench_cpu_contention.py --task seg --busy 0 15 0 15 --out FILE`` on a machine with a GPU: the
 recipe (``experiment=paper/<task> trainer=gpu``, random weights) steps on one batch kept on the device (the GPU
-campaign's ceiling, :func:`~airfisheye_bench.benchmarks.train_throughput.cached_steps`) while ``N`` processes spin
+campaign's ceiling, :func:`~airfisheye_bench.studies.train_throughput.cached_steps`) while ``N`` processes spin
 on the CPU, for each ``N`` of ``--busy`` in order (repeat a value to see the run-to-run spread). A step is launched
 from the host: when the loader's workers take every core, the launches wait, and the GPU idles *inside* the step,
 which the campaign's idle share between steps does not see. The batch comes from the ``tiny`` preset served at the
@@ -22,10 +22,10 @@ from pathlib import Path
 import torch
 
 from airfisheye_bench.atomic import atomic_write_json
-from airfisheye_bench.benchmarks.campaign_record import Phase
-from airfisheye_bench.benchmarks.gpu_campaign import compose_recipe, kept_batch_stepper, provenance
-from airfisheye_bench.benchmarks.train_throughput import cached_steps
 from airfisheye_bench.runs.results import portable_identity
+from airfisheye_bench.studies.campaign_record import Phase
+from airfisheye_bench.studies.gpu_campaign import compose_recipe, kept_batch_stepper, provenance
+from airfisheye_bench.studies.train_throughput import cached_steps
 from airfisheye_bench.training import build
 
 

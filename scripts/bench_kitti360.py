@@ -1,7 +1,7 @@
 """Benchmark serving KITTI-360 samples (``data.format=kitti360``): CPU time per sample, and the curl against the
 devkit's per-point loop, side by side in one process.
 
-A root in the real layout is written first (``tests/io/datasets/kitti360_fixture.py``: 1400^2 PNG images, HDL-64E
+A root in the real layout is written first (``tests/helpers/kitti360_fixture.py``: 1400^2 PNG images, HDL-64E
 scans of ~125k returns in KITTI's firing order), or ``--root`` points at a real one. Rows, each over the training
 frames (one thread, CPU time, min and median of ``--repeats``):
 
@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 from airfisheye_bench.geometry.deskew import curl_points, scan_fraction  # noqa: E402
 from datamodules.dataset import AirFisheyeDataset, CameraConfig  # noqa: E402
-from tests.io.datasets.kitti360_fixture import SEQUENCES, write_kitti360  # noqa: E402
+from tests.helpers.kitti360_fixture import SEQUENCES, write_kitti360  # noqa: E402
 from tests.io.datasets.test_kitti360 import devkit_curl  # noqa: E402
 
 

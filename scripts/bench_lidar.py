@@ -34,10 +34,10 @@ import time
 import numpy as np
 import torch
 
-from airfisheye_bench.benchmarks.lidar_scene import SCENES, camera_rig, scan, structured_scene, visible
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_mask, ordering_reference
+from airfisheye_bench.studies.lidar_scene import SCENES, camera_rig, scan, structured_scene, visible
 
 
 def min_time_ms(fn, repeats: int) -> tuple[float, float]:

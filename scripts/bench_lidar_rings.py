@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from airfisheye_bench.benchmarks.lidar_scene import camera_rig, ray_box_entry, scan, structured_scene
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import organize_scan, rings_from_elevation
 from airfisheye_bench.geometry.occlusion import occlusion_mask
+from airfisheye_bench.studies.lidar_scene import camera_rig, ray_box_entry, scan, structured_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -31,7 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from airfisheye_bench.benchmarks.provenance import git_commit, machine
+from airfisheye_bench.studies.provenance import git_commit, machine
 
 ROOT = Path(__file__).resolve().parents[1]
 SUITES = {"default": [], "slow": ["-m", "slow"]}

@@ -35,9 +35,9 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.runs.results import portable_identity
+from airfisheye_bench.studies.provenance import provenance
 from airfisheye_bench.training import build
 from models.losses import AdaBinsLoss
 

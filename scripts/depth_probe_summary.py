@@ -5,7 +5,7 @@
 
 Prints a markdown table per setting (mean ± sample std over seeds of the last step's scores) and the paired
 differences against ``w0`` with 95 % t-intervals over seeds; ``--json`` also writes them, with provenance. The logic
-is :mod:`airfisheye_bench.benchmarks.depth_probe`.
+is :mod:`airfisheye_bench.studies.depth_probe`.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import sys
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_json
-from airfisheye_bench.benchmarks import depth_probe
-from airfisheye_bench.benchmarks.paired import paired_table
-from airfisheye_bench.benchmarks.provenance import provenance
+from airfisheye_bench.studies import depth_probe
+from airfisheye_bench.studies.paired import paired_table
+from airfisheye_bench.studies.provenance import provenance
 
 REPO = Path(__file__).resolve().parents[1]
 _SHOWN = ("rmse", "abs_rel", "delta1", "eval_train_gap", "centre_median", "pred_over_gt")

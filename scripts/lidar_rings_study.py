@@ -25,13 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.benchmarks.provenance import provenance
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import rings_from_elevation
 from airfisheye_bench.geometry.occlusion import occlusion_mask
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import filter_scan
 from airfisheye_bench.io import DatasetReader
+from airfisheye_bench.studies.provenance import provenance
 from airfisheye_bench.synth.cache import ensure_dataset
 
 

@@ -1,6 +1,6 @@
 """Test-time cross-over: one trained completion model tested with every sparse input, by region.
 
-The logic is :mod:`airfisheye_bench.benchmarks.crossover`; this script builds the inputs and prints the tables.
+The logic is :mod:`airfisheye_bench.studies.crossover`; this script builds the inputs and prints the tables.
 
     # one model, every input, on the test split of the data it was trained on, served at 256²
     python scripts/occlusion_crossover.py --ckpt runs/xover --size 256 --json docs/figures/occlusion_crossover_256.json
@@ -24,7 +24,11 @@ from typing import Any
 import torch
 
 from airfisheye_bench.atomic import atomic_write_json
-from airfisheye_bench.benchmarks.crossover import (
+from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.evaluation.predictors import CheckpointPredictor
+from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
+from airfisheye_bench.runs import resolve_checkpoint, run_config
+from airfisheye_bench.studies.crossover import (
     CROSSOVER_ARMS,
     arm_datasets,
     arm_datasets_from_config,
@@ -34,11 +38,7 @@ from airfisheye_bench.benchmarks.crossover import (
     paired_frames_table,
     window_radius_share,
 )
-from airfisheye_bench.benchmarks.provenance import provenance
-from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.evaluation.predictors import CheckpointPredictor
-from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
-from airfisheye_bench.runs import resolve_checkpoint, run_config
+from airfisheye_bench.studies.provenance import provenance
 from airfisheye_bench.synth.cache import ensure_dataset
 from airfisheye_bench.tasks.checkpoint import load_task
 

@@ -8,7 +8,7 @@ Each run is ``python train.py task=<task> seed=<seed> hydra.run.dir=<out>/<task>
 command); finished runs are skipped, so an interrupted benchmark resumes, and the seeds of the existing record
 whose runs are not in ``--out`` are kept (``--fresh`` drops them). ``--tasks`` picks some of
 ``seg depth completion``; everything after ``--`` goes to ``train.py`` (then the results are not the quick start's).
-The logic is :mod:`airfisheye_bench.benchmarks.quickstart`.
+The logic is :mod:`airfisheye_bench.studies.quickstart`.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.benchmarks import quickstart, quickstart_report
-from airfisheye_bench.benchmarks.provenance import git_commit
+from airfisheye_bench.studies import quickstart, quickstart_report
+from airfisheye_bench.studies.provenance import git_commit
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_JSON = REPO / "docs" / "quickstart_results.json"

@@ -10,7 +10,7 @@ metrics and the last validation score) and the per-seed paired differences (limi
 ``--json`` also writes them, with provenance. ``--cross-evaluate`` scores the test split with each given quick-start
 run's best checkpoint under every kernel setting those runs were trained with (each in a fresh process, one thread)
 and prints how far any score moves with the setting: whether the kernels act on the evaluation or on the training.
-The logic is :mod:`airfisheye_bench.benchmarks.quickstart_kernels`.
+The logic is :mod:`airfisheye_bench.studies.quickstart_kernels`.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import sys
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_json
-from airfisheye_bench.benchmarks import quickstart_kernels
-from airfisheye_bench.benchmarks.paired import paired_table
-from airfisheye_bench.benchmarks.provenance import provenance
+from airfisheye_bench.studies import quickstart_kernels
+from airfisheye_bench.studies.paired import paired_table
+from airfisheye_bench.studies.provenance import provenance
 
 REPO = Path(__file__).resolve().parents[1]
 METRICS = {

@@ -20,10 +20,10 @@ import sys
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.benchmarks.provenance import git_commit
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.io.content import content_identity
+from airfisheye_bench.studies.provenance import git_commit
 from datamodules import AirFisheyeDataModule
 from datamodules.coverage import sparse_coverage
 

@@ -45,9 +45,9 @@ from tests.helpers.commands import (
     run_command,
     run_in_process,
 )
+from tests.helpers.omni360_fixture import write_omni360_fixture
 from tests.helpers.runs import tiny_run_overrides
-from tests.io.datasets.omni360_fixture import write_omni360_fixture
-from tests.io.datasets.woodscape_fixture import write_woodscape
+from tests.helpers.woodscape_fixture import write_woodscape
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -101,9 +101,13 @@ def inspect(argv: Sequence[str] | None = None) -> int:
     if parsed is None:
         return 0
 
+    from airfisheye_bench.dataset_tools.inspect import (
+        inspect_dataset,  # at run time: see the module docstring
+    )
+    from airfisheye_bench.dataset_tools.inspect_scans import (
+        inspect_scans,  # at run time: see the module docstring
+    )
     from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
-    from airfisheye_bench.io.inspect import inspect_dataset  # at run time: see the module docstring
-    from airfisheye_bench.io.inspect_scans import inspect_scans  # at run time: see the module docstring
 
     opts = parsed.options
     for key in ("size", "every"):  # answered before the scan, which may take minutes
@@ -112,7 +116,9 @@ def inspect(argv: Sequence[str] | None = None) -> int:
     root = Path(opts.root)
     dataset = False  # a dataset in the AirFisheye layout (its coverage can be measured)
     if opts.format != "airfisheye":
-        from airfisheye_bench.io.inspect_source import inspect_source  # at run time: see the module docstring
+        from airfisheye_bench.dataset_tools.inspect_source import (
+            inspect_source,  # at run time: see the module docstring
+        )
 
         options = opts.format_options
         options = OmegaConf.to_container(options) if OmegaConf.is_config(options) else options
@@ -177,8 +183,10 @@ def transcode(argv: Sequence[str] | None = None) -> int:
     if parsed is None:
         return 0
 
+    from airfisheye_bench.dataset_tools.transcode import (
+        transcode_dataset,  # at run time: see the module docstring
+    )
     from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
-    from airfisheye_bench.io.transcode import transcode_dataset  # at run time: see the module docstring
 
     try:
         report = transcode_dataset(**parsed.options)
@@ -369,8 +377,8 @@ def _export_provenance(argv: Sequence[str] | None, checkpoint: Path) -> dict[str
     ``scripts/occlusion_ablation.py``, when the run has one; ``null`` when it does not, which a report citing it
     must then say)."""
     # Deferred: only an export that writes a report needs git's answer and the run's records.
-    from airfisheye_bench.benchmarks.provenance import provenance
     from airfisheye_bench.runs import run_directory  # deferred with it
+    from airfisheye_bench.studies.provenance import provenance
 
     record = provenance("scripts/export_onnx.py", argv)
     run = run_directory(checkpoint)
@@ -417,17 +425,17 @@ PREDICT = Command(
 @report_user_errors
 def predict(argv: Sequence[str] | None = None) -> int:
     """``airfisheye-predict ckpt_path=<run dir | .ckpt | .onnx> input=<folder | video> [out=DIR] [...]``
-    (:func:`~airfisheye_bench.evaluation.predict.predict_footage`); exit status 2 on a user error, nothing written.
+    (:func:`~airfisheye_bench.prediction.predict.predict_footage`); exit status 2 on a user error, nothing written.
     """
     parsed = _run(PREDICT, argv)
     if parsed is None:
         return 0
 
-    from airfisheye_bench.evaluation.predict import predict_footage  # at run time: see the module docstring
+    from airfisheye_bench.prediction.predict import predict_footage  # at run time: see the module docstring
 
     # This command's warnings and progress lines; the libraries' INFO lines are not the user's business here.
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
-    logging.getLogger("airfisheye_bench.evaluation.predict").setLevel(logging.INFO)
+    logging.getLogger("airfisheye_bench.prediction.predict").setLevel(logging.INFO)
     report = predict_footage(**parsed.options)
     print(report.summary())
     return 0

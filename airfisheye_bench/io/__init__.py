@@ -30,10 +30,10 @@ from airfisheye_bench.io.dataset_spec import (
     SplitsSpec,
     classes_from,
 )
+from airfisheye_bench.io.datasets.airfisheye import DatasetReader
 from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
 from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
-from airfisheye_bench.io.reader import DatasetReader
 from airfisheye_bench.io.scan import Scan, load_scan
 from airfisheye_bench.io.splits import parse_sample_id, read_split, write_split
 

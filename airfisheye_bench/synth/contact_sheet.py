@@ -23,8 +23,8 @@ from airfisheye_bench.atomic import atomic_write_bytes
 from airfisheye_bench.geometry import FACE_NAMES, CubemapToFisheye
 from airfisheye_bench.geometry.transforms import transform_points
 from airfisheye_bench.io.codecs import encode_rgb
+from airfisheye_bench.io.datasets.airfisheye import DatasetReader
 from airfisheye_bench.io.layout import CONTACT_SHEET_NAME
-from airfisheye_bench.io.reader import DatasetReader
 
 _CROSS = {"up": (0, 1), "left": (1, 0), "front": (1, 1), "right": (1, 2), "down": (2, 1)}  # (row, col)
 _CAPTION = 14

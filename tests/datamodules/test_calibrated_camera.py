@@ -14,7 +14,7 @@ from airfisheye_bench.geometry import CubemapToFisheye
 from airfisheye_bench.geometry.serving import serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
 from datamodules import AirFisheyeDataModule
-from tests.io import calibration_fixtures as fx
+from tests.helpers import calibration_fixtures as fx
 
 
 def _datamodule(root: Path, task: str = "completion", **camera) -> AirFisheyeDataModule:

@@ -8,15 +8,15 @@ import pytest
 import torch
 import yaml
 
-from airfisheye_bench.benchmarks import multi_source_cost
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io import EmptySplitError
+from airfisheye_bench.studies import multi_source_cost
 from airfisheye_bench.synth.cache import cached_dataset_path
 from datamodules import AirFisheyeDataModule
 from datamodules.multi_source import SourceMixtureSampler
 from datamodules.sampling import EpochSeededSampler, draw_seed
 from datamodules.sources import resolve_sources
-from tests.io.datasets.woodscape_fixture import write_woodscape
+from tests.helpers.woodscape_fixture import write_woodscape
 
 
 def _datamodule(sources: list[str], options: dict, **kwargs) -> AirFisheyeDataModule:

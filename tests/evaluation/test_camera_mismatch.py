@@ -13,7 +13,7 @@ from airfisheye_bench.evaluation.command import _check_camera
 from airfisheye_bench.export.deploy import _portable_data_config
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.io.calibration_files import load_camera
-from tests.io import calibration_fixtures as fx
+from tests.helpers import calibration_fixtures as fx
 
 
 def test_another_camera_is_refused_naming_both(tmp_path, caplog) -> None:

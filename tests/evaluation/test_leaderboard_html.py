@@ -23,7 +23,7 @@ from airfisheye_bench.evaluation import build_leaderboard, load_entries, write_r
 from airfisheye_bench.evaluation.leaderboard import find_results
 from airfisheye_bench.evaluation.leaderboard.html import render_html, write_html
 from airfisheye_bench.viz import save_png
-from tests.evaluation.chromium import Page, find_chromium
+from tests.helpers.chromium import Page, find_chromium
 from tests.helpers.commands import exit_status
 
 HASH_A = "a1b2c3d4" + "0" * 56

@@ -15,14 +15,14 @@ import torch
 from PIL import Image
 
 from airfisheye_bench.errors import ConfigError, InputFileError, MissingFileError
-from airfisheye_bench.evaluation.footage import open_footage, read_sparse
-from airfisheye_bench.evaluation.footage_inputs import frame_preparer
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.cameras import camera_from_dict
 from airfisheye_bench.io.calibration_files import save_camera
+from airfisheye_bench.prediction.footage import open_footage, read_sparse
+from airfisheye_bench.prediction.footage_inputs import frame_preparer
 from airfisheye_bench.runs.deployment import read_deployment_metadata
+from tests.helpers import calibration_fixtures as fx
 from tests.helpers.commands import PREDICT, Outcome, assert_one_line_error, run_in_process
-from tests.io import calibration_fixtures as fx
 
 SIZE = 64  # the served size of the shared tiny runs
 

@@ -21,7 +21,7 @@ from airfisheye_bench.geometry import (
     project_lidar,
 )
 from airfisheye_bench.metrics.binned import ring_edges_for
-from tests.geometry.camera_tester import CALIBRATIONS, angle_between
+from tests.helpers.camera_tester import CALIBRATIONS, angle_between
 
 
 def _camera(name: str, side: int):

@@ -19,7 +19,7 @@ import pytest
 import torch
 
 from airfisheye_bench.geometry.cameras import camera_from_dict
-from tests.geometry.camera_tester import CALIBRATIONS, angle_between, sphere_directions
+from tests.helpers.camera_tester import CALIBRATIONS, angle_between, sphere_directions
 
 GOLDEN = Path(__file__).parent / "golden"
 FILES = ("basalt", "opencv_fisheye", "opencv_omnidir", "opencv_pinhole", "kitti360", "woodscape", "ocamcalib")

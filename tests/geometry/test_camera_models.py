@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from airfisheye_bench.geometry.cameras import CAMERA_MODELS, camera_from_dict
-from tests.geometry.camera_tester import CALIBRATIONS, CameraModelTester
+from tests.helpers.camera_tester import CALIBRATIONS, CameraModelTester
 
 
 class TestEquidistant(CameraModelTester):

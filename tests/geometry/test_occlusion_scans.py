@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from airfisheye_bench.benchmarks import lidar_scene
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_layout import organize_scan
 from airfisheye_bench.geometry.occlusion import occlusion_mask, ordering_mask, ordering_reference
+from airfisheye_bench.studies import lidar_scene
 from tests.helpers.occlusion_scenes import rig, seen_from
 
 PAPER = LidarSpec()  # 64 x 2048, 270 deg

@@ -1,6 +1,6 @@
 """The bars of real spinning LiDARs: every return gets its laser's ring, written and read in the real file formats.
 
-The scans (``tests/geometry/real_scans.py``) have the structure of real ones: non-uniform channel tables, beams
+The scans (``tests/helpers/real_scans.py``) have the structure of real ones: non-uniform channel tables, beams
 starting off the sensor's centre, per-laser azimuth offsets, KITTI's firing order, a driver's column order or
 nuScenes' (every firing kept, compensated for the vehicle's motion), ring fields, self-hits near the sensor. Bars
 (issue: real spinning LiDARs): without a ring field >= 99 % of the returns beyond 2 m get their laser's ring
@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from airfisheye_bench.benchmarks.real_rings import measure_nuscenes, sweep_motion
 from airfisheye_bench.geometry import CAM_FROM_FLU, euler_to_matrix, ideal_camera, make_transform
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.geometry.lidar_layout import channels_exhaustive, organize_scan, rings_from_elevation
@@ -29,7 +28,8 @@ from airfisheye_bench.geometry.occlusion import occlusion_mask
 from airfisheye_bench.geometry.rings import _nanmedian_rows, resolve_rings
 from airfisheye_bench.geometry.scan_filter import filter_scan
 from airfisheye_bench.io.scan import load_scan, write_pcd
-from tests.geometry.real_scans import simulate
+from airfisheye_bench.studies.real_rings import measure_nuscenes, sweep_motion
+from tests.helpers.real_scans import simulate
 
 HDL64E = LidarSpec.from_preset("hdl64e")
 # An HDL-32E-like sensor: the HDL-32E's table, its lasers' beams starting up to 6 cm above / below and 2 cm beside

@@ -12,7 +12,7 @@ import torch
 
 from airfisheye_bench.geometry.serving import serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
-from tests.io import calibration_fixtures as fx
+from tests.helpers import calibration_fixtures as fx
 
 
 def _woodscape(tmp_path: Path):

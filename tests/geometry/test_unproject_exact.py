@@ -29,9 +29,9 @@ import torch
 
 from airfisheye_bench.geometry.cameras import CAMERA_MODELS, CameraModel, camera_from_dict
 from airfisheye_bench.io.calibration_files import read_calibration
-from tests.geometry.camera_tester import angle_between, sphere_directions
+from tests.helpers import calibration_fixtures as fx
 from tests.helpers import colmap_models as colmap
-from tests.io import calibration_fixtures as fx
+from tests.helpers.camera_tester import angle_between, sphere_directions
 
 #: Random calibrations per family.
 PER_FAMILY = 30

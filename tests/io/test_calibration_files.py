@@ -1,6 +1,6 @@
 """Calibration files as the tools write them -> the camera contract's flat dicts (airfisheye_bench.io.calibration_files).
 
-The fixtures are real published calibrations (tests/io/calibration_fixtures.py names each source) written in their
+The fixtures are real published calibrations (tests/helpers/calibration_fixtures.py names each source) written in their
 tools' formats; expected values are those of the source, converted by the documented pixel conventions.
 """
 
@@ -19,9 +19,9 @@ from airfisheye_bench.io.calibration_files import FORMATS, load_camera, read_cal
 from airfisheye_bench.io.calibration_files.colmap import PARAMETERS as COLMAP_PARAMETERS
 from airfisheye_bench.io.calibration_files.colmap import REFUSED as COLMAP_REFUSED
 from airfisheye_bench.io.errors import CalibrationFileError
-from tests.geometry.camera_tester import angle_between
+from tests.helpers import calibration_fixtures as fx
 from tests.helpers import colmap_models as colmap
-from tests.io import calibration_fixtures as fx
+from tests.helpers.camera_tester import angle_between
 
 
 def _rigid(T: np.ndarray) -> bool:

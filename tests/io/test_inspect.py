@@ -10,8 +10,8 @@ import pytest
 from PIL import Image
 
 from airfisheye_bench.cli import inspect
+from airfisheye_bench.dataset_tools.inspect import inspect_dataset
 from airfisheye_bench.io import DatasetReader, write_label
-from airfisheye_bench.io.inspect import inspect_dataset
 from tests.helpers.commands import exit_status
 
 

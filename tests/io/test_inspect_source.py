@@ -10,10 +10,10 @@ import pytest
 from PIL import Image
 
 from airfisheye_bench.cli import inspect
+from airfisheye_bench.dataset_tools.inspect_source import inspect_source
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.io.inspect_source import inspect_source
 from tests.helpers.commands import exit_status
-from tests.io.datasets.woodscape_fixture import HEIGHT, TRAIN_IDS, VAL_IDS, WIDTH, write_woodscape
+from tests.helpers.woodscape_fixture import HEIGHT, TRAIN_IDS, VAL_IDS, WIDTH, write_woodscape
 
 
 @pytest.fixture

@@ -10,8 +10,8 @@ import pytest
 
 from airfisheye_bench import io
 from airfisheye_bench.cli.commands import inspect
+from airfisheye_bench.dataset_tools.inspect_scans import inspect_scans
 from airfisheye_bench.io.errors import DatasetFormatError
-from airfisheye_bench.io.inspect_scans import inspect_scans
 from airfisheye_bench.io.scan import Scan, load_scan, write_pcd, write_ply
 from tests.helpers.commands import run_command
 from tests.helpers.pcl_files import write_pcd_binary_compressed
@@ -278,7 +278,7 @@ def test_load_scan_is_exported_by_the_io_package(tmp_path: Path) -> None:
 
 def test_inspect_a_folder_of_kitti_scans(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     from airfisheye_bench.geometry.lidar import LidarSpec
-    from tests.geometry.real_scans import simulate
+    from tests.helpers.real_scans import simulate
 
     spec = LidarSpec.from_preset("hdl64e", points_per_channel=512)
     for seed in range(2):

@@ -12,12 +12,12 @@ import pytest
 from PIL import Image
 
 from airfisheye_bench.cli import transcode
+from airfisheye_bench.dataset_tools import transcode as transcode_module
+from airfisheye_bench.dataset_tools.inspect import inspect_dataset
+from airfisheye_bench.dataset_tools.transcode import TranscodeReport, transcode_dataset
 from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.io import DatasetFormatError, DatasetReader, DatasetSpec, FileEncodings
-from airfisheye_bench.io import transcode as transcode_module
-from airfisheye_bench.io.inspect import inspect_dataset
 from airfisheye_bench.io.manifest import read_manifest, verify
-from airfisheye_bench.io.transcode import TranscodeReport, transcode_dataset
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
 from tests.helpers.commands import exit_status
 

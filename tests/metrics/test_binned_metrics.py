@@ -18,7 +18,7 @@ from airfisheye_bench.metrics import (
     SegmentationMetrics,
     bin_index,
 )
-from tests.metrics.metric_refs import ref_average, ref_confusion, ref_depth_image
+from tests.helpers.metric_refs import ref_average, ref_confusion, ref_depth_image
 
 H = W = 24
 C = 4

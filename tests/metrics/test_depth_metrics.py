@@ -20,7 +20,7 @@ from airfisheye_bench.metrics import (
 )
 from airfisheye_bench.metrics._torchmetrics_compat import state_reduction
 from airfisheye_bench.specs import get_task
-from tests.metrics.metric_refs import ref_average, ref_depth_image, ref_nlspn_image
+from tests.helpers.metric_refs import ref_average, ref_depth_image, ref_nlspn_image
 
 MAX = 120.0
 

@@ -14,7 +14,7 @@ from airfisheye_bench.metrics import SegmentationMetrics, confusion_matrix
 from airfisheye_bench.metrics._torchmetrics_compat import state_reduction
 from airfisheye_bench.metrics.functional import _argmax_channels
 from airfisheye_bench.specs import get_task
-from tests.metrics.metric_refs import ref_confusion, ref_seg_scores
+from tests.helpers.metric_refs import ref_confusion, ref_seg_scores
 
 C = 5
 

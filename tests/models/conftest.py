@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.models.base import DEPLOYED_BY, BaseModelTester
+from tests.helpers.model_tester import DEPLOYED_BY, BaseModelTester
 
 
 @pytest.hookimpl(tryfirst=True)  # before ``-m`` deselects by mark

@@ -9,7 +9,7 @@ import torch
 
 import models
 from models.adabins import MiniViT, PatchTransformerEncoder, normalize_bin_widths
-from tests.models.base import BaseModelTester
+from tests.helpers.model_tester import BaseModelTester
 
 TINY = {
     "encoder_name": "resnet18",

@@ -15,7 +15,7 @@ import models
 from airfisheye_bench.export import export_onnx, verify_onnx
 from models.losses.completion import L1L2Loss, NLSPNLoss, masked_l1_l2
 from models.nlspn import NLSPN, NonLocalPropagation, kernel_taps, normalize_affinity, sample_neighbours
-from tests.models.base import BaseModelTester
+from tests.helpers.model_tester import BaseModelTester
 
 TAPS_3X3 = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]  # kernel order; index 4 is the centre
 

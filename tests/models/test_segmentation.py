@@ -8,7 +8,7 @@ import pytest
 import torch
 
 import models
-from tests.models.base import BaseModelTester
+from tests.helpers.model_tester import BaseModelTester
 
 
 class TestDeepLabV3Plus(BaseModelTester):

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 import models
-from tests.models.base import DEPLOYED_BY
+from tests.helpers.model_tester import DEPLOYED_BY
 
 ROOT = Path(__file__).resolve().parents[2]
 

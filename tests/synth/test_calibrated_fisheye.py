@@ -19,7 +19,7 @@ from airfisheye_bench.io import DatasetReader
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.synth import cli
 from airfisheye_bench.synth.presets import get_preset
-from tests.io import calibration_fixtures as fx
+from tests.helpers import calibration_fixtures as fx
 
 
 @pytest.fixture(scope="module")

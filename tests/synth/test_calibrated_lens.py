@@ -7,7 +7,7 @@ import numpy as np
 from airfisheye_bench.geometry import CubemapToFisheye, camera_from_dict
 from airfisheye_bench.synth.scene import Lighting, Scene
 from airfisheye_bench.synth.sensors import remap_fisheye, render_cube_faces, render_fisheye
-from tests.geometry.camera_tester import CALIBRATIONS
+from tests.helpers.camera_tester import CALIBRATIONS
 
 
 def test_raycast_and_cubemap_fisheye_agree_through_a_kitti360_lens() -> None:

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import torch
 
+from airfisheye_bench.dataset_tools.inspect import inspect_dataset
 from airfisheye_bench.geometry.lidar import LidarSpec, spherical_coordinates
 from airfisheye_bench.io import DatasetReader
 from airfisheye_bench.io.dataset_spec import DatasetSpec
-from airfisheye_bench.io.inspect import inspect_dataset
 from airfisheye_bench.synth import writer
 from airfisheye_bench.synth.presets import PRESETS, SynthConfig, get_preset
 from airfisheye_bench.synth.sensors import ScanModel

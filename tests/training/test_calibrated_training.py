@@ -16,10 +16,10 @@ from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.runs.deployment import read_deployment_metadata
 from airfisheye_bench.training import train
+from tests.helpers import calibration_fixtures as fx
 from tests.helpers.configs import compose_eval, compose_train
 from tests.helpers.file_access import opened_files
 from tests.helpers.runs import tiny_run_overrides
-from tests.io import calibration_fixtures as fx
 
 pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
 

@@ -32,7 +32,7 @@ def run_train(
     kill: tuple[str, int] | None = None,
     check: bool = True,
 ) -> subprocess.CompletedProcess:
-    """``python train.py`` (through ``tests.training.killer`` when ``kill`` is ``(hook, step)``); ``dataset=None``
+    """``python train.py`` (through ``tests.helpers.killer`` when ``kill`` is ``(hook, step)``); ``dataset=None``
     passes no data or run overrides (a resume re-using the run's configuration)."""
     base = []
     if dataset is not None:
@@ -47,7 +47,7 @@ def run_train(
             "trainer.log_every_n_steps=1",
         ]
     launcher = (
-        [str(ROOT / "train.py")] if kill is None else ["-m", "tests.training.killer", kill[0], str(kill[1])]
+        [str(ROOT / "train.py")] if kill is None else ["-m", "tests.helpers.killer", kill[0], str(kill[1])]
     )
     cmd = [sys.executable, *launcher, *base, f"hydra.run.dir={run_dir}", *overrides]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.io.datasets.airfisheye import DatasetReader
 from airfisheye_bench.io.datasets.base import (
     DatasetSource,
     DepthPoints,
@@ -24,7 +25,6 @@ from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.io.datasets.omni360 import Omni360Source
 from airfisheye_bench.io.datasets.tartanair import TartanAirSource
 from airfisheye_bench.io.datasets.woodscape import WoodScapeSource
-from airfisheye_bench.io.reader import DatasetReader
 
 #: ``data.format`` -> the class reading that format: ``cls(root, **options)``, its options and their defaults in
 #: ``cls.OPTIONS`` (``data.format_options``).

@@ -33,11 +33,11 @@ from airfisheye_bench.io.datasets import DatasetSource, DepthPoints, open_datase
 from airfisheye_bench.io.datasets.kitti360 import Kitti360Source
 from airfisheye_bench.training import train
 from datamodules.dataset import AirFisheyeDataset, CameraConfig
+from tests.helpers import calibration_fixtures
 from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
 from tests.helpers.configs import compose_train
+from tests.helpers.kitti360_fixture import SEQUENCES, write_kitti360
 from tests.helpers.runs import tiny_run_overrides
-from tests.io import calibration_fixtures
-from tests.io.datasets.kitti360_fixture import SEQUENCES, write_kitti360
 
 SEQ = SEQUENCES[0]
 
@@ -286,7 +286,7 @@ def test_images_and_completion_samples(root: Path) -> None:
     assert (sample["sparse_depth"] > 0).sum() > 50 and (sample["depth"] > 0).sum() > 50
     assert not (sample["depth"][0] > 0)[~sample["valid_mask"]].any()
     rgb = ds.reader.fisheye(ds.sample_ids[0], "rgb")
-    from tests.io.datasets.kitti360_fixture import image
+    from tests.helpers.kitti360_fixture import image
 
     np.testing.assert_array_equal(rgb, image(10))
     assert ds.lidar_counts["rings from firing_order"] == 1

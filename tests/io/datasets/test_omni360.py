@@ -1,5 +1,5 @@
 """``data.format=omni360``: AirSim360 / Omni360-X read from fixtures written in the dataset's exact layouts and
-encodings (tests/io/datasets/omni360_fixture.py; sources: github:Insta360-Research-Team/AirSim360
+encodings (tests/helpers/omni360_fixture.py; sources: github:Insta360-Research-Team/AirSim360
 ``data/demo_sample/``)."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from airfisheye_bench.io.datasets.omni360 import Omni360Source
 from airfisheye_bench.io.datasets.omni360_files import natural_key, read_depth
 from airfisheye_bench.io.datasets.omni360_labels import OMNI360_TO_BENCHMARK, read_class_list
 from airfisheye_bench.io.errors import DatasetFormatError
-from tests.io.datasets.omni360_fixture import (
+from tests.helpers.omni360_fixture import (
     CLASS_IDS,
     NAMES,
     SKY_DEPTH,
@@ -479,7 +479,7 @@ def test_inspect_checks_every_file_through_the_source(
 ) -> None:
     """``airfisheye-inspect root=<root> format=omni360 [deep=true]``."""
     from airfisheye_bench.cli import inspect
-    from airfisheye_bench.io.inspect_source import inspect_source
+    from airfisheye_bench.dataset_tools.inspect_source import inspect_source
 
     for deep in (False, True):
         report = inspect_source(writable_root, "omni360", deep=deep)

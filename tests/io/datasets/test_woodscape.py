@@ -18,7 +18,7 @@ from datamodules.dataset import AirFisheyeDataset, CameraConfig
 from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
 from tests.helpers.configs import compose_train
 from tests.helpers.runs import tiny_run_overrides
-from tests.io.datasets.woodscape_fixture import (
+from tests.helpers.woodscape_fixture import (
     HEIGHT,
     TRAIN_IDS,
     VAL_IDS,

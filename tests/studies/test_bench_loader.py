@@ -1,0 +1,70 @@
+"""``scripts/bench_loader.py`` (:mod:`airfisheye_bench.studies.loader_speed`) runs end to end on the tiny dataset (structure only, no timing thresholds)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from airfisheye_bench.io.content import content_identity
+from airfisheye_bench.studies import loader_speed
+
+
+@pytest.mark.integration
+def test_main_tiny(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bench = loader_speed
+    argv = ["--root", str(tiny_dataset), "--size", "32", "--samples", "3", "--repeats", "2"]
+    results = bench.main([*argv, "--tasks", "seg", "completion"])
+    assert [(r["task"], r["source"]) for r in results] == [
+        ("seg", "cubemap"),
+        ("seg", "fisheye"),
+        ("completion", "cubemap"),
+        ("completion", "fisheye"),
+    ]
+    for r in results:
+        assert 0 < r["cpu_min"] <= r["cpu_median"] and math.isfinite(r["cpu_median"])
+        assert r["decode"] >= 0 and math.isfinite(r["rss_growth"])
+    rows = [
+        line
+        for line in capsys.readouterr().out.splitlines()
+        if line.startswith("| tiny") and ("| seg |" in line or "| completion |" in line)
+    ]
+    assert len(rows) == 4
+
+
+@pytest.mark.integration
+def test_per_core_json(tiny_dataset: Path, tmp_path: Path) -> None:
+    """Both remap sites, two sizes, the rows and their provenance in the JSON file."""
+    out = tmp_path / "loader.json"
+    argv = ["--root", str(tiny_dataset), "--size", "32", "48", "--samples", "2", "--repeats", "1"]
+    results = loader_speed.main(
+        [
+            *argv,
+            "--tasks",
+            "depth",
+            "--sources",
+            "cubemap",
+            "--remap-on",
+            "worker",
+            "device",
+            "--out",
+            str(out),
+        ]
+    )
+    assert [(r["size"], r["remap_on"]) for r in results] == [
+        (32, "worker"),
+        (32, "device"),
+        (48, "worker"),
+        (48, "device"),
+    ]
+    record = json.loads(out.read_text())
+    assert record["results"] == json.loads(json.dumps(results))
+    assert record["command"].startswith("python scripts/bench_loader.py --root")
+    assert record["commit"] and "CPU cores" in record["machine"] and len(record["load_average_after"]) == 3
+    assert all(r["samples_per_s_per_core"] > 0 and r["face_size"] == 48 for r in record["results"])
+    # One root served at two sizes: one identity, that of the files the rows read.
+    (identity,) = record["datasets"]
+    assert identity["root"] == str(tiny_dataset)
+    assert identity["content_sha256"] == content_identity(tiny_dataset)["content_sha256"]
