@@ -82,14 +82,23 @@ def parse_data_overrides(dotlist: Sequence[str]) -> dict[str, Any]:
     return out
 
 
+#: What a run's data config recorded before an option existed was served with, where that differs from the option's
+#: declared default (``config_checks/data_options.py``): the sparse input had every return before
+#: ``data.lidar.density`` (its default is now the paper's).
+RECORDED_BEFORE: dict[str, Any] = {"lidar": {"density": "native"}}
+
+
 def instantiate_datamodule(data: DictConfig, stage: str | None = None):
     """The datamodule of ``data`` for use in one process (no loader workers), prepared and set up for ``stage``.
+
+    A key that ``data`` (a run's recorded config) lacks takes what runs served before the key existed
+    (:data:`RECORDED_BEFORE`), else its declared default.
 
     Raises:
         UserError: The datamodule's own message for a wrong value or file (e.g. ``data.root`` is not a folder).
         ValueError: The datamodule cannot be built otherwise; the message says how to fix it with overrides.
     """
-    cfg = OmegaConf.merge(data, {"num_workers": 0, "persistent_workers": False})
+    cfg = OmegaConf.merge(RECORDED_BEFORE, data, {"num_workers": 0, "persistent_workers": False})
     try:
         datamodule = hydra.utils.instantiate(cfg, _convert_="partial")
         datamodule.prepare_data()

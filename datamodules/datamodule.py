@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ import torch
 from lightning.pytorch.trainer.states import TrainerFn
 from torch.utils.data import DataLoader
 
+from airfisheye_bench.config_checks.data_options import default, group
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CameraModel
@@ -46,7 +48,11 @@ log = logging.getLogger(__name__)
 
 
 class AirFisheyeDataModule(L.LightningDataModule):
-    """Train/val/test loaders of an AirFisheye-layout dataset for one task.
+    """Train/val/test loaders of a dataset of any format for one task.
+
+    Every default is the declared one (:data:`~airfisheye_bench.config_checks.data_options.DATA_OPTIONS`, the table
+    of ``docs/datasets.md``, "Data options"), the same as ``configs/data/synthetic.yaml``'s; ``camera``, ``lidar``
+    and ``augment`` are completed key by key from the declarations (``augment=None``: no augmentation).
 
     Args:
         task: ``seg``, ``depth`` or ``completion``.
@@ -75,7 +81,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         seed: Seed of the shuffling and augmentation draws.
         dataset_seed: Seed of the synthetic dataset itself (``root=None``); 0 is the canonical release of each
             preset. Independent of ``seed`` so that changing the training seed never changes the data.
-        lidar: ``{"preset": ..., "min_range": 1.0, "density": "native"}``. ``preset``: the LiDAR (a preset name such as ``hdl64e``, or a
+        lidar: ``{"preset": ..., "min_range": 1.0, "density": "paper"}``. ``preset``: the LiDAR (a preset name such as ``hdl64e``, or a
             YAML / JSON / Ouster metadata file): with ``root`` it replaces ``calib.yaml``'s spec (a real release
             whose calibration has none); without, the synthetic ``preset`` is generated with that sensor (cached
             apart). ``min_range``: returns closer than this many metres are self-hits, removed and counted.
@@ -109,32 +115,32 @@ class AirFisheyeDataModule(L.LightningDataModule):
     def __init__(
         self,
         task: str,
-        root: str | Path | None = None,
-        preset: str | None = "quickstart",
-        cache_dir: str | Path | None = None,
-        source: str = "cubemap",
+        root: str | Path | None = default("root"),
+        preset: str | None = default("preset"),
+        cache_dir: str | Path | None = default("cache_dir"),
+        source: str = default("source"),
         camera: dict[str, Any] | None = None,
-        occlusion: str = "ordering",
-        occlusion_options: dict[str, Any] | None = None,
-        motion_compensation: bool = True,
-        max_depth: float = 120.0,
+        occlusion: str = default("occlusion"),
+        occlusion_options: dict[str, Any] | None = default("occlusion_options"),
+        motion_compensation: bool = default("motion_compensation"),
+        max_depth: float = default("max_depth"),
         augment: dict[str, Any] | None = None,
-        batch_size: int = 4,
-        eval_batch_size: int | None = None,
-        num_workers: int = 0,
-        pin_memory: bool = False,
-        persistent_workers: bool = False,
-        skip_bad_frames: bool = False,
-        splits: tuple[str, str, str] = ("train", "val", "test"),
-        seed: int = 0,
-        dataset_seed: int = 0,
+        batch_size: int = default("batch_size"),
+        eval_batch_size: int | None = default("eval_batch_size"),
+        num_workers: int = default("num_workers"),
+        pin_memory: bool = default("pin_memory"),
+        persistent_workers: bool = default("persistent_workers"),
+        skip_bad_frames: bool = default("skip_bad_frames"),
+        splits: Sequence[str] = default("splits"),
+        seed: int = default("seed"),
+        dataset_seed: int = default("dataset_seed"),
         lidar: dict[str, Any] | None = None,
-        format: str = "airfisheye",
-        format_options: dict[str, Any] | None = None,
-        sources: list[str] | None = None,
-        source_options: dict[str, dict[str, Any]] | None = None,
-        gimbal: Any = None,
-        remap_on: str = "worker",
+        format: str = default("format"),
+        format_options: dict[str, Any] | None = default("format_options"),
+        sources: list[str] | None = default("sources"),
+        source_options: dict[str, dict[str, Any]] | None = default("source_options"),
+        gimbal: Any = default("gimbal"),
+        remap_on: str = default("remap_on"),
     ) -> None:
         super().__init__()
         if batch_size < 1:
@@ -154,28 +160,20 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.task = task
         self.cache_dir = cache_dir
         self.seed = seed
-        self.camera_config = CameraConfig(
-            **_options(
-                "camera",
-                camera or {},
-                {"size", "model", "fov_deg", "k", "calibration", "camera", "fit"},
-                ("k",),
-            )
-        )
+        self.camera_config = CameraConfig(**_floats(group("camera", camera), "k"))
         # The lens is read once, now: a bad calibration file is refused before any data exists.
         _ = self.camera_config.lens
-        augment_kwargs = _options(
-            "augment", augment or {}, {"hflip", "rotate_deg", "color_jitter"}, ("color_jitter",)
-        )
+        # augment=None: no augmentation (evaluation); a mapping: its keys over the declared defaults.
+        augment_kwargs = _floats(group("augment", augment), "color_jitter")
         self.augment = FisheyeAugment(**augment_kwargs) if augment is not None else None
-        lidar_opts = _options("lidar", dict(lidar or {}), {"preset", "min_range", "density"}, ())
+        lidar_opts = group("lidar", lidar)
         #: data.lidar.preset: the sensor served for every source (synthetic ones are generated with it).
         self.lidar = _lidar(lidar_opts.get("preset"), self.sources, self.mixture)
         min_range = lidar_opts.get("min_range")
         min_range = DEFAULT_MIN_RANGE if min_range is None else min_range
         if isinstance(min_range, bool) or not isinstance(min_range, (int, float)) or not min_range >= 0:
             raise ConfigError(f"data.lidar.min_range={min_range!r}: expected a number of metres >= 0")
-        density = lidar_opts.get("density") or "native"
+        density = lidar_opts["density"]
         if density not in LIDAR_DENSITIES:
             raise ConfigError(f"data.lidar.density={density!r}: expected one of {', '.join(LIDAR_DENSITIES)}")
         self.dataset_kwargs = dict(
@@ -464,13 +462,8 @@ def _own_generator() -> torch.Generator:
     return torch.Generator().manual_seed(0)
 
 
-def _options(group: str, given: dict[str, Any], allowed: set[str], tuples: tuple[str, ...]) -> dict[str, Any]:
-    """Check a config sub-dict's keys (naming the config path on error); turn list values into float tuples."""
-    unknown = set(given) - allowed
-    if unknown:
-        raise ValueError(f"unknown data.{group} keys {sorted(unknown)}; expected some of {sorted(allowed)}")
-    out = dict(given)
-    for key in tuples:
-        if out.get(key) is not None:
-            out[key] = tuple(float(v) for v in out[key])
-    return out
+def _floats(options: dict[str, Any], key: str) -> dict[str, Any]:
+    """``options`` with the list under ``key`` (a YAML list) as a tuple of floats."""
+    if options.get(key) is not None:
+        options[key] = tuple(float(v) for v in options[key])
+    return options

@@ -813,7 +813,7 @@ def test_a_logger_without_its_package_names_the_extra(monkeypatch: pytest.Monkey
     real = importlib.util.find_spec
     hidden = {"tensorboard", "tensorboardX"}
     monkeypatch.setattr(
-        config_checks.importlib.util, "find_spec", lambda name, *a: None if name in hidden else real(name, *a)
+        importlib.util, "find_spec", lambda name, *a: None if name in hidden else real(name, *a)
     )
     cfg = _compose("train", ["logger=tensorboard"])
     with pytest.raises(

@@ -101,12 +101,8 @@ def inspect(argv: Sequence[str] | None = None) -> int:
     if parsed is None:
         return 0
 
-    from airfisheye_bench.dataset_tools.inspect import (
-        inspect_dataset,  # at run time: see the module docstring
-    )
-    from airfisheye_bench.dataset_tools.inspect_scans import (
-        inspect_scans,  # at run time: see the module docstring
-    )
+    from airfisheye_bench.dataset_tools.inspect import inspect_dataset  # deferred: module docstring
+    from airfisheye_bench.dataset_tools.inspect_scans import inspect_scans  # deferred: module docstring
     from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
 
     opts = parsed.options
@@ -116,9 +112,7 @@ def inspect(argv: Sequence[str] | None = None) -> int:
     root = Path(opts.root)
     dataset = False  # a dataset in the AirFisheye layout (its coverage can be measured)
     if opts.format != "airfisheye":
-        from airfisheye_bench.dataset_tools.inspect_source import (
-            inspect_source,  # at run time: see the module docstring
-        )
+        from airfisheye_bench.dataset_tools.inspect_source import inspect_source  # deferred: module docstring
 
         options = opts.format_options
         options = OmegaConf.to_container(options) if OmegaConf.is_config(options) else options
@@ -183,9 +177,7 @@ def transcode(argv: Sequence[str] | None = None) -> int:
     if parsed is None:
         return 0
 
-    from airfisheye_bench.dataset_tools.transcode import (
-        transcode_dataset,  # at run time: see the module docstring
-    )
+    from airfisheye_bench.dataset_tools.transcode import transcode_dataset  # deferred: module docstring
     from airfisheye_bench.io.errors import DatasetFormatError  # at run time: see the module docstring
 
     try:
@@ -378,7 +370,7 @@ def _export_provenance(argv: Sequence[str] | None, checkpoint: Path) -> dict[str
     must then say)."""
     # Deferred: only an export that writes a report needs git's answer and the run's records.
     from airfisheye_bench.runs import run_directory  # deferred with it
-    from airfisheye_bench.studies.provenance import provenance
+    from airfisheye_bench.studies.provenance import provenance  # deferred with it
 
     record = provenance("scripts/export_onnx.py", argv)
     run = run_directory(checkpoint)
