@@ -30,6 +30,10 @@ from airfisheye_bench.io.dataset_spec import (
     SplitsSpec,
     classes_from,
 )
+
+# Imported before io.reader, whose DatasetReader subclasses the contract of io/datasets/base.py: the datasets
+# package registers DatasetReader in its turn, so importing io.reader first would meet it half-initialised.
+from airfisheye_bench.io.datasets import DatasetSource
 from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
 from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
@@ -46,6 +50,7 @@ __all__ = [
     "DatasetFormatError",
     "DatasetLayout",
     "DatasetReader",
+    "DatasetSource",
     "DatasetSpec",
     "EmptySplitError",
     "FileEncodings",
