@@ -29,7 +29,7 @@ from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.io.dataset_spec import remap_site_problem
-from airfisheye_bench.io.datasets import DatasetSource
+from airfisheye_bench.io.datasets import DatasetSource, lidar_option_conflict
 from airfisheye_bench.io.lidar_spec import lidar_preset_problem, load_lidar_spec
 from airfisheye_bench.synth.cache import ensure_dataset
 from datamodules.augment import FisheyeAugment
@@ -81,10 +81,13 @@ class AirFisheyeDataModule(L.LightningDataModule):
         seed: Seed of the shuffling and augmentation draws.
         dataset_seed: Seed of the synthetic dataset itself (``root=None``); 0 is the canonical release of each
             preset. Independent of ``seed`` so that changing the training seed never changes the data.
-        lidar: ``{"preset": ..., "min_range": 1.0, "density": "paper"}``. ``preset``: the LiDAR (a preset name such as ``hdl64e``, or a
-            YAML / JSON / Ouster metadata file): with ``root`` it replaces ``calib.yaml``'s spec (a real release
-            whose calibration has none); without, the synthetic ``preset`` is generated with that sensor (cached
-            apart). ``min_range``: returns closer than this many metres are self-hits, removed and counted.
+        lidar: ``{"preset": ..., "min_range": 1.0, "density": "paper"}``. ``preset``: the LiDAR of every source (a
+            preset name such as ``hdl64e``, or a YAML / JSON / Ouster metadata file): with ``root`` it replaces
+            ``calib.yaml``'s spec of a recorded LiDAR (a real release whose calibration has none) and is cast into
+            the depth by a source that simulates its LiDAR (TartanAir, Omni360: ``DatasetSource.cast_scan``);
+            without, the synthetic ``preset`` is generated with that sensor (cached apart). The deprecated
+            ``format_options.lidar`` of TartanAir and Omni360 stands for it for one release (warned), and beside a
+            different ``preset`` is refused. ``min_range``: returns closer than this many metres are self-hits, removed and counted.
             ``density``: ``native`` (every return) or ``paper`` (a fixed subset of the beams: the returns per
             pixel of the paper's sensor on its 1536^2 image, at any served size; docs/design.md).
         format: How ``root`` is laid out: ``airfisheye`` (the release's layout, and the synthetic data) or a public
@@ -440,10 +443,16 @@ class LidarChoice:
 
 
 def _lidar(value: Any, sources: tuple[SourceConfig, ...], mixture: bool) -> LidarChoice:
-    """``data.lidar.preset`` for every source of the run, read once (:func:`lidar_preset_problem` is its rule)."""
+    """``data.lidar.preset`` for every source of the run, read once (:func:`lidar_preset_problem` is its rule); a
+    source's deprecated ``format_options.lidar`` naming another LiDAR is refused (the reader reads it otherwise)."""
     if value is None:
         return LidarChoice()
     for src in sources:
+        conflict = lidar_option_conflict(
+            src.format_options, value, f"{src.key}.format_options" if mixture else "data.format_options"
+        )
+        if conflict is not None:
+            raise ConfigError(conflict)
         problem = lidar_preset_problem(value, synthetic=src.root is None)
         if problem is not None:
             where = f" (data.sources: source {src.describe()})" if mixture else ""

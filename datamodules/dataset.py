@@ -13,8 +13,9 @@ key                shape, dtype                  meaning
 ``sample_id``      str                           ``<env>/<trajectory>/<frame>``
 =================  ============================  ==========================================================
 
-A source that has no dense depth images but gives its depth target as LiDAR points (``depth_points``: KITTI-360)
-gets ``depth`` by projecting them at the served camera with the sample's augmentation, as ``sparse_depth``.
+A source that has no dense depth images but gives its depth target as LiDAR points (``depth_from_points``,
+``depth_points``: KITTI-360) gets ``depth`` by projecting them at the served camera with the sample's augmentation,
+as ``sparse_depth``.
 
 ``image``, ``valid_mask`` and ``sample_id`` are always served; of the others, the keys the task's spec names
 (its ``target`` and its model ``inputs``, :data:`SAMPLE_KEYS`): ``seg`` gets ``label``, ``depth`` gets ``depth``,
@@ -30,10 +31,14 @@ LiDAR (``sparse_depth``): the scan's rings come from where they are known (docs/
 or the generator's ``lidar_beam``, the firing order of KITTI ``.bin``, else the channel table), then returns closer
 than ``lidar_min_range`` and returns no channel explains are removed and counted (``lidar_counts``; logged for
 the first frame a process serves), and with ``lidar_density="paper"`` only the returns of a fixed subset of beams
-are served, of those the occlusion correction kept on the whole scan at the paper's pixel scale. A source that
-simulates its LiDAR from depth (``cast_scan(sample_id, spec)``) casts the served sensor; one whose LiDAR sees from
-the camera's centre (``parallax_free``) has no point the camera cannot see, and its scans are projected without
+are served, of those the occlusion correction kept on the whole scan at the paper's pixel scale. The scan is the
+source's own (``lidar_scan``) or, with ``lidar_spec`` (``data.lidar.preset``), that sensor's (``cast_scan``: cast
+into the depth by a source that simulates its LiDAR, the recorded scan otherwise); one whose LiDAR sees from the
+camera's centre (``parallax_free``) has no point the camera cannot see, and its scans are projected without
 occlusion correction.
+
+Every member of the reader used here is declared by the contract of
+:class:`~airfisheye_bench.io.datasets.base.DatasetSource`, with its default (``tests/io/datasets/test_contract.py``).
 """
 
 from __future__ import annotations
@@ -107,7 +112,9 @@ class AirFisheyeDataset(Dataset):
         seed: Seed of the augmentation draws.
         skip_bad_frames: Return ``None`` for a frame that fails to load (logged) instead of raising;
             :func:`collate` drops it and counts it.
-        lidar_spec: The LiDAR that recorded the scans; ``None``: each trajectory's ``calib.yaml``.
+        lidar_spec: The LiDAR served (``data.lidar.preset``): the reader casts it (``cast_scan``: the recorded scan,
+            which it describes, where the LiDAR is recorded); ``None``: the reader's own scans and each frame's
+            calibration's spec.
         lidar_min_range: Returns closer than this (metres) are self-hits: removed and counted.
         format: How ``root`` is laid out (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`: ``airfisheye``,
             or a public dataset's own layout). Not with a reader, which knows its format.
@@ -209,7 +216,7 @@ class AirFisheyeDataset(Dataset):
             if not self.spec.has(content):
                 raise ConfigError(f"{self.reader.missing_reason(content)}; task={task} needs it")
         # A source without dense depth images may give its depth target as LiDAR points (``depth_points``).
-        self._depth_from_points = callable(getattr(self.reader, "depth_points", None))
+        self._depth_from_points = self.reader.depth_from_points
         # And what this download lacks (an Omni360 scene without its depth folder), now that it is read.
         modality = unserved_modality(self.reader, needed)
         if modality is not None:
@@ -221,7 +228,7 @@ class AirFisheyeDataset(Dataset):
             )
         self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
         # A LiDAR at the camera's centre (cast from its depth) returns only points the camera sees.
-        self.parallax_free = bool(getattr(self.reader, "parallax_free", False))
+        self.parallax_free = self.reader.parallax_free
         if self.parallax_free and "sparse_depth" in self.sample_keys:
             log.info(
                 "%s: the LiDAR sees from the camera's centre (no parallax): its scans are projected without "
@@ -307,7 +314,7 @@ class AirFisheyeDataset(Dataset):
             if self.source == "cubemap":
                 self._remaps[view] = CubemapToFisheye(self.camera, self.face_size, rotation=turn)
             else:
-                recorded = getattr(self.reader, "pano_rotation", None)
+                recorded = self.reader.pano_rotation
                 rotation = recorded if turn is None else turn if recorded is None else recorded @ turn
                 self._remaps[view] = EquirectToFisheye(
                     self.camera, self.spec.equirect_size, rotation=rotation
@@ -543,11 +550,10 @@ class AirFisheyeDataset(Dataset):
 
     def filtered_scan(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec, np.ndarray]:
         """:meth:`lidar_points` and the ``bool [N]`` mask of the scan's points it keeps (for per-point data)."""
-        spec = self.lidar_spec or self.reader.calib(sample_id).lidar_spec()
-        cast = getattr(
-            self.reader, "cast_scan", None
-        )  # a LiDAR simulated from depth: the served sensor's beams
-        scan = cast(sample_id, spec) if cast is not None else self.reader.lidar_scan(sample_id)
+        if self.lidar_spec is None:  # the source's own LiDAR
+            spec, scan = self.reader.calib(sample_id).lidar_spec(), self.reader.lidar_scan(sample_id)
+        else:  # data.lidar.preset's: cast where the source simulates its LiDAR from depth
+            spec, scan = self.lidar_spec, self.reader.cast_scan(sample_id, self.lidar_spec)
         if len(scan.points) == 0:
             raise DatasetFormatError(scan.path, "the LiDAR scan is empty")
         if not np.isfinite(scan.points).all():
@@ -580,9 +586,8 @@ class AirFisheyeDataset(Dataset):
                 counts["returns"],
             )
         points = scan.points[kept.keep]
-        deskew = getattr(self.reader, "deskew", None)
-        if self.motion_compensation and deskew is not None:  # the sweep's points at its reference time
-            points = deskew(sample_id, points)
+        if self.motion_compensation:  # the sweep's points at its reference time
+            points = self.reader.deskew(sample_id, points)
         return points, rings[kept.keep], spec, kept.keep
 
     def _sparse_depth(self, sample_id: str, params, turn: np.ndarray | None = None) -> torch.Tensor:

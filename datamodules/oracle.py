@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.io import DatasetFormatError, DatasetReader
+from airfisheye_bench.io import DatasetFormatError, DatasetSource
 
 
-def require_visibility(reader: DatasetReader, root: str | Path) -> None:
+def require_visibility(reader: DatasetSource, root: str | Path) -> None:
     """Refuse the oracle on a release without visibility ground truth, in one line.
 
     Raises:
@@ -28,7 +28,7 @@ def require_visibility(reader: DatasetReader, root: str | Path) -> None:
         )
 
 
-def oracle_visible(reader: DatasetReader, sample_id: str, keep: np.ndarray) -> np.ndarray:
+def oracle_visible(reader: DatasetSource, sample_id: str, keep: np.ndarray) -> np.ndarray:
     """``bool [M]``: which of the served points of a frame the camera sees.
 
     Args:
@@ -49,7 +49,7 @@ def oracle_visible(reader: DatasetReader, sample_id: str, keep: np.ndarray) -> n
     visible = np.asarray(reader.lidar_visible(sample_id), dtype=bool)
     if visible.shape != keep.shape:
         raise DatasetFormatError(
-            reader.layout.lidar_visible(sample_id),
+            reader.path_of(sample_id, "lidar_visible", "fisheye"),  # a scan's file: any image source
             f"{len(visible)} visibility flags for a scan of {len(keep)} points",
         )
     return visible[keep]

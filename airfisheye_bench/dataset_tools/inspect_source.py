@@ -25,7 +25,7 @@ from PIL import Image
 from airfisheye_bench.dataset_tools.inspect import InspectReport
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.cubemap import FACE_NAMES
-from airfisheye_bench.io.datasets import DATASET_FORMATS, modalities_of, open_dataset
+from airfisheye_bench.io.datasets import DATASET_FORMATS, DatasetSource, modalities_of, open_dataset
 from airfisheye_bench.io.errors import DatasetFormatError
 
 __all__ = ["inspect_source"]
@@ -68,7 +68,7 @@ def inspect_source(
     return report
 
 
-def _check_sample(source, sid: str, deep: bool, report: InspectReport) -> None:
+def _check_sample(source: DatasetSource, sid: str, deep: bool, report: InspectReport) -> None:
     spec = source.spec
     report.files += 1
     try:
@@ -76,8 +76,8 @@ def _check_sample(source, sid: str, deep: bool, report: InspectReport) -> None:
     except _LOAD_ERRORS as err:
         _add(report, err, source.root)
         return
-    kinds = [k for k in ("fisheye", "cubemap", "equirect") if spec.has(k)]
-    for kind in kinds:
+    readers = {"fisheye": source.fisheye, "cubemap": source.cubemap, "equirect": source.equirect}
+    for kind in [k for k in readers if spec.has(k)]:
         for modality in modalities_of(source):
             report.files += 1
             path = source.path_of(sid, modality, kind)
@@ -85,7 +85,7 @@ def _check_sample(source, sid: str, deep: bool, report: InspectReport) -> None:
                 _check_file(path, report)
                 continue
             try:
-                data = getattr(source, kind)(sid, modality)  # fisheye, cubemap or equirect
+                data = readers[kind](sid, modality)
             except _LOAD_ERRORS as err:
                 _add(report, err, path)
                 continue

@@ -30,6 +30,7 @@ from airfisheye_bench.io.dataset_spec import (
     SplitsSpec,
     classes_from,
 )
+from airfisheye_bench.io.datasets import DatasetSource
 from airfisheye_bench.io.datasets.airfisheye import DatasetReader
 from airfisheye_bench.io.errors import CalibrationFileError, DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
@@ -46,6 +47,7 @@ __all__ = [
     "DatasetFormatError",
     "DatasetLayout",
     "DatasetReader",
+    "DatasetSource",
     "DatasetSpec",
     "EmptySplitError",
     "FileEncodings",

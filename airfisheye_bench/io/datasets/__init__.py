@@ -1,4 +1,5 @@
-"""The dataset formats the benchmark reads, one :class:`~airfisheye_bench.io.datasets.base.DatasetSource` each.
+"""The dataset formats the benchmark reads, one :class:`~airfisheye_bench.io.datasets.base.DatasetSource` subclass
+each.
 
 ``data.format`` picks one (``docs/design.md``, "Dataset formats"); :func:`open_dataset` builds it.
 
@@ -18,6 +19,8 @@ from airfisheye_bench.io.datasets.base import (
     DatasetSource,
     DepthPoints,
     check_options,
+    legacy_lidar,
+    lidar_option_conflict,
     modalities_of,
     unserved_modality,
 )
@@ -28,7 +31,7 @@ from airfisheye_bench.io.datasets.woodscape import WoodScapeSource
 
 #: ``data.format`` -> the class reading that format: ``cls(root, **options)``, its options and their defaults in
 #: ``cls.OPTIONS`` (``data.format_options``).
-DATASET_FORMATS: dict[str, type] = {
+DATASET_FORMATS: dict[str, type[DatasetSource]] = {
     "airfisheye": DatasetReader,
     "kitti360": Kitti360Source,
     "omni360": Omni360Source,
@@ -58,7 +61,7 @@ def open_dataset(
     return cls(root, **check_options(format, dict(options or {}), cls.OPTIONS))
 
 
-def dataset_format(format: str, key: str = "data.format") -> type:
+def dataset_format(format: str, key: str = "data.format") -> type[DatasetSource]:
     """The reader class of ``format``: the one rule of ``data.format`` (``key`` names it in the message).
 
     Raises:
@@ -75,6 +78,8 @@ __all__ = [
     "DepthPoints",
     "check_options",
     "dataset_format",
+    "legacy_lidar",
+    "lidar_option_conflict",
     "modalities_of",
     "open_dataset",
     "root_description",

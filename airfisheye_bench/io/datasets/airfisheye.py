@@ -11,6 +11,7 @@ from airfisheye_bench.geometry.cubemap import FACE_NAMES
 from airfisheye_bench.io import codecs
 from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.dataset_spec import DatasetSpec
+from airfisheye_bench.io.datasets.base import DatasetSource
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.layout import MODALITIES, DatasetLayout, trajectory_of
 from airfisheye_bench.io.poses import ImuTable, PoseTable, camera_from_lidar
@@ -18,8 +19,12 @@ from airfisheye_bench.io.scan import Scan, load_scan
 from airfisheye_bench.io.splits import parse_sample_id, read_split
 
 
-class DatasetReader:
+class DatasetReader(DatasetSource):
     """Reads samples, calibration and poses of a dataset root in the AirFisheye layout (``data.format=airfisheye``).
+
+    The :class:`~airfisheye_bench.io.datasets.base.DatasetSource` of the release and the synthetic data: cube faces
+    and pre-rendered fisheye images, recorded (or generated) LiDAR scans taken at one instant (no ``deskew``), and on
+    synthetic releases the generator's per-point visibility (``lidar_visible``, the ``oracle`` sparse input).
 
     Per-trajectory files (calibration, poses, IMU) are parsed once and cached. The object is cheap to pickle
     (the caches are per process), so a DataLoader can hand it to its workers.
@@ -163,7 +168,12 @@ class DatasetReader:
         return phases[frame]
 
     def path_of(self, sample_id: str, modality: str, source: str) -> Path:
-        """The file of a fisheye ``modality`` (``source=fisheye``) or the folder of its cube faces (``cubemap``)."""
+        """The file of a fisheye ``modality`` (``source=fisheye``) or the folder of its cube faces (``cubemap``); the
+        scan (``lidar``) or its visibility flags (``lidar_visible``) whatever the source."""
+        if modality == "lidar":
+            return self.layout.lidar(sample_id)
+        if modality == "lidar_visible":
+            return self.layout.lidar_visible(sample_id)
         if source == "cubemap":
             return self.layout.cubemap(sample_id, "front", modality).parent.parent
         return self.layout.fisheye(sample_id, modality)

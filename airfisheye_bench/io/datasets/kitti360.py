@@ -53,7 +53,7 @@ from airfisheye_bench.io import codecs
 from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.dataset_spec import ClassDef, DatasetSpec, SplitsSpec
-from airfisheye_bench.io.datasets.base import DepthPoints
+from airfisheye_bench.io.datasets.base import DatasetSource, DepthPoints
 from airfisheye_bench.io.datasets.kitti360_files import (
     read_cam_to_pose,
     read_poses,
@@ -79,7 +79,7 @@ _NO_LABELS = (
 )
 
 
-class Kitti360Source:
+class Kitti360Source(DatasetSource):
     """One KITTI-360 root, one fisheye camera (the :class:`~airfisheye_bench.io.datasets.base.DatasetSource`).
 
     Args:
@@ -100,6 +100,8 @@ class Kitti360Source:
         "frame_step": 1,
     }
     modalities: ClassVar[tuple[str, ...]] = ("rgb",)
+    #: The depth target is the projected Velodyne scans (:meth:`depth_points`), not a dense map.
+    depth_from_points: ClassVar[bool] = True
 
     def __init__(
         self,

@@ -15,7 +15,7 @@ Read from github:Insta360-Research-Team/AirSim360 (``data/demo_sample/``: ``READ
 - **Depth** is range already (the distance from the optical centre along the ray): served as stored, the far plane
   (1000 m, sky) and non-finite values as 0.
 - **LiDAR** is cast from the depth panorama by a :class:`~airfisheye_bench.geometry.lidar.LidarSpec`
-  (``format_options.lidar``, or ``data.lidar.preset``: :meth:`Omni360Source.cast_scan`), its FLU axes the recorded
+  (``data.lidar.preset``: :meth:`Omni360Source.cast_scan`; null: :data:`OWN_SENSOR`), its FLU axes the recorded
   camera's (x along its optical axis), at the camera's centre: each beam takes the range of the texel its direction falls in
   (:func:`~airfisheye_bench.geometry.equirect_lidar.lidar_from_equirect`; no interpolation across depth edges). A
   sensor at the camera's centre sees no parallax, so no point it returns is hidden from the camera:
@@ -49,6 +49,7 @@ from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, make_transform
 from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES
 from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.dataset_spec import DatasetSpec, SplitsSpec
+from airfisheye_bench.io.datasets.base import DatasetSource, legacy_lidar
 from airfisheye_bench.io.datasets.omni360_files import (
     DEPTH_EXTS,
     LABEL_EXTS,
@@ -75,7 +76,7 @@ from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan
 from airfisheye_bench.io.splits import frame_blocks
 
-__all__ = ["CLASS_SETS", "SPLITS", "Omni360Source"]
+__all__ = ["CLASS_SETS", "OWN_SENSOR", "SPLITS", "Omni360Source"]
 
 log = logging.getLogger(__name__)
 
@@ -83,9 +84,11 @@ SPLITS = ("train", "val", "test")
 CLASS_SETS = ("dataset", "benchmark")
 #: The served fisheye's field of view (the project's default lens).
 FOV_DEG = 190.0
+#: The LiDAR preset cast when ``data.lidar.preset`` is null: the paper's sensor.
+OWN_SENSOR = "paper"
 
 
-class Omni360Source:
+class Omni360Source(DatasetSource):
     """An AirSim360 / Omni360-X root (``data.format=omni360``; its ``data.format_options`` are the keyword arguments).
 
     Args:
@@ -100,8 +103,9 @@ class Omni360Source:
         split_scenes: ``{train: [scenes], val: [...], test: [...]}``: split by whole scenes instead (scenes it does
             not name are not used; val and test may share scenes, train shares none).
         frame_stride: Use every n-th frame of a scene.
-        lidar: The LiDAR preset cast into the depth panorama (:data:`~airfisheye_bench.geometry.lidar_presets.
-            LIDAR_PRESETS`).
+        lidar: Deprecated (``data.lidar.preset`` picks the LiDAR, :meth:`cast_scan`): for one more release, the
+            preset (:data:`~airfisheye_bench.geometry.lidar_presets.LIDAR_PRESETS`) cast as the source's own sensor
+            instead of :data:`OWN_SENSOR` (warned).
 
     Example:
         >>> Omni360Source.format, Omni360Source.OPTIONS["split_period"], Omni360Source.parallax_free
@@ -116,7 +120,7 @@ class Omni360Source:
         "split_period": 10,
         "split_scenes": None,
         "frame_stride": 1,
-        "lidar": "paper",
+        "lidar": None,  # deprecated: data.lidar.preset (base.legacy_lidar)
     }
     #: The LiDAR is cast at the camera's centre: nothing it returns is hidden from the camera (module docstring).
     parallax_free: ClassVar[bool] = True
@@ -130,7 +134,7 @@ class Omni360Source:
         split_period: int = 10,
         split_scenes: Mapping[str, list[str]] | None = None,
         frame_stride: int = 1,
-        lidar: str = "paper",
+        lidar: str | None = None,
     ) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
@@ -146,11 +150,11 @@ class Omni360Source:
         for key, value, least in (("split_period", split_period, 3), ("frame_stride", frame_stride, 1)):
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ConfigError(f"data.format_options.{key}={value!r}: expected an integer >= {least}")
-        if lidar not in LIDAR_PRESETS:
+        if lidar is not None and lidar not in LIDAR_PRESETS:
             raise ConfigError(f"data.format_options.lidar={lidar!r}: expected one of {sorted(LIDAR_PRESETS)}")
         self.classes = classes
         self.split_period, self.frame_stride = int(split_period), int(frame_stride)
-        self.lidar_preset = lidar
+        self.lidar_preset = legacy_lidar(lidar) or OWN_SENSOR
         #: ``R_pano_cam0``: the recorded camera's directions -> the panorama's frame. A panorama records no camera:
         #: it looks at the middle column on the horizon (data.gimbal turns the served one from there).
         self.pano_rotation = np.eye(3)
@@ -297,7 +301,7 @@ class Omni360Source:
         )
 
     def lidar_spec(self) -> LidarSpec:
-        """The LiDAR cast by :meth:`lidar_scan` (``format_options.lidar``)."""
+        """The LiDAR cast by :meth:`lidar_scan`: :data:`OWN_SENSOR` (or the deprecated ``format_options.lidar``)."""
         return LidarSpec.from_preset(self.lidar_preset)
 
     def T_cam_lidar(self, sample_id: str) -> np.ndarray:
@@ -395,12 +399,13 @@ class Omni360Source:
 
     # ------------------------------------------------------------------------------------------------ LiDAR
     def lidar_scan(self, sample_id: str) -> Scan:
-        """The scan of ``format_options.lidar`` cast into the frame's depth panorama (:meth:`cast_scan`)."""
+        """The scan of :meth:`lidar_spec`'s sensor cast into the frame's depth panorama (:meth:`cast_scan`)."""
         return self.cast_scan(sample_id, self.lidar_spec())
 
     def cast_scan(self, sample_id: str, spec: LidarSpec) -> Scan:
-        """A scan of ``spec`` cast into the frame's depth panorama from its centre, in the LiDAR's FLU frame, its
-        rings known; beams without depth (sky) or beyond ``spec.max_range`` return nothing (counted)."""
+        """A scan of ``spec`` (``data.lidar.preset``) cast into the frame's depth panorama from its centre, in the
+        LiDAR's FLU frame, its rings known; beams without depth (sky) or beyond ``spec.max_range`` return nothing
+        (counted)."""
         depth = self.equirect(sample_id, "depth")
         R_pano_lidar = self.pano_rotation @ CAM_FROM_FLU
         points, rings = lidar_from_equirect(depth, spec, R_pano_lidar)

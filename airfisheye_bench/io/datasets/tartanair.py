@@ -22,7 +22,8 @@ faces in the camera frame x right / y down / z forward with exactly :mod:`~airfi
 axes and texel centres (top = ``up``, bottom = ``down``; tests/io/datasets/test_tartanair.py checks a point
 through it), so the faces are used as they are. What is converted (``docs/design.md``, "TartanAir V2"): planar
 depth -> range per texel; seg values -> training ids through the environment's names
-(:mod:`~airfisheye_bench.io.datasets.tartanair_labels`); LiDAR points -> FLU.
+(:mod:`~airfisheye_bench.io.datasets.tartanair_labels`); LiDAR points -> FLU. The LiDAR is the dataset's scan, or with
+``data.lidar.preset`` that sensor's beams cast into the six depth faces (:meth:`TartanAirSource.cast_scan`).
 
 Example:
     >>> src = TartanAirSource("/data/tartanair", environments=["OldTownFall"])  # doctest: +SKIP
@@ -53,6 +54,7 @@ from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, make_transform, quaternion_to_matrix
 from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.dataset_spec import ClassDef, DatasetSpec, SplitsSpec
+from airfisheye_bench.io.datasets.base import OWN_LIDAR, DatasetSource, legacy_lidar
 from airfisheye_bench.io.datasets.tartanair_labels import IGNORE, TRAIN_CLASSES, label_lut
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan, load_scan
@@ -92,7 +94,7 @@ NED_FROM_CAM = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 _AGREE = 0.05  # relative range tolerance of a LiDAR point against the depth face it falls on
 
 
-class TartanAirSource:
+class TartanAirSource(DatasetSource):
     """A TartanAir V2 root (``data.format=tartanair``; its ``data.format_options`` are the keyword arguments).
 
     Args:
@@ -106,8 +108,10 @@ class TartanAirSource:
             one each; none from a trajectory of under 3 frames) in a ``val`` then a ``test`` block
             (:func:`~airfisheye_bench.io.splits.frame_blocks`).
         frame_stride: Use every n-th frame (10 Hz frames are near-duplicates).
-        lidar: ``dataset`` (``lidar/*_lcam_front_lidar.ply``) or a preset of
-            :data:`~airfisheye_bench.geometry.lidar_presets.LIDAR_PRESETS`, cast into the six depth faces.
+        lidar: Deprecated (``data.lidar.preset`` picks the LiDAR, :meth:`cast_scan`): for one more release
+            ``dataset`` (``lidar/*_lcam_front_lidar.ply``, as ``None``) or a preset of
+            :data:`~airfisheye_bench.geometry.lidar_presets.LIDAR_PRESETS`, cast into the six depth faces as the
+            source's own sensor (warned).
         lidar_frame: Axes of the PLY points: ``auto`` (the candidate of :data:`LIDAR_FRAMES` whose ranges match the
             depth faces, checked on each trajectory's first frame), ``flu``, ``ned`` or ``camera``.
 
@@ -122,7 +126,7 @@ class TartanAirSource:
         "difficulties": list(DIFFICULTIES),
         "split_period": 10,
         "frame_stride": 1,
-        "lidar": "dataset",
+        "lidar": None,  # deprecated: data.lidar.preset (base.legacy_lidar)
         "lidar_frame": "auto",
     }
 
@@ -133,7 +137,7 @@ class TartanAirSource:
         difficulties: list[str] | tuple[str, ...] = DIFFICULTIES,
         split_period: int = 10,
         frame_stride: int = 1,
-        lidar: str = "dataset",
+        lidar: str | None = None,
         lidar_frame: str = "auto",
     ) -> None:
         self.root = Path(root)
@@ -152,7 +156,7 @@ class TartanAirSource:
             raise ConfigError(
                 f"data.format_options.frame_stride must be a positive integer, got {frame_stride}"
             )
-        if lidar != "dataset" and lidar not in LIDAR_PRESETS:
+        if lidar not in (None, OWN_LIDAR) and lidar not in LIDAR_PRESETS:
             raise ConfigError(
                 f"data.format_options.lidar: expected dataset or one of {sorted(LIDAR_PRESETS)}"
             )
@@ -161,8 +165,9 @@ class TartanAirSource:
                 f"data.format_options.lidar_frame: expected auto or one of {sorted(LIDAR_FRAMES)}"
             )
         self.options = {"split_period": int(split_period), "frame_stride": int(frame_stride)}
-        self.lidar_mode, self.lidar_frame = lidar, lidar_frame
-        self._lidar = TARTANAIR_VLP16 if lidar == "dataset" else LidarSpec.from_preset(lidar)
+        preset = legacy_lidar(lidar)
+        self.lidar_mode, self.lidar_frame = preset or OWN_LIDAR, lidar_frame
+        self._lidar = TARTANAIR_VLP16 if preset is None else LidarSpec.from_preset(preset)
         self._trajs = self._find_trajectories(environments, tuple(difficulties))
         self._frames = {key: self._list_frames(key) for key in self._trajs}
         # Most downloads hold a few trajectories: splitting those by trajectory would leave val or test empty.
@@ -347,24 +352,31 @@ class TartanAirSource:
 
     # --------------------------------------------------------------------------------- LiDAR
     def lidar_scan(self, sample_id: str) -> Scan:
-        """The dataset's scan (points turned to FLU) or, with ``lidar=<preset>``, one cast into the depth faces."""
-        if self.lidar_mode != "dataset":
-            points, rings = lidar_from_faces(self._planar_faces(sample_id), self._lidar)
-            beams = self._lidar.channels * self._lidar.points_per_channel
-            path = self._face_file(sample_id, "front", "depth").parent
-            return Scan(points, None, rings, False, beams - len(points), path, "tartanair_depth")
+        """The dataset's scan (points turned to FLU) or, with the deprecated ``lidar=<preset>``, one cast into the
+        depth faces."""
+        if self.lidar_mode != OWN_LIDAR:
+            return self.cast_scan(sample_id, self._lidar)
         scan = load_scan(self._lidar_file(sample_id))
         R = LIDAR_FRAMES[self._lidar_axes(sample_id)]
         return Scan(
             scan.points @ R.T, scan.intensity, scan.rings, False, scan.no_returns, scan.path, scan.format
         )
 
+    def cast_scan(self, sample_id: str, spec: LidarSpec) -> Scan:
+        """A scan of ``spec`` (``data.lidar.preset``) cast from the cube's centre into the frame's six depth faces
+        (nearest texel, its plane), in FLU, its rings known; beams without depth or beyond ``spec.max_range``
+        return nothing (counted)."""
+        points, rings = lidar_from_faces(self._planar_faces(sample_id), spec)
+        beams = spec.channels * spec.points_per_channel
+        path = self._face_file(sample_id, "front", "depth").parent
+        return Scan(points, None, rings, False, beams - len(points), path, "tartanair_depth")
+
     def _lidar_file(self, sample_id: str) -> Path:
         key, frame = self._key(sample_id), sample_id.rsplit("/", 1)[1]
         path = self._trajs[key] / "lidar" / f"{frame}_{SIDE}_front_lidar.ply"
         if not path.is_file():
             raise DatasetFormatError(
-                path, "missing (the LiDAR scan of this frame; lidar=<preset> casts one from the depth)"
+                path, "missing (the LiDAR scan of this frame; data.lidar.preset casts one from the depth)"
             )
         return path
 
@@ -396,7 +408,7 @@ class TartanAirSource:
                 raise DatasetFormatError(
                     self._lidar_file(first),
                     f"the points match the depth faces in no candidate frame ({shares}); set "
-                    "data.format_options.lidar_frame or lidar=<preset>",
+                    "data.format_options.lidar_frame or data.lidar.preset",
                 )
             return best
 

@@ -52,6 +52,7 @@ from airfisheye_bench.io.benchmark_classes import BENCHMARK_CLASSES, BENCHMARK_I
 from airfisheye_bench.io.calib_yaml import Calibration
 from airfisheye_bench.io.calibration_files import read_calibration
 from airfisheye_bench.io.dataset_spec import ClassDef, DatasetSpec, SplitsSpec
+from airfisheye_bench.io.datasets.base import DatasetSource
 from airfisheye_bench.io.errors import DatasetFormatError
 from airfisheye_bench.io.scan import Scan
 
@@ -124,7 +125,7 @@ def woodscape_spec(classes: str = "dataset") -> DatasetSpec:
     )
 
 
-class WoodScapeSource:
+class WoodScapeSource(DatasetSource):
     """A WoodScape root read as a :class:`~airfisheye_bench.io.datasets.base.DatasetSource`.
 
     Args:

@@ -16,7 +16,7 @@ from PIL import Image
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io.benchmark_classes import BENCHMARK_ID
 from airfisheye_bench.io.datasets import open_dataset
-from airfisheye_bench.io.datasets.omni360 import Omni360Source
+from airfisheye_bench.io.datasets.omni360 import OWN_SENSOR, Omni360Source
 from airfisheye_bench.io.datasets.omni360_files import natural_key, read_depth
 from airfisheye_bench.io.datasets.omni360_labels import OMNI360_TO_BENCHMARK, read_class_list
 from airfisheye_bench.io.errors import DatasetFormatError
@@ -361,14 +361,15 @@ def test_the_cast_scan_takes_the_range_of_the_texel_each_beam_falls_in(
 ) -> None:
     """Every point of the cast scan (FLU, x along the recorded camera's axis: the panorama's middle column) lies
     along its beam at the range the depth panorama holds in the texel its direction falls in; its rings are the
-    spec's channels; a LiDAR turned in the panorama (here 30 deg left, 20 deg down) casts along its own beams."""
+    spec's channels; a LiDAR turned in the panorama (here 30 deg left, 20 deg down) casts along its own beams. The
+    source's own sensor is the paper's; ``data.lidar.preset`` names another (``cast_scan``)."""
     from airfisheye_bench.geometry.equirect_lidar import lidar_from_equirect
     from airfisheye_bench.geometry.lidar import LidarSpec
     from airfisheye_bench.geometry.transforms import CAM_FROM_FLU, gimbal_rotation
 
-    src = source(fixture_root, lidar=preset)
+    src = source(fixture_root)
     spec = LidarSpec.from_preset(preset)
-    scan = src.lidar_scan("NYC/panorama_1")
+    scan = src.lidar_scan("NYC/panorama_1") if preset == OWN_SENSOR else src.cast_scan("NYC/panorama_1", spec)
     beams = spec.channels * spec.points_per_channel
     assert scan.rings is not None and scan.rings.max() < spec.channels and len(scan.points) > beams // 2
     assert scan.no_returns == beams - len(scan.points)
@@ -387,6 +388,37 @@ def test_the_cast_scan_takes_the_range_of_the_texel_each_beam_falls_in(
     # data.lidar.preset's sensor is cast instead of the source's own (the datamodule asks for it).
     other = src.cast_scan("NYC/panorama_1", LidarSpec.from_preset("hdl32e"))
     assert other.rings.max() < 32 and len(other.points) != len(scan.points)
+
+
+def test_the_deprecated_lidar_option_casts_its_preset_as_before_and_says_so(fixture_root: Path) -> None:
+    """``format_options.lidar=<preset>`` keeps working for one release: the source's own sensor becomes that preset
+    (the scan ``data.lidar.preset`` casts), with a warning naming the new key; a datamodule refuses it beside a
+    different ``data.lidar.preset``, naming both keys."""
+    from airfisheye_bench.geometry.lidar import LidarSpec
+    from datamodules import AirFisheyeDataModule
+
+    with pytest.warns(
+        DeprecationWarning, match=r"format_options\.lidar=vlp16 .*use data\.lidar\.preset=vlp16"
+    ):
+        legacy = source(fixture_root, lidar="vlp16")
+    cast = source(fixture_root).cast_scan("NYC/panorama_1", LidarSpec.from_preset("vlp16"))
+    np.testing.assert_array_equal(legacy.lidar_scan("NYC/panorama_1").points, cast.points)
+    assert legacy.lidar_spec().name == "vlp16" and source(fixture_root).lidar_spec().name == OWN_SENSOR
+
+    def datamodule(lidar: str, preset: str) -> AirFisheyeDataModule:
+        return AirFisheyeDataModule(
+            "completion",
+            root=fixture_root,
+            format="omni360",
+            format_options={"lidar": lidar},
+            lidar={"preset": preset},
+        )
+
+    with pytest.raises(
+        ConfigError, match=r"data\.format_options\.lidar='paper' and data\.lidar\.preset='vlp16'"
+    ):
+        datamodule("paper", "vlp16")
+    assert datamodule("vlp16", "vlp16").lidar.spec.name == "vlp16"
 
 
 # ------------------------------------------------------------------------------------------------- serving

@@ -6,9 +6,11 @@ from __future__ import annotations
 import json
 import shutil
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
+import torch
 from omegaconf import open_dict
 from PIL import Image
 
@@ -29,6 +31,9 @@ from tests.helpers.tartanair_fixture import (
     tartanair_project,
     write_tartanair_fixture,
 )
+
+if TYPE_CHECKING:
+    from datamodules import AirFisheyeDataset
 
 SIZE = 48
 FIRST = "CoalMine/easy_P000/000000"
@@ -259,9 +264,10 @@ def test_the_dataset_lidar_is_turned_to_flu_whatever_axes_the_file_uses(tmp_path
 
 
 def test_a_preset_lidar_is_cast_into_the_six_depth_faces(fixture_root: Path) -> None:
-    src = source(fixture_root, lidar="vlp16")
-    scan = src.lidar_scan(FIRST)
-    assert src.calib(FIRST).lidar_spec().name == "vlp16" and scan.rings is not None
+    """``data.lidar.preset``: the dataset asks for ``cast_scan`` with that sensor instead of the recorded scan."""
+    src = source(fixture_root)
+    scan = src.cast_scan(FIRST, LidarSpec.from_preset("vlp16"))
+    assert src.calib(FIRST).lidar_spec().name == "tartanair-vlp16" and scan.rings is not None
     expected, _ = scene_hit(
         scan.points @ CAM_FROM_FLU.T, 0
     )  # the analytic scene along each point's direction
@@ -269,6 +275,47 @@ def test_a_preset_lidar_is_cast_into_the_six_depth_faces(fixture_root: Path) -> 
     assert close.mean() > 0.9
     wall = np.abs(scan.points[:, 0] + 5.0) < 0.05  # the back face is used too: the chair wall 5 m behind
     assert wall.sum() > 100 and scan.points[:, 0].min() > -5.3
+
+
+def test_the_deprecated_lidar_option_casts_its_preset_as_before_and_says_so(fixture_root: Path) -> None:
+    """``format_options.lidar=<preset>`` keeps working for one release: the source's own sensor becomes that preset
+    (the scan ``data.lidar.preset`` casts), with a warning naming the new key; ``dataset`` is the default."""
+    with pytest.warns(
+        DeprecationWarning, match=r"format_options\.lidar=vlp16 .*use data\.lidar\.preset=vlp16"
+    ):
+        legacy = source(fixture_root, lidar="vlp16")
+    cast = source(fixture_root).cast_scan(FIRST, LidarSpec.from_preset("vlp16"))
+    np.testing.assert_array_equal(legacy.lidar_scan(FIRST).points, cast.points)
+    assert legacy.calib(FIRST).lidar_spec().name == "vlp16"
+    with pytest.warns(DeprecationWarning, match=r"use data\.lidar\.preset=null"):
+        own = source(fixture_root, lidar="dataset")
+    np.testing.assert_array_equal(own.lidar_scan(FIRST).points, source(fixture_root).lidar_scan(FIRST).points)
+
+
+def test_the_deprecated_lidar_option_beside_another_preset_is_refused_naming_both_keys(
+    fixture_root: Path,
+) -> None:
+    from airfisheye_bench.errors import ConfigError
+    from datamodules import AirFisheyeDataModule
+
+    def datamodule(lidar: str, preset: str | None) -> AirFisheyeDataModule:
+        options = {"split_period": 3, "lidar": lidar}
+        return AirFisheyeDataModule(
+            "completion",
+            root=fixture_root,
+            format="tartanair",
+            format_options=options,
+            lidar={"preset": preset},
+        )
+
+    for lidar, preset in (("hdl64e", "vlp16"), ("dataset", "vlp16")):
+        with pytest.raises(
+            ConfigError, match=r"data\.format_options\.lidar=.* and data\.lidar\.preset='vlp16'"
+        ):
+            datamodule(lidar, preset)
+    # The same LiDAR twice, or the option alone, is the deprecated spelling of data.lidar.preset.
+    assert datamodule("vlp16", "vlp16").lidar.spec.name == "vlp16"
+    assert datamodule("hdl64e", None).lidar.spec is None
 
 
 def test_cast_lidar_helpers_hand_values() -> None:
@@ -412,23 +459,36 @@ def test_design_md_prints_the_label_table_of_the_code() -> None:
         assert f"| {i} | {name} | {names} |" in section, name
 
 
-@pytest.mark.parametrize("lidar", ["dataset", "hdl64e"])
-def test_sparse_depth_lands_on_the_dense_depth(fixture_root: Path, lidar: str) -> None:
-    """The whole chain (PLY axes or cast beams, T_cam_lidar, projection, occlusion): LiDAR ranges agree with the
-    remapped depth at the pixels they land on."""
+def _completion(root: Path, preset: str | None = None, **options) -> AirFisheyeDataset:
+    """The ``train`` split for completion at 128^2, its LiDAR ``data.lidar.preset=preset``."""
     from datamodules import AirFisheyeDataset, CameraConfig
 
-    ds = AirFisheyeDataset(
-        fixture_root,
+    return AirFisheyeDataset(
+        root,
         "train",
         "completion",
         camera=CameraConfig(size=128),
         format="tartanair",
-        format_options={"split_period": 3, "lidar": lidar},
+        format_options={"split_period": 3, **options},
+        lidar_spec=None if preset is None else LidarSpec.from_preset(preset),
     )
-    sample = ds[0]
+
+
+@pytest.mark.parametrize("preset", [None, "hdl64e"])
+def test_sparse_depth_lands_on_the_dense_depth(fixture_root: Path, preset: str | None) -> None:
+    """The whole chain (PLY axes or the cast beams of data.lidar.preset, T_cam_lidar, projection, occlusion): LiDAR
+    ranges agree with the remapped depth at the pixels they land on."""
+    sample = _completion(fixture_root, preset)[0]
     sparse, dense = sample["sparse_depth"][0], sample["depth"][0]
     hit = (sparse > 0) & (dense > 0)
     assert hit.sum() > 200
     rel = ((sparse[hit] - dense[hit]).abs() / dense[hit]).numpy()
     assert np.median(rel) < 0.02 and np.mean(rel < 0.1) > 0.9
+
+
+def test_the_deprecated_lidar_option_serves_what_data_lidar_preset_serves(fixture_root: Path) -> None:
+    """``format_options.lidar=hdl64e`` (deprecated) and ``data.lidar.preset=hdl64e`` serve the same sparse input."""
+    with pytest.warns(DeprecationWarning):
+        legacy = _completion(fixture_root, lidar="hdl64e")[0]["sparse_depth"]
+    served = _completion(fixture_root, "hdl64e")[0]["sparse_depth"]
+    assert (served > 0).sum() > 200 and torch.equal(legacy, served)
