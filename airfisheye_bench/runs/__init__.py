@@ -421,12 +421,17 @@ def _plain(config: DictConfig | dict) -> Any:
 def resolve_checkpoint(path: str | Path) -> Path:
     """The checkpoint file for ``path``: the file itself, or a run directory's best (else last) checkpoint.
 
+    The best checkpoint is saved as ``checkpoints/epoch_NNN.ckpt`` (its epoch), beside ``last.ckpt``;
+    ``<run>/checkpoints/best`` (or ``best.ckpt``), which is no file, names it too.
+
     Raises:
         FileNotFoundError: no such file or directory, or a run directory without checkpoints.
     """
     path = Path(path).expanduser()
     if path.is_file():
         return path
+    if path.name in ("best", "best.ckpt") and path.parent.name == "checkpoints" and not path.exists():
+        path = path.parent.parent  # the run directory: its best checkpoint, below
     if not path.is_dir():
         raise MissingFileError(f"checkpoint {path} does not exist (give a .ckpt file or a run directory)")
     results = path / "results.json"
