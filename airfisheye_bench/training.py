@@ -45,6 +45,7 @@ from airfisheye_bench.runs import (
     run_label,
     run_log,
 )
+from airfisheye_bench.runs.quickstart_record import quick_start_line
 from airfisheye_bench.runs.results import dataset_identity, format_results_table, write_results
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.sweeps import job_sweep_overrides
@@ -425,6 +426,9 @@ def _train(
         results = module.test_results
         if trainer.is_global_zero:
             dataset, sources = source_results(datamodule, results)
+            dataset = dataset or dataset_identity(
+                datamodule.dataset_root(), datamodule.split_dataset("test").spec.name
+            )
             log.info("%s", summarise_test(cfg, results))
             path = write_results(
                 output_dir / "results.json",
@@ -432,8 +436,7 @@ def _train(
                 split=datamodule.split_names[2],
                 metrics=results["metrics"],
                 breakdown=results["breakdown"],
-                dataset=dataset
-                or dataset_identity(datamodule.dataset_root(), datamodule.split_dataset("test").spec.name),
+                dataset=dataset,
                 sources=sources,
                 sparse_coverage=input_coverage(datamodule.split_dataset("test"), cfg.task.name),
                 model={
@@ -451,6 +454,13 @@ def _train(
                 config={**OmegaConf.to_container(cfg, resolve=True), "camera": datamodule.camera.to_dict()},
             )
             log.info("test results written to %s", path)
+            # A quick start (python train.py task=<task> [seed=<s>]): where it falls against the README's table.
+            threads = torch.get_num_threads()
+            note = quick_start_line(
+                cfg.task.name, results["metrics"], cfg.seed, threads, dataset.get("content_sha256")
+            )
+            if note:
+                log.info(note)
     if trainer.is_global_zero:
         log_run_outputs(loggers, best or None)
     results = dict(results)

@@ -19,7 +19,7 @@ from airfisheye_bench.cli import commands
 from airfisheye_bench.cli.options import parse, render_help
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import EXIT_USER_ERROR, ConfigError
-from tests.helpers.commands import exit_status
+from tests.helpers.commands import EVALUATE, assert_one_line_error, exit_status, run_in_process
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = {
@@ -141,7 +141,10 @@ def test_extra_keys_are_typed_by_the_same_grammar() -> None:
 
 @pytest.mark.parametrize(
     ("script", "names"),
-    [("train.py", ("task", "trainer", "ckpt_path")), ("scripts/evaluate.py", ("onnx_path", "split"))],
+    [
+        ("train.py", ("task", "trainer", "ckpt_path")),
+        ("scripts/evaluate.py", ("onnx_path", "split", "\nout: ", "\noutput_dir: ${out}")),
+    ],
 )
 def test_hydra_commands_answer_help(script: str, names: tuple[str, ...]) -> None:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -150,6 +153,15 @@ def test_hydra_commands_answer_help(script: str, names: tuple[str, ...]) -> None
     )
     assert done.returncode == 0, done.stderr
     assert all(name in done.stdout for name in names), done.stdout
+
+
+def test_evaluate_refuses_out_and_its_former_name_output_dir_naming_two_folders(tmp_path: Path) -> None:
+    """``airfisheye-evaluate`` takes ``out=`` like the other commands and ``output_dir=`` as before; both at once must
+    name one folder. The refusal writes nothing (the run directory Hydra made is taken back)."""
+    args = ["ckpt_path=/nowhere.ckpt", f"out={tmp_path / 'a'}", f"output_dir={tmp_path / 'b'}"]
+    done = run_in_process(EVALUATE, [*args, f"hydra.run.dir={tmp_path / 'run'}"])
+    assert_one_line_error(done, f"out={tmp_path / 'a'}", f"output_dir={tmp_path / 'b'}", "give out= alone")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_script_reports_a_bad_option_without_traceback(tmp_path: Path) -> None:

@@ -5,7 +5,9 @@ from a wheel too). ``python train.py`` and ``python scripts/evaluate.py`` are th
 
 from __future__ import annotations
 
+import logging
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import hydra
@@ -13,13 +15,15 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
 from airfisheye_bench.cli.overrides import check_overrides
-from airfisheye_bench.cli.run_dir import takes_back_run_dir
+from airfisheye_bench.cli.run_dir import remove_new_run_dir, takes_back_run_dir
 from airfisheye_bench.config_checks import check_common_values, check_train_config
 from airfisheye_bench.constants import config_dir
-from airfisheye_bench.errors import report_user_errors
+from airfisheye_bench.errors import ConfigError, report_user_errors
 from airfisheye_bench.runs import register_resolvers, resume_config, run_log
 
 register_resolvers()  # ${run_name:} in hydra.run.dir, ${sweep_name:} in hydra.sweep.dir
+
+log = logging.getLogger(__name__)
 
 
 @report_user_errors  # an unknown key: one line on stderr, exit status 2 (docs/troubleshooting.md)
@@ -63,9 +67,31 @@ def _train(cfg: DictConfig) -> float | None:
 def _evaluate(cfg: DictConfig) -> None:
     # A mistyped value is answered before the imports below. The data group is checked by the command, once, when it
     # knows which one it serves (a checkpoint's or ONNX model's own, command-line data.* on top).
+    given = HydraConfig.get().overrides.task
+    check_output_folder(cfg, given)
     check_common_values(cfg, skip=("data",))
     from airfisheye_bench.evaluation.command import evaluate as score  # Lightning and ONNX Runtime: seconds
 
-    overrides = [o.lstrip("+") for o in HydraConfig.get().overrides.task if o.lstrip("+").startswith("data.")]
+    overrides = [o.lstrip("+") for o in given if o.lstrip("+").startswith("data.")]
     with run_log(Path(cfg.output_dir)) as open_log:  # evaluate.log: written with the results, not before
         score(cfg, data_overrides=overrides, before_writing=open_log)
+    if Path(cfg.output_dir).absolute() != Path(HydraConfig.get().runtime.output_dir).absolute():
+        remove_new_run_dir()  # out= elsewhere: the logs/eval/runs/<name> Hydra made stays empty
+
+
+def check_output_folder(cfg: DictConfig, overrides: Sequence[str]) -> None:
+    """``out=`` names evaluate's output folder, as it does export's, predict's and the leaderboard's; ``output_dir=``,
+    its former name, still does (``output_dir: ${out}`` in ``configs/evaluate.yaml``), with a warning.
+
+    Raises:
+        ConfigError: both given, naming different folders.
+    """
+    keys = {o.lstrip("+~").partition("=")[0] for o in overrides}
+    if "output_dir" not in keys:
+        return
+    if "out" in keys and Path(str(cfg.out)).absolute() != Path(str(cfg.output_dir)).absolute():
+        raise ConfigError(
+            f"out={cfg.out} and output_dir={cfg.output_dir} name different folders; output_dir is the former "
+            "name of out: give out= alone"
+        )
+    log.warning("output_dir= is deprecated: it is now out=%s (the same folder)", cfg.output_dir)

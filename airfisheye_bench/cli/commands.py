@@ -197,6 +197,7 @@ class LeaderboardOptions:
     paper: bool = option("rank next to the paper's baselines")
     skip_invalid: bool = option("leave invalid results.json out (listed in the outputs) instead of failing")
     html: str | None = option("also write a self-contained HTML page to this .html file")
+    include_debug: bool = option("also rank smoke runs (trainer=debug: a batch or two; left out by default)")
 
 
 LEADERBOARD = Command(
@@ -209,7 +210,11 @@ LEADERBOARD = Command(
 
 @report_user_errors
 def leaderboard(argv: Sequence[str] | None = None) -> int:
-    """``airfisheye-leaderboard runs=DIR|[DIR,...] [out=leaderboard] [paper=true] [skip_invalid=false] [html=FILE]``.
+    """``airfisheye-leaderboard runs=DIR|[DIR,...] [out=leaderboard] [paper=true] [skip_invalid=false] [html=FILE]
+    [include_debug=false]``.
+
+    Runs trained with ``trainer=debug`` (the install check's, the tests') are left out, with a note on stderr,
+    unless ``include_debug=true``, which ranks them marked ``[trainer=debug]``.
 
     Returns:
         0 on success, 1 for missing paths, no results or invalid files.
@@ -255,6 +260,14 @@ def leaderboard(argv: Sequence[str] | None = None) -> int:
         return 1
     for problem in problems:
         print(f"warning: skipped invalid results.json: {problem}", file=sys.stderr)
+    debug = sum(e.debug for e in entries)
+    if debug and not opts.include_debug:
+        entries = [e for e in entries if not e.debug]
+        print(
+            f"note: left out {debug} row(s) of runs trained with trainer=debug (a batch or two: no result to "
+            "rank); include_debug=true ranks them",
+            file=sys.stderr,
+        )
     if not entries:
         print("error: no valid results.json to rank", file=sys.stderr)
         return 1

@@ -175,6 +175,34 @@ def run_label(run_dir: str | Path) -> str:
     return f"{path.parent.name}/{path.name}" if path.name.isdigit() and path.parent.name else path.name
 
 
+#: A name of :func:`run_name`: ``<date>_<time>_<pid>-<4 hex>``, or ``<date>_<launch id>`` (:func:`launch_id`).
+_RUN_NAME = re.compile(
+    r"(?P<date>\d{4}-\d{2}-\d{2})_(?:(?P<time>\d{2}-\d{2}-\d{2})_\d+-[0-9a-f]{4}|(?P<launch>(?:slurm|torchrun)-.+))"
+)
+
+
+def run_started(label: str) -> str | None:
+    """When a run whose folder :func:`run_name` named started, as a person reads it, from its :func:`run_label`;
+    ``None`` for a name given by hand (``hydra.run.dir=``, an evaluation's ``name=``).
+
+    Example:
+        >>> run_started("2026-11-24_09-30-05_812-a3f0")
+        '2026-11-24 09:30:05'
+        >>> run_started("2026-11-24_09-30-05_812-a3f0/3"), run_started("2026-11-24_slurm-4471.0")
+        ('2026-11-24 09:30:05, job 3', '2026-11-24 (slurm-4471.0)')
+        >>> run_started("adabins-r18") is None
+        True
+    """
+    sweep, _, job = label.rpartition("/")
+    name, job = (sweep, job) if sweep and job.isdigit() else (label, "")
+    match = _RUN_NAME.fullmatch(name)
+    if match is None:
+        return None
+    time = match["time"]
+    when = f"{match['date']} {time.replace('-', ':')}" if time else f"{match['date']} ({match['launch']})"
+    return f"{when}, job {job}" if job else when
+
+
 def register_resolvers() -> None:
     """Register ``${run_name:}`` and ``${sweep_name:}`` (``hydra.run.dir``, ``hydra.sweep.dir``) with OmegaConf;
     safe to call more than once."""
@@ -421,12 +449,17 @@ def _plain(config: DictConfig | dict) -> Any:
 def resolve_checkpoint(path: str | Path) -> Path:
     """The checkpoint file for ``path``: the file itself, or a run directory's best (else last) checkpoint.
 
+    The best checkpoint is saved as ``checkpoints/epoch_NNN.ckpt`` (its epoch), beside ``last.ckpt``;
+    ``<run>/checkpoints/best`` (or ``best.ckpt``), which is no file, names it too.
+
     Raises:
         FileNotFoundError: no such file or directory, or a run directory without checkpoints.
     """
     path = Path(path).expanduser()
     if path.is_file():
         return path
+    if path.name in ("best", "best.ckpt") and path.parent.name == "checkpoints" and not path.exists():
+        path = path.parent.parent  # the run directory: its best checkpoint, below
     if not path.is_dir():
         raise MissingFileError(f"checkpoint {path} does not exist (give a .ckpt file or a run directory)")
     results = path / "results.json"

@@ -11,6 +11,7 @@ import pytest
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation import SubmissionError, load_entry
 from airfisheye_bench.evaluation.command import evaluate
+from tests.helpers.commands import EVALUATE, run_in_process
 from tests.helpers.configs import compose_eval
 
 pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
@@ -228,3 +229,16 @@ def test_training_and_evaluation_agree_to_the_documented_precision(depth_run: Pa
     assert trained.evaluated.endswith("(training test)") and not evaluated.evaluated.endswith(
         "(training test)"
     )
+
+
+def test_the_output_folder_is_out_as_for_the_other_commands(depth_run: Path, tmp_path: Path) -> None:
+    """``out=`` names the folder (as export's, predict's and the leaderboard's); ``output_dir=``, its former name,
+    still does, with a warning; the run directory Hydra made under ``logs/eval/runs`` is not left behind empty."""
+    env = {"PROJECT_ROOT": str(tmp_path / "project")}
+    base = [f"ckpt_path={depth_run}", "num_workers=0", "num_panels=0"]
+    for key in ("out", "output_dir"):
+        done = run_in_process(EVALUATE, [*base, f"{key}={tmp_path / key}"], extra_env=env)
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert (tmp_path / key / "results.json").is_file() and (tmp_path / key / "evaluate.log").is_file()
+        assert ("output_dir= is deprecated" in done.stdout + done.stderr) == (key == "output_dir")
+    assert not (tmp_path / "project").exists()

@@ -461,6 +461,51 @@ def test_main_errors(tmp_path: Path, capsys) -> None:
     assert "no valid results.json" in capsys.readouterr().err
 
 
+DEBUG_TRAINER = {"max_epochs": 1, "limit_train_batches": 2, "limit_val_batches": 1, "limit_test_batches": 1}
+
+
+def test_runs_of_the_debug_trainer_are_left_out_unless_asked(tmp_path: Path, capsys) -> None:
+    """The install check (``trainer=debug``) tests on one batch: its row is no result. Its ``config.trainer``
+    (what training writes into ``results.json``) tells it; the command leaves it out with a note, and
+    ``include_debug=true`` ranks it, marked."""
+    _write(tmp_path / "runs", "real", "seg", {"mIoU": 0.2}, config={"trainer": {"max_epochs": 8}})
+    _write(tmp_path / "runs", "smoke", "seg", {"mIoU": 0.3}, config={"trainer": DEBUG_TRAINER})
+    entries = collect_results([tmp_path / "runs"])  # the library keeps every row, marked
+    assert {e.run: e.debug for e in entries} == {"real": False, "smoke": True}
+    out = tmp_path / "board"
+    assert leaderboard([f"runs={tmp_path / 'runs'}", f"out={out}", "paper=false"]) == 0
+    printed = capsys.readouterr()
+    assert "left out 1 row(s) of runs trained with trainer=debug" in printed.err
+    assert "include_debug=true" in printed.err
+    assert [r["run"] for r in _csv_rows((out / "leaderboard.csv").read_text())] == ["real"]
+    assert leaderboard([f"runs={tmp_path / 'runs'}", f"out={out}", "paper=false", "include_debug=true"]) == 0
+    printed = capsys.readouterr()
+    assert "left out" not in printed.err and "| 1 | deeplabv3plus / resnet18 |" in printed.out
+    assert "| smoke [trainer=debug] |" in printed.out and "| real |" in printed.out
+    (tmp_path / "runs" / "real" / "results.json").unlink()
+    assert leaderboard([f"runs={tmp_path / 'runs'}", f"out={out}"]) == 1  # nothing else: said so
+    err = capsys.readouterr().err
+    assert "include_debug=true" in err and "no valid results.json to rank" in err
+
+
+def test_the_run_column_reads_task_model_and_start_time(tmp_path: Path) -> None:
+    """A folder named by train.py (``<date>_<time>_<pid>-<random>``) is shown as what a person reads; the CSV keeps
+    the folder's name, and the HTML page has it as the cell's tooltip and sort key."""
+    from airfisheye_bench.evaluation.leaderboard.html import render_html
+
+    folder = "2026-12-01_10-22-33_1234-ab12"
+    _write(tmp_path / "seg" / "runs", folder, "seg", {"mIoU": 0.3})
+    board = build_leaderboard(collect_results([tmp_path]), paper=False)
+    assert "| seg · deeplabv3plus · 2026-12-01 10:22:33 |" in board.to_markdown()
+    assert folder not in board.to_markdown()
+    assert [r["run"] for r in _csv_rows(board.to_csv())] == [folder]
+    page = render_html(board)
+    assert (
+        f'data-value="{folder}"><span title="{folder}">seg · deeplabv3plus · 2026-12-01 10:22:33</span>'
+        in page
+    )
+
+
 def test_console_script_is_declared_and_runs(tmp_path: Path, monkeypatch, capsys) -> None:
     # Python 3.10 has no tomllib: the [project.scripts] line is checked as text.
     pyproject = (PROJECT_ROOT / "pyproject.toml").read_text()

@@ -26,5 +26,5 @@ def compose_eval(overrides: list[str], output_dir: Path) -> DictConfig:
     with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
         cfg = compose(config_name="evaluate", overrides=overrides)
     with open_dict(cfg):
-        cfg.output_dir = str(output_dir)
+        cfg.out = str(output_dir)  # output_dir, its former name, follows (${out})
     return cfg

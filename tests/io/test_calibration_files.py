@@ -770,6 +770,30 @@ def test_unknown_format_is_one_short_line(tmp_path: Path) -> None:
     assert "\n" not in message and len(message) - len(str(path)) <= 200
 
 
+@pytest.mark.parametrize(
+    ("name", "text", "where"),
+    [
+        # A Kalibr camchain whose list lost its closing bracket: the parser stops where the file ends.
+        (
+            "camchain.yaml",
+            "cam0:\n  camera_model: ds\n  intrinsics: [0.5, 0.6, 190.9, 191.0\n",
+            "YAML at line 4",
+        ),
+        # An OpenCV FileStorage file, mis-indented: its %YAML:1.0 line counts, as in an editor.
+        ("out.yml", "%YAML:1.0\n---\nK: !!opencv-matrix\n  rows: 3\n cols: 3\n", "YAML at line 5, column 2"),
+        ("calib.json", '{"value0": {"intrinsics": [1, 2}}', "JSON at line 1, column 32"),
+    ],
+)
+def test_a_syntax_error_is_reported_with_its_line(tmp_path: Path, name: str, text: str, where: str) -> None:
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(CalibrationFileError) as err:
+        load_camera(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: invalid {where}")
+    assert "known format" not in message and "\n" not in message
+
+
 def test_missing_file(tmp_path: Path) -> None:
     with pytest.raises(MissingFileError, match="no such calibration file"):
         read_calibration(tmp_path / "nope.yaml")

@@ -26,7 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 from airfisheye_bench.cli.commands import leaderboard
 from airfisheye_bench.constants import config_dir
 from airfisheye_bench.evaluation.command import _sweep_overrides as evaluation_sweep_overrides
-from airfisheye_bench.runs import SWEEP_NAME_ENV, register_resolvers
+from airfisheye_bench.runs import SWEEP_NAME_ENV, register_resolvers, run_started
 from airfisheye_bench.specs import get_task, task_names
 from airfisheye_bench.sweeps import job_sweep_overrides, run_sweep_overrides
 from tests.helpers.runs import tiny_run_overrides
@@ -254,11 +254,12 @@ def test_a_submitit_multirun_writes_one_sweep_folder_that_the_leaderboard_ranks(
     assert len(list((sweep / ".submitit").glob("*/*_result.pkl"))) == 2  # really run by the executor
 
     out = tmp_path / "board"
-    assert leaderboard([f"runs={sweep}", f"out={out}", "paper=false"]) == 0
+    assert leaderboard([f"runs={sweep}", f"out={out}", "paper=false", "include_debug=true"]) == 0
     with (out / "leaderboard.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert sorted(row["run"] for row in rows) == [f"{sweep.name}/0", f"{sweep.name}/1"]
     assert sorted(row["overrides"] for row in rows) == ["seed=1", "seed=2"]
-    assert f"| {sweep.name}/0 (seed=1) |" in (out / "leaderboard.md").read_text()
+    job = f"seg · deeplabv3plus · {run_started(f'{sweep.name}/0')} (seed=1) [trainer=debug]"
+    assert f"| {job} |" in (out / "leaderboard.md").read_text()
     ranks = [int(row["rank"]) for row in rows]
     assert sorted(ranks) in ([1, 2], [1, 1])  # ranked against each other (a tie shares its rank)

@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf, open_dict
 
+from airfisheye_bench.errors import MissingFileError
+from airfisheye_bench.runs import resolve_checkpoint
 from airfisheye_bench.training import train
 from tests.helpers.configs import compose_train
 from tests.helpers.runs import DONE, tiny_run_overrides
@@ -37,6 +39,19 @@ def test_fast_dev_run(task: str, tiny_runs) -> None:
     assert (run / "checkpoints" / "last.ckpt").is_file()
     assert (run / "config.yaml").is_file() and (run / "metrics.csv").is_file()
     assert list((run / "panels").glob("epoch_*.png"))
+
+
+def test_a_run_keeps_its_best_as_epoch_nnn_and_checkpoints_best_names_it(tiny_runs) -> None:
+    """What README and docs/training.md say a run writes: ``epoch_NNN.ckpt`` (the best) and ``last.ckpt``; the
+    commands' ``ckpt_path=<run>/checkpoints/best`` (no such file) is the best one, as the run directory is."""
+    run = tiny_runs("seg")
+    best = Path(json.loads((run / "results.json").read_text())["model"]["checkpoint"])
+    assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["epoch_000.ckpt", "last.ckpt"]
+    assert best == run / "checkpoints" / "epoch_000.ckpt"
+    for given in ("best", "best.ckpt"):
+        assert resolve_checkpoint(run / "checkpoints" / given) == best == resolve_checkpoint(run)
+    with pytest.raises(MissingFileError, match="does not exist"):
+        resolve_checkpoint(run / "checkpoints" / "worst")
 
 
 def test_a_lens_wider_than_190_degrees_is_scored_out_to_its_rim(tiny_dataset: Path, tmp_path: Path) -> None:

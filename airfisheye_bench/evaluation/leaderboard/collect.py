@@ -12,7 +12,7 @@ from typing import Any
 
 from airfisheye_bench.errors import MissingFileError, UserError
 from airfisheye_bench.io.calibration_files import camera_label
-from airfisheye_bench.runs import checkpoint_run_name
+from airfisheye_bench.runs import checkpoint_run_name, run_started
 from airfisheye_bench.runs.results import RESULTS_VERSION, evaluated_label, load_results, source_records
 from airfisheye_bench.specs import UnknownTaskError, all_tasks, get_task
 
@@ -23,6 +23,7 @@ __all__ = [
     "LeaderboardError",
     "collect_results",
     "find_results",
+    "is_debug_trainer",
     "load_entries",
     "load_entry",
     "paper_baselines",
@@ -70,6 +71,9 @@ class LeaderboardEntry:
             (never shown: the leaderboard names a dataset by :attr:`dataset_label`).
         overrides: What a multirun's sweep chose for the run (``model.sweep_overrides``: ``key=value`` as on the
             command line); empty for a single run.
+        debug: Trained and tested with a smoke run's trainer (``trainer=debug``: :func:`is_debug_trainer` of
+            ``config.trainer``): a batch or two of training and of the test split. ``airfisheye-leaderboard`` leaves
+            such rows out unless ``include_debug=true``, and marks them when it ranks them.
     """
 
     task: str
@@ -88,6 +92,7 @@ class LeaderboardEntry:
     camera: str = ""
     dataset_root: str | None = None
     overrides: tuple[str, ...] = ()
+    debug: bool = False
 
     @property
     def run_with_overrides(self) -> str:
@@ -98,6 +103,25 @@ class LeaderboardEntry:
             's/3 (a.lr=0.01 b=8)'
         """
         return f"{self.run} ({' '.join(self.overrides)})" if self.overrides else self.run
+
+    @property
+    def run_title(self) -> str:
+        """The run as the tables show it: a folder name that ``train.py`` made (``2026-12-01_10-22-33_1234-ab12``)
+        as the task, the model and when the run started; a name given by hand as it is; then what its sweep chose,
+        and ``[trainer=debug]`` for a smoke run (:attr:`run` is the folder's name: the CSV's ``run`` column).
+
+        Example:
+            >>> LeaderboardEntry("seg", "test", "deeplabv3plus / resnet18", "2026-12-01_10-22-33_1234-ab12", "d",
+            ...                  debug=True).run_title
+            'seg · deeplabv3plus · 2026-12-01 10:22:33 [trainer=debug]'
+            >>> LeaderboardEntry("seg", "test", "m", "s/3", "d", overrides=("b=8",)).run_title
+            's/3 (b=8)'
+        """
+        started = None if self.paper else run_started(self.run)
+        title = f"{self.task} · {self.model.split(' / ')[0]} · {started}" if started else self.run
+        if self.overrides:
+            title += f" ({' '.join(self.overrides)})"
+        return title + " [trainer=debug]" if self.debug else title
 
     @property
     def source(self) -> str:
@@ -316,7 +340,29 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         camera=_camera(record),
         dataset_root=str(dataset["root"]) if dataset.get("root") else None,
         overrides=_overrides(model),
+        debug=is_debug_trainer(
+            config.get("trainer") if isinstance(config := record.get("config"), Mapping) else None
+        ),
     )
+
+
+def is_debug_trainer(trainer: Any) -> bool:
+    """Whether a run's resolved ``config.trainer`` (``results.json``) is a smoke run's, such as ``trainer=debug``:
+    ``fast_dev_run``, or training or testing limited to a count of batches (``limit_train_batches: 2``,
+    ``limit_test_batches: 1``; a fraction such as ``0.5`` is an ordinary shorter epoch). Its test scored a batch or
+    two of the split, so it is no result to rank.
+
+    Example:
+        >>> is_debug_trainer({"max_epochs": 1, "limit_train_batches": 2, "limit_test_batches": 1})
+        True
+        >>> is_debug_trainer({"max_epochs": 8}), is_debug_trainer({"limit_train_batches": 0.5}), is_debug_trainer(None)
+        (False, False, False)
+    """
+    if not isinstance(trainer, Mapping):
+        return False
+    limits = (trainer.get("limit_train_batches"), trainer.get("limit_test_batches"))
+    counted = any(isinstance(v, int) and not isinstance(v, bool) for v in limits)
+    return counted or bool(trainer.get("fast_dev_run"))
 
 
 def _overrides(model: Mapping[str, Any]) -> tuple[str, ...]:

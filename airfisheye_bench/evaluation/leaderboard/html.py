@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import dataclasses
 import hashlib
 import io
 import json
@@ -228,8 +229,8 @@ def _row(
     evaluated = "paper" if e.paper else e.evaluated or MISSING
     cells = [
         f'<td class="num" data-value="{"" if rank is None else rank}">{rank or MISSING}</td>',
-        # Sorted by the name; a sweep's job (<sweep>/<job>) may wrap before its number.
-        f'<td class="run" data-value="{escape(e.run)}">{escape(e.run).replace("/", "/<wbr>")}{_overrides(e)}</td>',
+        # Shown by task, model and start time, the folder's name as its tooltip and sort key (chronological).
+        f'<td class="run" data-value="{escape(e.run)}">{_run_title(e)}{_overrides(e)}</td>',
         f'<td class="text">{model}</td>',
         f'<td class="text">{escape(evaluated)}</td>',
         f"<td>{escape(e.split)}</td>",
@@ -238,6 +239,14 @@ def _row(
     if table.rim_key:
         cells.append(number(table.primary, e.breakdown.get(table.rim_key)))
     return f"<tr{' class=paper' if e.paper else ''}>{''.join(cells)}</tr>"
+
+
+def _run_title(e: LeaderboardEntry) -> str:
+    """:attr:`~.collect.LeaderboardEntry.run_title` without the overrides (shown below it), with the folder's name
+    as its tooltip when it differs; a sweep's job (``<sweep>/<job>``) may wrap before its number."""
+    title = dataclasses.replace(e, overrides=()).run_title
+    shown = escape(title).replace("/", "/<wbr>")
+    return shown if title == e.run else f'<span title="{escape(e.run)}">{shown}</span>'
 
 
 def _overrides(e: LeaderboardEntry) -> str:
@@ -294,7 +303,7 @@ def _detail(
     source = e.evaluated or "unknown source"
     out = [
         f'<details id="{anchor}" class="entry">',
-        f"<summary>{escape(e.model)} — {escape(e.run_with_overrides)} <span class=muted>({escape(source)}, "
+        f"<summary>{escape(e.model)} — {escape(e.run_title)} <span class=muted>({escape(source)}, "
         f"{escape(e.group_title)})</span></summary>",
         '<div class="entry-body">',
         _identity(e, record, model, shown),
@@ -332,7 +341,7 @@ def _identity(
 ) -> str:
     rows = [
         ("model", e.model),
-        ("run", e.run),
+        ("run", e.run),  # the folder's name (or the name given), which the table shows by task, model, time
         ("sweep overrides", " ".join(e.overrides)),
         ("evaluated", e.evaluated or "unknown"),
         *((key.replace("_", " "), shown(model[key])) for key in _IDENTITY_KEYS if model.get(key)),

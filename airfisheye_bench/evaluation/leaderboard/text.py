@@ -72,8 +72,8 @@ def _table_markdown(table: TaskTable) -> list[str]:
         "",
         f"Sorted by {metric_label(table.primary)}, {order}; rows that print the same share a rank. Rows: "
         "each evaluated model on one split (evaluated: checkpoint, ONNX fp32/int8, prediction folder, TTA; "
-        "camera: the served lens model and image size; run: the training run or the evaluation's name, with what "
-        "a sweep chose for it in parentheses); the rim column is the outermost incidence-angle ring, where fisheye "
+        "camera: the served lens model and image size; run: the training run (task, model and start time) or the "
+        "evaluation's name, with what a sweep chose for it in parentheses; the run's folder: leaderboard.csv); the rim column is the outermost incidence-angle ring, where fisheye "
         "distortion is strongest.",
     ]
     for group in table.groups:
@@ -93,7 +93,7 @@ def _table_markdown(table: TaskTable) -> list[str]:
             cells += [format_value(c, entry.metrics.get(c)) for c in table.columns]
             if table.rim_key:
                 cells.append(format_value(table.primary, entry.breakdown.get(table.rim_key)))
-            cells.append(entry.run_with_overrides)
+            cells.append(entry.run_title)
             lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     return lines
 

@@ -49,6 +49,7 @@ from airfisheye_bench.io.calibration_files._fields import (
     Fields,
     parse_structured,
     select_camera,
+    syntax_error,
 )
 from airfisheye_bench.io.errors import CalibrationFileError
 from airfisheye_bench.io.yamlio import to_plain
@@ -87,7 +88,8 @@ def detect_format(path: str | Path) -> tuple[CalibrationFormat, Any]:
     Raises:
         MissingFileError: no such file.
         CalibrationFileError: not a format of :data:`FORMATS` (one line naming them; their layouts are in
-            ``docs/design.md``, "Calibration files").
+            ``docs/design.md``, "Calibration files"), or, for a file that is neither JSON nor YAML and no text
+            format, the parser's error with its line and column.
     """
     path = Path(path)
     try:
@@ -100,6 +102,9 @@ def detect_format(path: str | Path) -> tuple[CalibrationFormat, Any]:
     for fmt in FORMATS:
         if fmt.detect(text, doc):
             return fmt, (fmt.document(text, doc) if fmt.document is not None else doc)
+    if doc is None and (error := syntax_error(text)) is not None:
+        # A YAML or JSON file with a typo: the parser's line and column say more than "no format matched".
+        raise CalibrationFileError(path, error)
     # One line: the formats' layouts are docs/design.md's table ("Calibration files"), not this message.
     names = ", ".join(fmt.name for fmt in FORMATS)
     raise CalibrationFileError(

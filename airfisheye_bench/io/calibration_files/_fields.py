@@ -37,6 +37,7 @@ __all__ = [
     "quaternion_pose",
     "rigid_both_ways",
     "select_camera",
+    "syntax_error",
 ]
 
 log = logging.getLogger(__name__)
@@ -170,18 +171,48 @@ class Fields(FieldReader):
 
 def parse_structured(text: str) -> Any:
     """The document of a JSON or YAML file (OpenCV FileStorage YAML included), or ``None`` if it is neither."""
+    return _parse(text)[0]
+
+
+def syntax_error(text: str) -> str | None:
+    """Why ``text`` is neither JSON nor YAML, with the parser's line and column in the file; ``None`` if it parses.
+
+    A text that starts with ``{`` is reported as JSON, anything else as YAML.
+
+    Example:
+        >>> syntax_error("cam0: {intrinsics: [1, 2}")
+        "invalid YAML at line 1, column 25: expected ',' or ']', but got '}'"
+        >>> syntax_error('{"value0": [1, 2}')
+        "invalid JSON at line 1, column 17: Expecting ',' delimiter"
+        >>> syntax_error("cam0: {}") is None
+        True
+    """
+    return _parse(text)[1]
+
+
+def _parse(text: str) -> tuple[Any, str | None]:
+    """``(document, None)``, or ``(None, what the parser refused and where)``."""
+    json_error = None
     if text.lstrip().startswith("{"):
         try:
-            return json.loads(text)
-        except json.JSONDecodeError:
-            pass
+            return json.loads(text), None
+        except json.JSONDecodeError as err:
+            json_error = f"invalid JSON at line {err.lineno}, column {err.colno}: {err.msg}"
     try:
         # A topic echo (`rostopic echo -n 1 /camera_info`) ends its messages with `---`: several YAML documents,
         # of which the first is read. _OpenCVLoader is a SafeLoader subclass.
         documents = yaml.load_all(_opencv_yaml_text(text), Loader=_OpenCVLoader)
-        return next((d for d in documents if d is not None), None)
-    except yaml.YAMLError:
-        return None
+        return next((d for d in documents if d is not None), None), None
+    except yaml.YAMLError as err:
+        return None, json_error or _yaml_error(err, dropped=int(text.startswith("%YAML:")))
+
+
+def _yaml_error(err: yaml.YAMLError, dropped: int) -> str:
+    """PyYAML's problem and where, as one line; ``dropped``: lines :func:`_opencv_yaml_text` left out before it."""
+    problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+    mark = getattr(err, "problem_mark", None)
+    where = f" at line {mark.line + 1 + dropped}, column {mark.column + 1}" if mark is not None else ""
+    return f"invalid YAML{where}: {problem}"
 
 
 class _OpenCVLoader(yaml.SafeLoader):
