@@ -4,7 +4,8 @@ A model predicts the camera it was trained for. :func:`frame_preparer` checks th
 frames' headers, before anything is predicted, and returns what turns each frame into the model's input image
 (``uint8 [H, W, 3]`` at the model's size, black outside its lens, as the served training images are):
 
-- ``fisheye`` frames: without ``camera`` they are taken to be of the model's lens, so they must be the model's size;
+- ``fisheye`` frames: without ``camera`` they are taken to be of the lens of the dataset they belong to (its
+  ``calib.yaml``, :func:`calibration_beside`) or else of the model's lens, so they must be the model's size;
   with ``camera`` (a calibration file of the footage's lens) they must be that lens's size, and the lens, scaled to
   the model's size (:meth:`~airfisheye_bench.geometry.cameras.CameraModel.resized`), must be the model's camera:
   the frames are then resized to it. Anything else is refused with one line naming the mismatch, unless
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import math
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -29,14 +31,24 @@ from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.equirect import EquirectToFisheye
 from airfisheye_bench.geometry.transforms import gimbal_rotation
 from airfisheye_bench.io.calibration_files import camera_label, camera_mismatch, load_camera
+from airfisheye_bench.io.dataset_spec import DATASET_YAML, DEFAULT_LAYOUT
 from airfisheye_bench.prediction.footage import Footage
 
-__all__ = ["INPUT_FORMATS", "ErpPreparer", "FramePreparer", "erp_supersample", "frame_preparer"]
+__all__ = [
+    "INPUT_FORMATS",
+    "ErpPreparer",
+    "FramePreparer",
+    "calibration_beside",
+    "erp_supersample",
+    "frame_preparer",
+]
 
 log = logging.getLogger(__name__)
 
 #: ``input_format``: fisheye frames (of the model's lens) or equirectangular panoramas.
 INPUT_FORMATS = ("fisheye", "erp")
+#: A trajectory's calibration file in the AirFisheye layout (``<env>/<traj>/calib.yaml``).
+CALIB_YAML = Path(DEFAULT_LAYOUT["calib"]).name
 #: Most samples per pixel and axis when a panorama is finer than the camera.
 MAX_ERP_SUPERSAMPLE = 4
 
@@ -141,6 +153,11 @@ def frame_preparer(
             f"erp_yaw_deg={yaw_deg:g}, erp_pitch_deg={pitch_deg:g}: they turn the view of input_format=erp; "
             "fisheye frames are seen as they were taken"
         )
+    if lens_file is None:
+        found = calibration_beside(footage.path)
+        if found is not None:
+            log.info("camera=%s: the calibration of the dataset the frames belong to", found)
+            lens_file = str(found)
     problem = _fisheye_problem(camera, footage, lens_file, lens_name)
     if problem is not None:
         message, fix = problem
@@ -153,6 +170,22 @@ def frame_preparer(
             camera.height,
         )
     return FramePreparer(camera)
+
+
+def calibration_beside(path: Path, levels: int = 3) -> Path | None:
+    """The ``calib.yaml`` of the dataset trajectory that the frames at ``path`` belong to (its folder or one of the
+    ``levels`` above it, in a folder that a ``dataset.yaml`` above says is a dataset), or ``None``.
+
+    The AirFisheye layout keeps a trajectory's lens in ``<env>/<traj>/calib.yaml`` and its frames in
+    ``<env>/<traj>/fisheye/rgb/`` (``docs/design.md``, "On-disk dataset layout"): predicting on those frames needs
+    no ``camera=``.
+    """
+    folder = path if path.is_dir() else path.parent
+    for candidate in [folder, *folder.parents][: levels + 1]:
+        calib = candidate / CALIB_YAML
+        if calib.is_file() and any((up / DATASET_YAML).is_file() for up in candidate.parents):
+            return calib
+    return None
 
 
 def _check_panoramas(footage: Footage, allow_mismatch: bool) -> None:

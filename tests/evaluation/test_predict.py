@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import logging
+import shutil
 import sys
 from pathlib import Path
 
@@ -17,9 +18,10 @@ from PIL import Image
 from airfisheye_bench.errors import ConfigError, InputFileError, MissingFileError
 from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.cameras import camera_from_dict
+from airfisheye_bench.io import DatasetReader, trajectory_of
 from airfisheye_bench.io.calibration_files import save_camera
 from airfisheye_bench.prediction.footage import open_footage, read_sparse
-from airfisheye_bench.prediction.footage_inputs import frame_preparer
+from airfisheye_bench.prediction.footage_inputs import calibration_beside, frame_preparer
 from airfisheye_bench.runs.deployment import read_deployment_metadata
 from tests.helpers import calibration_fixtures as fx
 from tests.helpers.commands import PREDICT, Outcome, assert_one_line_error, run_in_process
@@ -305,3 +307,22 @@ def test_sparse_maps_are_read_in_metres(tmp_path: Path) -> None:
         read_sparse(tmp_path, "a", (5, 6))
     with pytest.raises(MissingFileError, match=r"no c\.png or c\.npy for frame c"):
         read_sparse(tmp_path, "c", (4, 6))
+
+
+def test_frames_of_a_known_dataset_are_served_with_its_own_lens(tiny_dataset: Path, tmp_path: Path) -> None:
+    """The generated data's own frames need no camera=: the calib.yaml of their trajectory is the lens."""
+    reader = DatasetReader(tiny_dataset)
+    sample = reader.split("val")[0]
+    frames = reader.layout.fisheye(sample, "rgb").parent
+    lens = reader.calib(sample).fisheye_camera()
+    model_camera = lens.resized(lens.width // 2, lens.height // 2)  # the quick start's smaller size
+    assert calibration_beside(frames) == reader.layout.calib(trajectory_of(sample))
+    prepare = frame_preparer(model_camera, open_footage(frames))
+    served = prepare(np.zeros((lens.height, lens.width, 3), np.uint8))
+    assert served.shape == (model_camera.height, model_camera.width, 3) and prepare.resized == 1
+
+    alone = tmp_path / "frames"  # the same frames outside any dataset: the model's lens, so its size
+    shutil.copytree(frames, alone)
+    assert calibration_beside(alone) is None
+    with pytest.raises(ConfigError, match=r"give camera=<its calibration file>"):
+        frame_preparer(model_camera, open_footage(alone))
