@@ -26,7 +26,7 @@ from airfisheye_bench.geometry.gimbal import Gimbal
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
-from airfisheye_bench.geometry.occlusion import ORACLE, Occlusion, check_sparse_input_options
+from airfisheye_bench.geometry.occlusion import SPARSE_INPUTS, Occlusion, sparse_input
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.io.dataset_spec import remap_site_problem
 from airfisheye_bench.io.datasets import DatasetSource, lidar_option_conflict
@@ -422,14 +422,16 @@ class AirFisheyeDataModule(L.LightningDataModule):
 
 
 def _occlusion(method: str, options: dict[str, Any] | None) -> Occlusion | str:
-    """``data.occlusion`` with its options: a checked :class:`Occlusion`, or the oracle (which takes none)."""
-    if method != ORACLE:
-        return Occlusion(method, options or {})
+    """``data.occlusion`` with its options, resolved once (:func:`sparse_input`): the dataset takes it as it is."""
     try:
-        check_sparse_input_options(ORACLE, dict(options or {}))
+        return sparse_input(method, options)
     except ValueError as err:
-        raise ConfigError(f"data.occlusion_options (data.occlusion={ORACLE}): {err}") from None
-    return ORACLE
+        key = (
+            f"data.occlusion_options (data.occlusion={method})"
+            if method in SPARSE_INPUTS
+            else "data.occlusion"
+        )
+        raise ConfigError(f"{key}: {err}") from None
 
 
 @dataclass(frozen=True)

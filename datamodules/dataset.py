@@ -47,6 +47,7 @@ import logging
 from collections.abc import Mapping
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -58,13 +59,13 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, EquirectToFisheye
 from airfisheye_bench.geometry.gimbal import Gimbal, View
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, paper_density_subset, paper_scale_camera
+from airfisheye_bench.geometry.lidar_density import paper_density_subset, paper_scale_camera
 from airfisheye_bench.geometry.occlusion import (
     ORACLE,
     Occlusion,
-    check_sparse_input_options,
     lidar_depth_map,
     occlusion_mask,
+    sparse_input,
 )
 from airfisheye_bench.geometry.remap_table import reserve_tables
 from airfisheye_bench.geometry.rings import resolve_rings
@@ -86,25 +87,28 @@ log = logging.getLogger(__name__)
 SAMPLE_KEYS = ("label", "depth", "sparse_depth")
 #: Memory the lookup tables of a virtual gimbal's views may take per process; views beyond it are rebuilt in turn.
 GIMBAL_TABLE_BUDGET_BYTES = 1 << 30
+#: The paper's occlusion correction (III-C) with its default options.
+PAPER_OCCLUSION = Occlusion("ordering")
 
 
 class AirFisheyeDataset(Dataset):
-    """One split of an AirFisheye-layout dataset, for one task.
+    """One split of a dataset of any format, for one task, served through its reader.
+
+    It takes resolved objects only, checked where they were built (the datamodule, from a config checked once): a
+    reader (:func:`open_reader`), an :class:`~airfisheye_bench.geometry.occlusion.Occlusion` or the oracle
+    (:func:`~airfisheye_bench.geometry.occlusion.sparse_input`), a :class:`CameraConfig`, a LiDAR spec.
+    :meth:`from_root` opens a folder for a script or a test.
 
     Args:
-        root: Dataset root (holds ``dataset.yaml``), or its reader opened already (:func:`open_reader`: what the
-            datamodule hands each split of a source, so that the folder is read and checked once).
+        reader: The dataset's reader, opened once for every split of it (:func:`open_reader`).
         split: Split name (``train``, ``val``, ``test``).
         task: A registered task (``seg``, ``depth``, ``completion``, see :mod:`airfisheye_bench.specs`).
         source: ``cubemap`` or ``equirect`` (remap the cube faces or the panoramas on the fly) or ``fisheye``
             (pre-rendered files).
         camera: The served camera (see :class:`CameraConfig`).
-        occlusion: LiDAR occlusion correction for ``completion``: ``ordering`` (paper), ``zbuffer``, ``hpr``
-            or ``none``, or an :class:`~airfisheye_bench.geometry.occlusion.Occlusion` (checked already: the
-            datamodule's); or ``oracle``, the generator's exact visibility (synthetic releases only, see
-            :mod:`datamodules.oracle`).
-        occlusion_options: That method's options (see :func:`~airfisheye_bench.geometry.occlusion_mask`);
-            unset options take their defaults. Not with an ``Occlusion``, which holds its options.
+        occlusion: The LiDAR occlusion correction for ``completion``, an
+            :class:`~airfisheye_bench.geometry.occlusion.Occlusion` (the paper's ``ordering`` by default); or
+            ``"oracle"``, the generator's exact visibility (synthetic releases only, see :mod:`datamodules.oracle`).
         motion_compensation: Use ``T_cam_lidar`` from both sensors' poses at their own timestamps; ``False`` uses
             the static extrinsics (for comparison).
         max_depth: Ground truth and sparse depth beyond this range are invalid (paper: 120 m).
@@ -116,9 +120,6 @@ class AirFisheyeDataset(Dataset):
             which it describes, where the LiDAR is recorded); ``None``: the reader's own scans and each frame's
             calibration's spec.
         lidar_min_range: Returns closer than this (metres) are self-hits: removed and counted.
-        format: How ``root`` is laid out (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`: ``airfisheye``,
-            or a public dataset's own layout). Not with a reader, which knows its format.
-        format_options: That format's options (``data.format_options``; unset ones take their defaults).
         lidar_density: ``native`` serves every return; ``paper`` a fixed subset of the scan's beams with which the
             served image gets the returns per pixel of the paper's sensor on its 1536^2 image
             (:mod:`~airfisheye_bench.geometry.lidar_density`), of the returns the occlusion correction kept on the
@@ -138,13 +139,12 @@ class AirFisheyeDataset(Dataset):
 
     def __init__(
         self,
-        root: str | Path | DatasetSource,
+        reader: DatasetSource,
         split: str,
         task: str,
         source: str = "cubemap",
         camera: CameraConfig | None = None,
-        occlusion: str | Occlusion = "ordering",
-        occlusion_options: dict | None = None,
+        occlusion: Occlusion | str = PAPER_OCCLUSION,
         motion_compensation: bool = True,
         max_depth: float = 120.0,
         augment: FisheyeAugment | None = None,
@@ -152,28 +152,18 @@ class AirFisheyeDataset(Dataset):
         seed: int = 0,
         lidar_spec: LidarSpec | None = None,
         lidar_min_range: float = DEFAULT_MIN_RANGE,
-        format: str = "airfisheye",
-        format_options: Mapping | None = None,
         lidar_density: str = "native",
         gimbal: Gimbal | None = None,
         source_fallback: bool = False,
     ) -> None:
         task_spec = get_task(task)
-        if lidar_density not in LIDAR_DENSITIES:
-            raise ValueError(f"lidar_density must be one of {LIDAR_DENSITIES}, got {lidar_density!r}")
-        if source not in IMAGE_SOURCES:
-            raise ValueError(f"source must be one of {IMAGE_SOURCES}, got {source!r}")
-        if not max_depth > 0:
-            raise ValueError(f"max_depth must be positive, got {max_depth}")
         if gimbal is not None and source not in REMAP_SOURCES:
             raise ConfigError(
                 "data.gimbal turns the camera of a remap source: it needs data.source=cubemap or equirect "
                 "(pre-rendered fisheye images have a fixed orientation)"
             )
         needed = _needed_keys(task)
-        self.reader = (
-            open_reader(root, format, format_options, task) if isinstance(root, (str, Path)) else root
-        )
+        self.reader = reader
         self.spec = self.reader.spec
         self.split = split
         self.task = task
@@ -183,13 +173,7 @@ class AirFisheyeDataset(Dataset):
                 log.info("%s has no %s: its %s are remapped instead", self.spec.name, source, other)
                 source = other
         self.source = source
-        if isinstance(occlusion, str) and occlusion == ORACLE:  # no method: the visibility ground truth
-            check_sparse_input_options(ORACLE, dict(occlusion_options or {}))
-        elif not isinstance(
-            occlusion, Occlusion
-        ):  # checked once here; every frame is projected with it as it is
-            occlusion = Occlusion(occlusion, occlusion_options or {})
-        self.occlusion = occlusion
+        self.occlusion = occlusion  # every frame is projected with it as it is
         self._visible_cache: dict[str, np.ndarray] = {}  # _paper_scale_visible's masks by frame
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
@@ -257,6 +241,29 @@ class AirFisheyeDataset(Dataset):
         self._remap = self._remap_for(fixed or (0.0, 0.0, 0.0)) if source in REMAP_SOURCES else None
         self._mean = torch.tensor(IMAGENET_MEAN).view(3, 1, 1)
         self._std = torch.tensor(IMAGENET_STD).view(3, 1, 1)
+
+    @classmethod
+    def from_root(
+        cls,
+        root: str | Path,
+        split: str,
+        task: str,
+        format: str = "airfisheye",
+        format_options: Mapping[str, Any] | None = None,
+        occlusion: str = "ordering",
+        occlusion_options: Mapping[str, Any] | None = None,
+        **kwargs: Any,
+    ) -> AirFisheyeDataset:
+        """A split of the dataset folder ``root`` (laid out as ``format``), for a script or a test: the folder is
+        opened by :func:`open_reader` and the occlusion resolved by
+        :func:`~airfisheye_bench.geometry.occlusion.sparse_input`, as the datamodule does; ``kwargs`` are the
+        constructor's.
+
+        Example:
+            >>> ds = AirFisheyeDataset.from_root(root, "val", "seg", camera=CameraConfig(size=32))  # doctest: +SKIP
+        """
+        reader = open_reader(root, format, format_options, task)
+        return cls(reader, split, task, occlusion=sparse_input(occlusion, occlusion_options), **kwargs)
 
     def __len__(self) -> int:
         return len(self.sample_ids)

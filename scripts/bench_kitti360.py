@@ -66,7 +66,7 @@ def main() -> None:
         rows = [("depth", 0, True), ("completion", 0, True)]
         rows += [(task, 2, reuse) for task in ("depth", "completion") for reuse in (False, True)]
         for task, accumulate, reuse in rows:
-            ds = AirFisheyeDataset(
+            ds = AirFisheyeDataset.from_root(
                 root,
                 "train",
                 task,

@@ -50,7 +50,7 @@ def datasets(work: Path) -> dict[str, tuple[Path, str, dict]]:
 
 
 def loader(root: Path, fmt: str, options: dict, task: str, size: int) -> AirFisheyeDataset:
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         root,
         "train",
         task,

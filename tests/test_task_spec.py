@@ -176,13 +176,13 @@ def test_export_contract(height: TaskSpec) -> None:
 
 
 def test_dataset_serves_what_the_spec_names(height: TaskSpec, tiny_dataset: Path) -> None:
-    ds = AirFisheyeDataset(tiny_dataset, "val", "height", camera=CameraConfig(size=32))
+    ds = AirFisheyeDataset.from_root(tiny_dataset, "val", "height", camera=CameraConfig(size=32))
     assert sorted(ds[0]) == ["depth", "image", "sample_id", "valid_mask"]
     normals = replace(height, name="normals", target="normals")
     register_task(normals)
     try:
         with pytest.raises(ValueError, match=r"needs sample keys \['normals'\]"):
-            AirFisheyeDataset(tiny_dataset, "val", "normals")
+            AirFisheyeDataset.from_root(tiny_dataset, "val", "normals")
     finally:
         unregister_task("normals")
 

@@ -119,7 +119,7 @@ def arm_datasets(
     """``{arm: dataset}``: one split of a release served for completion with each sparse input (evaluation form:
     no augmentation, each method at its default options; ``lidar_density`` as ``data.lidar.density``)."""
     return {
-        arm: AirFisheyeDataset(
+        arm: AirFisheyeDataset.from_root(
             root,
             split,
             "completion",

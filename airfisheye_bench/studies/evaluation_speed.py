@@ -123,7 +123,9 @@ def evaluation_set(root: Path, task: str, size: int, frames: int) -> RepeatedFra
     for split in SPLITS:
         try:
             bases.append(
-                AirFisheyeDataset(root, split, task, source="fisheye", camera=CameraConfig(size=size))
+                AirFisheyeDataset.from_root(
+                    root, split, task, source="fisheye", camera=CameraConfig(size=size)
+                )
             )
         except EmptySplitError:  # a split the generated data left empty
             continue

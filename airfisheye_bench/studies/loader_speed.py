@@ -72,7 +72,7 @@ def bench(
 ) -> dict[str, float]:
     """CPU ms per sample (min and median over ``repeats`` loops), wall ms, decode ms and RSS growth (MB)."""
     augment = FisheyeAugment(hflip=0.5, rotate_deg=10.0)
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         root, "train", task, source=source, camera=CameraConfig(size=size), augment=augment
     )
     ds.warm_up()

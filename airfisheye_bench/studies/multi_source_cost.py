@@ -38,10 +38,10 @@ def loop_ms(dataset, n: int) -> float:
 
 def loading(root: str, size: int, samples: int, repeats: int) -> dict[str, list[float]]:
     kwargs = dict(camera=CameraConfig(size=size), augment=FisheyeAugment(hflip=0.5, rotate_deg=10.0))
-    single = AirFisheyeDataset(root, "train", "seg", **kwargs)
+    single = AirFisheyeDataset.from_root(root, "train", "seg", **kwargs)
     first, second = (
-        AirFisheyeDataset(root, "train", "seg", **kwargs),
-        AirFisheyeDataset(root, "train", "seg", **kwargs),
+        AirFisheyeDataset.from_root(root, "train", "seg", **kwargs),
+        AirFisheyeDataset.from_root(root, "train", "seg", **kwargs),
     )
     common = CommonClasses.benchmark("a + b")
     names = first.spec.train_class_names

@@ -139,7 +139,7 @@ def make_datasets(
 ) -> dict[bool, AirFisheyeDataset]:
     """The served depth-task dataset at ``size``, with and without motion compensation (only T differs)."""
     return {
-        mc: AirFisheyeDataset(
+        mc: AirFisheyeDataset.from_root(
             root,
             split,
             "depth",
@@ -472,7 +472,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     root = resolve_root(args)
     if args.source is None:
         args.source = "cubemap" if DatasetSpec.load(root).has("cubemap") else "fisheye"
-    calibrated = AirFisheyeDataset(root, args.split, "depth", source=args.source).calibrated_camera.width
+    calibrated = AirFisheyeDataset.from_root(
+        root, args.split, "depth", source=args.source
+    ).calibrated_camera.width
     sizes = list(dict.fromkeys(args.size or [calibrated, QUICKSTART_SIZE]))
     results: dict[str, dict[str, Any]] = {}
     hidden: dict[str, int] = {}

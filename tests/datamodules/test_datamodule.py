@@ -44,9 +44,11 @@ def remap_vs_render(root: Path) -> tuple[float, float]:
     """(label disagreement over all valid pixels, median relative depth error) of cubemap remap vs direct render."""
     disagree, total, rel = 0, 0, []
     for split in ("train", "val", "test"):
-        seg = [AirFisheyeDataset(root, split, "seg", source=src)[0] for src in ("cubemap", "fisheye")]
+        seg = [
+            AirFisheyeDataset.from_root(root, split, "seg", source=src)[0] for src in ("cubemap", "fisheye")
+        ]
         depth = [
-            AirFisheyeDataset(root, split, "depth", source=src)[0]["depth"][0]
+            AirFisheyeDataset.from_root(root, split, "depth", source=src)[0]["depth"][0]
             for src in ("cubemap", "fisheye")
         ]
         mask = seg[0]["valid_mask"] & seg[1]["valid_mask"]
@@ -85,7 +87,7 @@ def test_batches_have_the_documented_shapes_and_ranges(tiny_dataset: Path, task:
 
 
 def test_label_mapping_follows_dataset_yaml(tiny_dataset: Path) -> None:
-    ds = AirFisheyeDataset(tiny_dataset, "val", "seg", source="fisheye")
+    ds = AirFisheyeDataset.from_root(tiny_dataset, "val", "seg", source="fisheye")
     reader = DatasetReader(tiny_dataset)
     sid = ds.sample_ids[0]
     raw = reader.fisheye(sid, "seg")
@@ -116,7 +118,7 @@ def test_remap_label_agreement_at_fine_faces(tmp_path: Path) -> None:
 
 def test_sparse_depth_holds_visible_points(tiny_dataset: Path) -> None:
     """Points kept by the occlusion correction are visible per the exact ground truth (precision >= 0.98)."""
-    ds = AirFisheyeDataset(tiny_dataset, "train", "completion", camera=CameraConfig(size=64))
+    ds = AirFisheyeDataset.from_root(tiny_dataset, "train", "completion", camera=CameraConfig(size=64))
     reader = ds.reader
     kept = visible = 0
     for sid in ds.sample_ids:
@@ -140,7 +142,7 @@ def test_motion_compensation_matters(fine_datasets: dict[int, Path]) -> None:
     for split in ("train", "val", "test"):
         errors = {}
         for compensate in (True, False):
-            ds = AirFisheyeDataset(root, split, "completion", motion_compensation=compensate)
+            ds = AirFisheyeDataset.from_root(root, split, "completion", motion_compensation=compensate)
             sid = ds.sample_ids[0]
             points = transform_points(ds.T_cam_lidar(sid), reader.lidar(sid)[:, :3].astype(np.float64))
             rng = np.linalg.norm(points, axis=1)
@@ -158,8 +160,8 @@ def test_motion_compensation_matters(fine_datasets: dict[int, Path]) -> None:
 
 def test_augmentation_keeps_every_target_aligned(tiny_dataset: Path) -> None:
     augment = FisheyeAugment(hflip=1.0, rotate_deg=60.0, color_jitter=None)
-    plain = AirFisheyeDataset(tiny_dataset, "train", "completion", camera=CameraConfig(size=64))
-    aug = AirFisheyeDataset(
+    plain = AirFisheyeDataset.from_root(tiny_dataset, "train", "completion", camera=CameraConfig(size=64))
+    aug = AirFisheyeDataset.from_root(
         tiny_dataset, "train", "completion", camera=CameraConfig(size=64), augment=augment
     )
     torch.manual_seed(0)
@@ -172,7 +174,7 @@ def test_augmentation_keeps_every_target_aligned(tiny_dataset: Path) -> None:
     rel0 = ((base["sparse_depth"][both0] - base["depth"][both0]).abs() / base["depth"][both0]).median()
     assert rel < max(2 * rel0, 0.03)
     # ... and the flip with a zero rotation is an exact mirror of every map.
-    flip_only = AirFisheyeDataset(
+    flip_only = AirFisheyeDataset.from_root(
         tiny_dataset,
         "train",
         "completion",
@@ -185,8 +187,8 @@ def test_augmentation_keeps_every_target_aligned(tiny_dataset: Path) -> None:
 
 def test_rotation_moves_pixels_about_the_principal_point(tiny_dataset: Path) -> None:
     """A 90-degree rotation of the camera frame is a 90-degree rotation of a square centred image."""
-    plain = AirFisheyeDataset(tiny_dataset, "val", "depth", camera=CameraConfig(size=64))
-    rot = AirFisheyeDataset(
+    plain = AirFisheyeDataset.from_root(tiny_dataset, "val", "depth", camera=CameraConfig(size=64))
+    rot = AirFisheyeDataset.from_root(
         tiny_dataset, "val", "depth", camera=CameraConfig(size=64), augment=FisheyeAugment(0.0, 90.0, None)
     )
     rot.augment = dataclasses.replace(rot.augment)  # same settings; the draw below is forced to +90 deg
@@ -239,11 +241,15 @@ def test_draws_follow_the_epoch_whatever_the_workers(tiny_dataset: Path) -> None
 
 
 def test_fisheye_source_resizes_and_rejects_lens_changes(tiny_dataset: Path) -> None:
-    ds = AirFisheyeDataset(tiny_dataset, "val", "depth", source="fisheye", camera=CameraConfig(size=32))
+    ds = AirFisheyeDataset.from_root(
+        tiny_dataset, "val", "depth", source="fisheye", camera=CameraConfig(size=32)
+    )
     assert ds[0]["depth"].shape == (1, 32, 32)
     with pytest.raises(ValueError, match="source=cubemap"):
-        AirFisheyeDataset(tiny_dataset, "val", "depth", source="fisheye", camera=CameraConfig(fov_deg=180.0))
-    other_lens = AirFisheyeDataset(
+        AirFisheyeDataset.from_root(
+            tiny_dataset, "val", "depth", source="fisheye", camera=CameraConfig(fov_deg=180.0)
+        )
+    other_lens = AirFisheyeDataset.from_root(
         tiny_dataset, "val", "seg", camera=CameraConfig(size=40, model="equisolid", fov_deg=170.0)
     )
     assert other_lens.camera.model == "equisolid" and other_lens[0]["label"].shape == (40, 40)
@@ -266,10 +272,10 @@ def test_missing_root_and_split_are_clear_errors(tmp_path: Path, broken_copy: Pa
         AirFisheyeDataModule("seg", root=tmp_path / "nowhere")
     (broken_copy / "splits" / "val.txt").unlink()
     with pytest.raises((ValueError, OSError), match=r"val\.txt"):
-        AirFisheyeDataset(broken_copy, "val", "seg")
+        AirFisheyeDataset.from_root(broken_copy, "val", "seg")
     (broken_copy / "splits" / "val.txt").write_text("# no frames\n")
     with pytest.raises(EmptySplitError, match=r"split 'val' is empty .*splits/val\.txt"):
-        AirFisheyeDataset(broken_copy, "val", "seg")
+        AirFisheyeDataset.from_root(broken_copy, "val", "seg")
 
 
 def test_corrupt_files_name_the_file(broken_copy: Path) -> None:
@@ -277,7 +283,7 @@ def test_corrupt_files_name_the_file(broken_copy: Path) -> None:
     sid = _first(broken_copy)
     face = reader.layout.cubemap(sid, "left", "rgb")
     face.write_bytes(b"not an image")
-    ds = AirFisheyeDataset(broken_copy, "train", "seg")
+    ds = AirFisheyeDataset.from_root(broken_copy, "train", "seg")
     with pytest.raises(DatasetFormatError, match=face.name):
         ds[0]
 
@@ -293,18 +299,20 @@ def test_bad_values_are_reported(broken_copy: Path) -> None:
     label[0, 0] = 200
     write_label(seg_path, label)
     with pytest.raises(DatasetFormatError, match=r"\[200\]"):
-        AirFisheyeDataset(broken_copy, "train", "seg", source="fisheye")[0]
+        AirFisheyeDataset.from_root(broken_copy, "train", "seg", source="fisheye")[0]
     # An empty LiDAR scan.
     write_lidar(reader.layout.lidar(sid), np.zeros((0, 4), np.float32))
     with pytest.raises(DatasetFormatError, match="empty"):
-        AirFisheyeDataset(broken_copy, "train", "completion")[0]
+        AirFisheyeDataset.from_root(broken_copy, "train", "completion")[0]
 
 
 def test_skip_bad_frames_drops_and_counts(broken_copy: Path) -> None:
     reader = DatasetReader(broken_copy)
     sid = _first(broken_copy)
     reader.layout.cubemap(sid, "front", "rgb").unlink()
-    ds = AirFisheyeDataset(broken_copy, "train", "seg", camera=CameraConfig(size=32), skip_bad_frames=True)
+    ds = AirFisheyeDataset.from_root(
+        broken_copy, "train", "seg", camera=CameraConfig(size=32), skip_bad_frames=True
+    )
     samples = [ds[0], ds[1]]
     assert samples[0] is None and samples[1] is not None
     batch = collate(samples)

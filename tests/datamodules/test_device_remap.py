@@ -48,7 +48,7 @@ def assert_same_batch(device: dict, worker: dict) -> None:
 @pytest.mark.parametrize("augment", AUGMENTS, ids=list(AUGMENTS))
 @pytest.mark.parametrize("task", ["seg", "depth", "completion"])
 def test_device_batch_is_worker_batch(tiny_dataset: Path, task: str, augment: str) -> None:
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         tiny_dataset, "train", task, camera=CameraConfig(size=64), augment=AUGMENTS[augment], seed=5
     )
     worker = collate([ds[i] for i in range(len(ds))])
@@ -106,14 +106,14 @@ def test_a_fixed_gimbal_view_is_served_and_varying_views_are_refused(tiny_datase
         AirFisheyeDataModule("seg", remap_on="device", gimbal={"pitch_deg": [0, 45]}, **common)
     assert "\n" not in str(err.value)
     # A library caller's dataset refuses it too.
-    ds = AirFisheyeDataset(tiny_dataset, "train", "seg", gimbal=Gimbal.parse([[0, 10], [0, 20]]))
+    ds = AirFisheyeDataset.from_root(tiny_dataset, "train", "seg", gimbal=Gimbal.parse([[0, 10], [0, 20]]))
     with pytest.raises(ConfigError, match="through a view per sample"):
         ds.device_remap()
 
 
 def test_file_checks_stay_in_the_worker(tiny_dataset: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """An unknown raw label id fails the frame in the worker when the fisheye sees it, as on the worker path."""
-    ds = AirFisheyeDataset(tiny_dataset, "train", "seg", camera=CameraConfig(size=64))
+    ds = AirFisheyeDataset.from_root(tiny_dataset, "train", "seg", camera=CameraConfig(size=64))
     read = ds.reader.cubemap
     seen = int(ds._seen_texels[len(ds._seen_texels) // 2])
     unseen = int(np.setdiff1d(np.arange(5 * ds.face_size**2), ds._seen_texels)[0])

@@ -20,7 +20,7 @@ SIZE = 48
 
 def _dataset(root: Path, task: str, gimbal, split: str = "train", **kwargs) -> AirFisheyeDataset:
     g = Gimbal.parse(gimbal)
-    return AirFisheyeDataset(
+    return AirFisheyeDataset.from_root(
         root,
         split,
         task,

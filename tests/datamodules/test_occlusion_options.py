@@ -76,7 +76,7 @@ def test_a_library_caller_gets_the_constructor_check() -> None:
 def test_sparse_depth_follows_method_and_options(tiny_dataset: Path, method: str) -> None:
     options = {"ordering": {"elevation_tolerance": -0.25}, "zbuffer": {"kernel": 3}, "hpr": {"radius": 50.0}}
     options = options.get(method, {})
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         tiny_dataset,
         "val",
         "completion",

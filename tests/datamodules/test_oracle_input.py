@@ -17,7 +17,7 @@ from tests.helpers.configs import compose_train
 
 
 def _dataset(root: Path, occlusion: str, min_range: float = 0.5) -> AirFisheyeDataset:
-    return AirFisheyeDataset(
+    return AirFisheyeDataset.from_root(
         root,
         "val",
         "completion",

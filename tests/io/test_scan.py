@@ -329,8 +329,8 @@ def test_a_release_whose_lidar_files_are_kitti_scans(tiny_dataset: Path, tmp_pat
         out = npy.parent.parent / "velodyne" / (npy.stem + ".bin")
         out.parent.mkdir(exist_ok=True)
         np.column_stack([data[kitti_order, :3], np.zeros(len(data))]).astype(np.float32).tofile(out)
-    kitti = AirFisheyeDataset(root, "test", "completion", source="fisheye", augment=None)
-    own = AirFisheyeDataset(tiny_dataset, "test", "completion", source="fisheye", augment=None)
+    kitti = AirFisheyeDataset.from_root(root, "test", "completion", source="fisheye", augment=None)
+    own = AirFisheyeDataset.from_root(tiny_dataset, "test", "completion", source="fisheye", augment=None)
     sid = kitti.sample_ids[0]
     assert kitti.reader.lidar_scan(sid).format == "kitti_bin" and original.spec.has("lidar")
     assert np.array_equal(kitti[0]["sparse_depth"].numpy(), own[0]["sparse_depth"].numpy())
@@ -339,6 +339,6 @@ def test_a_release_whose_lidar_files_are_kitti_scans(tiny_dataset: Path, tmp_pat
         npy = path.parent.parent / "lidar" / (path.stem + ".npy")
         data = np.load(npy)
         np.column_stack([data[:, :3], np.zeros(len(data))]).astype(np.float32).tofile(path)
-    other = AirFisheyeDataset(root, "test", "completion", source="fisheye", augment=None)
+    other = AirFisheyeDataset.from_root(root, "test", "completion", source="fisheye", augment=None)
     assert np.array_equal(other[0]["sparse_depth"].numpy(), own[0]["sparse_depth"].numpy())
     assert sum(v for k, v in other.lidar_counts.items() if k.startswith("rings from ")) == 1

@@ -82,8 +82,8 @@ def test_png_to_jpg_npy_reads_back_the_same_data(tiny_dataset: Path, jpg_npy) ->
 
 def test_the_training_samples_are_unchanged(tiny_dataset: Path, jpg_npy) -> None:
     dst, _ = jpg_npy
-    before = AirFisheyeDataset(tiny_dataset, "train", "completion", camera=CameraConfig(size=32))[0]
-    after = AirFisheyeDataset(dst, "train", "completion", camera=CameraConfig(size=32))[0]
+    before = AirFisheyeDataset.from_root(tiny_dataset, "train", "completion", camera=CameraConfig(size=32))[0]
+    after = AirFisheyeDataset.from_root(dst, "train", "completion", camera=CameraConfig(size=32))[0]
     assert after["sample_id"] == before["sample_id"]
     assert after["depth"].dtype == before["depth"].dtype and bool((after["depth"] == before["depth"]).all())
     assert bool((after["sparse_depth"] == before["sparse_depth"]).all())

@@ -101,7 +101,7 @@ def test_options_reach_the_method(study: ModuleType, tiny_dataset: Path) -> None
 def test_sparse_map_is_the_served_input(study: ModuleType, tiny_dataset: Path) -> None:
     from datamodules.dataset import AirFisheyeDataset, CameraConfig
 
-    served = AirFisheyeDataset(tiny_dataset, "test", "completion", camera=CameraConfig(size=32))
+    served = AirFisheyeDataset.from_root(tiny_dataset, "test", "completion", camera=CameraConfig(size=32))
     frame = study.load_frame(study.make_datasets(tiny_dataset, "test", "cubemap", 32, 120.0), 0)
     ours = study.sparse_map(
         frame.points, frame.T[True], served.camera, frame.spec, "ordering", 120.0, served.valid_mask.numpy()

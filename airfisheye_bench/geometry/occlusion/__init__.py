@@ -11,7 +11,7 @@ implementations of ``ordering``; one concept per module:
                             :func:`ordering_mask` / :func:`ordering_reference` and the implementations
 ``options``                 :data:`OCCLUSION_METHODS`, :data:`OCCLUSION_OPTIONS`, :func:`check_occlusion_options`,
                             :data:`SPARSE_INPUTS` (the methods and the ground-truth ``oracle``)
-                            :class:`Occlusion` (a method with its checked options)
+                            :class:`Occlusion` (a method with its checked options), :func:`sparse_input` (either)
 ``projection``              the transform's check, the projection of the points and their pixel
 ``zbuffer``                 the z-buffer baseline
 ``hpr``                     Hidden Point Removal (Katz, Tal, Basri 2007)
@@ -37,6 +37,7 @@ from airfisheye_bench.geometry.occlusion.options import (
     Occlusion,
     check_occlusion_options,
     check_sparse_input_options,
+    sparse_input,
 )
 
 __all__ = [
@@ -54,4 +55,5 @@ __all__ = [
     "ordering_mask",
     "ordering_reference",
     "project_lidar",
+    "sparse_input",
 ]

@@ -131,6 +131,23 @@ class Occlusion:
         object.__setattr__(self, "options", check_occlusion_options(self.method, dict(self.options)))
 
 
+def sparse_input(method: str, options: Mapping[str, Any] | None = None) -> Occlusion | str:
+    """A sparse input's method resolved once: an :class:`Occlusion` (a correction with its checked options), or
+    :data:`ORACLE` (the generator's exact visibility, which takes no options).
+
+    Raises:
+        ValueError: as :func:`check_sparse_input_options`.
+
+    Example:
+        >>> sparse_input("zbuffer", {"kernel": 3}).options["kernel"], sparse_input("oracle")
+        (3, 'oracle')
+    """
+    if method == ORACLE:
+        check_sparse_input_options(ORACLE, dict(options or {}))
+        return ORACLE
+    return Occlusion(method, options or {})
+
+
 def _is_int(x: Any) -> bool:
     return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
 

@@ -177,7 +177,7 @@ def test_a_velodyne_point_lands_where_the_devkit_projects_it(root: Path, tmp_pat
     s = size / 96
     u, v = (u + 0.5) * s - 0.5, (v + 0.5) * s - 0.5
 
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         local, "train", "depth", source="fisheye", camera=CameraConfig(size=size), format="kitti360",
         format_options={"target_occlusion": "none"}, lidar_min_range=0.0,
     )  # fmt: skip
@@ -277,7 +277,7 @@ def load_bin(root: Path, frame: int, seq: str = SEQ) -> np.ndarray:
 
 
 def test_images_and_completion_samples(root: Path) -> None:
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         root, "val", "completion", source="fisheye", camera=CameraConfig(size=48), format="kitti360"
     )
     sample = ds[0]
@@ -297,7 +297,7 @@ def test_augmented_point_depth_is_the_flipped_projection(root: Path) -> None:
     """A horizontal flip mirrors the projected target about the principal point's column: u -> 2 cx - u."""
     from datamodules.augment import AugmentParams
 
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         root, "train", "depth", source="fisheye", camera=CameraConfig(size=96), format="kitti360",
         format_options={"target_occlusion": "none"},
     )  # fmt: skip
@@ -319,7 +319,7 @@ def test_augmented_point_depth_is_the_moved_projection(root: Path, flip: bool, a
     one; turned the wrong way round, almost none."""
     from datamodules.augment import AugmentParams, apply_geometry
 
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         root, "train", "depth", source="fisheye", camera=CameraConfig(size=96), format="kitti360",
         format_options={"target_occlusion": "none"},
     )  # fmt: skip
@@ -374,7 +374,7 @@ def test_sequences_option_sets_the_splits(root: Path) -> None:
     with pytest.raises(ConfigError, match=r"data\.format_options\.sequences\.val: .*nope is not a folder"):
         open_dataset(root, "kitti360", {"sequences": {"val": ["nope"]}})
     with pytest.raises(EmptySplitError, match=r"split 'val' is empty .*split's sequences: none"):
-        AirFisheyeDataset(
+        AirFisheyeDataset.from_root(
             root, "val", "depth", source="fisheye", format="kitti360",
             format_options={"sequences": {"train": [SEQ], "test": [SEQ]}},
         )  # fmt: skip
@@ -441,11 +441,11 @@ def test_cube_faces_and_labels_are_refused_with_the_reason(root: Path) -> None:
     with pytest.raises(
         ConfigError, match=r"KITTI-360 has recorded fisheye images, no cube faces; use data\.source"
     ):
-        AirFisheyeDataset(root, "train", "depth", source="cubemap", format="kitti360")
+        AirFisheyeDataset.from_root(root, "train", "depth", source="cubemap", format="kitti360")
     with pytest.raises(
         ConfigError, match=r"no semantic labels for its fisheye images .*issue #1\); task=seg"
     ):
-        AirFisheyeDataset(root, "train", "seg", source="fisheye", format="kitti360")
+        AirFisheyeDataset.from_root(root, "train", "seg", source="fisheye", format="kitti360")
 
 
 def test_the_config_lists_every_option_with_its_default() -> None:

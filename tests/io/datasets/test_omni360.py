@@ -436,7 +436,7 @@ def _dataset(root: Path, task: str, size: int = 48, view: list[float] | None = N
     kwargs = {k: options.pop(k) for k in ("occlusion", "source", "source_fallback") if k in options}
     if view is not None:
         kwargs["gimbal"] = Gimbal.parse(view).for_split(training=False)
-    return AirFisheyeDataset(
+    return AirFisheyeDataset.from_root(
         root,
         "train",
         task,

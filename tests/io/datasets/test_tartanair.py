@@ -463,7 +463,7 @@ def _completion(root: Path, preset: str | None = None, **options) -> AirFisheyeD
     """The ``train`` split for completion at 128^2, its LiDAR ``data.lidar.preset=preset``."""
     from datamodules import AirFisheyeDataset, CameraConfig
 
-    return AirFisheyeDataset(
+    return AirFisheyeDataset.from_root(
         root,
         "train",
         "completion",

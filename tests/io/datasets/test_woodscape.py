@@ -145,11 +145,11 @@ def test_the_download_layouts_of_the_calibration(tmp_path: Path) -> None:
 def test_depth_and_completion_are_refused_in_one_line(woodscape: Path) -> None:
     for task in ("depth", "completion"):
         with pytest.raises(ValueError, match=r"^WoodScape released no LiDAR .*#82\); task=\w+ needs it$"):
-            AirFisheyeDataset(woodscape, "train", task, source="fisheye", format="woodscape")
+            AirFisheyeDataset.from_root(woodscape, "train", task, source="fisheye", format="woodscape")
 
 
 def test_the_dataset_serves_labels_at_the_training_size(woodscape: Path) -> None:
-    ds = AirFisheyeDataset(
+    ds = AirFisheyeDataset.from_root(
         woodscape, "val", "seg", source="fisheye", camera=CameraConfig(size=64), format="woodscape"
     )
     sample = ds[0]
