@@ -30,7 +30,9 @@ that only ``evaluate`` has take their choices from the evaluation modules, above
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+import inspect
 import math
 import typing
 from collections.abc import Mapping, Sequence
@@ -240,6 +242,21 @@ def _camera_name_problem(value: Any) -> str | None:
     return "expected a camera name or a 0-based index"
 
 
+def _loss_problem(value: Any) -> str | None:
+    """``task.module.loss``: a partial of a loss class, which the task builds and its checkpoint records.
+
+    Example:
+        >>> _loss_problem({"_target_": "models.losses.SILogLoss", "_partial_": True})
+        >>> _loss_problem({"_target_": "models.losses.SILogLoss"})
+        'add _partial_: true: the task builds the loss, so that its checkpoint records its settings'
+    """
+    if not isinstance(value, Mapping) or not isinstance(value.get("_target_"), str):
+        return "expected {_target_: <a loss class, e.g. models.losses.SILogLoss>, _partial_: true, <its settings>}"
+    if value.get("_partial_") is not True:
+        return "add _partial_: true: the task builds the loss, so that its checkpoint records its settings"
+    return None
+
+
 def _not_resuming(cfg: DictConfig) -> bool:
     # A resume restores every weight from the checkpoint and never reads the initial weights (which may be gone).
     return cfg.get("ckpt_path") is None
@@ -314,6 +331,9 @@ RULES: dict[str, ValueRule] = {
     "data.dataset_seed": ValueRule("int", minimum=0, hint="0: the canonical synthetic dataset"),
     "batch_size": ValueRule("int", minimum=1),  # evaluate.yaml's own loader
     "num_workers": ValueRule("int", minimum=0),
+    "task.module.loss": ValueRule(
+        "custom", check=_loss_problem, nullable=True, hint="the training loss; null: the task's default"
+    ),
     # Costly choices last: they import torch, then the task specs, the model zoo and Lightning.
     "data.source": ValueRule("choice", choices=_image_sources),
     "data.remap_on": ValueRule(
@@ -473,6 +493,41 @@ def _plain(value: Any) -> Any:
     return OmegaConf.to_container(value)
 
 
+def check_loss_arguments(loss: Mapping[str, Any]) -> None:
+    """Refuse a ``task.module.loss`` whose ``_target_`` names no class, or that sets an argument the class does not
+    take (the settings of another loss, e.g. ``experiment=paper/depth``'s ``w_chamfer`` with ``loss=silog``).
+
+    Raises:
+        ConfigError: the key, and what the class takes.
+
+    Example:
+        >>> check_loss_arguments({"_target_": "models.losses.SILogLoss", "_partial_": True, "w_chamfer": 0.1})
+        Traceback (most recent call last):
+        ...
+        airfisheye_bench.errors.ConfigError: task.module.loss.w_chamfer: models.losses.SILogLoss takes no argument 'w_chamfer'; it takes lambd, scale, min_depth, max_depth (loss=<option> picks a loss with its own settings: configs/loss/)
+    """
+    target = str(loss["_target_"])
+    module, _, name = target.rpartition(".")
+    try:
+        built = getattr(
+            importlib.import_module(module), name
+        )  # the model zoo: imported once the values passed
+    except (ImportError, AttributeError, ValueError):
+        raise ConfigError(
+            f"task.module.loss._target_={target}: no such class (a loss of models/losses, e.g. "
+            "models.losses.SILogLoss, or a model's own)"
+        ) from None
+    taken = inspect.signature(built).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in taken.values()):
+        return
+    for key in loss:
+        if not str(key).startswith("_") and key not in taken:
+            raise ConfigError(
+                f"task.module.loss.{key}: {target} takes no argument {key!r}; it takes {', '.join(taken)} "
+                "(loss=<option> picks a loss with its own settings: configs/loss/)"
+            )
+
+
 def check_train_config(cfg: DictConfig) -> None:
     """Everything a ``train.yaml`` config must satisfy, before any work: :func:`check_common_values` (optional
     packages, types, ranges, choices, files), then the rules across keys, each saying what to write instead.
@@ -503,6 +558,9 @@ def check_train_config(cfg: DictConfig) -> None:
             f"model={name} solves task={model_task(name)}, not task={task}; use one of "
             f"{', '.join('model=' + m for m in fitting)} or task={model_task(name)}"
         )
+    loss = OmegaConf.select(cfg, "task.module.loss", default=None)
+    if loss is not None:
+        check_loss_arguments(OmegaConf.to_container(loss))
     model_checkpoint = (cfg.get("callbacks") or {}).get("model_checkpoint") or {}
     if model_checkpoint.get("save_last"):
         raise ConfigError(
