@@ -508,10 +508,8 @@ def check_loss_arguments(loss: Mapping[str, Any]) -> None:
     """
     target = str(loss["_target_"])
     module, _, name = target.rpartition(".")
-    try:
-        built = getattr(
-            importlib.import_module(module), name
-        )  # the model zoo: imported once the values passed
+    try:  # the class named by the config, as Hydra will locate it (the model zoo is imported by now)
+        built = getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError, ValueError):
         raise ConfigError(
             f"task.module.loss._target_={target}: no such class (a loss of models/losses, e.g. "
