@@ -3,7 +3,8 @@
 Hydra refuses ``trainer.max_epoch=1`` with a message of its own (exit status 1) that advises
 ``+trainer.max_epoch=1``, a key nothing reads. :func:`check_overrides` composes the configuration with the
 command's overrides before Hydra does (a quarter of a second) and turns an unknown key or group option into a
-:class:`~airfisheye_bench.errors.ConfigError`: one line naming it and the closest valid key (:mod:`difflib`).
+:class:`~airfisheye_bench.errors.ConfigError`: one line naming it and the closest valid key (:mod:`difflib`); a key
+that moved (:data:`MOVED_KEYS`) is answered with where it is now.
 """
 
 from __future__ import annotations
@@ -19,6 +20,36 @@ from airfisheye_bench.constants import config_dir
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.runs import flatten
 
+#: Keys that moved, and where they are now. The settings of a task's loss moved into the loss's own config
+#: (``task.module.loss``, which chooses the loss class) when losses came to be chosen by config.
+MOVED_KEYS = {
+    "task.module.w_chamfer": "task.module.loss.w_chamfer",
+    "task.module.chamfer_reference_range": "task.module.loss.chamfer_reference_range",
+    "task.module.l1_weight": "task.module.loss.l1_weight",
+    "task.module.l2_weight": "task.module.loss.l2_weight",
+}
+
+
+def check_moved_keys(overrides: Iterable[str]) -> None:
+    """Raise for an override of a key of :data:`MOVED_KEYS` (with ``+``, ``++`` or ``~`` too), naming the new key.
+
+    Raises:
+        ConfigError: ``<old key>=<value>: moved; write <new key>=<value>``.
+
+    Example:
+        >>> check_moved_keys(["task=depth", "task.module.w_chamfer=0.1"])
+        Traceback (most recent call last):
+        ...
+        airfisheye_bench.errors.ConfigError: task.module.w_chamfer=0.1: the loss's settings moved under task.module.loss; write task.module.loss.w_chamfer=0.1
+    """
+    for override in overrides:
+        name, _, value = override.lstrip("+~").partition("=")
+        if name in MOVED_KEYS:
+            raise ConfigError(
+                f"{name}={value}: the loss's settings moved under task.module.loss; "
+                f"write {MOVED_KEYS[name]}={value}"
+            )
+
 
 def check_overrides(config_name: str, argv: Sequence[str]) -> None:
     """Raise for an override of ``argv`` that names no key of ``configs/<config_name>.yaml`` or no group option.
@@ -28,11 +59,12 @@ def check_overrides(config_name: str, argv: Sequence[str]) -> None:
 
     Raises:
         ConfigError: ``<key>=<value>: unknown key; did you mean <nearest>=<value>?`` (or the keys to choose from),
-            ``<group>=<option>: no such option; choose one of ...``.
+            ``<group>=<option>: no such option; choose one of ...``, or a moved key (:func:`check_moved_keys`).
     """
     if any(arg.startswith("-") for arg in argv):
         return
     overrides = [arg for arg in argv if "=" in arg]
+    check_moved_keys(overrides)
     try:
         _compose(config_name, overrides)
     except MissingConfigException as err:

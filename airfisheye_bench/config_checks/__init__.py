@@ -31,7 +31,12 @@ that only ``evaluate`` has take their choices from the evaluation modules, above
 :func:`check_common_values` with the default rules).
 """
 
-from airfisheye_bench.config_checks.check import check_common_values, check_extras, check_train_config
+from airfisheye_bench.config_checks.check import (
+    check_common_values,
+    check_extras,
+    check_loss_arguments,
+    check_train_config,
+)
 from airfisheye_bench.config_checks.data_options import DATA_OPTIONS, DataOption
 from airfisheye_bench.config_checks.rules import EXTRAS, RULES
 from airfisheye_bench.config_checks.value_rule import ValueRule
@@ -44,5 +49,6 @@ __all__ = [
     "ValueRule",
     "check_common_values",
     "check_extras",
+    "check_loss_arguments",
     "check_train_config",
 ]

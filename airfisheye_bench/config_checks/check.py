@@ -4,7 +4,9 @@ sets (:func:`check_common_values`, against :data:`~airfisheye_bench.config_check
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+import inspect
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -104,6 +106,39 @@ def _plain(value: Any) -> Any:
     return OmegaConf.to_container(value)
 
 
+def check_loss_arguments(loss: Mapping[str, Any]) -> None:
+    """Refuse a ``task.module.loss`` whose ``_target_`` names no class, or that sets an argument the class does not
+    take (the settings of another loss, e.g. ``experiment=paper/depth``'s ``w_chamfer`` with ``loss=silog``).
+
+    Raises:
+        ConfigError: the key, and what the class takes.
+
+    Example:
+        >>> check_loss_arguments({"_target_": "models.losses.SILogLoss", "_partial_": True, "w_chamfer": 0.1})
+        Traceback (most recent call last):
+        ...
+        airfisheye_bench.errors.ConfigError: task.module.loss.w_chamfer: models.losses.SILogLoss takes no argument 'w_chamfer'; it takes lambd, scale, min_depth, max_depth (loss=<option> picks a loss with its own settings: configs/loss/)
+    """
+    target = str(loss["_target_"])
+    module, _, name = target.rpartition(".")
+    try:  # the class named by the config, as Hydra will locate it (the model zoo is imported by now)
+        built = getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError):
+        raise ConfigError(
+            f"task.module.loss._target_={target}: no such class (a loss of models/losses, e.g. "
+            "models.losses.SILogLoss, or a model's own)"
+        ) from None
+    taken = inspect.signature(built).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in taken.values()):
+        return
+    for key in loss:
+        if not str(key).startswith("_") and key not in taken:
+            raise ConfigError(
+                f"task.module.loss.{key}: {target} takes no argument {key!r}; it takes {', '.join(taken)} "
+                "(loss=<option> picks a loss with its own settings: configs/loss/)"
+            )
+
+
 def check_train_config(cfg: DictConfig) -> None:
     """Everything a ``train.yaml`` config must satisfy, before any work: :func:`check_common_values` (optional
     packages, types, ranges, choices, files), then the rules across keys, each saying what to write instead.
@@ -134,6 +169,9 @@ def check_train_config(cfg: DictConfig) -> None:
             f"model={name} solves task={model_task(name)}, not task={task}; use one of "
             f"{', '.join('model=' + m for m in fitting)} or task={model_task(name)}"
         )
+    loss = OmegaConf.select(cfg, "task.module.loss", default=None)
+    if loss is not None:
+        check_loss_arguments(OmegaConf.to_container(loss))
     model_checkpoint = (cfg.get("callbacks") or {}).get("model_checkpoint") or {}
     if model_checkpoint.get("save_last"):
         raise ConfigError(

@@ -6,7 +6,7 @@ Lightning (the package docstring says why)."""
 from __future__ import annotations
 
 import typing
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from omegaconf import DictConfig
@@ -69,6 +69,21 @@ def _devices_problem(value: Any) -> str | None:
     return "expected a device count >= 1 (-1: all), auto, or a list of device indices"
 
 
+def _loss_problem(value: Any) -> str | None:
+    """``task.module.loss``: a partial of a loss class, which the task builds and its checkpoint records.
+
+    Example:
+        >>> _loss_problem({"_target_": "models.losses.SILogLoss", "_partial_": True})
+        >>> _loss_problem({"_target_": "models.losses.SILogLoss"})
+        'add _partial_: true: the task builds the loss, so that its checkpoint records its settings'
+    """
+    if not isinstance(value, Mapping) or not isinstance(value.get("_target_"), str):
+        return "expected {_target_: <a loss class, e.g. models.losses.SILogLoss>, _partial_: true, <its settings>}"
+    if value.get("_partial_") is not True:
+        return "add _partial_: true: the task builds the loss, so that its checkpoint records its settings"
+    return None
+
+
 def _not_resuming(cfg: DictConfig) -> bool:
     # A resume restores every weight from the checkpoint and never reads the initial weights (which may be gone).
     return cfg.get("ckpt_path") is None
@@ -114,6 +129,9 @@ RULES: dict[str, ValueRule] = {
     **data_rules(cost=0),
     "batch_size": ValueRule("int", minimum=1),  # evaluate.yaml's own loader
     "num_workers": ValueRule("int", minimum=0),
+    "task.module.loss": ValueRule(
+        "custom", check=_loss_problem, nullable=True, hint="the training loss; null: the task's default"
+    ),
     # Costly choices last: they import torch, then the task specs, the model zoo and Lightning.
     **data_rules(cost=1),
     "task.name": ValueRule("choice", choices=tasks),

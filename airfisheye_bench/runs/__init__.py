@@ -36,6 +36,7 @@ from typing import Any
 
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict
+from omegaconf.errors import InterpolationResolutionError
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.errors import ConfigError, InputFileError, MissingFileError
@@ -50,6 +51,10 @@ RESUME_KEYS = frozenset({"ckpt_path", "resume_overrides_ok", "retest"})
 #: (``data``: preset, root, source, lens and image size, occlusion, augmentation, batch size), the model, the task
 #: (its loss, metrics, optimiser) and the experiment recipe.
 RESUME_UNSAFE = ("data", "model", "task", "experiment")
+
+#: Config groups whose options sit elsewhere than under the group's name (their ``# @package`` line): a group
+#: override (``loss=silog``) sets that node (:func:`resume_config`), so a resume judges it as the node's change.
+GROUP_PACKAGES = {"loss": "task.module.loss"}
 
 #: Changes a resume makes without asking: how long to train, what is logged and printed, how data is loaded.
 #: An entry under a :data:`RESUME_UNSAFE` one (``data.num_workers``) is the more specific and wins.
@@ -307,7 +312,10 @@ def resume_config(cfg: DictConfig, task_overrides: Iterable[str]) -> DictConfig:
                 continue
             value = OmegaConf.select(cfg, key, throw_on_missing=False)
             if isinstance(value, (DictConfig, ListConfig)):
-                value = OmegaConf.to_container(value, resolve=True)
+                try:
+                    value = OmegaConf.to_container(value, resolve=True)
+                except InterpolationResolutionError:  # e.g. loss=silog's ${task.module.min_depth}: the run's
+                    value = OmegaConf.to_container(value, resolve=False)
             OmegaConf.update(run_cfg, key, value, merge=False, force_add=True)
     return run_cfg
 
@@ -316,18 +324,21 @@ def _override_key(override: str) -> tuple[str, bool]:
     """The dotted key an override sets and whether it deletes it: ``+a.b=1`` -> ``("a.b", False)``.
 
     A group override (``logger=tensorboard``, ``experiment=paper/seg``) sets the group's node (``logger``,
-    ``experiment``); a package override (``group@pkg=option``) its package.
+    ``experiment``), or the node of its package (:data:`GROUP_PACKAGES`: ``loss=silog`` sets ``task.module.loss``);
+    a package override (``group@pkg=option``) its package.
 
     Example:
         >>> _override_key("++trainer.max_epochs=3"), _override_key("~logger.csv"), _override_key("model@x=y")
         (('trainer.max_epochs', False), ('logger.csv', True), ('x', False))
+        >>> _override_key("loss=silog")
+        ('task.module.loss', False)
     """
     key = override.split("=", 1)[0]
     deleted = key.startswith("~")
     key = key.lstrip("+~")
     if "@" in key:
-        key = key.split("@", 1)[1]
-    return key.replace("/", "."), deleted
+        return key.split("@", 1)[1].replace("/", "."), deleted
+    return GROUP_PACKAGES.get(key, key.replace("/", ".")), deleted
 
 
 def saved_config(path: Path, output_dir: str | Path) -> DictConfig:

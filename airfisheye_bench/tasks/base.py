@@ -1,24 +1,30 @@
 """The LightningModule shared by the benchmark tasks.
 
-A task owns a zoo model (built by registry name, so a checkpoint alone rebuilds it), the paper's loss, one set of
-metrics per evaluation stage plus their breakdown by incidence-angle ring, and qualitative panels written every
-validation epoch. The facts of the task (which batch keys feed the model, the target, the primary output, the
-metric, the breakdowns) come from its :class:`~airfisheye_bench.specs.TaskSpec`; a subclass names its spec
-(``task``), builds its loss and says which metric options it evaluates with.
+A task owns a zoo model (built by registry name, so a checkpoint alone rebuilds it), its loss (chosen by config,
+``task.module.loss``, and recorded in the checkpoint the same way), one set of metrics per evaluation stage plus
+their breakdown by incidence-angle ring, and qualitative panels written every validation epoch. The facts of the
+task (which batch keys feed the model, the target, the primary output, the metric, the breakdowns) come from its
+:class:`~airfisheye_bench.specs.TaskSpec`; a subclass names its spec (``task``), its default loss (the one of a
+checkpoint written before losses were chosen by config) and says which metric options it evaluates with.
 """
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import random
-from collections.abc import Callable
+import sys
+import warnings
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
+import hydra
 import lightning as L
 import numpy as np
 import torch
+from omegaconf import DictConfig, OmegaConf
 from torch import Tensor, nn
 from torchmetrics import MeanMetric, Metric
 
@@ -30,15 +36,87 @@ from models import create_model, model_task
 
 STAGES = ("val", "test")
 
+#: What a task's ``loss`` argument may be: a config (``{"_target_": "models.losses.X", **settings}``), the partial
+#: Hydra makes of one with ``_partial_: true``, a built loss module, or None (the task's default).
+LossArg = Mapping[str, Any] | functools.partial | nn.Module | None
+
+_PLAIN = (str, int, float, bool, type(None))
+
+
+def loss_config(loss: Mapping[str, Any] | functools.partial) -> dict[str, Any]:
+    """The plain config (``{"_target_": ..., **settings}``) of a loss given as a config or a Hydra partial: what a
+    checkpoint records, so that it alone rebuilds the loss (it is read back with ``weights_only=True``).
+
+    Raises:
+        ValueError: no ``_target_``, positional arguments, or a setting that is not plain data.
+
+    Example:
+        >>> from models.losses import SILogLoss
+        >>> loss_config(functools.partial(SILogLoss, lambd=1.0))
+        {'_target_': 'models.losses.SILogLoss', 'lambd': 1.0}
+    """
+    if isinstance(loss, functools.partial):
+        if loss.args:
+            raise ValueError(f"loss: a partial of keyword arguments only, got positional {loss.args}")
+        config = {"_target_": _public_name(loss.func), **loss.keywords}
+    else:
+        plain = OmegaConf.to_container(loss, resolve=True) if isinstance(loss, DictConfig) else dict(loss)
+        config = {k: v for k, v in plain.items() if k != "_partial_"}
+    if not isinstance(config.get("_target_"), str):
+        raise ValueError(f"loss: a config needs the loss class as '_target_', got {config}")
+    for key, value in config.items():
+        if not _is_plain(value):
+            raise ValueError(
+                f"loss.{key}: a {type(value).__name__}; a loss config holds plain values only (numbers, strings, "
+                "lists), which the checkpoint records"
+            )
+    return config
+
+
+def _public_name(obj: Any) -> str:
+    """The dotted name of ``obj`` in the shallowest package of its module that exports it, as configs write it
+    (``models.losses.SILogLoss``, not ``models.losses.depth.SILogLoss``)."""
+    parts = obj.__module__.split(".")
+    for end in range(1, len(parts)):
+        package = ".".join(parts[:end])
+        if getattr(sys.modules.get(package), obj.__qualname__, None) is obj:
+            return f"{package}.{obj.__qualname__}"
+    return f"{obj.__module__}.{obj.__qualname__}"
+
+
+def _is_plain(value: Any) -> bool:
+    if isinstance(value, (list, tuple)):
+        return all(_is_plain(v) for v in value)
+    if isinstance(value, Mapping):
+        return all(isinstance(k, str) and _is_plain(v) for k, v in value.items())
+    return isinstance(value, _PLAIN)
+
+
+def build_loss(config: Mapping[str, Any]) -> nn.Module:
+    """The loss module of a :func:`loss_config`.
+
+    Raises:
+        ValueError: the config builds something other than an ``nn.Module``.
+    """
+    loss = hydra.utils.instantiate(dict(config), _convert_="partial")
+    if not isinstance(loss, nn.Module):
+        raise ValueError(f"loss: {config['_target_']} built a {type(loss).__name__}, not a torch.nn.Module")
+    return loss
+
 
 class BenchmarkTask(L.LightningModule):
     """Base class of :class:`SegmentationTask`, :class:`DepthTask`, :class:`CompletionTask` and any new task.
 
-    Subclasses set ``task`` (a registered spec name) and implement :meth:`loss_terms`; they override
-    :meth:`metric_options` when they evaluate with other than the default bounds.
+    Subclasses set ``task`` (a registered spec name) and :meth:`default_loss` (or override :meth:`loss_terms`);
+    they override :meth:`metric_options` when they evaluate with other than the default bounds.
 
     Args:
         model: Registry name and keyword arguments, e.g. ``{"name": "deeplabv3plus", "encoder_name": "resnet50"}``.
+        loss: The training loss, chosen by config (``task.module.loss``): ``{"_target_": "models.losses.X",
+            **settings}`` or the partial Hydra makes of it (``_partial_: true``, as the configs write it); the task
+            builds it and records the config in its hyperparameters, so a checkpoint rebuilds the same loss. A
+            built ``nn.Module`` is used as given but not recorded (a checkpoint then rebuilds the default). None:
+            :meth:`default_loss`. It is called as :meth:`loss_terms` says.
         optimizer: Partial optimizer (Hydra ``_partial_: true``) called with the parameter groups.
         scheduler: Optional partial LR scheduler called with the optimizer.
         scheduler_interval: ``epoch`` or ``step``.
@@ -57,9 +135,14 @@ class BenchmarkTask(L.LightningModule):
         source_names: The sources of a run on several datasets (``data.sources``): each is also scored on its
             own frames (a batch's ``source`` key says whose each frame is), logged as ``<stage>/<source>/<metric>``
             next to the pooled ``<stage>/<metric>``.
+        **legacy_loss: Deprecated: the settings of the default loss that the task took as its own arguments
+            before ``loss`` chose it (:attr:`legacy_loss_args`, e.g. ``w_chamfer``); old checkpoints and run configs
+            hold them. They configure :meth:`default_loss` and are recorded as its config.
     """
 
     task: ClassVar[str]
+    #: The deprecated ``**legacy_loss`` arguments this task accepts (an old checkpoint's hyperparameters hold them).
+    legacy_loss_args: ClassVar[tuple[str, ...]] = ()
     #: Class colours ``uint8 [256, 3]`` of the panels (tasks whose spec ``uses_classes``).
     palette: np.ndarray | None = None
     #: Far end of the depth colour map of the panels, metres.
@@ -77,9 +160,12 @@ class BenchmarkTask(L.LightningModule):
         weights: dict[str, Any] | None = None,
         warmup_epochs: int = 0,
         source_names: list[str] | None = None,
+        loss: LossArg = None,
+        **legacy_loss: Any,
     ) -> None:
         super().__init__()
-        self.save_hyperparameters(ignore=["optimizer", "scheduler"], logger=False)
+        self._check_legacy_loss(legacy_loss, loss)
+        self.save_hyperparameters(ignore=["optimizer", "scheduler", "loss"], logger=False)
         spec = get_task(self.task)
         model = dict(model)
         name = model.pop("name", None)
@@ -101,6 +187,9 @@ class BenchmarkTask(L.LightningModule):
         )
         self.optimizer_factory = optimizer
         self.scheduler_factory = scheduler
+        self.loss, self.hparams["loss"] = self._make_loss(loss)
+        for key in legacy_loss:  # recorded as the loss config instead
+            self.hparams.pop(key, None)
         # Label targets carry no depth: their breakdown is by incidence angle only.
         depth_edges = DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None
         self.scorers = nn.ModuleDict(
@@ -126,10 +215,72 @@ class BenchmarkTask(L.LightningModule):
         self._panel_rows: list[list[np.ndarray]] = []
         self._panel_ids: set[str] | None = None
 
+    # ------------------------------------------------------------------------------------------------------ loss
+    @classmethod
+    def default_loss(cls, hparams: Mapping[str, Any]) -> dict[str, Any] | None:
+        """The loss config of a task given no ``loss``, from the task's arguments ``hparams``: the loss the task
+        trained with before losses were chosen by config, set by :attr:`legacy_loss_args` where ``hparams`` holds
+        them (an old checkpoint). None (the base): a subclass without one overrides :meth:`loss_terms`."""
+        return None
+
+    @classmethod
+    def upgrade_hparams(cls, hparams: Mapping[str, Any]) -> dict[str, Any]:
+        """A checkpoint's hyperparameters in today's form: the loss settings of an old one
+        (:attr:`legacy_loss_args`) become the config of the loss they built (:meth:`default_loss`).
+
+        Example:
+            >>> from airfisheye_bench.tasks import DepthTask
+            >>> old = {"model": {"name": "adabins"}, "min_depth": 1e-3, "max_depth": 80.0, "w_chamfer": 0.1,
+            ...        "chamfer_reference_range": None}
+            >>> DepthTask.upgrade_hparams(old)["loss"]["w_chamfer"], "w_chamfer" in DepthTask.upgrade_hparams(old)
+            (0.1, False)
+        """
+        if hparams.get("loss") is not None or not any(k in hparams for k in cls.legacy_loss_args):
+            return dict(hparams)
+        kept = {k: v for k, v in hparams.items() if k not in cls.legacy_loss_args}
+        return {**kept, "loss": cls.default_loss(hparams)}
+
+    def _check_legacy_loss(self, legacy: Mapping[str, Any], loss: LossArg) -> None:
+        unknown = sorted(set(legacy) - set(self.legacy_loss_args))
+        if unknown:  # Python's own words for it
+            raise TypeError(
+                f"{type(self).__name__}.__init__() got an unexpected keyword argument '{unknown[0]}'"
+            )
+        if not legacy:
+            return
+        if loss is not None:
+            raise ValueError(
+                f"{type(self).__name__}: {sorted(legacy)} set the default loss, and loss is given too; "
+                f"give them in loss (task.module.loss.{sorted(legacy)[0]})"
+            )
+        warnings.warn(
+            f"{type(self).__name__}({', '.join(f'{k}=...' for k in sorted(legacy))}) is deprecated: the loss is "
+            f"chosen by loss={{'_target_': ..., {', '.join(f'{k!r}: ...' for k in sorted(legacy))}}} "
+            "(task.module.loss in the config)",
+            DeprecationWarning,
+            stacklevel=4,  # the caller of the subclass's __init__, which hands its kwargs on to this one's
+        )
+
+    def _make_loss(self, loss: LossArg) -> tuple[nn.Module | None, dict[str, Any] | None]:
+        """The loss module and the config the hyperparameters record (None: not recordable, or no loss)."""
+        if isinstance(loss, nn.Module):
+            return loss, None
+        config = loss_config(loss) if loss is not None else self.default_loss(self.hparams)
+        return (build_loss(config), config) if config is not None else (None, None)
+
     # ------------------------------------------------------------------------------------------ hooks for subclasses
     def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
-        """``{"loss": total, ...parts}`` from ``forward_with_aux`` outputs."""
-        raise NotImplementedError
+        """``{"loss": total, ...parts}`` from ``forward_with_aux`` outputs: the loss called with the primary output
+        (the spec's ``output``), or the whole mapping when its class sets ``takes_model_outputs``, and the
+        target; its ``terms`` method (same arguments, the parts logged too) when it has one."""
+        if self.loss is None:
+            raise NotImplementedError(
+                f"{type(self).__name__} has no loss: pass loss=... (task.module.loss) or override loss_terms"
+            )
+        pred = outputs if getattr(self.loss, "takes_model_outputs", False) else outputs[self.spec.output]
+        target = self.target(batch)
+        terms = getattr(self.loss, "terms", None)
+        return terms(pred, target) if callable(terms) else {"loss": self.loss(pred, target)}
 
     def metric_options(self) -> dict[str, Any]:
         """The :class:`~airfisheye_bench.specs.MetricOptions` this module evaluates with (default: the spec's)."""

@@ -32,7 +32,9 @@ def load_task(path: str | Path, map_location: str | torch.device = "cpu") -> Ben
     """Rebuild the task module of a checkpoint (or run directory) with its weights, in eval mode.
 
     The checkpoint is read with ``weights_only=True``: nothing is unpickled beyond tensors and plain
-    containers. The task class follows from the registered model name stored in its hyperparameters.
+    containers. The task class follows from the registered model name stored in its hyperparameters. A checkpoint
+    written before the loss was chosen by config (its loss settings, e.g. ``w_chamfer``, among the task's
+    hyperparameters) is rebuilt with the loss they configured (:meth:`BenchmarkTask.upgrade_hparams`).
 
     Args:
         path: A ``.ckpt`` file or a run directory (see :func:`~airfisheye_bench.runs.resolve_checkpoint`).
@@ -63,6 +65,7 @@ def load_task(path: str | Path, map_location: str | torch.device = "cpu") -> Ben
             f"(expected 'state_dict' and hyper_parameters.model.name among the registered models)"
         )
     task_cls = TASKS[model_task(name)]
+    hparams = task_cls.upgrade_hparams(hparams)
     if "weights" not in hparams:  # written before models recorded their weights: the defaults of that time
         hparams = {**hparams, "model": {**_DEFAULTS_BEFORE_WEIGHTS.get(name, {}), **hparams["model"]}}
     with pretrained_weights_disabled():  # the state dict restores every weight: fetch and read nothing else

@@ -1,13 +1,12 @@
-"""Monocular depth (paper IV-B): AdaBins loss (SILog + bin Chamfer), Eigen metrics up to 120 m."""
+"""Monocular depth (paper IV-B): the loss its config chooses (AdaBins: SILog + bin Chamfer), Eigen metrics up to
+120 m."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
-from torch import Tensor
-
 from airfisheye_bench.tasks.base import BenchmarkTask
-from models.losses import AdaBinsLoss
 
 
 class DepthTask(BenchmarkTask):
@@ -15,36 +14,34 @@ class DepthTask(BenchmarkTask):
 
     Args:
         model: ``{"name": "adabins", ...}``.
-        min_depth: Evaluation and loss lower bound (paper convention 1e-3 m).
-        max_depth: Evaluation and loss upper bound (paper: 120 m).
-        w_chamfer: Weight of the bins Chamfer loss (AdaBins: 0.1).
-        chamfer_reference_range: Measure the Chamfer term in fractions of ``max_depth`` times this range (m)
-            instead of metres (None, as upstream): :class:`~models.losses.BinsChamferLoss`.
-        **kwargs: See :class:`BenchmarkTask`.
+        min_depth: Evaluation lower bound (paper convention 1e-3 m), and the default loss's.
+        max_depth: Evaluation upper bound (paper: 120 m), and the default loss's.
+        loss: See :class:`BenchmarkTask`; the depth config picks ``loss=adabins`` (``configs/loss/``):
+            :class:`~models.losses.AdaBinsLoss` with its Chamfer term, the one reader of the model's bins, off;
+            ``loss=silog`` is the plain :class:`~models.losses.SILogLoss`. Default: :meth:`default_loss`.
+        **kwargs: See :class:`BenchmarkTask`; the deprecated ``w_chamfer`` and ``chamfer_reference_range`` set
+            the default loss's (``loss.w_chamfer``, ``loss.chamfer_reference_range``).
     """
 
     task = "depth"
+    legacy_loss_args = ("w_chamfer", "chamfer_reference_range")
 
     def __init__(
-        self,
-        model: dict[str, Any],
-        min_depth: float = 1e-3,
-        max_depth: float = 120.0,
-        w_chamfer: float = 0.1,
-        chamfer_reference_range: float | None = None,
-        **kwargs: Any,
+        self, model: dict[str, Any], min_depth: float = 1e-3, max_depth: float = 120.0, **kwargs: Any
     ) -> None:
         self.min_depth, self.max_depth = float(min_depth), float(max_depth)
         super().__init__(model, **kwargs)
-        self.loss = AdaBinsLoss(
-            w_chamfer=w_chamfer,
-            min_depth=min_depth,
-            max_depth=max_depth,
-            chamfer_reference_range=chamfer_reference_range,
-        )
+
+    @classmethod
+    def default_loss(cls, hparams: Mapping[str, Any]) -> dict[str, Any]:
+        """AdaBins' loss with Chamfer weight 0.1 (upstream's), bounded by the task's depth range."""
+        return {
+            "_target_": "models.losses.AdaBinsLoss",
+            "w_chamfer": hparams.get("w_chamfer", 0.1),
+            "min_depth": hparams["min_depth"],
+            "max_depth": hparams["max_depth"],
+            "chamfer_reference_range": hparams.get("chamfer_reference_range"),
+        }
 
     def metric_options(self) -> dict[str, Any]:
         return {"min_depth": self.min_depth, "max_depth": self.max_depth}
-
-    def loss_terms(self, outputs: dict[str, Tensor], batch: dict) -> dict[str, Tensor]:
-        return self.loss.terms(outputs, batch["depth"])

@@ -1,5 +1,8 @@
 """Monocular depth losses: Eigen's scale-invariant log loss and AdaBins' bin-centre Chamfer loss.
 
+A depth model is trained with either, chosen in its config (``task.module.loss``): :class:`AdaBinsLoss` (the SI term
+plus the bins' Chamfer term, which alone needs the model's ``"bin_edges"``) or the plain :class:`SILogLoss`.
+
 Both follow the official AdaBins code (``loss.py``, ``train.py``): SILog ``10 * sqrt(mean(g^2) - 0.85 mean(g)^2)``
 pooled over the valid pixels of the whole batch, and a Chamfer term between the bin centres and the valid
 ground-truth depths, weighted 0.1. The Chamfer loss is computed here without pytorch3d: in 1-D the nearest
@@ -177,8 +180,12 @@ def _nearest_sq_dist(queries: Tensor, sorted_refs: Tensor) -> Tensor:
 class AdaBinsLoss(nn.Module):
     """AdaBins' training loss: ``SILog(depth, gt) + w_chamfer * BinsChamfer(bin_edges, gt)``.
 
+    Called with the model's whole ``forward_with_aux`` outputs (:attr:`takes_model_outputs`). The bins are read only
+    when the Chamfer term counts: at ``w_chamfer=0`` a model without bins (no ``"bin_edges"`` output) trains with
+    the SI term alone, logged as the same ``silog`` and ``chamfer`` (0) terms.
+
     Args:
-        w_chamfer: weight of the Chamfer term (0.1; 0 disables it).
+        w_chamfer: weight of the Chamfer term (0.1; 0 disables it, and the need for ``"bin_edges"``).
         lambd: SILog scale-term weight (0.85).
         min_depth, max_depth: the valid ground-truth range.
         chamfer_reference_range: :class:`BinsChamferLoss`'s ``reference_range`` (None: metres, as upstream).
@@ -192,7 +199,13 @@ class AdaBinsLoss(nn.Module):
         >>> terms = AdaBinsLoss().terms(net.forward_with_aux(torch.randn(2, 3, 64, 64)), gt)
         >>> sorted(terms)
         ['chamfer', 'loss', 'silog']
+        >>> round(float(AdaBinsLoss(w_chamfer=0.0)({"depth": gt}, gt)), 4)  # no bins without the Chamfer term
+        0.0
     """
+
+    #: The task hands the loss the model's ``forward_with_aux`` mapping (``"depth"``, ``"bin_edges"``), not only
+    #: the primary output (``BenchmarkTask.loss_terms``).
+    takes_model_outputs = True
 
     def __init__(
         self,
@@ -208,12 +221,19 @@ class AdaBinsLoss(nn.Module):
         self.chamfer = BinsChamferLoss(min_depth, max_depth, reference_range=chamfer_reference_range)
 
     def terms(self, outputs: Mapping[str, Tensor], target: Tensor) -> dict[str, Tensor]:
-        """``{"loss", "silog", "chamfer"}`` from ``model.forward_with_aux(...)`` outputs (``"depth"``,
-        ``"bin_edges"``) and the ground truth."""
-        missing = {"depth", "bin_edges"} - set(outputs)
+        """``{"loss", "silog", "chamfer"}`` from ``model.forward_with_aux(...)`` outputs (``"depth"``, and
+        ``"bin_edges"`` when ``w_chamfer > 0``) and the ground truth."""
+        needed = ("depth", "bin_edges") if self.w_chamfer else ("depth",)
+        missing = sorted(set(needed) - set(outputs))
         if missing:
             raise ValueError(
-                f"outputs must hold 'depth' and 'bin_edges' (forward_with_aux), missing {sorted(missing)}"
+                f"outputs must hold {' and '.join(map(repr, needed))} (forward_with_aux) with "
+                f"w_chamfer={self.w_chamfer}, missing {missing}"
+                + (
+                    "; a model without bins trains with w_chamfer=0 or SILogLoss"
+                    if "bin_edges" in missing
+                    else ""
+                )
             )
         silog = self.silog(outputs["depth"], target)
         chamfer = self.chamfer(outputs["bin_edges"], target) if self.w_chamfer else silog.new_zeros(())

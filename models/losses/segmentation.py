@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
+import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
@@ -11,7 +14,7 @@ class SegmentationCELoss(nn.Module):
 
     Args:
         ignore_index: label to ignore.
-        weight: optional per-class weights ``[C]``.
+        weight: optional per-class weights ``[C]`` (a tensor, or a list of numbers as a config writes them).
         label_smoothing: as in :func:`torch.nn.functional.cross_entropy`.
 
     Example:
@@ -23,11 +26,16 @@ class SegmentationCELoss(nn.Module):
     """
 
     def __init__(
-        self, ignore_index: int = 255, weight: Tensor | None = None, label_smoothing: float = 0.0
+        self,
+        ignore_index: int = 255,
+        weight: Tensor | Sequence[float] | None = None,
+        label_smoothing: float = 0.0,
     ) -> None:
         super().__init__()
         self.ignore_index = ignore_index
         self.label_smoothing = label_smoothing
+        if weight is not None:
+            weight = torch.as_tensor(weight, dtype=torch.float32)
         self.register_buffer("weight", weight, persistent=False)
 
     def forward(self, logits: Tensor, target: Tensor) -> Tensor:

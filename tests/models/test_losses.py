@@ -178,8 +178,21 @@ def test_adabins_loss_combines_terms_with_weight():
     assert terms["chamfer"].item() == pytest.approx(BinsChamferLoss()(edges, gt).item())
     assert terms["loss"].item() == pytest.approx(terms["silog"].item() + 0.1 * terms["chamfer"].item())
     assert AdaBinsLoss()(outputs, gt).item() == pytest.approx(terms["loss"].item())
-    with pytest.raises(ValueError, match="bin_edges"):
+    with pytest.raises(
+        ValueError, match=r"missing \['bin_edges'\]; a model without bins trains with w_chamfer=0"
+    ):
         AdaBinsLoss()({"depth": pred}, gt)
+
+
+def test_adabins_loss_without_the_chamfer_term_needs_no_bins():
+    pred, gt = _depth_pair()
+    terms = AdaBinsLoss(w_chamfer=0.0).terms({"depth": pred}, gt)
+    assert terms.keys() == {"loss", "silog", "chamfer"} and terms["chamfer"].item() == 0.0
+    assert terms["loss"].item() == terms["silog"].item() == pytest.approx(SILogLoss()(pred, gt).item())
+    with_bins = AdaBinsLoss(w_chamfer=0.0).terms({"depth": pred, "bin_edges": _random_edges(2, 16)}, gt)
+    assert with_bins["loss"].item() == terms["loss"].item()  # the bins are not read
+    with pytest.raises(ValueError, match="'depth'"):
+        AdaBinsLoss(w_chamfer=0.0)({"bin_edges": _random_edges(2, 16)}, gt)
 
 
 # ---------------------------------------------------------------- segmentation
@@ -194,6 +207,18 @@ def test_cross_entropy_ignores_255():
     log_probs = logits.log_softmax(1).permute(0, 2, 3, 1)[keep]  # [N, C]
     expected = -log_probs.gather(1, target[keep][:, None]).mean()
     torch.testing.assert_close(SegmentationCELoss()(logits, target), expected)
+
+
+def test_cross_entropy_class_weights_from_a_config_list():
+    g = torch.Generator().manual_seed(0)
+    logits = torch.randn(2, 3, 4, 4, generator=g)
+    target = torch.randint(0, 3, (2, 4, 4), generator=g)
+    weight = [1.0, 2.0, 0.5]
+    torch.testing.assert_close(
+        SegmentationCELoss(weight=weight)(logits, target),
+        SegmentationCELoss(weight=torch.tensor(weight))(logits, target),
+    )
+    assert SegmentationCELoss(weight=weight)(logits, target) != SegmentationCELoss()(logits, target)
 
 
 def test_cross_entropy_all_ignored_is_zero_and_shape_errors():
