@@ -14,7 +14,9 @@ cover the image. Nothing here uses this project's camera code to make a referenc
 - ``kitti360.json``: the KITTI-360 devkit's ``CameraFisheye.cam2image`` (ignores p1, p2: compared with them zeroed).
 - ``woodscape.json``: WoodScape's ``projection.py`` (``Camera`` + ``RadialPolyCamProjection``), both directions.
 - ``ocamcalib.json``: OCamCalib's ``world2cam`` / ``cam2world`` (the toolbox's C functions, transcribed below
-  line by line: the toolbox is MATLAB with a C export and has no package to install).
+  line by line: the toolbox is MATLAB with a C export and has no package to install), on the Kodak SP360's
+  calibration and on ``OCAM_NEGATIVE_AXIS`` of ``tests/helpers/calibration_fixtures.py`` (a synthetic file whose world2cam
+  is negative on the axis; read as the toolbox's ``get_ocam_model`` reads it), there with pixels near the centre.
 
 Usage (each reference is optional; the files of the missing ones are left as they are)::
 
@@ -358,29 +360,75 @@ def ocam_cam2world(point2d, pol, xc, yc, c, d, e):
     return invnorm * xp, invnorm * yp, invnorm * zp
 
 
-def ocam_cases() -> list[dict]:
-    cam = CALIBRATIONS["ocam_kodak_sp360"]["camera"]
+def ocam_model(text: str) -> dict:
+    """A ``calib_results.txt`` as OCamCalib's ``get_ocam_model`` (ocam_functions.c) reads it: each of the five
+    ``#`` headers skipped, then its numbers in order (ss: its length and coefficients; invpol: the same; the centre
+    row, column; c, d, e; height, width), as this project's camera dict."""
+    numbers = [float(tok) for line in text.splitlines() if not line.startswith("#") for tok in line.split()]
+    n_ss = int(numbers[0])
+    ss, rest = numbers[1 : 1 + n_ss], numbers[1 + n_ss :]
+    n_inv = int(rest[0])
+    invpol, (xc, yc, c, d, e, height, width) = rest[1 : 1 + n_inv], rest[1 + n_inv :]
+    return {
+        "model": "ocam", "width": int(width), "height": int(height), "cx": yc, "cy": xc, "c": c, "d": d, "e": e,
+        "cam2world": ss, "world2cam": invpol,
+    }  # fmt: skip
+
+
+def near_centre(cam: dict, radii: list[float], azimuths: int = 8) -> np.ndarray:
+    """Pixel positions ``[N, 2]`` on circles of ``radii`` about OCam's centre, and the centre itself."""
+    a = np.linspace(0.0, 2 * np.pi, azimuths, endpoint=False)
+    r = np.asarray(radii)[:, None]
+    ring = np.stack([cam["cx"] + r * np.cos(a), cam["cy"] + r * np.sin(a)], -1).reshape(-1, 2)
+    return np.concatenate([[[cam["cx"], cam["cy"]]], ring])
+
+
+def ocam_case(name: str, calibration: str, cam: dict, points: np.ndarray, uv_in: np.ndarray) -> dict:
     xc, yc = cam["cy"], cam["cx"]  # OCamCalib's centre is (row, column)
     args = (xc, yc, cam["c"], cam["d"], cam["e"])
-    points = directions(128.0)
     uv = []
     for x, y, z in points:  # this project's frame (x right, y down, z forward) -> OCamCalib's (row, col, -z)
         row, col = ocam_world2cam((y, x, -z), cam["world2cam"], *args)
         uv.append((col, row))
-    uv_in = pixels(cam["width"], cam["height"])
     rays = []
     for u, v in uv_in:
         xo, yo, zo = ocam_cam2world((v, u), cam["cam2world"], *args)
         rays.append((yo, xo, -zo))
-    return [
-        {
-            "name": "ocam_kodak_sp360",
-            "calibration": "ocam_kodak_sp360",
-            "camera": cam,
-            "project": {"points": points.tolist(), "uv": uv, "valid": [True] * len(points)},
-            "cam2world": {"uv": uv_in.tolist(), "rays": rays},
-        }
-    ]
+    return {
+        "name": name,
+        "calibration": calibration,
+        "camera": cam,
+        "project": {"points": points.tolist(), "uv": uv, "valid": [True] * len(points)},
+        "cam2world": {"uv": uv_in.tolist(), "rays": rays},
+    }
+
+
+def ocam_cases() -> list[dict]:
+    kodak = CALIBRATIONS["ocam_kodak_sp360"]["camera"]
+    kodak_case = ocam_case(
+        "ocam_kodak_sp360",
+        "ocam_kodak_sp360",
+        kodak,
+        directions(128.0),
+        pixels(kodak["width"], kodak["height"]),
+    )
+    sys.path.insert(0, str(ROOT))
+    from tests.helpers.calibration_fixtures import (
+        OCAM_NEGATIVE_AXIS,  # the tests' synthetic file (no camera code)
+    )
+
+    cam = ocam_model(OCAM_NEGATIVE_AXIS)
+    # world2cam is compared on the axis itself and from 30 deg out: nearer, its terms cancel from 3e11 px and float64
+    # has its radius only to ~1e-4 px (the toolbox's sum of powers and Horner's rule, each in its own way).
+    points = directions(120.0)
+    theta = np.degrees(np.arctan2(np.hypot(points[:, 0], points[:, 1]), points[:, 2]))
+    points = np.concatenate([[[0.0, 0.0, 2.0]], points[theta >= 30.0]])
+    # cam2world on circles about the centre, 0.1-60 px (incidence 0-22 deg), where the inverse of world2cam had no
+    # ray, and over the image.
+    radii = [0.1, 0.3, 0.7, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0, 13.0, 20.0, 30.0, 45.0, 60.0]
+    uv_in = np.concatenate([near_centre(cam, radii), pixels(cam["width"], cam["height"])])
+    negative_case = ocam_case("ocam_negative_axis", "OCAM_NEGATIVE_AXIS", cam, points, uv_in)
+    return [kodak_case, negative_case]
 
 
 def main() -> None:

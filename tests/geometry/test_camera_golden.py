@@ -90,6 +90,37 @@ def test_ocam_cam2world_matches_ocamcalib_and_unproject_inverts_world2cam() -> N
     assert angle_between(cam.unproject(uv), expected).max() <= 5e-5
 
 
+def test_ocam_negative_on_the_axis_has_rays_about_the_centre() -> None:
+    """``OCAM_NEGATIVE_AXIS`` (tests/helpers/calibration_fixtures.py): world2cam -0.64 px on the axis, where its terms
+    cancel from 3e11 px (float64 has the radius there to ~1e-4 px). An inverse held to 1e-7 px had no ray for any
+    pixel within 68 px of the centre (incidences to 24 deg), where OCamCalib's cam2world has them (the golden values,
+    by the toolbox's formulas, on circles 0.1-60 px about the centre). Now every one has its ray, and it is as close
+    to cam2world's as the file's two fits of the lens (ss and invpol) agree anywhere: within 0.33 deg."""
+    case = next(
+        c
+        for c in json.loads((GOLDEN / "ocamcalib.json").read_text())["cases"]
+        if c["name"] == "ocam_negative_axis"
+    )
+    cam = camera_from_dict(case["camera"])
+    uv = torch.tensor(case["cam2world"]["uv"], dtype=torch.float64)
+    expected = torch.tensor(case["cam2world"]["rays"], dtype=torch.float64)
+    assert angle_between(cam.cam2world_rays(uv), expected).max() <= MAX_RAD
+    rays = cam.unproject(uv)
+    assert torch.isfinite(rays).all()
+    near = torch.arange(len(uv)) < 1 + 14 * 8  # the centre, then the circles
+    assert (uv[near] - torch.tensor([cam.cx, cam.cy], dtype=torch.float64)).norm(dim=-1).max() <= 60.0 + 1e-9
+    error = angle_between(rays, expected)
+    assert error[near].max() <= math.radians(0.33) and error.max() <= math.radians(0.33)
+    # The centre is the axis, and the incidence grows from it as cam2world's does, to 24 deg at 68 px.
+    theta = torch.acos(rays[near][:, 2].clamp(-1, 1))
+    theta_ref = torch.acos(expected[near][:, 2].clamp(-1, 1))
+    assert theta[0] == 0 and theta_ref[0] == 0
+    torch.testing.assert_close(theta, theta_ref, rtol=0.05, atol=math.radians(0.33))
+    # The radii of the report (1-30 px, 0.6-11 deg) have their incidence, where world2cam puts it.
+    r = torch.tensor([1.0, 5.0, 13.0, 30.0], dtype=torch.float64)
+    assert torch.isfinite(cam._inverse(r)).all()
+
+
 # ---------------------------------------------------------------------------------------------- live OpenCV
 def _cv2():
     return pytest.importorskip("cv2", reason="opencv-contrib-python-headless (extra test-ref) not installed")

@@ -206,7 +206,9 @@ def _pinhole_rational(rng: np.random.Generator) -> dict:
 def _ocam(rng: np.random.Generator) -> dict:
     """A lens ``r = f theta (1 + a theta^2 + b theta^4)`` fitted as OCamCalib does: world2cam of 6-16 terms in
     ``theta - pi/2`` over the calibrated range only (then written with six decimals, as export_data.m does), so
-    beyond it the fit may turn back or blow up. cam2world (unused by project / unproject) is a matching ss."""
+    beyond it the fit may turn back or blow up. In half the draws the fit is also off on the axis, the end of its
+    data, by ``c0 ((pi/2 - theta) / (pi/2))^n`` (either sign; up to 1.5 times the ``c0`` that makes it flat there, so
+    some decrease at first). cam2world (unused by project / unproject) is a matching ss."""
     frame = _frame(rng)
     f = rng.uniform(0.25, 0.4) * frame["width"]
     a, b = rng.uniform(-0.06, 0.06), rng.uniform(-0.01, 0.01)
@@ -215,6 +217,10 @@ def _ocam(rng: np.random.Generator) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", np.exceptions.RankWarning)
         coeffs = np.polynomial.polynomial.polyfit(theta - math.pi / 2, r, int(rng.integers(5, 16)))
+    if rng.random() < 0.5:  # c0 ((pi/2 - theta) / (pi/2))^n = c0 (-x / (pi/2))^n, x = theta - pi/2
+        n = int(rng.integers(12, 17))
+        c0 = rng.uniform(-1.0, 1.5) * f * (math.pi / 2) / n
+        coeffs = np.polynomial.polynomial.polyadd(coeffs, [0.0] * n + [c0 * (-1) ** n / (math.pi / 2) ** n])
     return {
         "model": "ocam",
         **frame,
@@ -253,11 +259,34 @@ def random_cameras(family: str, n: int = PER_FAMILY) -> list[CameraModel]:
 
 
 # ---------------------------------------------------------------------------------------------- independent checks
+def ocam_fit(cam: CameraModel) -> Callable[[np.ndarray], np.ndarray]:
+    """OCam's world2cam radius at ``theta`` (numpy), without the model's chord near the axis."""
+    coeffs = np.asarray(cam.world2cam)
+    return lambda t: np.polynomial.polynomial.polyval(np.asarray(t) - np.pi / 2, coeffs)
+
+
+def ocam_head(cam: CameraModel, samples: int = 100_001) -> float:
+    """Where OCam's chord from the principal point should meet world2cam, found here on a fine grid: where the fit,
+    increasing from its first minimum on, reaches twice the largest ``|radius|`` it has before it increases."""
+    fit = ocam_fit(cam)
+    t = np.linspace(0.0, np.pi, samples)
+    r = fit(t)
+    first_up = int(np.argmax(np.diff(r) > 0))  # the fit's first minimum (0 where it increases from the axis)
+    d = max(abs(r[0]), abs(r[first_up]))
+    if d == 0:
+        return 0.0
+    return float(t[first_up + int(np.argmax(r[first_up:] >= 2 * d))])
+
+
 def forward_radius(cam: CameraModel) -> Callable[[np.ndarray], np.ndarray] | None:
     """The radial models' ``r(theta)`` (any positive scale), evaluated here with numpy, not by the model's code."""
     if cam.model == "ocam":
-        coeffs = np.asarray(cam.world2cam)
-        return lambda t: np.polynomial.polynomial.polyval(t - np.pi / 2, coeffs)
+        fit = ocam_fit(cam)
+        head = cam.theta_head
+        if head == 0:
+            return fit
+        slope = fit(head) / head  # the chord from the principal point, below theta_head
+        return lambda t: np.where(np.asarray(t) < head, slope * np.asarray(t), fit(t))
     if cam.model == "radial_poly":
         coeffs = np.array([0.0, cam.k1, cam.k2, cam.k3, cam.k4])
         return lambda t: np.polynomial.polynomial.polyval(t, coeffs)
@@ -307,8 +336,10 @@ def check_exact(cam: CameraModel) -> dict[str, float]:
             f"{cam}: valid to {cam.theta_limit}, r(theta) turns at {limit}"
         )
         assert not len(theta) or float(theta.max()) <= limit + step
-        if cam.model == "ocam":  # and where the radius is not negative (a ray there lands mirrored)
-            assert np.all((r(theta.numpy()) >= -1e-9) | (theta.numpy() == 0))
+        if cam.model == "ocam":
+            # The chord meets the fit where this grid says it should; below, the radius rises from 0 on the axis.
+            assert abs(cam.theta_head - ocam_head(cam)) <= step
+            assert np.all(r(theta.numpy()) >= 0) and r(np.array([0.0]))[0] == 0
     if cam.model in COLMAP_NAMES or (cam.model == "pinhole_radtan" and cam.theta_limit < math.pi / 2):
         # The disc of theta the model solves on is one-to-one: COLMAP's distortion (written out independently)
         # keeps a positive Jacobian determinant on it, by central differences.
@@ -389,26 +420,26 @@ def test_unproject_is_exact_on_random_calibrations(family: str) -> None:
         assert any(cam.theta_limit < math.pi for cam in cams)
 
 
-def _theta_of_radius(world2cam: list[float], r: np.ndarray, hi: float) -> np.ndarray:
-    """Incidence angle where world2cam's radius is ``r`` (bisection in numpy; world2cam increases on [lo, hi])."""
+def _theta_of_radius(radius: Callable[[np.ndarray], np.ndarray], r: np.ndarray, hi: float) -> np.ndarray:
+    """Incidence angle where ``radius`` is ``r`` (bisection in numpy; ``radius`` increases on [0, hi])."""
     lo_t, hi_t = np.zeros_like(r), np.full_like(r, hi)
-    coeffs = np.asarray(world2cam)
     for _ in range(80):
         mid = 0.5 * (lo_t + hi_t)
-        above = np.polynomial.polynomial.polyval(mid - np.pi / 2, coeffs) > r
+        above = radius(mid) > r
         lo_t, hi_t = np.where(above, lo_t, mid), np.where(above, mid, hi_t)
     return 0.5 * (lo_t + hi_t)
 
 
 def test_ocamcalib_long_invpol_file(tmp_path: Path) -> None:
     """The issue's kind of file: 33 terms, 1024 x 768, exact to the image's corners at 123 deg; valid only where
-    world2cam increases and stays within reach of the image, not to 180 deg; no ray on the axis's negative radii."""
+    world2cam increases and stays within reach of the image, not to 180 deg; negative on the axis, where the chord
+    from the principal point takes over (every pixel about the centre has its ray, the axis the centre's)."""
     path = tmp_path / "calib_results.txt"
     path.write_text(fx.OCAM_LONG_INVPOL)
     cam = camera_from_dict(read_calibration(path).camera)
     assert (cam.width, cam.height, len(cam.world2cam)) == (1024, 768, 33)
     r = forward_radius(cam)
-    assert r(np.array([0.0]))[0] < -0.6 and r(np.array([np.pi]))[0] > 1e7  # what the fit does off its data
+    assert ocam_fit(cam)(0.0) < -0.6 and r(np.array([np.pi]))[0] > 1e7  # what the fit does off its data
 
     # Every pixel of the image (a 4-px grid, and the frame's edge at every half pixel) has its ray, exact both ways.
     edge = dense_grid(cam)
@@ -420,22 +451,29 @@ def test_ocamcalib_long_invpol_file(tmp_path: Path) -> None:
     assert valid.all() and (uv2 - uv).norm(dim=-1).max() <= MAX_PX
     theta = torch.atan2(torch.hypot(rays[:, 0], rays[:, 1]), rays[:, 2]).numpy()
     gx, gy = cam._sensor(uv[:, 0], uv[:, 1])
-    expected = _theta_of_radius(cam.world2cam, torch.hypot(gx, gy).numpy(), math.radians(130.0))
+    expected = _theta_of_radius(r, torch.hypot(gx, gy).numpy(), math.radians(130.0))
     assert np.abs(theta - expected).max() <= MAX_RAD
     # The image reaches 123 deg at its corners; the field of view it reports is that (on a 256 x 192 copy of the
     # lens, whose corner pixels' centres lie a little further in), not 360 deg.
     assert 123.0 < math.degrees(theta.max()) < 123.5
     assert 245.0 < cam.resized(256, 192).coverage_deg < 246.5
 
-    # The valid region: from where the radius turns positive, to where it leaves the frame 50 images around.
-    assert 0.0 < cam.theta_start < 0.01 and math.radians(120.0) < cam.theta_limit < math.radians(170.0)
+    # The valid region: from the axis (the chord up to twice the fit's -0.67 px, 0.26 deg), to where the radius
+    # leaves the frame 50 images around.
+    fit = ocam_fit(cam)
+    assert 0.0 < cam.theta_head < 0.01 and math.radians(120.0) < cam.theta_limit < math.radians(170.0)
+    assert fit(cam.theta_head) == pytest.approx(-2 * fit(0.0), abs=1e-7)  # to the fit's rounding there
     assert r(np.array([cam.theta_limit]))[0] == pytest.approx(cam._inverse.y_range[1], rel=1e-9)
     t = torch.tensor(
-        [0.0, 0.5 * cam.theta_start, cam.theta_limit - 1e-6, cam.theta_limit + 1e-6, math.pi - 1e-3]
+        [0.0, 1e-9, 0.5 * cam.theta_head, cam.theta_limit - 1e-6, cam.theta_limit + 1e-6, math.pi - 1e-3]
     )
     dirs = torch.stack([torch.sin(t), torch.zeros_like(t), torch.cos(t)], -1).double()
     puv, pvalid = cam.project(dirs)
-    assert pvalid.tolist() == [True, False, True, False, False]
+    assert pvalid.tolist() == [True, True, True, True, False, False]
     back = cam.unproject(puv)
-    assert torch.isfinite(back[[0, 2]]).all() and torch.isnan(back[[3, 4]]).all()
-    assert angle_between(back[[0, 2]], dirs[[0, 2]]).max() <= MAX_RAD
+    assert torch.isfinite(back[:4]).all() and torch.isnan(back[4:]).all()
+    assert angle_between(back[:4], dirs[:4]).max() <= MAX_RAD
+    # Near the centre, the radius of a ray is the chord's, from 0 on the axis: no pixel there is left without one.
+    assert (puv[1:3] - puv[0]).norm(dim=-1).tolist() == pytest.approx(
+        (-2 * fit(0.0) / cam.theta_head * t[1:3].numpy()).tolist(), rel=1e-6
+    )

@@ -1,7 +1,8 @@
 """Real published calibrations, written by the tests in the formats their tools write.
 
-Calibration parameters only (no images): their values come from the sources named next to them. One is synthetic
-(``OCAM_LONG_INVPOL``, issue #35's kind of OCamCalib file), and says how it was made.
+Calibration parameters only (no images): their values come from the sources named next to them. Two are synthetic
+(``OCAM_LONG_INVPOL``, issue #35's kind of OCamCalib file, and ``OCAM_NEGATIVE_AXIS``, the kind whose world2cam
+cancels on the optical axis), and say how they were made.
 """
 
 from __future__ import annotations
@@ -199,6 +200,35 @@ OCAM_LONG_INVPOL = """#polynomial coefficients for the DIRECT mapping function (
 #polynomial coefficients for the inverse mapping function (ocam_model.invpol in MATLAB). These are used by world2cam
 
 33 471.506046 292.398142 -27.765258 18.727158 47.914054 -15.978052 -6.884066 32.972566 -17.426236 -12.862056 33.902565 -14.651267 -20.030652 14.978478 -28.507797 88.310964 170.792086 -331.018998 -593.163607 430.447262 1303.034394 225.634937 -1426.210411 -1288.543218 202.841411 1038.199331 706.318445 115.977403 -118.675726 -90.793563 -29.719208 -5.011245 -0.356129 
+
+#center: "row" and "column", starting from 0 (C convention)
+
+383.600000 511.300000
+
+#affine parameters "c", "d", "e"
+
+1.000400 0.000300 -0.000200
+
+#image size: "height" and "width"
+
+768 1024
+"""  # noqa: W291 (as the toolbox writes it)
+
+# Not a published calibration: a synthetic OCamCalib file of the kind that served a hole at the image's centre
+# (1024 x 768; world2cam -0.64 px on the optical axis). The lens r = 152 theta + 60.8 theta^3 px; invpol is that lens
+# 0.6 px short, plus 1e-3 px of a degree-24 Chebyshev polynomial of the fit's range (theta in [0, 1.9] rad; numpy's
+# Chebyshev.basis(24, domain=[-pi/2, 1.9 - pi/2]).convert(kind=Polynomial)), the kind of component a least-squares fit
+# of many terms leaves barely determined: in powers of theta - pi/2 its terms reach 3e11 px on the axis and cancel to
+# -0.64 px, so float64 evaluates it there only to ~1e-4 px. Written with %f, as export_data.m writes invpol. ss:
+# cam2world of the same lens (z = -rho / tan(theta)), degree 4 with a1 = 0, least squares over theta in [0, 1.9]
+# (it and invpol disagree by up to 0.32 deg, most near the axis).
+OCAM_NEGATIVE_AXIS = """#polynomial coefficients for the DIRECT mapping function (ocam_model.ss in MATLAB). These are used by cam2world
+
+5 -1.539316e+02 0.000000e+00 5.806348e-05 1.902656e-06 -1.236907e-09 
+
+#polynomial coefficients for the inverse mapping function (ocam_model.invpol in MATLAB). These are used by world2cam
+
+25 473.808559 602.086754 286.636441 54.870485 -20.253571 291.037695 1255.200905 -5015.630553 -33190.998866 4583.557493 374497.611727 736672.245528 -1063880.120767 -6414705.969097 -8868222.889530 4878368.958006 37768344.534072 70507061.883607 78802388.651286 59847803.377973 31859974.052548 11787054.421998 2900272.291654 428039.406902 28729.189458 
 
 #center: "row" and "column", starting from 0 (C convention)
 

@@ -6,10 +6,16 @@ description, usually a published calibration)::
     class TestKitti360Image02(CameraModelTester):
         camera_dict = CALIBRATIONS["kitti360_image_02"]["camera"]
 
+or ``calibration_file`` (a calibration file's name and text, read through ``read_calibration`` as a user's is).
+
 Every test builds the camera through ``camera_from_dict`` and checks the contract of ``geometry/cameras/base.py``:
 round trips over the whole valid image and field of view (<= 1e-9 rad, <= 1e-6 px), numpy/torch and dtype
 parity, NaN rays and invalid points outside the model's region, ``valid_mask`` against the projection,
-``resized``, ``to_dict`` / ``camera_from_dict``, clear errors for bad keys, and ``pixels_per_radian``.
+``resized``, ``to_dict`` / ``camera_from_dict``, clear errors for bad keys, and ``pixels_per_radian``. The valid
+region has no hole: found from the projection, not from ``unproject`` (whose NaN ``valid_mask`` would follow), every
+point of a disc about the optical axis's pixel, the axis's pixel itself and points 1e-12 px from it included, and the
+pixels of directions at every incidence from the axis out to the region's edge, have rays that project back onto
+them, the centre's ray being the axis.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ import pytest
 import torch
 
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
+from airfisheye_bench.io.calibration_files import read_calibration
 
 GOLDEN = Path(__file__).resolve().parents[1] / "geometry" / "golden"
 CALIBRATIONS: dict[str, dict] = json.loads((GOLDEN / "calibrations.json").read_text())["cameras"]
@@ -43,11 +50,29 @@ def sphere_directions(n: int = 4000, seed: int = 0) -> torch.Tensor:
     return d / d.norm(dim=-1, keepdim=True)
 
 
+def cone(theta: torch.Tensor, azimuths: int) -> torch.Tensor:
+    """Unit directions ``[len(theta) * azimuths, 3]`` at each incidence angle ``theta``, all azimuths."""
+    phi = torch.linspace(0.0, 2.0 * math.pi, azimuths + 1, dtype=torch.float64)[:-1]
+    t, p = (a.reshape(-1) for a in torch.meshgrid(theta.double(), phi, indexing="ij"))
+    return torch.stack([torch.sin(t) * torch.cos(p), torch.sin(t) * torch.sin(p), torch.cos(t)], -1)
+
+
+def largest_valid_incidence(camera: CameraModel) -> float:
+    """Largest incidence angle (radians) of the model's valid region, from the projection of directions over the
+    sphere refined near its edge; short of the back axis (where a full-sphere lens's pixels are ill-conditioned)."""
+    theta = torch.linspace(0.0, math.pi - 1e-3, 2000, dtype=torch.float64)
+    valid = camera.project(cone(theta, 8))[1].reshape(len(theta), 8).all(-1)
+    first_invalid = (~valid).nonzero()
+    return float(theta[int(first_invalid[0, 0]) - 1]) if len(first_invalid) else float(theta[-1])
+
+
 class CameraModelTester:
     """Mixin of camera-model tests; subclasses set ``camera_dict`` (and, where needed, the attributes below)."""
 
     #: ``to_dict``-style description of the camera under test.
     camera_dict: ClassVar[dict] = {}
+    #: Or the ``(file name, text)`` of a calibration file of it, read through ``read_calibration``.
+    calibration_file: ClassVar[tuple[str, str] | None] = None
     #: Whether the model's valid region reaches behind the camera (a 360-deg lens, or a polynomial model without
     #: ``fov_deg`` whose polynomial keeps increasing up to 180 deg).
     full_sphere: ClassVar[bool] = False
@@ -60,8 +85,14 @@ class CameraModelTester:
 
     @pytest.fixture(scope="class")
     @classmethod
-    def camera(cls) -> CameraModel:
-        cam = camera_from_dict(cls.camera_dict)
+    def camera(cls, tmp_path_factory: pytest.TempPathFactory) -> CameraModel:
+        if cls.calibration_file is not None:
+            name, text = cls.calibration_file
+            path = tmp_path_factory.mktemp("calibration") / name
+            path.write_text(text)
+            cam = camera_from_dict(read_calibration(path).camera)
+        else:
+            cam = camera_from_dict(cls.camera_dict)
         w, h = cam.width, cam.height
         g = math.gcd(w, h)  # integer steps keep the aspect ratio exactly
         steps = [d for d in range(1, g + 1) if g % d == 0]
@@ -97,6 +128,58 @@ class CameraModelTester:
         if camera.fov_deg is not None:
             theta = torch.acos(dirs[valid][:, 2].clamp(-1, 1))
             assert theta.max() <= math.radians(camera.fov_deg) / 2 + 1e-12
+
+    # ------------------------------------------------------------------ no hole in the valid region
+    def test_every_pixel_about_the_principal_point_has_its_ray(self, camera: CameraModel) -> None:
+        """The disc about the axis's pixel that the cone of incidences up to ``theta_r`` (20 deg, or half the
+        region's) covers, found from the projection: every point of it, on a dense polar grid from the centre out
+        (1e-12 px to its rim), and every pixel centre in it, has a ray within that cone which projects back onto it;
+        the centre's is the axis, and the incidence goes to 0 there (no cone of rays collapsed into it)."""
+        centre, ok = camera.project(torch.tensor([[0.0, 0.0, 1.0]], dtype=torch.float64))
+        assert ok.all()
+        theta_r = min(math.radians(20.0), 0.5 * largest_valid_incidence(camera))
+        rim, rim_ok = camera.project(cone(torch.tensor([theta_r]), 720))
+        assert rim_ok.all()
+        radius = 0.98 * float((rim - centre).norm(dim=-1).min())  # the rim's 720 points bound it to ~0.3 %
+        r = torch.cat(
+            [
+                torch.tensor([0.0, 1e-12, 1e-9, 1e-6, 1e-3], dtype=torch.float64),
+                torch.linspace(0, radius, 400)[1:],
+            ]
+        )
+        a = torch.linspace(0.0, 2.0 * math.pi, 33, dtype=torch.float64)[:-1]
+        polar = centre + (r[:, None, None] * torch.stack([torch.cos(a), torch.sin(a)], -1)).reshape(-1, 2)
+        grid = camera.pixel_grid().reshape(-1, 2)
+        uv = torch.cat([polar, grid[(grid - centre).norm(dim=-1) <= radius]])
+        rays = camera.unproject(uv)
+        assert torch.isfinite(rays).all(), (
+            f"{int((~torch.isfinite(rays).all(-1)).sum())} points without a ray"
+        )
+        uv2, valid = camera.project(rays)
+        assert valid.all() and (uv2 - uv).norm(dim=-1).max() <= self.max_pixel_err
+        theta = torch.atan2(torch.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])
+        assert theta.max() <= theta_r + 1e-6 and theta[0] == 0
+        assert theta[: 4 * len(a)].max() <= 1e-5  # within 1e-6 px of the centre: within 1e-5 rad of the axis
+
+    def test_round_trip_from_the_axis_outwards(self, camera: CameraModel) -> None:
+        """Directions at every incidence of the valid region, densely from the axis (and 1e-12 rad off it) to the
+        region's edge, at 12 azimuths: each pixel they project to in and around the image has a ray, which projects
+        back onto it."""
+        top = largest_valid_incidence(camera)
+        theta = torch.cat(
+            [torch.tensor([1e-12, 1e-9, 1e-6, 1e-4], dtype=torch.float64), torch.linspace(0, top, 1500)]
+        )
+        uv, valid = camera.project(cone(theta, 12))
+        w, h = camera.width, camera.height  # a frame around the image (see the field-of-view test)
+        valid &= (uv[:, 0] > -w) & (uv[:, 0] < 2 * w) & (uv[:, 1] > -h) & (uv[:, 1] < 2 * h)
+        assert valid[: 5 * 12].all()  # the axis and its neighbourhood
+        uv = uv[valid]
+        rays = camera.unproject(uv)
+        assert torch.isfinite(rays).all(), (
+            f"{int((~torch.isfinite(rays).all(-1)).sum())} pixels without a ray"
+        )
+        uv2, again = camera.project(rays)
+        assert again.all() and (uv2 - uv).norm(dim=-1).max() <= self.max_pixel_err
 
     # ------------------------------------------------------------------ kinds and dtypes
     def test_numpy_and_torch_in_the_same_kind_and_dtype(self, camera: CameraModel) -> None:

@@ -344,6 +344,39 @@ def test_ocamcalib_matlab_centre_and_bad_counts(tmp_path: Path) -> None:
         read_calibration(path)
 
 
+def test_ocamcalib_negative_on_the_axis(tmp_path: Path) -> None:
+    """A file whose world2cam is -0.64 px on the axis, where its terms cancel from 3e11 px: every pixel about the
+    centre has its ray (they had none within 68 px), and the rays project back onto their pixels to the polynomial's
+    own float64 rounding there (~1e-4 px)."""
+    path = tmp_path / "calib_results.txt"
+    path.write_text(fx.OCAM_NEGATIVE_AXIS)
+    record = read_calibration(path)
+    assert record.format == "ocamcalib"
+    assert {k: record.camera[k] for k in ("width", "height", "cx", "cy")} == {
+        "width": 1024, "height": 768, "cx": 511.3, "cy": 383.6,
+    }  # fmt: skip
+    assert len(record.camera["world2cam"]) == 25 and record.camera["cam2world"][1] == 0.0
+    camera = load_camera(path)
+    assert 0 < camera.theta_head < math.radians(1.0)
+    u, v = np.meshgrid(np.arange(440.0, 584.0), np.arange(312.0, 456.0))  # 72 px about the centre
+    uv = np.stack([u.ravel(), v.ravel()], -1)
+    rays = camera.unproject(uv)
+    assert np.isfinite(rays).all()
+    uv2, valid = camera.project(rays)
+    assert valid.all() and np.abs(uv2 - uv).max() <= 1e-3
+
+
+def test_ocamcalib_refuses_a_world2cam_far_off_on_the_axis(tmp_path: Path) -> None:
+    path = tmp_path / "calib_results.txt"
+    path.write_text(fx.OCAM_NEGATIVE_AXIS.replace("\n25 473.808559 ", "\n25 173.808559 "))
+    with pytest.raises(
+        CalibrationFileError,
+        match=r"not a valid ocam camera \(world2cam's radius is -300.6 px on the optical axis .* a quarter of the "
+        r"image's shorter side",
+    ):
+        load_camera(path)
+
+
 # ------------------------------------------------------------------------------------------------------ OpenCV
 OPENCV_FISHEYE_YAML = """%YAML:1.0
 ---

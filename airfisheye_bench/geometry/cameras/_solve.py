@@ -6,7 +6,11 @@
   ``theta_d(theta)``, WoodScape's ``rho(theta)``, OCam's world-to-image polynomial). A table uniform in ``y`` over
   the radii near the image brackets every root there (a dense grid's search the few far beyond); linear
   interpolation starts close to it and two Newton steps clamped to the bracket polish it. Each result is checked
-  (``|f(t) - y| <= tol``); a miss is solved again by safeguarded Newton steps, and is NaN if it still misses.
+  (``|f(t) - y| <= tol``); a miss is solved again by safeguarded Newton steps, and is NaN if it still misses by more
+  than ``tol`` plus the bound on ``f``'s own float64 rounding there (``f_err``; :func:`polyval_error`).
+- :func:`increasing_start` and :func:`origin_chord`: a radial function that does not start at the origin increasing
+  (a fit's radius, off by a little on the axis) continued below a joint by the chord through the origin, so that its
+  inverse is continuous down to the axis and the axis maps to the centre.
 - :class:`RadtanInverse`: invert OpenCV's radial-tangential distortion (plumb_bob, or the rational model's radial
   factor, :func:`radial_factor`): the radial part as above, then Newton steps on the 2x2 system for the tangential
   terms, each point until it converges (at most 40; a numba loop on CPU), NaN where the result does not reproduce
@@ -40,6 +44,8 @@ FAR_FRAME = 50.0
 #: pixel -> ray -> pixel is then exact to well below the 1e-6 px bar, even for a long polynomial whose float64
 #: evaluation is itself only good to ~1e-8 px.
 PIXEL_TOL = 1e-7
+#: float64's unit roundoff.
+_UNIT_ROUNDOFF = 2.0**-53
 
 
 def polyval(coeffs: Sequence[float], t: torch.Tensor) -> torch.Tensor:
@@ -53,6 +59,20 @@ def polyval(coeffs: Sequence[float], t: torch.Tensor) -> torch.Tensor:
 def polyder(coeffs: Sequence[float]) -> tuple[float, ...]:
     """Coefficients of the derivative of :func:`polyval`'s polynomial."""
     return tuple(i * float(c) for i, c in enumerate(coeffs))[1:] or (0.0,)
+
+
+def polyval_error(coeffs: Sequence[float], t: torch.Tensor) -> torch.Tensor:
+    """A bound on the float64 rounding error of :func:`polyval` at ``t``: ``gamma(3n) sum |c_i| |t|^i`` for degree
+    ``n``, ``gamma(k) = k u / (1 - k u)`` (Horner's rule: ``gamma(2n)``, Higham, *Accuracy and Stability of Numerical
+    Algorithms*, 2nd ed., eq. (5.3); ``gamma(n)`` more for a ``t`` itself rounded once, as ``theta - pi/2`` is).
+
+    Where the terms are far larger than the value they cancel to (OCamCalib's ``world2cam`` is a polynomial in
+    ``theta - pi/2``: its terms are largest on the optical axis), the polynomial is only known to this bound, however
+    its root is solved.
+    """
+    k = 3 * max(len(coeffs) - 1, 1)
+    gamma = k * _UNIT_ROUNDOFF / (1.0 - k * _UNIT_ROUNDOFF)
+    return gamma * polyval([abs(float(c)) for c in coeffs], t.abs())
 
 
 def increasing_limit(
@@ -106,6 +126,85 @@ def _sign_change(df: Callable[[torch.Tensor], torch.Tensor], a: float, b: float)
     return a
 
 
+def increasing_start(df: Callable[[torch.Tensor], torch.Tensor], hi: float) -> float | None:
+    """Smallest ``t`` in ``[0, hi]`` from which ``f`` increases: 0 where ``df(0) > 0``, else the first sign change
+    of ``df`` to positive (a dense grid, then bisection); None where ``df > 0`` nowhere on the grid. Where ``f``
+    increases from there on, :func:`increasing_limit` (with ``lo`` this start) says."""
+    t = torch.linspace(0.0, hi, _DENSE, dtype=torch.float64)
+    good = (df(t) > 0).nonzero()
+    if not len(good):
+        return None
+    i = int(good[0, 0])
+    if i == 0:
+        return 0.0
+    a, b = float(t[i - 1]), float(t[i])  # df(a) <= 0 < df(b)
+    for _ in range(60):
+        mid = 0.5 * (a + b)
+        if mid in (a, b):
+            break
+        if bool(df(torch.tensor([mid], dtype=torch.float64))[0] > 0):
+            b = mid
+        else:
+            a = mid
+    return b
+
+
+def origin_chord(f: Callable[[torch.Tensor], torch.Tensor], start: float, hi: float) -> float:
+    """Where a radial function ``f``, increasing on ``[start, hi]``, should leave the chord through the origin: 0
+    when ``f`` is a lens's radius at the axis already (``f(0) = 0`` and ``start = 0``); else where ``f`` first reaches
+    ``2 d``, with ``d`` the largest ``|f|`` on ``[0, start]`` (``|f(0)|``, or the depth of a dip: ``f`` decreases
+    there).
+
+    A fit's radius (OCamCalib's ``world2cam``) is fitted up to the axis, the end of its data, and rounded: it may be
+    a little off there (negative, positive, or decreasing at first), where a lens's is 0 and increasing. Below the
+    joint the chord from ``(0, 0)`` to the joint replaces it: increasing, continuous, the axis at the centre, and no
+    further from the fit than ``d`` where the fit increases from the axis (``3 d`` where it dips first): no further
+    than the fit is from a lens there. ``ValueError`` where ``f`` never reaches ``2 d`` on ``[start, hi]``.
+    """
+    ends = f(torch.tensor([0.0, start, hi], dtype=torch.float64))
+    d = max(abs(float(ends[0])), abs(float(ends[1])))
+    if d == 0.0:
+        return 0.0
+    if not float(ends[2]) > 2.0 * d:
+        raise ValueError(
+            f"the radius never reaches twice its value near the axis ({2.0 * d:.4g}) while it increases"
+        )
+    a, b = start, hi  # f(a) < 2 d <= f(b)
+    for _ in range(80):
+        mid = 0.5 * (a + b)
+        if mid in (a, b):
+            break
+        if float(f(torch.tensor([mid], dtype=torch.float64))[0]) < 2.0 * d:
+            a = mid
+        else:
+            b = mid
+    return b
+
+
+class OriginChord:
+    """``f`` continued below ``joint`` (:func:`origin_chord`) by the chord through the origin; :meth:`derivative` is
+    ``df``'s continuation. A class, not a closure, so that a camera holding it pickles (DataLoader workers)."""
+
+    def __init__(
+        self,
+        f: Callable[[torch.Tensor], torch.Tensor],
+        df: Callable[[torch.Tensor], torch.Tensor],
+        joint: float,
+    ) -> None:
+        self.f, self.df, self.joint = f, df, float(joint)
+        self.slope = float(f(torch.tensor([joint], dtype=torch.float64))[0]) / joint if joint > 0 else 0.0
+
+    def __call__(self, t: torch.Tensor) -> torch.Tensor:
+        if self.joint <= 0:
+            return self.f(t)
+        return torch.where(t < self.joint, self.slope * t, self.f(t))
+
+    def derivative(self, t: torch.Tensor) -> torch.Tensor:
+        if self.joint <= 0:
+            return self.df(t)
+        return torch.where(t < self.joint, self.slope, self.df(t))
+
+
 def frame_reach(
     to_sensor: Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]],
     width: int,
@@ -130,8 +229,11 @@ class MonotoneInverse:
     Radii up to ``y_near`` (the image and its surroundings) find their bracket in a table uniform in ``y``: one
     multiply and two gathers, not a search; two Newton steps clamped to the bracket polish the interpolated start.
     The few beyond it (far outside the image) take their bracket from a search of a dense grid. A result that does
-    not reproduce ``y`` to ``tol`` (a start far from the root, ``f`` nearly flat) is solved again by safeguarded
-    Newton steps (bisection whenever a step leaves the bracket), and is NaN if it still does not: never a wrong ``t``.
+    not reproduce ``y`` to ``tol`` (a start far from the root, ``f`` nearly flat, ``f``'s own rounding) is solved
+    again by safeguarded Newton steps (bisection whenever a step leaves the bracket) until the bracket closes, and
+    is NaN if it still misses ``y`` by more than ``tol`` plus ``f_err(t)``: never a wrong ``t``. Where ``f``'s float64
+    evaluation is coarser than ``tol`` (a polynomial whose terms cancel), no ``t`` reproduces ``y`` to ``tol``; the
+    bracket then closes on the root as far as ``f`` can tell, and that is the answer, not NaN.
 
     Args:
         f: The function (float64 tensors in and out).
@@ -140,7 +242,9 @@ class MonotoneInverse:
         y_cap: Largest ``y`` to solve for (the domain stops where ``f`` reaches it), if smaller than ``f(t_hi)``.
         t_lo: Lower end of the domain.
         y_near: ``y`` up to which the table reaches (default: all of ``[f(t_lo), f(t_hi)]``).
-        tol: Largest ``|f(t) - y|`` accepted (``y``'s units; default 1e-9 of the range).
+        tol: Largest ``|f(t) - y|`` aimed at (``y``'s units; default 1e-9 of the range).
+        f_err: A bound on the float64 rounding of ``f`` at ``t`` (:func:`polyval_error`), added to ``tol`` when a
+            result is accepted; default none.
     """
 
     def __init__(
@@ -152,8 +256,10 @@ class MonotoneInverse:
         t_lo: float = 0.0,
         y_near: float = math.inf,
         tol: float | None = None,
+        f_err: Callable[[torch.Tensor], torch.Tensor] | None = None,
     ) -> None:
         self.f, self.df, self.t_lo, self.t_hi = f, df, float(t_lo), float(t_hi)
+        self.f_err = f_err
         dense_t = torch.linspace(self.t_lo, self.t_hi, _DENSE, dtype=torch.float64)
         dense_y = f(dense_t)
         if dense_y[-1] > y_cap:
@@ -218,8 +324,8 @@ class MonotoneInverse:
         return lo + (hi - lo) * frac, lo, hi
 
     def _safeguarded(self, y: torch.Tensor, max_steps: int = 80) -> torch.Tensor:
-        """Newton steps kept inside a shrinking bracket (bisection where a step leaves it); NaN where ``f`` cannot
-        reproduce ``y`` to ``tol``."""
+        """Newton steps kept inside a shrinking bracket (bisection where a step leaves it) until ``y`` is reproduced
+        to ``tol`` or the bracket closes; NaN where the result misses ``y`` by more than :meth:`_accepted` allows."""
         t, lo, hi = self._dense_bracket(y)
         for _ in range(max_steps):
             r = self.f(t) - y
@@ -230,7 +336,13 @@ class MonotoneInverse:
             if bool(done.all()):
                 break
             t = torch.where(done, t, nxt)
-        return torch.where((self.f(t) - y).abs() <= self.tol, t, torch.nan)
+        return torch.where(self._accepted(t, self.f(t) - y), t, torch.nan)
+
+    def _accepted(self, t: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
+        """``f(t) - y = r`` reproduces ``y`` as well as ``f`` can: ``|r| <= tol``, plus ``f``'s rounding bound."""
+        if self.f_err is None:
+            return r.abs() <= self.tol
+        return r.abs() <= self.tol + self.f_err(t)
 
 
 def radial_factor(
@@ -605,12 +717,16 @@ __all__ = [
     "PIXEL_TOL",
     "DiscInverse",
     "MonotoneInverse",
+    "OriginChord",
     "RadtanInverse",
     "frame_reach",
     "increasing_limit",
+    "increasing_start",
     "one_to_one_radius",
+    "origin_chord",
     "polyder",
     "polyval",
+    "polyval_error",
     "radial_factor",
     "radial_limit",
     "radtan",

@@ -23,6 +23,7 @@ from airfisheye_bench.geometry.cameras._solve import (
     MonotoneInverse,
     frame_reach,
     increasing_limit,
+    polyval_error,
 )
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param, finite_float, zeros
@@ -74,6 +75,7 @@ class KannalaBrandt(CameraModel):
             y_cap=frame_reach(self._normalised, self.width, self.height, FAR_FRAME),
             y_near=frame_reach(self._normalised, self.width, self.height, 1.0),
             tol=PIXEL_TOL / scale,
+            f_err=self._theta_d_err,
         )
         #: Largest incidence angle of the valid region (radians): where theta_d stops increasing, at most pi.
         self.theta_limit = self._inverse.t_hi
@@ -87,6 +89,11 @@ class KannalaBrandt(CameraModel):
         """The distorted angle ``theta (1 + k1 theta^2 + ... + k4 theta^8)``."""
         t2 = theta * theta
         return theta * (1.0 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4))))
+
+    def _theta_d_err(self, theta: torch.Tensor) -> torch.Tensor:
+        """A bound on float64's rounding of :meth:`theta_d`."""
+        k1, k2, k3, k4 = self.k
+        return polyval_error((0.0, 1.0, 0.0, k1, 0.0, k2, 0.0, k3, 0.0, k4), theta)
 
     def _dtheta_d(self, theta: torch.Tensor) -> torch.Tensor:
         t2 = theta * theta

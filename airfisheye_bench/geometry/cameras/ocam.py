@@ -11,10 +11,16 @@ polynomial (bounded Newton, ``_solve.py``), so that the two are exact inverses o
 :meth:`Ocam.cam2world_rays` evaluates the toolbox's ``cam2world`` for comparison.
 
 ``invpol`` is fitted only over the calibration's data (OCamCalib's ``findinvpoly``: up to the image's half diagonal);
-a long fit may turn back or blow up beyond, and its value on the axis may be slightly negative. The valid region is
-therefore found from the polynomial itself: from ``theta_start`` (where ``rho`` turns >= 0; 0 for most fits) to
+a long fit may turn back or blow up beyond. The valid region is therefore found from the polynomial itself: up to
 ``theta_limit`` (where ``rho`` stops increasing, or leaves the frame ``FAR_FRAME`` image sizes around the image),
-never a nominal 180 deg; ``unproject`` is NaN outside it.
+never a nominal 180 deg; ``unproject`` is NaN beyond it. The axis is the fit's other end, and there its radius is
+often a little off (a fraction of a pixel to a few pixels, either sign, sometimes first decreasing; the coefficients
+are also rounded to six decimals), where the lens's is 0 and increasing: up to ``theta_head`` the model follows the
+chord from the principal point to the fit (``_solve.origin_chord``: about as far from the fit as the fit is from a
+lens there), so the radius increases from the axis, which maps to the centre, and every pixel near the centre has
+its ray. The terms in ``theta - pi/2`` are also largest on the axis, where a long fit's may cancel from 1e12 px to a
+few pixels: there ``unproject`` is exact to the polynomial's own float64 rounding (``_solve.polyval_error``), no
+further (the toolbox's own ``world2cam`` is no more exact there).
 """
 
 from __future__ import annotations
@@ -28,10 +34,14 @@ from airfisheye_bench.geometry.cameras._solve import (
     FAR_FRAME,
     PIXEL_TOL,
     MonotoneInverse,
+    OriginChord,
     frame_reach,
     increasing_limit,
+    increasing_start,
+    origin_chord,
     polyder,
     polyval,
+    polyval_error,
 )
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.params import CX, CY, FOV_DEG, Param, numbers
@@ -72,53 +82,62 @@ class Ocam(CameraModel):
                 f"the affine matrix [[c, d], [e, 1]] must be invertible, got c={self.c}, d={self.d}, e={self.e}"
             )
         self._dw2c = polyder(self.world2cam)
-        # The valid region is where world2cam is invertible: from where its radius is >= 0 (a fit may give a
-        # slightly negative radius on the axis, which would mirror a ray to the far side of the centre) to where
-        # it stops increasing or leaves the frame FAR_FRAME image sizes around the image (a long fit may blow up
-        # past its calibration's data). Not a nominal 180 deg.
-        monotone = increasing_limit(self._drho, math.pi, poly=self._dw2c, shift=math.pi / 2)
-        if monotone <= 0:
-            raise ValueError("world2cam's radius does not increase away from the optical axis")
-        #: Smallest incidence angle > 0 of the valid region (0 unless world2cam is negative on the axis).
-        self.theta_start = self._zero_crossing(monotone)
+        # The valid region is where world2cam is invertible: from where its radius first increases to where it stops
+        # increasing or leaves the frame FAR_FRAME image sizes around the image (a long fit may blow up past its
+        # calibration's data). Not a nominal 180 deg.
+        no_lens = "world2cam's radius does not increase away from the optical axis"
+        start = increasing_start(self._drho_fit, math.pi)
+        if start is None:
+            raise ValueError(no_lens)
+        monotone = increasing_limit(self._drho_fit, math.pi, lo=start, poly=self._dw2c, shift=math.pi / 2)
+        if monotone <= start:
+            raise ValueError(no_lens)
+        #: Incidence angle (radians) up to which the model follows the chord from the principal point instead of
+        #: world2cam (0 where world2cam is 0 on the axis and increases from it).
+        self.theta_head = self._head(start, monotone)
+        chord = OriginChord(self._rho_fit, self._drho_fit, self.theta_head)
+        self._rho, self._drho = chord, chord.derivative
         affine_norm = float(np.linalg.norm(np.array([[1.0, self.e], [self.d, self.c]]), 2))
         self._inverse = MonotoneInverse(
             self._rho,
             self._drho,
             monotone,
             y_cap=frame_reach(self._sensor, self.width, self.height, FAR_FRAME),
-            t_lo=self.theta_start,
             y_near=frame_reach(self._sensor, self.width, self.height, 1.0),
             tol=PIXEL_TOL / max(1.0, affine_norm),
+            f_err=self._rho_err,
         )
         #: Largest incidence angle of the valid region (radians).
         self.theta_limit = self._inverse.t_hi
 
-    def _zero_crossing(self, hi: float) -> float:
-        """The incidence angle in ``[0, hi]`` where world2cam's radius (increasing there) turns >= 0."""
-        if self._rho(torch.zeros(1, dtype=torch.float64))[0] >= 0:
-            return 0.0
-        if self._rho(torch.tensor([hi], dtype=torch.float64))[0] <= 0:
+    def _head(self, start: float, monotone: float) -> float:
+        """:attr:`theta_head`; ``ValueError`` where the chord would reach beyond a quarter of the image's shorter
+        side (world2cam is then no calibration of a lens near its axis)."""
+        rho0 = float(self._rho_fit(torch.zeros(1, dtype=torch.float64))[0])
+        try:
+            head = origin_chord(self._rho_fit, start, monotone)
+        except ValueError as err:
+            raise ValueError(f"world2cam is {rho0:.4g} px on the optical axis and {err}") from None
+        reach = float(self._rho_fit(torch.tensor([head], dtype=torch.float64))[0])
+        if reach > min(self.width, self.height) / 4:
             raise ValueError(
-                "world2cam's radius stays negative wherever it increases: no ray reaches the image"
+                f"world2cam's radius is {rho0:.4g} px on the optical axis (a lens's is 0) and first increases from "
+                f"{math.degrees(start):.3g} deg: the model would bridge it to {reach:.4g} px from the principal "
+                f"point, more than a quarter of the image's shorter side; check the calibration"
             )
-        lo = 0.0
-        for _ in range(80):  # bisection: rho(lo) < 0 < rho(hi)
-            mid = 0.5 * (lo + hi)
-            if mid in (lo, hi):
-                break
-            if self._rho(torch.tensor([mid], dtype=torch.float64))[0] < 0:
-                lo = mid
-            else:
-                hi = mid
-        return hi
+        return head
 
-    def _rho(self, theta: torch.Tensor) -> torch.Tensor:
-        """Image radius (pixels, before the affine) at incidence angle ``theta`` from the optical axis."""
+    def _rho_fit(self, theta: torch.Tensor) -> torch.Tensor:
+        """world2cam's image radius (pixels, before the affine) at incidence angle ``theta`` from the optical axis;
+        the model's (``_rho``) follows the chord from the principal point below :attr:`theta_head`."""
         return polyval(self.world2cam, theta - math.pi / 2)
 
-    def _drho(self, theta: torch.Tensor) -> torch.Tensor:
+    def _drho_fit(self, theta: torch.Tensor) -> torch.Tensor:
         return polyval(self._dw2c, theta - math.pi / 2)
+
+    def _rho_err(self, theta: torch.Tensor) -> torch.Tensor:
+        """A bound on float64's rounding of :meth:`_rho_fit` (its terms are largest, and may cancel, on the axis)."""
+        return polyval_error(self.world2cam, theta - math.pi / 2)
 
     def _affine(self, gx: torch.Tensor, gy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(u, v)`` from the sensor-plane offsets (``gx`` along the columns, ``gy`` along the rows)."""
@@ -135,18 +154,15 @@ class Ocam(CameraModel):
         theta = torch.atan2(n, z)
         rho = self._rho(theta)
         s = rho / n.clamp_min(1e-300)
-        on_axis = n == 0  # OCamCalib maps the axis to the centre
+        on_axis = n == 0  # OCamCalib maps the axis to the centre (so does the chord)
         gx, gy = torch.where(on_axis, 0.0, s * x), torch.where(on_axis, 0.0, s * y)
         u, v = self._affine(gx, gy)
-        # The axis maps to the centre; other rays below theta_start would land mirrored (negative radius).
-        in_region = (theta <= self.theta_limit + 1e-12) & ((theta >= self.theta_start) | on_axis)
-        return u, v, in_region
+        return u, v, theta <= self.theta_limit + 1e-12
 
     def _unproject(self, u, v):
         gx, gy = self._sensor(u, v)
         r = torch.hypot(gx, gy)
-        # NaN beyond the valid region, and below world2cam's radius at theta_start (a fit's value on the axis, a
-        # fraction of a pixel): no ray lands there. The centre itself is the axis.
+        # NaN beyond the valid region only: the radius increases from 0 on the axis (the chord below theta_head).
         on_axis = r == 0
         theta = torch.where(on_axis, 0.0, self._inverse(r))
         s = torch.sin(theta) / r.clamp_min(1e-300)

@@ -23,6 +23,7 @@ from airfisheye_bench.geometry.cameras._solve import (
     increasing_limit,
     polyder,
     polyval,
+    polyval_error,
 )
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.params import FOV_DEG, Param, positive
@@ -52,7 +53,7 @@ class RadialPoly(CameraModel):
     def _setup(self) -> None:
         self._coeffs = (0.0, self.k1, self.k2, self.k3, self.k4)
         self._dcoeffs = polyder(self._coeffs)
-        monotone = increasing_limit(lambda t: polyval(self._dcoeffs, t), math.pi, poly=self._dcoeffs)
+        monotone = increasing_limit(self._drho, math.pi, poly=self._dcoeffs)
         if monotone <= 0:
             raise ValueError(f"rho(theta) must increase from the optical axis (k1 > 0), got k1={self.k1}")
         if self.fov_deg is not None and self.max_theta > monotone + 1e-12:
@@ -63,11 +64,12 @@ class RadialPoly(CameraModel):
         # Solved (and valid) while rho increases and stays within FAR_FRAME image sizes of the image.
         self._inverse = MonotoneInverse(
             self.rho,
-            lambda t: polyval(self._dcoeffs, t),
+            self._drho,
             monotone,
             y_cap=frame_reach(self._sensor, self.width, self.height, FAR_FRAME),
             y_near=frame_reach(self._sensor, self.width, self.height, 1.0),
             tol=PIXEL_TOL / max(1.0, self.aspect_ratio),
+            f_err=self._rho_err,
         )
         #: Largest incidence angle of the valid region (radians): where rho stops increasing, at most pi.
         self.theta_limit = self._inverse.t_hi
@@ -75,6 +77,13 @@ class RadialPoly(CameraModel):
     def rho(self, theta: torch.Tensor) -> torch.Tensor:
         """Image radius (pixels) at incidence angle ``theta``."""
         return polyval(self._coeffs, theta)
+
+    def _drho(self, theta: torch.Tensor) -> torch.Tensor:
+        return polyval(self._dcoeffs, theta)
+
+    def _rho_err(self, theta: torch.Tensor) -> torch.Tensor:
+        """A bound on float64's rounding of :meth:`rho`."""
+        return polyval_error(self._coeffs, theta)
 
     def _project(self, x, y, z):
         n = torch.hypot(x, y)
