@@ -39,9 +39,9 @@ from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
 from airfisheye_bench.training import build
 from datamodules.config import apply_data_overrides, instantiate_datamodule
-from tests.geometry.test_unproject_exact import random_cameras
 from tests.helpers.commands import exit_status
 from tests.helpers.configs import compose_train
+from tests.helpers.random_cameras import random_cameras
 from tests.helpers.runs import tiny_run_overrides
 
 pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
