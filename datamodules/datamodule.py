@@ -18,13 +18,12 @@ import torch
 from lightning.pytorch.trainer.states import TrainerFn
 from torch.utils.data import DataLoader
 
-from airfisheye_bench.config_checks.data_options import default, group
+from airfisheye_bench.config_checks.data_options import check, default, group
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CameraModel
 from airfisheye_bench.geometry.gimbal import Gimbal
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.geometry.lidar_presets import LIDAR_PRESETS
 from airfisheye_bench.geometry.occlusion import SPARSE_INPUTS, Occlusion, sparse_input
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
@@ -146,8 +145,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
         remap_on: str = default("remap_on"),
     ) -> None:
         super().__init__()
-        if batch_size < 1:
-            raise ConfigError(f"batch_size must be >= 1, got {batch_size}")
+        check("batch_size", batch_size)
         problem = remap_site_problem(remap_on, source, sources, gimbal)
         if problem is not None:
             raise ConfigError(f"data.remap_on={remap_on!r}: {problem}")
@@ -172,13 +170,10 @@ class AirFisheyeDataModule(L.LightningDataModule):
         lidar_opts = group("lidar", lidar)
         #: data.lidar.preset: the sensor served for every source (synthetic ones are generated with it).
         self.lidar = _lidar(lidar_opts.get("preset"), self.sources, self.mixture)
-        min_range = lidar_opts.get("min_range")
-        min_range = DEFAULT_MIN_RANGE if min_range is None else min_range
-        if isinstance(min_range, bool) or not isinstance(min_range, (int, float)) or not min_range >= 0:
-            raise ConfigError(f"data.lidar.min_range={min_range!r}: expected a number of metres >= 0")
+        for key in ("min_range", "density"):  # a library caller's; a config's were checked before
+            check(f"lidar.{key}", lidar_opts[key])
+        min_range = DEFAULT_MIN_RANGE if lidar_opts["min_range"] is None else lidar_opts["min_range"]
         density = lidar_opts["density"]
-        if density not in LIDAR_DENSITIES:
-            raise ConfigError(f"data.lidar.density={density!r}: expected one of {', '.join(LIDAR_DENSITIES)}")
         self.dataset_kwargs = dict(
             task=task,
             source=source,

@@ -16,7 +16,7 @@ from omegaconf.errors import InterpolationResolutionError
 from airfisheye_bench.config_checks.rules import EXTRAS, RULES
 from airfisheye_bench.config_checks.value_rule import ValueRule
 from airfisheye_bench.constants import config_dir
-from airfisheye_bench.errors import ConfigError, MissingFileError
+from airfisheye_bench.errors import ConfigError
 
 _ABSENT = object()
 
@@ -85,11 +85,7 @@ def check_common_values(
         if value is _ABSENT or (rule.when is not None and not rule.when(cfg)):
             continue
         value = _plain(value)
-        problem = rule.problem(value, *(_plain(_select(cfg, other)) for other in rule.uses))
-        if problem is not None:
-            hint = f" ({rule.hint})" if rule.hint else ""
-            error = MissingFileError if problem.startswith("no such") else ConfigError
-            raise error(f"{key}={value!r}: {problem}{hint}")
+        rule.enforce(key, value, *(_plain(_select(cfg, other)) for other in rule.uses))
 
 
 def _select(cfg: DictConfig, key: str) -> Any:

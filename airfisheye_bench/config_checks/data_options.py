@@ -340,6 +340,19 @@ def group(name: str, given: Mapping[str, Any] | None) -> dict[str, Any]:
     return {key: given.get(key, default(option.key)) for key, option in declared.items()}
 
 
+def check(key: str, value: Any) -> None:
+    """Refuse ``data.<key>=value`` by its declared rule: the check a library caller's argument gets (the datamodule's
+    door), the same as a config's (:data:`~airfisheye_bench.config_checks.RULES`). Only for a rule that reads no
+    other key.
+
+    Raises:
+        ConfigError: as :meth:`ValueRule.enforce`.
+    """
+    rule = OPTIONS[key].rule
+    if rule is not None:
+        rule.enforce(f"data.{key}", value)
+
+
 def data_rules(cost: int) -> dict[str, ValueRule]:
     """The rules of the data options of one ``cost``, dotted from the config root, in declaration order."""
     return {f"data.{o.key}": o.rule for o in DATA_OPTIONS if o.rule is not None and o.cost == cost}

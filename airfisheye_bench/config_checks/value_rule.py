@@ -10,6 +10,8 @@ from typing import Any
 
 from omegaconf import DictConfig
 
+from airfisheye_bench.errors import ConfigError, MissingFileError
+
 _KINDS = ("int", "number", "bool", "choice", "file", "folder", "path", "custom")
 
 
@@ -55,6 +57,25 @@ class ValueRule:
     def __post_init__(self) -> None:
         if self.kind not in _KINDS:
             raise ValueError(f"kind must be one of {_KINDS}, got {self.kind!r}")
+
+    def enforce(self, key: str, value: Any, *used: Any) -> None:
+        """Raise for a ``value`` of ``key`` that this rule refuses: ``<key>=<value>: <problem> (<hint>)``.
+
+        Raises:
+            ConfigError: the value is refused (a ``ValueError``).
+            MissingFileError: the file or folder it names does not exist (a ``FileNotFoundError``).
+
+        Example:
+            >>> ValueRule("int", minimum=1, hint="per process").enforce("data.batch_size", 0)
+            Traceback (most recent call last):
+            ...
+            airfisheye_bench.errors.ConfigError: data.batch_size=0: expected an integer >= 1 (per process)
+        """
+        problem = self.problem(value, *used)
+        if problem is not None:
+            hint = f" ({self.hint})" if self.hint else ""
+            error = MissingFileError if problem.startswith("no such") else ConfigError
+            raise error(f"{key}={value!r}: {problem}{hint}")
 
     def problem(self, value: Any, *used: Any) -> str | None:
         """Why ``value`` is refused, or ``None`` when it is accepted (``used``: the values of :attr:`uses`)."""
