@@ -322,13 +322,15 @@ def means_table(summary: Mapping[str, Any], metrics: Sequence[str] = FAMILY_METR
 def paired_table(summary: Mapping[str, Any], metrics: Sequence[str] = FAMILY_METRICS) -> str:
     """Markdown: one row per comparison of the family (arm x score) against the reference: the mean over the test
     flights of ``arm - reference``, its 95 % t-interval over the flights, the Bonferroni interval at the family's
-    level, the unadjusted and Holm-adjusted p-values, the flight that differs most and the range of the others,
-    and the per-seed differences (what the training noise alone does)."""
+    level, the unadjusted and Holm-adjusted p-values, the minimum detectable effect (80 % power; alone, and at the
+    family's level), the flight that differs most and the range of the others, and the per-seed differences (what
+    the training noise alone does)."""
     reference = summary["reference"]
     lines = [
         f"| input − `{reference}` | score | seeds | mean | 95 % over flights | family-wise "
-        f"({summary['family_size']}) | p | Holm p | most different flight; the others | per seed |",
-        "|---|---|---|---:|---|---|---:|---:|---|---|",
+        f"({summary['family_size']}) | p | Holm p | detectable (80 %): alone; family | most different flight; "
+        "the others | per seed |",
+        "|---|---|---|---:|---|---|---:|---:|---|---|---|",
     ]
     for arm, by_metric in summary["paired"].items():
         for name in metrics:
@@ -338,7 +340,7 @@ def paired_table(summary: Mapping[str, Any], metrics: Sequence[str] = FAMILY_MET
             seeds = ",".join(str(s) for s in d["seeds"])
             per_seed = ", ".join(_minus(f"{v:+.3f}") for v in d["per_seed"])
             if math.isnan(d["ci"][0]):  # one flight: no interval
-                cells = ["-", "-", "-", "-"]
+                cells = ["-", "-", "-", "-", "-"]
             else:
                 (lo, hi), (flo, fhi) = d["ci"], d["ci_family"]
                 cells = [
@@ -346,6 +348,7 @@ def paired_table(summary: Mapping[str, Any], metrics: Sequence[str] = FAMILY_MET
                     _minus(f"[{flo:+.3f}, {fhi:+.3f}]"),
                     f"{d['p']:.2g}",
                     f"{d['p_holm']:.2g}",
+                    f"{d['mde']:.3f}; {d['mde_family']:.3f}",
                 ]
             lines.append(
                 f"| `{arm}` | {METRIC_LABELS.get(name, name)} | {seeds} | {_minus(format(d['mean'], '+.3f'))} | "
@@ -393,8 +396,10 @@ def report_block(summary: Mapping[str, Any], source: str = "figures/occlusion_ab
             f"Each arm against `{summary['reference']}` on the seeds both have: per test flight the mean over its "
             "frames and the paired seeds; the mean over the flights with its 95 % t-interval over the flights and "
             f"the Bonferroni interval over the family of {summary['family_size']} comparisons, the unadjusted and "
-            "Holm-adjusted p-values, the flight that differs most and the range of the others (metres), and each "
-            "seed's difference over all test frames:",
+            "Holm-adjusted p-values, the minimum detectable effect (the smallest true difference the comparison "
+            "finds with 80 % power, over these flights: alone at 5 %, and at the family's Bonferroni level), the "
+            "flight that differs most and the range of the others (metres), and each seed's difference over all "
+            "test frames:",
             paired_table(summary),
         ]
     )
