@@ -29,7 +29,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from airfisheye_bench.studies.clustered import cluster_difference, flight_of, holm
+from airfisheye_bench.studies.clustered import cluster_difference, flight_of, holm, sign_test_p
 
 __all__ = [
     "FAMILY_METRICS",
@@ -181,6 +181,8 @@ def summarise(
         for entry in by_metric.values():
             entry.update(cluster_difference(entry["per_flight"], family_size=family))
             entry["seed_spread"] = mean_std(entry["per_seed"])
+            # Secondary, chosen after the results were seen: how consistently the sign holds, flight by flight.
+            entry["post_hoc_sign_test_p"] = sign_test_p(list(entry["per_flight"].values()))
     adjusted = holm({f"{arm}|{name}": e["p"] for arm, m in differences.items() for name, e in m.items()})
     for key, p in adjusted.items():
         arm, name = key.split("|")

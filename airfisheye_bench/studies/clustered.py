@@ -223,6 +223,23 @@ def cluster_difference(
     }
 
 
+def sign_test_p(values: Sequence[float]) -> float:
+    """Exact two-sided sign test: the probability, with each nonzero value's sign a fair coin, of a split at least as
+    uneven as ``values``' (zeros dropped; 1 when none is left). A secondary reading of a comparison: it counts
+    flights, ignoring by how much each differs.
+
+    Example:
+        >>> sign_test_p([-1.0] * 10), sign_test_p([1.0, -1.0, 2.0])
+        (0.001953125, 1.0)
+    """
+    signs = [v > 0 for v in values if v != 0]
+    n, k = len(signs), sum(signs)
+    if n == 0:
+        return 1.0
+    tail = sum(math.comb(n, i) for i in range(min(k, n - k) + 1)) / 2.0**n
+    return min(1.0, 2.0 * tail)
+
+
 def holm(pvalues: Mapping[str, float]) -> dict[str, float]:
     """Holm's step-down adjusted p-values (``min(1, max over the smaller ones of (m - rank) p)``); NaN stays NaN
     and does not count in the family.

@@ -13,6 +13,7 @@ from airfisheye_bench.studies.clustered import (
     holm,
     minimum_detectable_effect,
     regularized_beta,
+    sign_test_p,
     t_quantile,
     t_two_sided_p,
 )
@@ -94,3 +95,9 @@ def test_every_difference_carries_its_minimum_detectable_effects() -> None:
     assert d["mde"] == pytest.approx(minimum_detectable_effect(d["std"], 4))
     assert d["mde_family"] == pytest.approx(minimum_detectable_effect(d["std"], 4, family_size=20))
     assert d["mde_family"] > d["mde"] > 0 and d["power"] == 0.8
+
+
+def test_the_sign_test_is_the_binomial_tail() -> None:
+    assert sign_test_p([-0.1] * 10) == pytest.approx(2 * 0.5**10)  # 10 of 10 one way
+    assert sign_test_p([1.0] * 8 + [-1.0] * 2) == pytest.approx(2 * (1 + 10 + 45) / 2**10)  # 2 of 10
+    assert sign_test_p([0.0, 0.0]) == 1.0
