@@ -118,7 +118,7 @@ def results_tables(record: dict[str, Any]) -> str:
         for paper in spec.baselines:
             cells = [_fmt(c, paper.metrics[c]) if c in paper.metrics else "–" for c in columns]
             parts.append(
-                f"| {paper.model} ({paper.source}) | real AirFisheye, test | " + " | ".join(cells) + " |"
+                f"| {paper.model} ({paper.source}) | released AirFisheye, test | " + " | ".join(cells) + " |"
             )
         if entry["seeds"]:
             cells = [_mean_std(entry, c) for c in columns]
@@ -174,7 +174,7 @@ def claim_table(record: dict[str, Any]) -> str:
         "|---|---|" + "---:|" * len(columns),
     ]
     paper_depth, paper_completion = get_task("depth").baselines[0], get_task("completion").baselines[0]
-    for label, paper in (("paper, real data", paper_depth), ("paper, real data", paper_completion)):
+    for label, paper in (("paper, released data", paper_depth), ("paper, released data", paper_completion)):
         inputs = "image" if paper is paper_depth else "image + LiDAR (ordering)"
         cells = [_fmt(c, paper.metrics[c]) if c in paper.metrics else "–" for c in columns]
         lines.append(f"| {label}: {paper.model} | {inputs} | " + " | ".join(cells) + " |")
