@@ -254,7 +254,7 @@ def test_the_reports_generated_tables_are_the_ones_the_committed_files_give() ->
 
 def test_report_tables_show_the_paper_the_seeds_and_the_baseline(record: dict) -> None:
     tables = quickstart_report.results_tables(record)
-    assert "| DeepLabV3+ / ResNet50 (paper IV-A) | real AirFisheye, test | 0.512 | – |" in tables
+    assert "| DeepLabV3+ / ResNet50 (paper IV-A) | released AirFisheye, test | 0.512 | – |" in tables
     assert (
         "mean ± std over 2 seeds (0, 1) | synthetic quickstart, test | 0.250 ± 0.071 | 0.500 ± 0.000 |"
         in tables
