@@ -162,18 +162,18 @@ def test_paper_rows_are_included_by_default_in_their_own_group(tmp_path: Path) -
     seg = board.tables[0]
     # Even a higher mIoU on synthetic data does not outrank the paper: each is first in its own group.
     assert _groups(board, "seg") == [[(1, "paper IV-A")], [(1, "mine")]]
-    assert seg.groups[0].title.startswith("AirFisheye (real), test split")
+    assert seg.groups[0].title.startswith("AirFisheye (released), test split")
     paper_row = seg.groups[0].rows[0][1]
-    assert paper_row.paper and paper_row.source == "paper (real AirFisheye)" and paper_row.split == "test"
+    assert paper_row.paper and paper_row.source == "paper (released AirFisheye)" and paper_row.split == "test"
 
     md = board.to_markdown()
-    assert "| 1 | DeepLabV3+ / ResNet50 | paper | paper (real AirFisheye) | test | – | 51.2 | – |" in md
+    assert "| 1 | DeepLabV3+ / ResNet50 | paper | paper (released AirFisheye) | test | – | 51.2 | – |" in md
     assert (
-        "| AdaBins / ResNet50 | paper | paper (real AirFisheye) | test | – | 0.1320 | 2.575 | 13.324 | 0.270 | 0.865 |"
+        "| AdaBins / ResNet50 | paper | paper (released AirFisheye) | test | – | 0.1320 | 2.575 | 13.324 | 0.270 | 0.865 |"
         in md
     )
     assert (
-        "| NLSPN / ResNet34 | paper | paper (real AirFisheye) | test | – | 0.0834 | 6.971 | 2.377 | 0.934 |"
+        "| NLSPN / ResNet34 | paper | paper (released AirFisheye) | test | – | 0.0834 | 6.971 | 2.377 | 0.934 |"
         in md
     )
     assert "| 1 | deeplabv3plus / resnet18 | – | ours (synth) | test | – | 90.0 |" in md
@@ -196,7 +196,7 @@ def test_paper_rows_can_be_left_out(tmp_path: Path) -> None:
     board = build_leaderboard(collect_results([tmp_path]), paper=False)
     assert [t.task for t in board.tables] == ["depth"]
     assert not any(e.paper for t in board.tables for g in t.groups for _, e in g.rows)
-    assert "paper (real AirFisheye)" not in board.to_markdown() + board.to_csv()
+    assert "paper (released AirFisheye)" not in board.to_markdown() + board.to_csv()
     assert "plus the paper's baselines" not in board.to_markdown()
 
 
@@ -386,7 +386,7 @@ def test_csv_round_trips_every_value(tmp_path: Path) -> None:
     assert (mine["rank"], mine["dataset"], mine["manifest_sha256"]) == ("1", "synth", HASH_A)
     assert mine["primary_metric"] == "rmse" and mine["path"].endswith("results.json")
     paper = next(r for r in rows if r["task"] == "completion")
-    assert paper["source"] == "paper (real AirFisheye)" and float(paper["abs_rel"]) == 0.0834
+    assert paper["source"] == "paper (released AirFisheye)" and float(paper["abs_rel"]) == 0.0834
     assert paper["sq_rel"] == "" and paper["path"] == ""
 
 
@@ -424,7 +424,7 @@ def test_main_writes_both_files_and_prints_the_markdown(tmp_path: Path, capsys) 
     assert {r["run"] for r in _csv_rows((out / "leaderboard.csv").read_text())} >= {"s", "d"}
 
     assert leaderboard([f"runs={tmp_path / 'a'}", f"out={out}", "paper=false"]) == 0
-    assert "paper (real AirFisheye)" not in (out / "leaderboard.md").read_text()
+    assert "paper (released AirFisheye)" not in (out / "leaderboard.md").read_text()
 
 
 def test_main_errors(tmp_path: Path, capsys) -> None:

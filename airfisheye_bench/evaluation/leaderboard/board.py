@@ -46,7 +46,7 @@ class Leaderboard:
             >>> print(build_leaderboard([], paper=True).to_markdown())  # doctest: +ELLIPSIS
             # AirFisheye-bench leaderboard
             ...
-            | 1 | DeepLabV3+ / ResNet50 | paper | paper (real AirFisheye) | test | – | 51.2 | – | paper IV-A |
+            | 1 | DeepLabV3+ / ResNet50 | paper | paper (released AirFisheye) | test | – | 51.2 | – | paper IV-A |
             ...
         """
         shown = self.shown_paths()
@@ -58,7 +58,7 @@ class Leaderboard:
 
         Example:
             >>> print(build_leaderboard([], paper=True).to_csv().splitlines()[1])  # doctest: +ELLIPSIS
-            seg,1,DeepLabV3+ / ResNet50,paper,paper (real AirFisheye),test,,AirFisheye (real),,,paper IV-A,,mIoU,0.512,...
+            seg,1,DeepLabV3+ / ResNet50,paper,paper (released AirFisheye),test,,AirFisheye (released),,,paper IV-A,,mIoU,0.512,...
         """
         return render_csv(self.tables, self.shown_paths())
 

@@ -29,8 +29,8 @@ __all__ = [
     "paper_baselines",
 ]
 
-PAPER_SOURCE = "paper (real AirFisheye)"
-PAPER_DATASET = "AirFisheye (real)"
+PAPER_SOURCE = "paper (released AirFisheye)"
+PAPER_DATASET = "AirFisheye (released)"
 
 
 class LeaderboardError(UserError, ValueError):
@@ -125,7 +125,7 @@ class LeaderboardEntry:
 
     @property
     def source(self) -> str:
-        """``paper (real AirFisheye)`` or ``ours (<dataset name>)``."""
+        """``paper (released AirFisheye)`` or ``ours (<dataset name>)``."""
         return PAPER_SOURCE if self.paper else f"ours ({self.dataset_name})"
 
     @property
