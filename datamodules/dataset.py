@@ -189,7 +189,8 @@ class AirFisheyeDataset(Dataset):
                 source = other
         self.source = source
         self.occlusion = occlusion  # every frame is projected with it as it is
-        self._visible_cache: dict[str, np.ndarray] = {}  # _paper_scale_visible's masks by frame
+        # _paper_scale_visible's masks by frame and lens of the list
+        self._visible_cache: dict[tuple[str, int], np.ndarray] = {}
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -747,17 +748,20 @@ class AirFisheyeDataset(Dataset):
     ) -> np.ndarray:
         """The correction's mask on the whole scan at the paper's pixel scale (1-2 s a frame at 1536^2 for the
         image-based methods). Without a rotation it is the same every epoch (a flip mirrors the kept points
-        afterwards), so it is kept per frame for the life of the worker: a few MB for a few hundred frames. A
-        gimbal view that varies per sample is a rotation too, and a lens drawn per training sample another camera."""
+        afterwards), so it is kept per frame (and lens of ``data.camera.lenses``) for the life of the worker: a few MB
+        for a few hundred frames. A gimbal view that varies per sample is a rotation too, and a jittered lens a
+        camera of its own."""
         camera = self.camera if camera is None else camera
         varying_view = turn is not None and (self.gimbal is None or self.gimbal.fixed is None)
-        drawn_lens = self.lens_draws is not None and self.lens_draws.training and self.lens_draws.varies
-        cacheable = (params is None or params.angle_rad == 0.0) and not varying_view and not drawn_lens
-        if cacheable and sample_id in self._visible_cache:
-            return self._visible_cache[sample_id]
+        # The index of an unjittered lens of the list (the remap's camera is that lens's own object), else None.
+        lens = next((i for i, s in enumerate(self.served_lenses) if s.camera is camera), None)
+        cacheable = (params is None or params.angle_rad == 0.0) and not varying_view and lens is not None
+        key = (sample_id, lens)
+        if cacheable and key in self._visible_cache:
+            return self._visible_cache[key]
         visible = np.asarray(occlusion_mask(points, T, paper_scale_camera(camera), spec, method, rings))
         if cacheable:
-            self._visible_cache[sample_id] = visible
+            self._visible_cache[key] = visible
         return visible
 
     def _point_depth(

@@ -163,9 +163,9 @@ class LensDraws:
         rng = np.random.default_rng([int(seed) & (2**63 - 1), _SALT])
         p = np.asarray(self.weights) / sum(self.weights)
         lens = int(rng.choice(len(p), p=p)) if len(p) > 1 else 0
-        focal_cells, shift_cells, distortion_cells = self._grid()
         if self.jitter is None:
             return LensDraw(lens)
+        focal_cells, shift_cells, distortion_cells = self._grid()
         count = self.distortion_counts[lens] if self.distortion_counts else 0
         k = rng.integers(-focal_cells, focal_cells + 1)
         dx, dy = rng.integers(-shift_cells, shift_cells + 1, size=2)
@@ -229,6 +229,8 @@ def parse_lenses(value: Any) -> tuple[tuple[dict[str, Any], ...], tuple[float, .
             raise ValueError(f"{where}: calibration gives the lens; drop model / fov_deg / k")
         if "calibration" not in lens and "model" not in lens:
             raise ValueError(f"{where}: expected model (+ fov_deg, k) or calibration (+ camera)")
+        if "camera" in lens and "calibration" not in lens:
+            raise ValueError(f"{where}.camera: names a camera of a calibration file; give calibration too")
         if "model" in lens and lens["model"] not in LENS_MODELS:
             raise ValueError(f"{where}.model={lens['model']!r}: expected one of {', '.join(LENS_MODELS)}")
         if "fov_deg" in lens and not (_is_number(lens["fov_deg"]) and 0 < lens["fov_deg"] <= 360):

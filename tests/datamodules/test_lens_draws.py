@@ -116,6 +116,22 @@ def test_a_drawn_lens_serves_what_that_lens_serves_alone(tiny_dataset: Path, tas
     assert len(masks) > 1
 
 
+@pytest.mark.parametrize("jitter", [JITTER, None])
+def test_the_paper_density_input_is_corrected_through_the_drawn_lens(tiny_dataset: Path, jitter) -> None:
+    options = dict(occlusion="ordering", lidar_density="paper", seed=1)
+    config = CameraConfig(size=SIZE, lenses=LENSES, jitter=jitter)
+    ds = AirFisheyeDataset.from_root(tiny_dataset, "train", "completion", camera=config, **options)
+    for i in range(2):
+        sample = ds[i]
+        camera = ds.lens_camera(sample["lens"], sample["lens_params"])
+        fixed = CameraConfig(size=SIZE, calibration=camera.to_dict())
+        alone = AirFisheyeDataset.from_root(tiny_dataset, "train", "completion", camera=fixed, **options)[i]
+        torch.testing.assert_close(sample["sparse_depth"], alone["sparse_depth"])
+        torch.testing.assert_close(
+            ds[i]["sparse_depth"], sample["sparse_depth"]
+        )  # again: a cached mask, if any
+
+
 def test_an_equirect_source_serves_the_drawn_lens(tmp_path: Path) -> None:
     root = write_omni360_fixture(tmp_path / "root", height=32, frames=3)
 
@@ -147,6 +163,26 @@ def test_evaluation_serves_lens_i_mod_n_unjittered(tiny_dataset: Path) -> None:
     alone = AirFisheyeDataset.from_root(tiny_dataset, "val", "completion", camera=fixed, occlusion="none")[1]
     for key in ("image", "valid_mask", "depth", "sparse_depth"):
         torch.testing.assert_close(sample[key], alone[key])
+
+
+def test_a_calibrated_lens_of_the_list_keeps_its_padded_bands(tiny_dataset: Path, tmp_path: Path) -> None:
+    woodscape = {"model": "radial_poly", "width": 1280, "height": 966, "k1": 339.749, "k2": -31.988,
+                 "k3": 48.275, "k4": -7.201, "cx": 643.442, "cy": 479.407, "aspect_ratio": 1.0}  # fmt: skip
+    lenses = [LENSES[0], {"calibration": woodscape}]
+    ds = _dataset(tiny_dataset, "depth", split="val", lenses=lenses)
+    sample = ds[1]
+    alone = AirFisheyeDataset.from_root(
+        tiny_dataset, "val", "depth", camera=CameraConfig(size=SIZE, calibration=woodscape)
+    )[1]
+    for key in ("image", "valid_mask", "depth"):
+        torch.testing.assert_close(sample[key], alone[key])
+    assert not sample["valid_mask"][0].any()  # the band above the 1280x966 sensor
+    assert ds[0]["valid_mask"][0].any() or ds[0]["valid_mask"][:, 0].any()  # lens 0 has no band there
+    missing = tmp_path / "nope.yaml"
+    with pytest.raises(ConfigError, match=r"data.camera.lenses\[1\].calibration: .*nope.yaml"):
+        AirFisheyeDataModule(
+            "seg", root=tiny_dataset, camera={"lenses": [LENSES[0], {"calibration": str(missing)}]}
+        )
 
 
 def test_the_datamodule_resumes_the_same_draws(tiny_dataset: Path) -> None:
