@@ -3,12 +3,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from functools import cached_property
+from typing import Any
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict, ideal_camera
+from airfisheye_bench.geometry.lens_draws import LensJitter, parse_lenses
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
 
@@ -28,6 +30,10 @@ class CameraConfig:
         camera: Which camera of a calibration file with several (a name or a 0-based index).
         fit: ``pad`` or ``crop``: how a non-square camera becomes the ``size x size`` image
             (:mod:`airfisheye_bench.geometry.serving`).
+        lenses: A list of lens specs (:func:`~airfisheye_bench.geometry.lens_draws.parse_lenses`), each served at
+            ``size`` and ``fit`` instead of the lens of the keys above: a training sample draws one per epoch.
+        jitter: ``{focal, principal_point_px, distortion}``: each training sample's lens perturbed
+            (:class:`~airfisheye_bench.geometry.lens_draws.LensJitter`).
     """
 
     size: int | None = None
@@ -37,6 +43,57 @@ class CameraConfig:
     calibration: str | dict | None = None
     camera: str | int | None = None
     fit: str = "pad"
+    lenses: Sequence[Mapping[str, Any]] | None = None
+    jitter: Mapping[str, float] | None = None
+
+    @cached_property
+    def lens_jitter(self) -> LensJitter | None:
+        """The parsed ``jitter`` (``None`` without).
+
+        Raises:
+            ConfigError: naming ``data.camera.jitter`` and the key.
+        """
+        try:
+            return LensJitter.parse(self.jitter)
+        except ValueError as err:
+            raise ConfigError(str(err)) from None
+
+    @property
+    def draws_lenses(self) -> bool:
+        """Whether samples may be served through different lenses (a list, or jitter)."""
+        return self.lenses is not None or self.jitter is not None
+
+    @cached_property
+    def served_lenses(self) -> tuple[tuple[CameraConfig, ...], tuple[float, ...]]:
+        """``(one config per served lens, their sampling weights)``: the list's lenses at ``size`` and ``fit``, each
+        calibration file read once, now; without a list, this config alone.
+
+        Raises:
+            ConfigError: a bad spec or file, naming ``data.camera.lenses[i]`` and its key; a list beside the keys of
+                one lens.
+        """
+        try:
+            parsed = parse_lenses(self.lenses)
+        except ValueError as err:
+            raise ConfigError(str(err)) from None
+        if parsed is None:
+            return (self,), (1.0,)
+        given = [
+            k for k in ("model", "fov_deg", "k", "calibration", "camera") if getattr(self, k) is not None
+        ]
+        if given:
+            raise ConfigError(
+                f"data.camera.lenses gives the lenses: drop data.camera.{given[0]} (a lens's keys go in its spec)"
+            )
+        configs = []
+        for i, spec in enumerate(parsed[0]):
+            config = replace(self, lenses=None, jitter=None, **spec)
+            try:
+                _ = config.lens
+            except ConfigError as err:
+                raise ConfigError(str(err).replace("data.camera.", f"data.camera.lenses[{i}].")) from None
+            configs.append(config)
+        return tuple(configs), parsed[1]
 
     @cached_property
     def lens(self) -> CameraModel | None:

@@ -162,8 +162,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
         self.cache_dir = cache_dir
         self.seed = seed
         self.camera_config = CameraConfig(**_floats(group("camera", camera), "k"))
-        # The lens is read once, now: a bad calibration file is refused before any data exists.
-        _ = self.camera_config.lens
+        # The lens is read once, now: a bad calibration file is refused before any data exists (each of a list's).
+        _ = self.camera_config.lens, self.camera_config.served_lenses, self.camera_config.lens_jitter
         # augment=None: no augmentation (evaluation); a mapping: its keys over the declared defaults.
         augment_kwargs = _floats(group("augment", augment), "color_jitter")
         self.augment = FisheyeAugment(**augment_kwargs) if augment is not None else None
@@ -243,7 +243,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             self.split_names,
             self.seed,
             augment,
-            {**self.dataset_kwargs, "gimbal": gimbal},
+            {**self.dataset_kwargs, "gimbal": gimbal, "training": index == 0},
             self.lidar.spec,
             self.mixture,
         )

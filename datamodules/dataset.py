@@ -11,7 +11,14 @@ key                shape, dtype                  meaning
 ``depth``          ``[1, H, W]`` float32         range in metres, 0 = invalid
 ``sparse_depth``   ``[1, H, W]`` float32         LiDAR range map after occlusion correction
 ``sample_id``      str                           ``<env>/<trajectory>/<frame>``
+``lens``           ``[]`` int64                  the sample's lens in ``data.camera.lenses`` (0 without a list)
+``lens_params``    ``[3 + D]`` float32           its jitter: focal factor, principal-point shift x, y (pixels),
+                                                 the factors of its model's ``distortion_params`` (1 beyond
+                                                 them); ``lens_camera(lens, lens_params)`` rebuilds the camera
 =================  ============================  ==========================================================
+
+``lens`` and ``lens_params`` are served with ``data.camera.lenses`` or ``data.camera.jitter`` only
+(docs/design.md, "Lenses drawn per sample"): each sample's image, masks, maps and LiDAR go through that lens.
 
 A source that has no dense depth images but gives its depth target as LiDAR points (``depth_from_points``,
 ``depth_points``: KITTI-360) gets ``depth`` by projecting them at the served camera with the sample's augmentation,
@@ -57,7 +64,9 @@ from torch.utils.data import Dataset
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, EquirectToFisheye
+from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.gimbal import Gimbal, View
+from airfisheye_bench.geometry.lens_draws import LensDraw, LensDraws
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.lidar_density import paper_density_subset, paper_scale_camera
 from airfisheye_bench.geometry.occlusion import (
@@ -67,9 +76,10 @@ from airfisheye_bench.geometry.occlusion import (
     occlusion_mask,
     sparse_input,
 )
-from airfisheye_bench.geometry.remap_table import reserve_tables
+from airfisheye_bench.geometry.remap_table import TableCache, reserve_tables
 from airfisheye_bench.geometry.rings import resolve_rings
 from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
+from airfisheye_bench.geometry.serving import ServedCamera
 from airfisheye_bench.io import DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.dataset_spec import IMAGE_SOURCES, REMAP_SOURCES
 from airfisheye_bench.io.datasets import DatasetSource, dataset_format, open_dataset, unserved_modality
@@ -85,7 +95,8 @@ log = logging.getLogger(__name__)
 
 #: The task-dependent keys a sample can hold, in the order they are loaded.
 SAMPLE_KEYS = ("label", "depth", "sparse_depth")
-#: Memory the lookup tables of a virtual gimbal's views may take per process; views beyond it are rebuilt in turn.
+#: Memory the lookup tables of a virtual gimbal's views and of drawn lenses may take per process; those beyond it are
+#: rebuilt in turn.
 GIMBAL_TABLE_BUDGET_BYTES = 1 << 30
 #: The paper's occlusion correction (III-C) with its default options.
 PAPER_OCCLUSION = Occlusion("ordering")
@@ -130,6 +141,9 @@ class AirFisheyeDataset(Dataset):
         source_fallback: When the dataset has no ``source`` recording but the other raw one (``cubemap`` <->
             ``equirect``), remap that one instead (logged): a source of a mixture that ``data.source`` does not fit
             (a synthetic preset beside panoramas).
+        training: Whether this is the training split: its samples draw their lens (``camera.lenses``, jitter) per
+            epoch; an evaluation split serves sample ``i`` through lens ``i mod n``, unjittered. ``None``: ``split
+            == "train"``.
 
     Example:
         >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
@@ -155,6 +169,7 @@ class AirFisheyeDataset(Dataset):
         lidar_density: str = "native",
         gimbal: Gimbal | None = None,
         source_fallback: bool = False,
+        training: bool | None = None,
     ) -> None:
         task_spec = get_task(task)
         if gimbal is not None and source not in REMAP_SOURCES:
@@ -174,7 +189,8 @@ class AirFisheyeDataset(Dataset):
                 source = other
         self.source = source
         self.occlusion = occlusion  # every frame is projected with it as it is
-        self._visible_cache: dict[str, np.ndarray] = {}  # _paper_scale_visible's masks by frame
+        # _paper_scale_visible's masks by frame and lens of the list
+        self._visible_cache: dict[tuple[str, int], np.ndarray] = {}
         self.motion_compensation = motion_compensation
         self.max_depth = float(max_depth)
         self.augment = augment
@@ -225,20 +241,47 @@ class AirFisheyeDataset(Dataset):
         first_calib = self.reader.calib(self.sample_ids[0])
         self.calibrated_camera = first_calib.fisheye_camera()
         camera = camera or CameraConfig()
-        self.served = camera.resolve(self.calibrated_camera, source)
+        if camera.draws_lenses and source not in REMAP_SOURCES:
+            raise ConfigError(
+                f"data.camera.lenses / data.camera.jitter remap each sample through its own lens: they need "
+                f"data.source=cubemap or equirect (data.source={source} files have the release's lens)"
+            )
+        configs, weights = camera.served_lenses
+        #: Each lens of ``data.camera.lenses`` as served (one without a list); ``served`` is the first.
+        self.served_lenses = tuple(c.resolve(self.calibrated_camera, source) for c in configs)
+        self.served = self.served_lenses[0]
         #: The served camera's log line, if it says more than the release's lens (the datamodule logs it once).
-        self.camera_line = camera.describe(self.served)
+        self.camera_line = (
+            camera.describe(self.served) if len(configs) == 1 else _lenses_line(self.served_lenses)
+        )
+        #: The served camera (with ``data.camera.lenses``: the first lens, evaluation sample 0's).
         self.camera = self.served.camera
-        # Pixels beyond a padded calibration's sensor: no data there (None when every pixel is on the sensor).
-        outside = ~self.served.frame_mask() if self.served.fit == "pad" else None
-        self._outside_frame = outside if outside is not None and outside.any() else None
+        # Pixels beyond a padded calibration's sensor, per lens: no data there (None when every pixel is on it).
+        self._outside_frames = tuple(_beyond_sensor(s) for s in self.served_lenses)
+        self._outside_frame = self._outside_frames[0]
+        #: How this split's samples get their lens (``None``: every sample the one lens of ``data.camera``).
+        self.lens_draws = (
+            LensDraws(
+                weights,
+                camera.lens_jitter,
+                tuple(len(s.camera.distortion_params) for s in self.served_lenses),
+            ).for_split(split == "train" if training is None else training)
+            if camera.draws_lenses
+            else None
+        )
         self.face_size = first_calib.face_size
         self.label_lut = torch.from_numpy(self.spec.label_lut())
         self.gimbal = gimbal
-        self._remaps: dict[View, CubemapToFisheye | EquirectToFisheye] = {}
         fixed = gimbal.fixed if gimbal is not None else None
-        # The remap of the split's one orientation (recorded, or the gimbal's fixed view); per-sample views get theirs.
-        self._remap = self._remap_for(fixed or (0.0, 0.0, 0.0)) if source in REMAP_SOURCES else None
+        # The remap of the split's one orientation (recorded, or the gimbal's fixed view) and first lens; per-sample
+        # views and lenses get theirs, the latest of them kept in a cache of what the table budget holds.
+        self._base_view: View = fixed or (0.0, 0.0, 0.0)
+        self._remap = self._build_remap(self._base_view, None) if source in REMAP_SOURCES else None
+        self._remaps = TableCache(maxsize=1)
+        if self._remap is not None and self._remap_count() > 1:
+            kept = min(self._remap_count(), max(1, GIMBAL_TABLE_BUDGET_BYTES // self._remap_bytes()))
+            self._remaps.maxsize = kept + 1
+            reserve_tables(2 * kept + 2)  # bilinear and nearest
         self._mean = torch.tensor(IMAGENET_MEAN).view(3, 1, 1)
         self._std = torch.tensor(IMAGENET_STD).view(3, 1, 1)
 
@@ -272,61 +315,106 @@ class AirFisheyeDataset(Dataset):
     def valid_mask(self) -> torch.Tensor:
         """``[H, W]`` pixels that carry data (inside the image circle, on a cube face, on the calibrated sensor), at
         the split's one orientation (a sample of a varying gimbal serves its own view's in ``valid_mask``)."""
-        return self._valid(self._remap)
+        return self._valid(self._remap, self._outside_frame)
 
-    def _valid(self, remap: CubemapToFisheye | EquirectToFisheye | None) -> torch.Tensor:
+    def _valid(
+        self, remap: CubemapToFisheye | EquirectToFisheye | None, outside: torch.Tensor | None
+    ) -> torch.Tensor:
         valid = remap.valid_mask if remap is not None else self.camera.valid_mask()
-        return valid & ~self._outside_frame if self._outside_frame is not None else valid
+        return valid & ~outside if outside is not None else valid
 
     def warm_up(self) -> None:
         """Build the remap lookup tables now, so DataLoader workers inherit them instead of rebuilding them.
 
-        With a virtual gimbal, every view's tables when they fit :data:`GIMBAL_TABLE_BUDGET_BYTES` (the rest are
-        built when first served, in the process that serves them).
+        With a virtual gimbal or lenses drawn per sample, every view's and lens's tables when they fit
+        :data:`GIMBAL_TABLE_BUDGET_BYTES` (the rest are built when first served, in the process that serves them,
+        and kept in a cache of that size).
         """
         if self._remap is None:
             return
-        views = [None]
-        if self.gimbal is not None and self.gimbal.fixed is None:
-            pixels = int(self.camera.valid_mask().sum())
-            per_view = pixels * (
-                4 * 8 + 8 + 2 * 8
-            )  # bilinear taps and weights, nearest index, two pixel lists
-            fits = max(1, GIMBAL_TABLE_BUDGET_BYTES // per_view)
-            count = self.gimbal.view_count()
-            reserve_tables(2 * min(count, fits) + 2)
+        keys: list[tuple[View, LensDraw | None]] = [(self._base_view, None)]
+        count = self._remap_count()
+        if count > 1:
+            fits = self._remaps.maxsize - 1  # sized by the budget (__init__)
             if count <= fits:
-                views = self.gimbal.all_views()
-                log.info("data.gimbal: building the lookup tables of %d views (%s)", count, self.split)
+                varying_view = self.gimbal is not None and self.gimbal.fixed is None
+                views = self.gimbal.all_views() if varying_view else [self._base_view]
+                lenses = range(len(self.served_lenses))
+                draws = [LensDraw(i) for i in lenses] if self._lenses_vary else [None]
+                keys = [(view, draw) for view in views for draw in draws]
+                log.info("building the lookup tables of %d views and lenses (%s)", len(keys), self.split)
             else:
                 log.warning(
-                    "data.gimbal: %d views, the tables of %d fit in %d MB; the others are built when served "
-                    "(tens of ms each at this size): a coarser data.gimbal.step_deg keeps them all",
+                    "data.gimbal / data.camera: %d views and lenses, the tables of %d fit in %d MB; the others are "
+                    "built when served (tens of ms each at this size): a coarser data.gimbal.step_deg or a smaller "
+                    "data.camera.jitter keeps them all",
                     count,
                     fits,
                     GIMBAL_TABLE_BUDGET_BYTES >> 20,
                 )
-        for view in views:
-            remap = self._remap if view is None else self._remap_for(view)
+        for view, draw in keys:
+            remap = self._remap_for(view, draw)
             for mode in ("bilinear", "nearest"):
                 remap.table(mode)
 
-    def _remap_for(self, view: View) -> CubemapToFisheye | EquirectToFisheye:
-        """The remap of the camera turned to ``view`` (one object per view; its tables live in the process cache).
+    @property
+    def _lenses_vary(self) -> bool:
+        return self.lens_draws is not None and self.lens_draws.varies
 
-        A panorama's camera is its source's recorded one, ``R_pano_cam0`` (``pano_rotation``), turned by the view.
-        """
-        if view not in self._remaps:
-            turn = Gimbal.rotation(view)
-            if self.source == "cubemap":
-                self._remaps[view] = CubemapToFisheye(self.camera, self.face_size, rotation=turn)
-            else:
-                recorded = self.reader.pano_rotation
-                rotation = recorded if turn is None else turn if recorded is None else recorded @ turn
-                self._remaps[view] = EquirectToFisheye(
-                    self.camera, self.spec.equirect_size, rotation=rotation
-                )
-        return self._remaps[view]
+    def _remap_count(self) -> int:
+        """How many remaps (a view and a lens each) this split can serve."""
+        views = self.gimbal.view_count() if self.gimbal is not None else 1
+        return views * (self.lens_draws.count() if self._lenses_vary else 1)
+
+    def _remap_bytes(self) -> int:
+        """About what one view's or lens's remap holds: its two tables (bilinear taps and weights, nearest index,
+        two pixel lists) over the valid pixels, and its camera's per-pixel grids (rays, validity, scale)."""
+        pixels = self.camera.width * self.camera.height
+        return int(self.camera.valid_mask().sum()) * (4 * 8 + 8 + 2 * 8) + pixels * (3 * 8 + 3 * 4 + 8 + 1)
+
+    def _remap_for(self, view: View, draw: LensDraw | None = None) -> CubemapToFisheye | EquirectToFisheye:
+        """The remap of the camera turned to ``view`` through lens ``draw`` (``None``: the first, unjittered): one
+        object per view and lens, the latest kept (:meth:`warm_up` sizes the cache); the tables live in the process
+        cache."""
+        key = (tuple(view), draw)
+        if key == (self._base_view, None) and self._remap is not None:
+            return self._remap
+        return self._remaps.get(key, lambda: self._build_remap(view, draw))
+
+    def _build_remap(self, view: View, draw: LensDraw | None) -> CubemapToFisheye | EquirectToFisheye:
+        """A panorama's camera is its source's recorded one, ``R_pano_cam0`` (``pano_rotation``), turned by the
+        view."""
+        camera = self._camera_of(draw)
+        turn = Gimbal.rotation(view)
+        if self.source == "cubemap":
+            return CubemapToFisheye(camera, self.face_size, rotation=turn)
+        recorded = self.reader.pano_rotation
+        rotation = recorded if turn is None else turn if recorded is None else recorded @ turn
+        return EquirectToFisheye(camera, self.spec.equirect_size, rotation=rotation)
+
+    def _camera_of(self, draw: LensDraw | None) -> CameraModel:
+        """The camera of a lens draw: its lens of the list, perturbed by its jitter."""
+        if draw is None:
+            return self.camera
+        lens = self.served_lenses[draw.lens].camera
+        if draw == LensDraw(draw.lens):
+            return lens
+        return lens.perturbed(draw.focal, draw.shift, draw.distortion)
+
+    def lens_camera(self, lens: int, lens_params: torch.Tensor) -> CameraModel:
+        """The camera a sample was served through, from its ``lens`` and ``lens_params`` (a ray map:
+        ``lens_camera(...).ray_grid()``)."""
+        count = len(self.served_lenses[int(lens)].camera.distortion_params)
+        return self._camera_of(LensDraw.from_params(int(lens), lens_params, count))
+
+    def sample_lens(self, index: int) -> LensDraw | None:
+        """The lens of sample ``index`` in the current epoch (``None``: the one lens of ``data.camera``)."""
+        if self.lens_draws is None:
+            return None
+        training = self.lens_draws.training
+        return self.lens_draws.draw(
+            index, draw_seed(self.seed, self._epoch.get(), index) if training else None
+        )
 
     def sample_view(self, index: int) -> View | None:
         """The gimbal view of sample ``index`` in the current epoch (``None`` without a gimbal)."""
@@ -355,6 +443,11 @@ class AirFisheyeDataset(Dataset):
                 f"data.remap_on=device: data.gimbal serves the {self.split!r} split through a view per sample, each "
                 "with its own lookup table, and a batch is remapped with one; use data.remap_on=worker, or one "
                 "fixed view (data.gimbal=[yaw,pitch])"
+            )
+        if self.lens_draws is not None and self.lens_draws.varies:
+            raise ConfigError(
+                f"data.remap_on=device: data.camera.lenses / jitter serve the {self.split!r} split through a lens per "
+                "sample, each with its own lookup table, and a batch is remapped with one; use data.remap_on=worker"
             )
         return DeviceRemap(
             self._remap,
@@ -390,8 +483,12 @@ class AirFisheyeDataset(Dataset):
     def _load(self, sample_id: str, index: int) -> dict:
         params = self._draw(index)
         view = self.sample_view(index)
-        remap = self._remap if view is None else self._remap_for(view)
-        valid = self.valid_mask if remap is self._remap else self._valid(remap)
+        lens = self.sample_lens(index)
+        remap = None if self._remap is None else self._remap_for(view or self._base_view, lens)
+        # The sample's lens: its image, masks, maps and LiDAR are all served through it.
+        camera = self.camera if remap is None else remap.camera
+        outside = self._outside_frame if lens is None else self._outside_frames[lens.lens]
+        valid = self.valid_mask if remap is self._remap else self._valid(remap, outside)
         turn = None if view is None else Gimbal.rotation(view)  # R_src_cam: the LiDAR turns with the camera
         rgb = self._dense(sample_id, "rgb", remap)  # uint8 [3, H, W]
         out: dict = {"sample_id": sample_id}
@@ -399,21 +496,21 @@ class AirFisheyeDataset(Dataset):
             out["label"] = self._label(sample_id, remap)
         if "depth" in self.sample_keys and self._depth_from_points:
             out["depth"] = self._point_depth(
-                sample_id, params, turn
-            )  # projected at the served, augmented camera
+                sample_id, params, turn, camera
+            )  # at the served, augmented camera
         elif "depth" in self.sample_keys:
             out["depth"] = self._clip_depth(self._dense(sample_id, "depth", remap))  # float32 [1, H, W]
         if "sparse_depth" in self.sample_keys:
-            out["sparse_depth"] = self._sparse_depth(sample_id, params, turn)
-        if self._outside_frame is not None:  # a padded calibration: the bands beyond its sensor show nothing
-            rgb = rgb.masked_fill(self._outside_frame, 0)
+            out["sparse_depth"] = self._sparse_depth(sample_id, params, turn, camera)
+        if outside is not None:  # a padded calibration: the bands beyond its sensor show nothing
+            rgb = rgb.masked_fill(outside, 0)
             if "label" in out:
-                out["label"] = out["label"].masked_fill(self._outside_frame, self.spec.ignore_index)
+                out["label"] = out["label"].masked_fill(outside, self.spec.ignore_index)
             if "depth" in out:
-                out["depth"] = out["depth"].masked_fill(self._outside_frame, 0.0)
+                out["depth"] = out["depth"].masked_fill(outside, 0.0)
 
         if params is not None:
-            rgb, valid, out = self._augment(rgb, valid, out, params)
+            rgb, valid, out = self._augment(rgb, valid, out, params, camera)
         if "label" in out:
             out["label"] = out["label"].long()
         for key in ("sparse_depth", "depth") if self._depth_from_points else ("sparse_depth",):
@@ -424,7 +521,14 @@ class AirFisheyeDataset(Dataset):
             rgb = rgb.float().div_(255.0)
         out["image"] = rgb.sub_(self._mean).div_(self._std)  # rgb is this sample's own buffer: in place
         out["valid_mask"] = valid
+        self._add_lens(out, lens)
         return out
+
+    def _add_lens(self, out: dict, lens: LensDraw | None) -> None:
+        """A sample's lens draw, collatable: ``lens`` (int64) and ``lens_params`` (float32 ``[3 + D]``)."""
+        if self.lens_draws is not None and lens is not None:
+            out["lens"] = torch.tensor(lens.lens, dtype=torch.int64)
+            out["lens_params"] = lens.params(self.lens_draws.width)
 
     def _load_faces(self, sample_id: str, index: int) -> dict:
         """:meth:`load_faces` of one frame: the checks that name a file are made here, on the texels the fisheye
@@ -452,6 +556,8 @@ class AirFisheyeDataset(Dataset):
             out["sparse_depth"] = self._sparse_depth(sample_id, params, turn)
         if params is not None:
             out[AUGMENT_KEY] = pack_params(params)
+        # The split's one lens (device_remap refuses lenses that vary).
+        self._add_lens(out, self.sample_lens(index))
         return out
 
     @cached_property
@@ -459,7 +565,9 @@ class AirFisheyeDataset(Dataset):
         """Flat indices of the face texels the served fisheye shows (the nearest table's)."""
         return np.unique(self._remap.table("nearest").index[:, 0].numpy())
 
-    def _augment(self, rgb: torch.Tensor, valid: torch.Tensor, out: dict, params) -> tuple:
+    def _augment(
+        self, rgb: torch.Tensor, valid: torch.Tensor, out: dict, params, camera: CameraModel
+    ) -> tuple:
         """Flip, rotate and colour-jitter every map of a sample consistently, in one fused pass."""
         maps, fills = [], []
         if "label" in out:
@@ -476,8 +584,8 @@ class AirFisheyeDataset(Dataset):
             torch.cat(maps) if maps else torch.zeros(0, h, w),
             fills,
             params,
-            self.camera.cx,
-            self.camera.cy,
+            camera.cx,
+            camera.cy,
         )
         if "label" in out:
             out["label"] = moved[0].to(out["label"].dtype)
@@ -597,7 +705,11 @@ class AirFisheyeDataset(Dataset):
             points = self.reader.deskew(sample_id, points)
         return points, rings[kept.keep], spec, kept.keep
 
-    def _sparse_depth(self, sample_id: str, params, turn: np.ndarray | None = None) -> torch.Tensor:
+    def _sparse_depth(
+        self, sample_id: str, params, turn: np.ndarray | None = None, camera: CameraModel | None = None
+    ) -> torch.Tensor:
+        """The LiDAR range map of a frame through ``camera`` (the sample's lens; ``None``: the served camera)."""
+        camera = self.camera if camera is None else camera
         points, rings, spec, keep = self.filtered_scan(sample_id)
         method = self.occlusion
         if self.parallax_free:  # every return is seen by the camera: nothing to correct
@@ -609,19 +721,20 @@ class AirFisheyeDataset(Dataset):
             points, rings, method = points[visible], rings[visible], Occlusion("none")
         T = _augmented(_turned(self.T_cam_lidar(sample_id), turn), params)
         if self.lidar_density == "paper":
-            camera = self.camera
             subset = paper_density_subset(spec, max(camera.width, camera.height), camera.coverage_deg)
             if (method.method if isinstance(method, Occlusion) else method) != "none":
                 # The correction decides on the whole scan at the paper's pixel scale, as the paper's pipeline
                 # would; the subset of its kept returns is served (docs/design.md, "Sparse input density").
-                visible = self._paper_scale_visible(sample_id, points, T, spec, method, rings, params, turn)
+                visible = self._paper_scale_visible(
+                    sample_id, points, T, spec, method, rings, params, turn, camera
+                )
                 points, rings, method = points[visible], rings[visible], Occlusion("none")
             served = subset.mask(points, rings, spec)
             points, rings = points[served], rings[served]
         depth = lidar_depth_map(
             points,
             T,
-            self.camera,
+            camera,
             spec,
             method=method,
             max_depth=self.max_depth,
@@ -631,22 +744,29 @@ class AirFisheyeDataset(Dataset):
         return torch.from_numpy(depth)[None]
 
     def _paper_scale_visible(
-        self, sample_id, points, T, spec, method, rings, params, turn=None
+        self, sample_id, points, T, spec, method, rings, params, turn=None, camera=None
     ) -> np.ndarray:
         """The correction's mask on the whole scan at the paper's pixel scale (1-2 s a frame at 1536^2 for the
         image-based methods). Without a rotation it is the same every epoch (a flip mirrors the kept points
-        afterwards), so it is kept per frame for the life of the worker: a few MB for a few hundred frames. A
-        gimbal view that varies per sample is a rotation too."""
+        afterwards), so it is kept per frame (and lens of ``data.camera.lenses``) for the life of the worker: a few MB
+        for a few hundred frames. A gimbal view that varies per sample is a rotation too, and a jittered lens a
+        camera of its own."""
+        camera = self.camera if camera is None else camera
         varying_view = turn is not None and (self.gimbal is None or self.gimbal.fixed is None)
-        cacheable = (params is None or params.angle_rad == 0.0) and not varying_view
-        if cacheable and sample_id in self._visible_cache:
-            return self._visible_cache[sample_id]
-        visible = np.asarray(occlusion_mask(points, T, paper_scale_camera(self.camera), spec, method, rings))
+        # The index of an unjittered lens of the list (the remap's camera is that lens's own object), else None.
+        lens = next((i for i, s in enumerate(self.served_lenses) if s.camera is camera), None)
+        cacheable = (params is None or params.angle_rad == 0.0) and not varying_view and lens is not None
+        key = (sample_id, lens)
+        if cacheable and key in self._visible_cache:
+            return self._visible_cache[key]
+        visible = np.asarray(occlusion_mask(points, T, paper_scale_camera(camera), spec, method, rings))
         if cacheable:
-            self._visible_cache[sample_id] = visible
+            self._visible_cache[key] = visible
         return visible
 
-    def _point_depth(self, sample_id: str, params, turn: np.ndarray | None = None) -> torch.Tensor:
+    def _point_depth(
+        self, sample_id: str, params, turn: np.ndarray | None = None, camera: CameraModel | None = None
+    ) -> torch.Tensor:
         """The depth target of a source that gives it as LiDAR points (``depth_points``), ``[1, H, W]``: projected
         at the served camera with the sample's augmentation, as ``sparse_depth`` (no resampling of a sparse map),
         its own occlusion removed, always motion-compensated (it is the ground truth)."""
@@ -655,7 +775,7 @@ class AirFisheyeDataset(Dataset):
         depth = lidar_depth_map(
             target.points,
             _augmented(_turned(np.asarray(self.reader.T_cam_lidar(sample_id), np.float64), turn), params),
-            self.camera,
+            self.camera if camera is None else camera,
             spec,
             method=Occlusion(target.occlusion, target.occlusion_options),
             max_depth=self.max_depth,
@@ -713,6 +833,18 @@ def _needed_keys(task: str) -> set[str]:
     """The sample keys besides the image that ``task`` trains on (its target and its model inputs)."""
     spec = get_task(task)
     return {spec.target, *spec.inputs} - {"image"}
+
+
+def _beyond_sensor(served: ServedCamera) -> torch.Tensor | None:
+    """``[H, W]`` pixels beyond a padded calibration's sensor (``None`` when every pixel is on it)."""
+    outside = ~served.frame_mask() if served.fit == "pad" else None
+    return outside if outside is not None and outside.any() else None
+
+
+def _lenses_line(served: tuple[ServedCamera, ...]) -> str:
+    """The log line of ``data.camera.lenses``."""
+    lenses = "; ".join(f"{i}: {s.camera!r}" for i, s in enumerate(served))
+    return f"camera: {len(served)} lenses, drawn per training sample (evaluation: sample i through lens i mod n): {lenses}"
 
 
 def _turned(T_cam_lidar: np.ndarray, turn: np.ndarray | None) -> np.ndarray:

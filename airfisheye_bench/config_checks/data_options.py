@@ -199,6 +199,33 @@ DATA_OPTIONS: tuple[DataOption, ...] = (
         cost=1,
     ),
     _o(
+        "camera.lenses",
+        None,
+        "lenses drawn per training sample: a list of specs {model, fov_deg, k} or {calibration, camera}, each "
+        "with an optional weight; evaluation serves sample i through lens i mod n",
+        ValueRule(
+            "custom",
+            check=r.lenses_problem,
+            uses=("data.source",),
+            nullable=True,
+            hint="docs/design.md, Lenses drawn per sample",
+        ),
+        cost=1,
+    ),
+    _o(
+        "camera.jitter",
+        None,
+        "each training sample's lens perturbed: {focal: r, principal_point_px: p, distortion: d}",
+        ValueRule(
+            "custom",
+            check=r.jitter_problem,
+            uses=("data.source",),
+            nullable=True,
+            hint="docs/design.md, Lenses drawn per sample",
+        ),
+        cost=1,
+    ),
+    _o(
         "gimbal",
         None,
         "a virtual gimbal: a view [yaw, pitch(, roll)], a list of views, or ranges drawn per training sample",

@@ -63,6 +63,35 @@ def gimbal_problem(value: Any, source: Any) -> str | None:
     return None
 
 
+def lenses_problem(value: Any, source: Any) -> str | None:
+    """``data.camera.lenses``: a list of lens specs (``geometry.lens_draws``' own parser), on a remap source."""
+    from airfisheye_bench.geometry.lens_draws import parse_lenses  # imports torch: only when checked
+
+    try:
+        parse_lenses(value)
+    except ValueError as err:
+        return str(err).removeprefix("data.camera.lenses: ").removeprefix("data.camera.")
+    return _lens_source_problem(source)
+
+
+def jitter_problem(value: Any, source: Any) -> str | None:
+    """``data.camera.jitter``: ``{focal, principal_point_px, distortion}`` (``geometry.lens_draws``' own parser), on
+    a remap source."""
+    from airfisheye_bench.geometry.lens_draws import LensJitter  # imports torch: only when checked
+
+    try:
+        LensJitter.parse(value)
+    except ValueError as err:
+        return str(err).removeprefix("data.camera.jitter: ").removeprefix("data.camera.")
+    return _lens_source_problem(source)
+
+
+def _lens_source_problem(source: Any) -> str | None:
+    if source == "fisheye":
+        return "needs data.source=cubemap or equirect (pre-rendered fisheye images have the release's lens)"
+    return None
+
+
 def lidar_densities() -> tuple[str, ...]:
     from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES  # imports torch: only when checked
 

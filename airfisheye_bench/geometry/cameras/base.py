@@ -54,6 +54,8 @@ class CameraModel:
     defaults: ClassVar[dict[str, Any]] = {"fov_deg": None}
     #: Parameters that ``to_dict`` and ``key()`` leave out at their defaults (``Param.omit_default``).
     omitted_defaults: ClassVar[dict[str, Any]] = {}
+    #: The distortion coefficients, in declaration order (``Param.distortion``).
+    distortion_params: ClassVar[tuple[str, ...]] = ()
     #: The constructor's signature (from ``declaration``).
     __signature__: ClassVar[inspect.Signature]
 
@@ -279,6 +281,34 @@ class CameraModel:
         params = {**self._param_dict(), **self._scaled_params(sx, sy)}
         return type(self)(width, height, **params)
 
+    def perturbed(
+        self, focal: float = 1.0, shift: tuple[float, float] = (0.0, 0.0), distortion: Sequence[float] = ()
+    ) -> CameraModel:
+        """The same model with other intrinsics, on the same sensor (a lens of the same design, calibrated apart).
+
+        Args:
+            focal: Every pixel length (``Param.scale`` other than a position: focal lengths, a polynomial's pixel
+                radii) scaled by this factor about the principal point: a zoom.
+            shift: ``(dx, dy)`` pixels added to the principal point (the positions ``cx``, ``cy``).
+            distortion: Factors of :attr:`distortion_params`, in order (missing ones: 1).
+
+        Example:
+            >>> from airfisheye_bench.geometry.cameras import KannalaBrandt
+            >>> cam = KannalaBrandt(64, 64, 20.0, 20.0, 31.5, 31.5, k1=0.1, k2=0.01)
+            >>> p = cam.perturbed(1.1, (0.5, -1.0), (2.0,))
+            >>> round(p.fx, 9), p.cx, p.cy, p.k1, p.k2
+            (22.0, 32.0, 30.5, 0.2, 0.01)
+        """
+        values = self._param_dict()
+        for p in self.declaration:
+            if p.scale in ("cx", "cy"):
+                values[p.name] += shift[0] if p.scale == "cx" else shift[1]
+            elif p.scale is not None:
+                values[p.name] = p.scaled(values[p.name], focal, focal)
+        for name, factor in zip(self.distortion_params, distortion, strict=False):
+            values[name] = values[name] * factor
+        return type(self)(self.width, self.height, **values)
+
     def _param_dict(self) -> dict[str, Any]:
         return {name: getattr(self, name) for name in self.params}
 
@@ -332,6 +362,7 @@ def _derive_from_declaration(cls: type[CameraModel]) -> None:
     cls.params = tuple(names)
     cls.defaults = {p.name: p.default for p in cls.declaration if not p.required}
     cls.omitted_defaults = {p.name: p.default for p in cls.declaration if p.omit_default}
+    cls.distortion_params = tuple(p.name for p in cls.declaration if p.distortion)
     # Signature() refuses a required parameter after an optional one, as a def would: at import.
     cls.__signature__ = inspect.Signature(
         [inspect.Parameter("width", _ARG), inspect.Parameter("height", _ARG)]

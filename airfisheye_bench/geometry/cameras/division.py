@@ -36,7 +36,7 @@ class Division(CameraModel):
     """
 
     model = "division"
-    declaration = (*PINHOLE, Param("k"), FOV_DEG)
+    declaration = (*PINHOLE, Param("k", distortion=True), FOV_DEG)
 
     def _project(self, x, y, z):
         rho2 = x * x + y * y

@@ -121,6 +121,8 @@ class Param:
         omit_default: Left out of ``to_dict`` and the camera's ``key()`` while at its default: a parameter added
             to a model later, so the dicts, files, content identities and cache names of the cameras that do
             without it stay what they were.
+        distortion: A distortion coefficient: a number that bends the model's projection away from its base
+            (``data.camera.jitter``'s ``distortion`` scales these, and only these; ``zeros`` declares them).
     """
 
     name: str
@@ -128,6 +130,7 @@ class Param:
     check: Check = number
     scale: str | Scale | None = None
     omit_default: bool = False
+    distortion: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.scale, str) and self.scale not in SCALES:
@@ -152,9 +155,9 @@ class Param:
 
 
 def zeros(*names: str, omit_default: bool = False) -> tuple[Param, ...]:
-    """Distortion coefficients that default to 0 (of normalised coordinates: unchanged by ``resized()``);
-    ``omit_default``: see :class:`Param`."""
-    return tuple(Param(name, 0.0, omit_default=omit_default) for name in names)
+    """Distortion coefficients that default to 0 (of normalised coordinates: unchanged by ``resized()``; declared
+    ``distortion``); ``omit_default``: see :class:`Param`."""
+    return tuple(Param(name, 0.0, omit_default=omit_default, distortion=True) for name in names)
 
 
 # ---------------------------------------------------------------------------------------------------- shared

@@ -43,7 +43,7 @@ class RadialPoly(CameraModel):
     model = "radial_poly"
     declaration = (
         Param("k1", scale="fx"),  # pixels per radian^i: pixel lengths
-        *(Param(name, 0.0, scale="fx") for name in ("k2", "k3", "k4")),
+        *(Param(name, 0.0, scale="fx", distortion=True) for name in ("k2", "k3", "k4")),
         Param("cx", 0.0, scale="cx"),
         Param("cy", 0.0, scale="cy"),
         Param("aspect_ratio", 1.0, check=positive),
