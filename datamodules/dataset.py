@@ -68,28 +68,25 @@ from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.gimbal import Gimbal, View
 from airfisheye_bench.geometry.lens_draws import LensDraw, LensDraws
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import paper_density_subset, paper_scale_camera
 from airfisheye_bench.geometry.occlusion import (
     ORACLE,
     Occlusion,
-    lidar_depth_map,
-    occlusion_mask,
     sparse_input,
 )
-from airfisheye_bench.geometry.remap_table import TableCache, reserve_tables
-from airfisheye_bench.geometry.rings import resolve_rings
-from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE, filter_scan
+from airfisheye_bench.geometry.scan_filter import DEFAULT_MIN_RANGE
 from airfisheye_bench.geometry.serving import ServedCamera
 from airfisheye_bench.io import DatasetFormatError, EmptySplitError
 from airfisheye_bench.io.dataset_spec import IMAGE_SOURCES, REMAP_SOURCES
 from airfisheye_bench.io.datasets import DatasetSource, dataset_format, open_dataset, unserved_modality
 from airfisheye_bench.specs import get_task
-from datamodules.augment import AugmentParams, FisheyeAugment, augment_sample, rotation_about_optical_axis
+from datamodules.augment import AugmentParams, FisheyeAugment, augment_sample
 from datamodules.augment_batch import pack_params
 from datamodules.camera_config import CameraConfig
-from datamodules.device_remap import AUGMENT_KEY, CUBE_KEYS, DeviceRemap
-from datamodules.oracle import oracle_visible, require_visibility
+from datamodules.device_remap import AUGMENT_KEY, CUBE_KEYS
+from datamodules.oracle import require_visibility
 from datamodules.sampling import SharedEpoch, draw_seed
+from datamodules.serving_lidar import LidarServing
+from datamodules.serving_remaps import RemapServing
 
 log = logging.getLogger(__name__)
 
@@ -102,7 +99,7 @@ GIMBAL_TABLE_BUDGET_BYTES = 1 << 30
 PAPER_OCCLUSION = Occlusion("ordering")
 
 
-class AirFisheyeDataset(Dataset):
+class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
     """One split of a dataset of any format, for one task, served through its reader.
 
     It takes resolved objects only, checked where they were built (the datamodule, from a config checked once): a
@@ -277,11 +274,7 @@ class AirFisheyeDataset(Dataset):
         # views and lenses get theirs, the latest of them kept in a cache of what the table budget holds.
         self._base_view: View = fixed or (0.0, 0.0, 0.0)
         self._remap = self._build_remap(self._base_view, None) if source in REMAP_SOURCES else None
-        self._remaps = TableCache(maxsize=1)
-        if self._remap is not None and self._remap_count() > 1:
-            kept = min(self._remap_count(), max(1, GIMBAL_TABLE_BUDGET_BYTES // self._remap_bytes()))
-            self._remaps.maxsize = kept + 1
-            reserve_tables(2 * kept + 2)  # bilinear and nearest
+        self._remaps = self._table_cache()
         self._mean = torch.tensor(IMAGENET_MEAN).view(3, 1, 1)
         self._std = torch.tensor(IMAGENET_STD).view(3, 1, 1)
 
@@ -311,118 +304,6 @@ class AirFisheyeDataset(Dataset):
     def __len__(self) -> int:
         return len(self.sample_ids)
 
-    @cached_property
-    def valid_mask(self) -> torch.Tensor:
-        """``[H, W]`` pixels that carry data (inside the image circle, on a cube face, on the calibrated sensor), at
-        the split's one orientation (a sample of a varying gimbal serves its own view's in ``valid_mask``)."""
-        return self._valid(self._remap, self._outside_frame)
-
-    def _valid(
-        self, remap: CubemapToFisheye | EquirectToFisheye | None, outside: torch.Tensor | None
-    ) -> torch.Tensor:
-        valid = remap.valid_mask if remap is not None else self.camera.valid_mask()
-        return valid & ~outside if outside is not None else valid
-
-    def warm_up(self) -> None:
-        """Build the remap lookup tables now, so DataLoader workers inherit them instead of rebuilding them.
-
-        With a virtual gimbal or lenses drawn per sample, every view's and lens's tables when they fit
-        :data:`GIMBAL_TABLE_BUDGET_BYTES` (the rest are built when first served, in the process that serves them,
-        and kept in a cache of that size).
-        """
-        if self._remap is None:
-            return
-        keys: list[tuple[View, LensDraw | None]] = [(self._base_view, None)]
-        count = self._remap_count()
-        if count > 1:
-            fits = self._remaps.maxsize - 1  # sized by the budget (__init__)
-            if count <= fits:
-                varying_view = self.gimbal is not None and self.gimbal.fixed is None
-                views = self.gimbal.all_views() if varying_view else [self._base_view]
-                lenses = range(len(self.served_lenses))
-                draws = [LensDraw(i) for i in lenses] if self._lenses_vary else [None]
-                keys = [(view, draw) for view in views for draw in draws]
-                log.info("building the lookup tables of %d views and lenses (%s)", len(keys), self.split)
-            else:
-                log.warning(
-                    "data.gimbal / data.camera: %d views and lenses, the tables of %d fit in %d MB; the others are "
-                    "built when served (tens of ms each at this size): a coarser data.gimbal.step_deg or a smaller "
-                    "data.camera.jitter keeps them all",
-                    count,
-                    fits,
-                    GIMBAL_TABLE_BUDGET_BYTES >> 20,
-                )
-        for view, draw in keys:
-            remap = self._remap_for(view, draw)
-            for mode in ("bilinear", "nearest"):
-                remap.table(mode)
-
-    @property
-    def _lenses_vary(self) -> bool:
-        return self.lens_draws is not None and self.lens_draws.varies
-
-    def _remap_count(self) -> int:
-        """How many remaps (a view and a lens each) this split can serve."""
-        views = self.gimbal.view_count() if self.gimbal is not None else 1
-        return views * (self.lens_draws.count() if self._lenses_vary else 1)
-
-    def _remap_bytes(self) -> int:
-        """About what one view's or lens's remap holds: its two tables (bilinear taps and weights, nearest index,
-        two pixel lists) over the valid pixels, and its camera's per-pixel grids (rays, validity, scale)."""
-        pixels = self.camera.width * self.camera.height
-        return int(self.camera.valid_mask().sum()) * (4 * 8 + 8 + 2 * 8) + pixels * (3 * 8 + 3 * 4 + 8 + 1)
-
-    def _remap_for(self, view: View, draw: LensDraw | None = None) -> CubemapToFisheye | EquirectToFisheye:
-        """The remap of the camera turned to ``view`` through lens ``draw`` (``None``: the first, unjittered): one
-        object per view and lens, the latest kept (:meth:`warm_up` sizes the cache); the tables live in the process
-        cache."""
-        key = (tuple(view), draw)
-        if key == (self._base_view, None) and self._remap is not None:
-            return self._remap
-        return self._remaps.get(key, lambda: self._build_remap(view, draw))
-
-    def _build_remap(self, view: View, draw: LensDraw | None) -> CubemapToFisheye | EquirectToFisheye:
-        """A panorama's camera is its source's recorded one, ``R_pano_cam0`` (``pano_rotation``), turned by the
-        view."""
-        camera = self._camera_of(draw)
-        turn = Gimbal.rotation(view)
-        if self.source == "cubemap":
-            return CubemapToFisheye(camera, self.face_size, rotation=turn)
-        recorded = self.reader.pano_rotation
-        rotation = recorded if turn is None else turn if recorded is None else recorded @ turn
-        return EquirectToFisheye(camera, self.spec.equirect_size, rotation=rotation)
-
-    def _camera_of(self, draw: LensDraw | None) -> CameraModel:
-        """The camera of a lens draw: its lens of the list, perturbed by its jitter."""
-        if draw is None:
-            return self.camera
-        lens = self.served_lenses[draw.lens].camera
-        if draw == LensDraw(draw.lens):
-            return lens
-        return lens.perturbed(draw.focal, draw.shift, draw.distortion)
-
-    def lens_camera(self, lens: int, lens_params: torch.Tensor) -> CameraModel:
-        """The camera a sample was served through, from its ``lens`` and ``lens_params`` (a ray map:
-        ``lens_camera(...).ray_grid()``)."""
-        count = len(self.served_lenses[int(lens)].camera.distortion_params)
-        return self._camera_of(LensDraw.from_params(int(lens), lens_params, count))
-
-    def sample_lens(self, index: int) -> LensDraw | None:
-        """The lens of sample ``index`` in the current epoch (``None``: the one lens of ``data.camera``)."""
-        if self.lens_draws is None:
-            return None
-        training = self.lens_draws.training
-        return self.lens_draws.draw(
-            index, draw_seed(self.seed, self._epoch.get(), index) if training else None
-        )
-
-    def sample_view(self, index: int) -> View | None:
-        """The gimbal view of sample ``index`` in the current epoch (``None`` without a gimbal)."""
-        if self.gimbal is None:
-            return None
-        draw = draw_seed(self.seed, self._epoch.get(), index) if self.gimbal.training else None
-        return self.gimbal.view(index, draw)
-
     def __getitem__(self, index: int) -> dict | None:
         return self._guarded(self._load, index)
 
@@ -430,33 +311,6 @@ class AirFisheyeDataset(Dataset):
         """What a worker serves under ``data.remap_on=device``: the decoded cube faces, the LiDAR depth and the
         augmentation draw, for :class:`~datamodules.device_remap.DeviceRemap` to finish on the model's device."""
         return self._guarded(self._load_faces, index)
-
-    def device_remap(self) -> DeviceRemap:
-        """The device half of ``data.remap_on=device`` for this dataset's camera and faces."""
-        if self.source != "cubemap" or self._depth_from_points:
-            raise ConfigError(
-                f"data.remap_on=device: data.source={self.source} (data.format={self.reader.format}): the device "
-                "remaps cube faces only; use data.remap_on=worker"
-            )
-        if self.gimbal is not None and self.gimbal.fixed is None:
-            raise ConfigError(
-                f"data.remap_on=device: data.gimbal serves the {self.split!r} split through a view per sample, each "
-                "with its own lookup table, and a batch is remapped with one; use data.remap_on=worker, or one "
-                "fixed view (data.gimbal=[yaw,pitch])"
-            )
-        if self.lens_draws is not None and self.lens_draws.varies:
-            raise ConfigError(
-                f"data.remap_on=device: data.camera.lenses / jitter serve the {self.split!r} split through a lens per "
-                "sample, each with its own lookup table, and a batch is remapped with one; use data.remap_on=worker"
-            )
-        return DeviceRemap(
-            self._remap,
-            self.valid_mask,
-            self._outside_frame,
-            self.label_lut,
-            self.spec.ignore_index,
-            self.max_depth,
-        )
 
     def _guarded(self, load, index: int) -> dict | None:
         sample_id = self.sample_ids[index]
@@ -659,140 +513,6 @@ class AirFisheyeDataset(Dataset):
         x = torch.from_numpy(self.reader.equirect(sample_id, modality))
         return x.permute(2, 0, 1) if x.ndim == 3 else x[None]
 
-    def lidar_points(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec]:
-        """``(points float64 [M, 3], rings int64 [M], spec)`` of a frame after the counted filtering."""
-        return self.filtered_scan(sample_id)[:3]
-
-    def filtered_scan(self, sample_id: str) -> tuple[np.ndarray, np.ndarray, LidarSpec, np.ndarray]:
-        """:meth:`lidar_points` and the ``bool [N]`` mask of the scan's points it keeps (for per-point data)."""
-        if self.lidar_spec is None:  # the source's own LiDAR
-            spec, scan = self.reader.calib(sample_id).lidar_spec(), self.reader.lidar_scan(sample_id)
-        else:  # data.lidar.preset's: cast where the source simulates its LiDAR from depth
-            spec, scan = self.lidar_spec, self.reader.cast_scan(sample_id, self.lidar_spec)
-        if len(scan.points) == 0:
-            raise DatasetFormatError(scan.path, "the LiDAR scan is empty")
-        if not np.isfinite(scan.points).all():
-            raise DatasetFormatError(scan.path, "the LiDAR scan has non-finite coordinates")
-        try:
-            rings, source = resolve_rings(scan.points, spec, scan.rings, scan.firing_order)
-        except ValueError as err:  # a ring field that does not fit the spec
-            raise DatasetFormatError(scan.path, f"{err} (LiDAR spec: {spec.name or 'calib.yaml'})") from None
-        kept = filter_scan(scan.points, rings, self.lidar_min_range)
-        counts = {
-            "scans": 1,
-            f"rings from {source}": 1,
-            "returns": len(scan.points) + scan.no_returns,
-            "no_returns": scan.no_returns,
-            **kept.counts(),
-        }
-        first = not self.lidar_counts
-        for key, value in counts.items():
-            self.lidar_counts[key] = self.lidar_counts.get(key, 0) + value
-        if first:
-            log.info(
-                "LiDAR %s: rings from %s; removed %d returns within %.2f m, %d no channel explains, %d empty "
-                "cells (of %d)",
-                scan.path.name,
-                source,
-                kept.near_origin,
-                self.lidar_min_range,
-                kept.unexplained,
-                scan.no_returns,
-                counts["returns"],
-            )
-        points = scan.points[kept.keep]
-        if self.motion_compensation:  # the sweep's points at its reference time
-            points = self.reader.deskew(sample_id, points)
-        return points, rings[kept.keep], spec, kept.keep
-
-    def _sparse_depth(
-        self, sample_id: str, params, turn: np.ndarray | None = None, camera: CameraModel | None = None
-    ) -> torch.Tensor:
-        """The LiDAR range map of a frame through ``camera`` (the sample's lens; ``None``: the served camera)."""
-        camera = self.camera if camera is None else camera
-        points, rings, spec, keep = self.filtered_scan(sample_id)
-        method = self.occlusion
-        if self.parallax_free:  # every return is seen by the camera: nothing to correct
-            method = Occlusion("none")
-        elif (
-            isinstance(method, str) and method == ORACLE
-        ):  # the truly visible points, projected without a test
-            visible = oracle_visible(self.reader, sample_id, keep)
-            points, rings, method = points[visible], rings[visible], Occlusion("none")
-        T = _augmented(_turned(self.T_cam_lidar(sample_id), turn), params)
-        if self.lidar_density == "paper":
-            subset = paper_density_subset(spec, max(camera.width, camera.height), camera.coverage_deg)
-            if (method.method if isinstance(method, Occlusion) else method) != "none":
-                # The correction decides on the whole scan at the paper's pixel scale, as the paper's pipeline
-                # would; the subset of its kept returns is served (docs/design.md, "Sparse input density").
-                visible = self._paper_scale_visible(
-                    sample_id, points, T, spec, method, rings, params, turn, camera
-                )
-                points, rings, method = points[visible], rings[visible], Occlusion("none")
-            served = subset.mask(points, rings, spec)
-            points, rings = points[served], rings[served]
-        depth = lidar_depth_map(
-            points,
-            T,
-            camera,
-            spec,
-            method=method,
-            max_depth=self.max_depth,
-            mirror=params is not None and params.flip,
-            rings=rings,
-        )
-        return torch.from_numpy(depth)[None]
-
-    def _paper_scale_visible(
-        self, sample_id, points, T, spec, method, rings, params, turn=None, camera=None
-    ) -> np.ndarray:
-        """The correction's mask on the whole scan at the paper's pixel scale (1-2 s a frame at 1536^2 for the
-        image-based methods). Without a rotation it is the same every epoch (a flip mirrors the kept points
-        afterwards), so it is kept per frame (and lens of ``data.camera.lenses``) for the life of the worker: a few MB
-        for a few hundred frames. A gimbal view that varies per sample is a rotation too, and a jittered lens a
-        camera of its own."""
-        camera = self.camera if camera is None else camera
-        varying_view = turn is not None and (self.gimbal is None or self.gimbal.fixed is None)
-        # The index of an unjittered lens of the list (the remap's camera is that lens's own object), else None.
-        lens = next((i for i, s in enumerate(self.served_lenses) if s.camera is camera), None)
-        cacheable = (params is None or params.angle_rad == 0.0) and not varying_view and lens is not None
-        key = (sample_id, lens)
-        if cacheable and key in self._visible_cache:
-            return self._visible_cache[key]
-        visible = np.asarray(occlusion_mask(points, T, paper_scale_camera(camera), spec, method, rings))
-        if cacheable:
-            self._visible_cache[key] = visible
-        return visible
-
-    def _point_depth(
-        self, sample_id: str, params, turn: np.ndarray | None = None, camera: CameraModel | None = None
-    ) -> torch.Tensor:
-        """The depth target of a source that gives it as LiDAR points (``depth_points``), ``[1, H, W]``: projected
-        at the served camera with the sample's augmentation, as ``sparse_depth`` (no resampling of a sparse map),
-        its own occlusion removed, always motion-compensated (it is the ground truth)."""
-        target = self.reader.depth_points(sample_id, self.lidar_min_range)
-        spec = self.lidar_spec or self.reader.calib(sample_id).lidar_spec()
-        depth = lidar_depth_map(
-            target.points,
-            _augmented(_turned(np.asarray(self.reader.T_cam_lidar(sample_id), np.float64), turn), params),
-            self.camera if camera is None else camera,
-            spec,
-            method=Occlusion(target.occlusion, target.occlusion_options),
-            max_depth=self.max_depth,
-            mirror=params is not None and params.flip,
-        )
-        return torch.from_numpy(depth)[None]
-
-    def T_cam_lidar(self, sample_id: str) -> np.ndarray:
-        """``[4, 4]`` float64 LiDAR -> camera transform of a frame.
-
-        With ``motion_compensation`` it comes from the two sensors' poses at their own timestamps (the platform
-        moves between the camera exposure and the LiDAR sweep); without, from the static extrinsics only.
-        """
-        if self.motion_compensation:
-            return np.asarray(self.reader.T_cam_lidar(sample_id), dtype=np.float64)
-        return np.asarray(self.reader.calib(sample_id).T_cam_lidar_static, dtype=np.float64)
-
     def _clip_depth(self, depth: torch.Tensor) -> torch.Tensor:
         depth = depth.float()
         return depth.masked_fill_(~((depth > 0) & (depth <= self.max_depth)), 0.0)
@@ -845,25 +565,6 @@ def _lenses_line(served: tuple[ServedCamera, ...]) -> str:
     """The log line of ``data.camera.lenses``."""
     lenses = "; ".join(f"{i}: {s.camera!r}" for i, s in enumerate(served))
     return f"camera: {len(served)} lenses, drawn per training sample (evaluation: sample i through lens i mod n): {lenses}"
-
-
-def _turned(T_cam_lidar: np.ndarray, turn: np.ndarray | None) -> np.ndarray:
-    """``T_cam_lidar`` of the camera turned by a gimbal view (``turn = R_src_cam``; ``None``: not turned)."""
-    if turn is None:
-        return T_cam_lidar
-    T = np.eye(4)
-    T[:3, :3] = turn.T  # source-camera directions -> the turned camera's
-    return T @ T_cam_lidar
-
-
-def _augmented(T_cam_lidar: np.ndarray, params) -> np.ndarray:
-    """``T_cam_lidar`` turned with the sample's rotation about the optical axis (``params``: its draw or None)."""
-    if params is None or params.angle_rad == 0.0:
-        return T_cam_lidar
-    # Dense maps are mirrored, then rotated; the points are rotated, then mirrored (in lidar_depth_map).
-    # mirror . rot(a) == rot(-a) . mirror, so the points turn the other way when the frame is mirrored.
-    R = rotation_about_optical_axis(-params.angle_rad if params.flip else params.angle_rad)
-    return R.numpy() @ T_cam_lidar
 
 
 def collate(samples: list[dict | None]) -> dict:

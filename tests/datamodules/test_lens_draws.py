@@ -12,7 +12,7 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-import datamodules.dataset as dataset_module
+import datamodules.serving_remaps as serving_remaps
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.cameras import KannalaBrandt
@@ -216,7 +216,7 @@ def test_the_datamodule_resumes_the_same_draws(tiny_dataset: Path) -> None:
 
 def test_the_cache_of_remaps_stays_bounded(tiny_dataset: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     per_remap = _dataset(tiny_dataset, "depth")._remap_bytes()
-    monkeypatch.setattr(dataset_module, "GIMBAL_TABLE_BUDGET_BYTES", 3 * per_remap)
+    monkeypatch.setattr(serving_remaps, "GIMBAL_TABLE_BUDGET_BYTES", 3 * per_remap)
     ds = _dataset(tiny_dataset, "depth")
     ds.warm_up()  # far more grid points than fit: none built ahead, a cache of what fits
     assert ds._remaps.maxsize == 4 and len(ds._remaps) == 0

@@ -54,7 +54,9 @@ def test_the_same_beams_are_served_in_every_frame(tiny_dataset: Path) -> None:
 
 
 def test_a_bad_density_is_refused_naming_the_key(tiny_dataset: Path) -> None:
-    with pytest.raises(ConfigError, match=r"^data\.lidar\.density='sparse': expected one of native, paper \("):
+    with pytest.raises(
+        ConfigError, match=r"^data\.lidar\.density='sparse': expected one of native, paper \("
+    ):
         AirFisheyeDataModule("completion", root=tiny_dataset, lidar={"density": "sparse"})
 
 
