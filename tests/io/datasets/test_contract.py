@@ -22,6 +22,8 @@ ROOT = Path(__file__).resolve().parents[3]
 #: The modules that hold a reader and what they call it.
 USERS = {
     "datamodules/dataset.py": "reader",
+    "datamodules/serving_lidar.py": "reader",
+    "datamodules/serving_remaps.py": "reader",
     "datamodules/oracle.py": "reader",
     "airfisheye_bench/dataset_tools/inspect_source.py": "source",
 }
