@@ -6,16 +6,16 @@ COLMAP ``OPENCV`` / ``FULL_OPENCV``, and the cube faces (``fx = fy = S / 2``, no
 ``FullOpenCVCameraModel::Distortion`` is the same map): the radial factor ``(1 + k1 r^2 + k2 r^4 + k3 r^6) /
 (1 + k4 r^2 + k5 r^4 + k6 r^6)`` (``CALIB_RATIONAL_MODEL``; k4..k6 = 0: plumb_bob, evaluated as it always was)
 and the tangential terms. Valid in front of the camera (``z > 0``) while the distortion is one-to-one (the radius
-``r g(r^2)`` increases, before any pole of the denominator, and the tangential terms do not fold it; ``_solve.py``'s
+``r g(r^2)`` increases, before any pole of the denominator, and the tangential terms do not fold it; ``_solve_planar.py``'s
 ``RadtanInverse.r_valid``, here ``theta_limit``); back-projection by bounded Newton steps on the distortion
-(``_solve.py``), NaN where they do not reproduce the pixel.
+(``_solve_planar.py``), NaN where they do not reproduce the pixel.
 """
 
 from __future__ import annotations
 
 import math
 
-from airfisheye_bench.geometry.cameras._solve import RadtanInverse, radial_limit, radtan
+from airfisheye_bench.geometry.cameras._solve_planar import RadtanInverse, radial_limit, radtan
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, zeros
 

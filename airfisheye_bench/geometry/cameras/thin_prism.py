@@ -10,7 +10,7 @@ As ``kannala_brandt`` the angle is ``atan2(r, z)``, the same as COLMAP's ``atan(
 so the model goes on past 90 deg. Its valid region is the disc ``theta <= theta_limit`` where ``m -> m_d`` is
 one-to-one: the radial part increases, the Jacobian's determinant stays positive at every azimuth, the radius stays
 within ``FAR_FRAME`` image sizes of the image, and ``theta <= pi``. Back-projection solves ``m_d(m)`` by Newton steps
-on the 2x2 system (``_solve.py``, ``DiscInverse``; COLMAP's ``IterativeUndistortion`` does the same) and is NaN
+on the 2x2 system (``_solve_planar.py``, ``DiscInverse``; COLMAP's ``IterativeUndistortion`` does the same) and is NaN
 wherever it does not reproduce the pixel or leaves the disc.
 """
 
@@ -23,12 +23,11 @@ import torch
 from airfisheye_bench.geometry.cameras._solve import (
     FAR_FRAME,
     PIXEL_TOL,
-    DiscInverse,
     frame_reach,
     increasing_limit,
-    one_to_one_radius,
     polyval,
 )
+from airfisheye_bench.geometry.cameras._solve_planar import DiscInverse, one_to_one_radius
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, zeros
 

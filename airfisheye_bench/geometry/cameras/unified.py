@@ -6,8 +6,8 @@ A point is put on the unit sphere, projected from ``(0, 0, -xi)``: ``m = (x, y) 
 (Mei and Rives, ICRA 2007; opencv_contrib ``ccalib/src/omnidir.cpp``). The valid region is basalt's
 (``unified_camera.hpp``): ``z > -w d`` with ``w = xi`` for ``xi <= 1`` and ``1 / xi`` beyond, where the sphere
 is seen from the projection centre, and the distortion must be one-to-one there (the radial factor increases and
-the tangential terms do not fold it: ``RadtanInverse.r_valid`` in ``_solve.py``).
-Back-projection undoes the distortion with bounded Newton steps (``_solve.py``), then lifts ``m`` to the sphere in
+the tangential terms do not fold it: ``RadtanInverse.r_valid`` in ``_solve_planar.py``).
+Back-projection undoes the distortion with bounded Newton steps (``_solve_planar.py``), then lifts ``m`` to the sphere in
 closed form: ``ray = (f m_x, f m_y, f - xi)``, ``f = (xi + sqrt(1 + (1 - xi^2) |m|^2)) / (1 + |m|^2)``.
 """
 
@@ -17,7 +17,7 @@ import math
 
 import torch
 
-from airfisheye_bench.geometry.cameras._solve import RadtanInverse, radial_limit, radtan
+from airfisheye_bench.geometry.cameras._solve_planar import RadtanInverse, radial_limit, radtan
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param, interval, zeros
 
