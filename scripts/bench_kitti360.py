@@ -1,14 +1,15 @@
 """Benchmark serving KITTI-360 samples (``data.format=kitti360``): CPU time per sample, and the curl against the
 devkit's per-point loop, side by side in one process.
 
-A root in the real layout is written first (``tests/helpers/kitti360_fixture.py``: 1400^2 PNG images, HDL-64E
-scans of ~125k returns in KITTI's firing order), or ``--root`` points at a real one. Rows, each over the training
-frames (one thread, CPU time, min and median of ``--repeats``):
+A root in the real layout is written first (:mod:`airfisheye_bench.studies.miniature_datasets.kitti360`: 1400^2
+PNG images, HDL-64E scans of ~125k returns in KITTI's firing order), or ``--root`` points at a real one. Rows,
+each over the training frames (one thread, CPU time, min and median of ``--repeats``):
 
 * ``depth`` and ``completion`` at ``--size`` (default 512) with ``accumulate`` 0 and 2 (up to five scans in the
   target), the latter in frame order with the source's reuse of the neighbours' curled scans and without it;
 * the curl of one scan: :func:`~airfisheye_bench.geometry.deskew.curl_points` against a line-by-line port of the
-  devkit's ``curl_velodyne_data`` loop (the test's reference), on the same points.
+  devkit's ``curl_velodyne_data`` loop (:mod:`~airfisheye_bench.studies.miniature_datasets.kitti360_devkit`, the
+  tests' reference), on the same points.
 
     python scripts/bench_kitti360.py
     python scripts/bench_kitti360.py --root /data/KITTI-360 --size 512 --repeats 5
@@ -30,9 +31,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from airfisheye_bench.geometry.deskew import curl_points, scan_fraction  # noqa: E402
+from airfisheye_bench.studies.miniature_datasets.kitti360 import SEQUENCES, write_kitti360  # noqa: E402
+from airfisheye_bench.studies.miniature_datasets.kitti360_devkit import devkit_curl  # noqa: E402
 from datamodules.dataset import AirFisheyeDataset, CameraConfig  # noqa: E402
-from tests.helpers.kitti360_fixture import SEQUENCES, write_kitti360  # noqa: E402
-from tests.io.datasets.test_kitti360 import devkit_curl  # noqa: E402
 
 
 def cpu_ms(fn, repeats: int) -> tuple[float, float]:

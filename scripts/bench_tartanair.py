@@ -2,11 +2,11 @@
 
 Both datasets hold the same kind of frames: 256^2 cube faces (PNG RGB, labels; depth as each format stores it: the
 synthetic release's 16-bit PNG range, TartanAir's float32-in-RGBA planar depth) and a 16-channel LiDAR. The
-TartanAir one is the test fixture's analytic scene (tests/helpers/tartanair_fixture.py, written in the toolkit's
-layout) with the dataset's own VLP-16 pattern (16 x 3600 beams); the synthetic one is the ``tiny`` preset at the same
-face size with a 16 x 1800 LiDAR. Per task, the two are timed alternately, ``--repeats`` times each, one process and
-one thread, served from the cube faces at ``--size``^2 with training augmentation; the table gives the minimum and
-the median CPU ms per sample.
+TartanAir one is the test fixture's analytic scene (:mod:`airfisheye_bench.studies.miniature_datasets.tartanair`,
+written in the toolkit's layout) with the dataset's own VLP-16 pattern (16 x 3600 beams); the synthetic one is the
+``tiny`` preset at the same face size with a 16 x 1800 LiDAR. Per task, the two are timed alternately,
+``--repeats`` times each, one process and one thread, served from the cube faces at ``--size``^2 with training
+augmentation; the table gives the minimum and the median CPU ms per sample.
 
 Usage:
     python scripts/bench_tartanair.py [--size 256] [--samples 12] [--repeats 5] [--work /tmp/afb_bench_tartanair]
@@ -22,10 +22,10 @@ from pathlib import Path
 
 import torch
 
+from airfisheye_bench.studies.miniature_datasets.tartanair import write_tartanair_fixture
 from airfisheye_bench.synth.presets import get_preset
 from airfisheye_bench.synth.writer import generate_dataset
 from datamodules import AirFisheyeDataset, CameraConfig, FisheyeAugment
-from tests.helpers.tartanair_fixture import write_tartanair_fixture
 
 FACE = 256
 

@@ -7,7 +7,8 @@ Each ``scripts/<name>.py`` is a thin entry point to one module here (``bench_eva
 :mod:`~.occlusion_memory`, ``occlusion_study``, ``occlusion_ablation``, ``gpu_campaign`` -> :mod:`~.gpu_campaign`,
 which times training steps with :mod:`~.train_throughput` and keeps its time-boxed record with
 :mod:`~.campaign_record`, ``check_real_rings`` -> :mod:`~.real_rings`); :mod:`~.lidar_scene` is the analytic LiDAR
-scene the LiDAR benchmarks and tests share. The studies' own logic and statistics are here too: the quick-start
+scene the LiDAR benchmarks and tests share, :mod:`~.miniature_datasets` the miniature public datasets
+(KITTI-360, TartanAir) the dataset benchmarks (``bench_kitti360``, ``bench_tartanair``) and the readers' tests share. The studies' own logic and statistics are here too: the quick-start
 benchmark and its report tables (:mod:`~.quickstart`, :mod:`~.quickstart_report`; ``quickstart_benchmark``), the
 occlusion cross-over (:mod:`~.crossover`; ``occlusion_crossover``), the ablation's records
 (:mod:`~.ablation_records`) and hidden-point detection (:mod:`~.hidden_detection`), paired differences between

@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from airfisheye_bench.studies.miniature_datasets.kitti360 import KITTI360  # its source is named there
+
 # TUM-VI 512 cam0 / cam1 Double Sphere and EUCM: github:VladyslavUsenko/basalt data/tumvi_512_ds_calib.json and
 # data/tumvi_512_eucm_calib.json (T_imu_cam, intrinsics, resolution; the IMU and vignette entries left out).
 TUMVI_T_IMU_CAM = [
@@ -90,33 +92,6 @@ TUMVI_EQUI = [
         ],
     },
 ]
-
-# KITTI-360 calibration/image_02.yaml and image_03.yaml (MEI), the values of the KITTI-360 calibration download as
-# reproduced in github:yuliangguo/depth_any_camera (its KITTI-360 fisheye grid script).
-KITTI360 = {
-    "image_02": {
-        "xi": 2.2134047507854890e00,
-        "k1": 1.6798235660113681e-02,
-        "k2": 1.6548773243373522e00,
-        "p1": 4.2223943394772046e-04,
-        "p2": 4.2462134260997584e-04,
-        "gamma1": 1.3363220825849971e03,
-        "gamma2": 1.3357883350012958e03,
-        "u0": 7.1694323510126321e02,
-        "v0": 7.0576498308221585e02,
-    },
-    "image_03": {
-        "xi": 2.5535139132482758e00,
-        "k1": 4.9370396274089505e-02,
-        "k2": 4.5068455478645308e00,
-        "p1": 1.3477698472982495e-03,
-        "p2": -7.0340482615055284e-04,
-        "gamma1": 1.4854388981875156e03,
-        "gamma2": 1.4849477411748708e03,
-        "u0": 6.9888316784030962e02,
-        "v0": 6.9814541887723055e02,
-    },
-}
 
 # WoodScape front camera: github:valeoai/WoodScape scripts/calibration/front.json (commit 2bf2161).
 WOODSCAPE_FRONT = {

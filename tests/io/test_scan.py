@@ -278,7 +278,7 @@ def test_load_scan_is_exported_by_the_io_package(tmp_path: Path) -> None:
 
 def test_inspect_a_folder_of_kitti_scans(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     from airfisheye_bench.geometry.lidar import LidarSpec
-    from tests.helpers.real_scans import simulate
+    from airfisheye_bench.studies.miniature_datasets.spinning_scans import simulate
 
     spec = LidarSpec.from_preset("hdl64e", points_per_channel=512)
     for seed in range(2):

@@ -14,11 +14,11 @@ from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation import command
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.evaluation.leaderboard import collect_results
+from airfisheye_bench.studies.miniature_datasets.tartanair import write_tartanair_fixture
 from airfisheye_bench.training import check_sources, train
 from tests.helpers.commands import TRAIN, assert_one_line_error, run_in_process
 from tests.helpers.configs import compose_eval, compose_train
 from tests.helpers.runs import tiny_run_overrides
-from tests.helpers.tartanair_fixture import write_tartanair_fixture
 
 pytestmark = pytest.mark.integration  # trains, evaluates or exports: seconds per test
 

@@ -1,5 +1,6 @@
 """``data.format=tartanair``: TartanAir V2 read from fixtures written in the toolkit's exact layout and encodings
-(tests/helpers/tartanair_fixture.py; sources: github:castacks/tartanairpy e8535a8b and its submodules)."""
+(airfisheye_bench/studies/miniature_datasets/tartanair.py; sources: github:castacks/tartanairpy e8535a8b and its
+submodules)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from airfisheye_bench.io.datasets import open_dataset
 from airfisheye_bench.io.datasets.tartanair import TartanAirSource, read_depth_png
 from airfisheye_bench.io.datasets.tartanair_labels import TARTANAIR_TO_TRAIN, TRAIN_CLASSES, train_id
 from airfisheye_bench.io.errors import DatasetFormatError
-from tests.helpers.tartanair_fixture import (
+from airfisheye_bench.studies.miniature_datasets.tartanair import (
     COLORS,
     NAME_MAPS,
     depth_png_bytes_order,

@@ -1,14 +1,15 @@
-"""A tiny KITTI-360 root in the real layout and encodings (no real data: KITTI-360 is CC BY-NC-SA 3.0).
+"""A miniature KITTI-360 root in the real layout and encodings (no real data: KITTI-360 is CC BY-NC-SA 3.0).
 
 Names and encodings as github:autonomousvision/kitti360Scripts (commit 40ee015) reads them (see
 ``airfisheye_bench/io/datasets/kitti360.py``): ``calibration/image_02.yaml`` / ``image_03.yaml`` (OpenCV
-FileStorage ``%YAML:1.0``, ``model_type: MEI``; the real intrinsics of ``tests/helpers/calibration_fixtures.py`` scaled
-to a small sensor, with ``p1 = p2 = 0`` so that the devkit's ``cam2image``, which ignores them, is exact),
-``calib_cam_to_pose.txt`` (``image_0X: <12 numbers>``), ``calib_cam_to_velo.txt`` (12 numbers),
-``data_2d_raw/<seq>/image_0X/data_rgb/%010d.png`` (8-bit RGB), ``data_3d_raw/<seq>/velodyne_points/data/%010d.bin``
-(float32 x y z reflectance, KITTI's firing order: each laser's revolution contiguous, top laser first, simulated
-with the ``hdl64e`` preset by :func:`tests.helpers.real_scans.simulate`), ``timestamps.txt``
-(``YYYY-MM-DD HH:MM:SS.nnnnnnnnn``, line k = frame k) and ``data_poses/<seq>/poses.txt`` (frame + 3x4 row-major).
+FileStorage ``%YAML:1.0``, ``model_type: MEI``; the real intrinsics (:data:`KITTI360`) scaled to a small sensor,
+with ``p1 = p2 = 0`` so that the devkit's ``cam2image``, which ignores them, is exact), ``calib_cam_to_pose.txt``
+(``image_0X: <12 numbers>``), ``calib_cam_to_velo.txt`` (12 numbers),
+``data_2d_raw/<seq>/image_0X/data_rgb/%010d.png`` (8-bit RGB),
+``data_3d_raw/<seq>/velodyne_points/data/%010d.bin`` (float32 x y z reflectance, KITTI's firing order: each
+laser's revolution contiguous, top laser first, simulated with the ``hdl64e`` preset by
+:func:`~.spinning_scans.simulate`), ``timestamps.txt`` (``YYYY-MM-DD HH:MM:SS.nnnnnnnnn``, line k = frame k) and
+``data_poses/<seq>/poses.txt`` (frame + 3x4 row-major).
 
 The rig has the real one's geometry (rounded): the GPS/IMU pose frame x forward, y right, z down; image_00 looks
 forward, image_02 left, image_03 right; the Velodyne is x forward, y left, z up, 0.8 m behind image_00. The vehicle
@@ -25,14 +26,40 @@ from PIL import Image
 
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.geometry.transforms import euler_to_matrix, make_transform
-from tests.helpers.calibration_fixtures import KITTI360
-from tests.helpers.real_scans import simulate
+from airfisheye_bench.studies.miniature_datasets.spinning_scans import simulate
 
 SEQUENCES = ("2013_05_28_drive_0000_sync", "2013_05_28_drive_0002_sync")
 SIZE = 96  # image side in pixels (the real sensor: 1400)
 SPEED_M = 1.0  # per frame, along the pose frame's x
 YAW_RAD = 0.02  # per frame, about the pose frame's z
 T0 = 1369730762.0  # 2013-05-28 08:46:02 UTC
+
+# KITTI-360 calibration/image_02.yaml and image_03.yaml (MEI), the values of the KITTI-360 calibration download as
+# reproduced in github:yuliangguo/depth_any_camera (its KITTI-360 fisheye grid script).
+KITTI360 = {
+    "image_02": {
+        "xi": 2.2134047507854890e00,
+        "k1": 1.6798235660113681e-02,
+        "k2": 1.6548773243373522e00,
+        "p1": 4.2223943394772046e-04,
+        "p2": 4.2462134260997584e-04,
+        "gamma1": 1.3363220825849971e03,
+        "gamma2": 1.3357883350012958e03,
+        "u0": 7.1694323510126321e02,
+        "v0": 7.0576498308221585e02,
+    },
+    "image_03": {
+        "xi": 2.5535139132482758e00,
+        "k1": 4.9370396274089505e-02,
+        "k2": 4.5068455478645308e00,
+        "p1": 1.3477698472982495e-03,
+        "p2": -7.0340482615055284e-04,
+        "gamma1": 1.4854388981875156e03,
+        "gamma2": 1.4849477411748708e03,
+        "u0": 6.9888316784030962e02,
+        "v0": 6.9814541887723055e02,
+    },
+}
 
 # Rotations: columns are the camera's x (right), y (down), z (optical axis) in the pose frame (x fwd, y right, z down).
 R_POSE_CAM = {
