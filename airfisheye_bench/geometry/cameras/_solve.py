@@ -337,12 +337,37 @@ class MonotoneInverse:
         return r.abs() <= self.tol + self.f_err(t)
 
 
+def image_inverse(
+    f: Callable[[torch.Tensor], torch.Tensor],
+    df: Callable[[torch.Tensor], torch.Tensor],
+    t_hi: float,
+    to_sensor: Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]],
+    width: int,
+    height: int,
+    tol: float,
+    f_err: Callable[[torch.Tensor], torch.Tensor] | None = None,
+) -> MonotoneInverse:
+    """The :class:`MonotoneInverse` of a radial model's ``f`` over its image: its table spans the radii of the
+    image frame (``to_sensor``: the model's pixels to its radial plane), and it solves out to :data:`FAR_FRAME`
+    image sizes around it (beyond, a ray's pixel is no sensor's and the polynomial's growth is no lens's)."""
+    return MonotoneInverse(
+        f,
+        df,
+        t_hi,
+        y_cap=frame_reach(to_sensor, width, height, FAR_FRAME),
+        y_near=frame_reach(to_sensor, width, height, 1.0),
+        tol=tol,
+        f_err=f_err,
+    )
+
+
 __all__ = [
     "FAR_FRAME",
     "PIXEL_TOL",
     "MonotoneInverse",
     "OriginChord",
     "frame_reach",
+    "image_inverse",
     "increasing_limit",
     "increasing_start",
     "origin_chord",

@@ -404,6 +404,24 @@ def _largest_local_scale(camera: CameraModel, rays: torch.Tensor) -> torch.Tenso
     return torch.sqrt(0.5 * (a + c) + torch.sqrt(0.25 * (a - c) ** 2 + b * b))
 
 
+def ray_at_incidence(
+    theta: torch.Tensor, x: torch.Tensor, y: torch.Tensor, r: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The unit ray at incidence ``theta`` in the direction ``(x, y)`` of the image plane, whose norm is ``r``
+    (the back-projection of every radially symmetric model): the optical axis where ``r == 0``, NaN where
+    ``theta`` is.
+
+    Example:
+        >>> ray = ray_at_incidence(torch.tensor([0.5, 0.3]), torch.tensor([3.0, 0.0]), torch.tensor([4.0, 0.0]),
+        ...                        torch.tensor([5.0, 0.0]))
+        >>> [round(float(c), 4) for c in torch.stack(ray)[:, 0]], [float(c) for c in torch.stack(ray)[:2, 1]]
+        ([0.2877, 0.3835, 0.8776], [0.0, 0.0])
+    """
+    s = torch.sin(theta) / r.clamp_min(1e-300)
+    on_axis = r == 0
+    return torch.where(on_axis, 0.0, s * x), torch.where(on_axis, 0.0, s * y), torch.cos(theta)
+
+
 def incidence_angle(points: ArrayLike) -> ArrayLike:
     """Angle (radians) between camera-frame points ``[..., 3]`` and the optical axis.
 

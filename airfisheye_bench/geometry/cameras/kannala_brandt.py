@@ -18,14 +18,12 @@ from typing import Any
 import torch
 
 from airfisheye_bench.geometry.cameras._solve import (
-    FAR_FRAME,
     PIXEL_TOL,
-    MonotoneInverse,
-    frame_reach,
+    image_inverse,
     increasing_limit,
     polyval_error,
 )
-from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.base import CameraModel, ray_at_incidence
 from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, Param, finite_float, zeros
 
 
@@ -68,12 +66,13 @@ class KannalaBrandt(CameraModel):
         # Solved (and valid) while theta_d increases and the image radius stays within FAR_FRAME image sizes of
         # the image: beyond, a ray's pixel is no sensor's and the polynomial's growth is no lens's.
         scale = max(self.fx, self.fy) * (1.0 + abs(self.skew))  # pixels per unit of theta_d, at most
-        self._inverse = MonotoneInverse(
+        self._inverse = image_inverse(
             self.theta_d,
             self._dtheta_d,
             monotone,
-            y_cap=frame_reach(self._normalised, self.width, self.height, FAR_FRAME),
-            y_near=frame_reach(self._normalised, self.width, self.height, 1.0),
+            self._normalised,
+            self.width,
+            self.height,
             tol=PIXEL_TOL / scale,
             f_err=self._theta_d_err,
         )
@@ -119,9 +118,7 @@ class KannalaBrandt(CameraModel):
         mx, my = self._normalised(u, v)
         td = torch.hypot(mx, my)
         theta = self._inverse(td)
-        s = torch.sin(theta) / td.clamp_min(1e-300)
-        on_axis = td == 0
-        return torch.where(on_axis, 0.0, s * mx), torch.where(on_axis, 0.0, s * my), torch.cos(theta)
+        return ray_at_incidence(theta, mx, my, td)
 
     @classmethod
     def from_focal(

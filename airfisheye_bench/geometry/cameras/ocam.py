@@ -31,11 +31,9 @@ import numpy as np
 import torch
 
 from airfisheye_bench.geometry.cameras._solve import (
-    FAR_FRAME,
     PIXEL_TOL,
-    MonotoneInverse,
     OriginChord,
-    frame_reach,
+    image_inverse,
     increasing_limit,
     increasing_start,
     origin_chord,
@@ -43,7 +41,7 @@ from airfisheye_bench.geometry.cameras._solve import (
     polyval,
     polyval_error,
 )
-from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.base import CameraModel, ray_at_incidence
 from airfisheye_bench.geometry.cameras.params import CX, CY, FOV_DEG, Param, numbers
 
 
@@ -98,12 +96,13 @@ class Ocam(CameraModel):
         chord = OriginChord(self._rho_fit, self._drho_fit, self.theta_head)
         self._rho, self._drho = chord, chord.derivative
         affine_norm = float(np.linalg.norm(np.array([[1.0, self.e], [self.d, self.c]]), 2))
-        self._inverse = MonotoneInverse(
+        self._inverse = image_inverse(
             self._rho,
             self._drho,
             monotone,
-            y_cap=frame_reach(self._sensor, self.width, self.height, FAR_FRAME),
-            y_near=frame_reach(self._sensor, self.width, self.height, 1.0),
+            self._sensor,
+            self.width,
+            self.height,
             tol=PIXEL_TOL / max(1.0, affine_norm),
             f_err=self._rho_err,
         )
@@ -165,8 +164,7 @@ class Ocam(CameraModel):
         # NaN beyond the valid region only: the radius increases from 0 on the axis (the chord below theta_head).
         on_axis = r == 0
         theta = torch.where(on_axis, 0.0, self._inverse(r))
-        s = torch.sin(theta) / r.clamp_min(1e-300)
-        return torch.where(on_axis, 0.0, s * gx), torch.where(on_axis, 0.0, s * gy), torch.cos(theta)
+        return ray_at_incidence(theta, gx, gy, r)
 
     def cam2world_rays(self, uv: torch.Tensor) -> torch.Tensor:
         """Unit rays ``[..., 3]`` (float64) of pixels by OCamCalib's own ``cam2world`` (the ``ss`` polynomial)."""

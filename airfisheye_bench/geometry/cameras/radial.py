@@ -20,7 +20,7 @@ from typing import Any, ClassVar
 
 import torch
 
-from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.base import CameraModel, ray_at_incidence
 from airfisheye_bench.geometry.cameras.params import Param, field_of_view, number, optional, positive
 
 
@@ -93,9 +93,7 @@ class RadialCamera(CameraModel):
         r = torch.hypot(dx, dy)
         theta = self._theta_of(r / self.focal)
         theta = torch.where(theta <= self.max_model_theta, theta, torch.nan)  # past pi a radius wraps round
-        s = torch.sin(theta) / r.clamp_min(1e-300)
-        on_axis = r == 0
-        return torch.where(on_axis, 0.0, s * dx), torch.where(on_axis, 0.0, s * dy), torch.cos(theta)
+        return ray_at_incidence(theta, dx, dy, r)
 
 
 class Equidistant(RadialCamera):

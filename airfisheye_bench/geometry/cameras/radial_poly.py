@@ -16,16 +16,14 @@ import math
 import torch
 
 from airfisheye_bench.geometry.cameras._solve import (
-    FAR_FRAME,
     PIXEL_TOL,
-    MonotoneInverse,
-    frame_reach,
+    image_inverse,
     increasing_limit,
     polyder,
     polyval,
     polyval_error,
 )
-from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.base import CameraModel, ray_at_incidence
 from airfisheye_bench.geometry.cameras.params import FOV_DEG, Param, positive
 
 
@@ -62,12 +60,13 @@ class RadialPoly(CameraModel):
                 f"{self.fov_deg / 2:g} deg"
             )
         # Solved (and valid) while rho increases and stays within FAR_FRAME image sizes of the image.
-        self._inverse = MonotoneInverse(
+        self._inverse = image_inverse(
             self.rho,
             self._drho,
             monotone,
-            y_cap=frame_reach(self._sensor, self.width, self.height, FAR_FRAME),
-            y_near=frame_reach(self._sensor, self.width, self.height, 1.0),
+            self._sensor,
+            self.width,
+            self.height,
             tol=PIXEL_TOL / max(1.0, self.aspect_ratio),
             f_err=self._rho_err,
         )
@@ -99,9 +98,7 @@ class RadialPoly(CameraModel):
         gx, gy = self._sensor(u, v)
         r = torch.hypot(gx, gy)
         theta = self._inverse(r)
-        s = torch.sin(theta) / r.clamp_min(1e-300)
-        on_axis = r == 0
-        return torch.where(on_axis, 0.0, s * gx), torch.where(on_axis, 0.0, s * gy), torch.cos(theta)
+        return ray_at_incidence(theta, gx, gy, r)
 
 
 __all__ = ["RadialPoly"]

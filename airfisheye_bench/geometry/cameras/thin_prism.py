@@ -28,7 +28,7 @@ from airfisheye_bench.geometry.cameras._solve import (
     polyval,
 )
 from airfisheye_bench.geometry.cameras._solve_planar import DiscInverse, one_to_one_radius
-from airfisheye_bench.geometry.cameras.base import CameraModel
+from airfisheye_bench.geometry.cameras.base import CameraModel, ray_at_incidence
 from airfisheye_bench.geometry.cameras.params import FOV_DEG, PINHOLE, zeros
 
 
@@ -98,9 +98,7 @@ class _ThetaPlaneDistortion(CameraModel):
     def _unproject(self, u, v):
         a, b = self._undistort(*self._normalised(u, v))
         theta = torch.hypot(a, b)
-        s = torch.sin(theta) / theta.clamp_min(1e-300)
-        on_axis = theta == 0
-        return torch.where(on_axis, 0.0, s * a), torch.where(on_axis, 0.0, s * b), torch.cos(theta)
+        return ray_at_incidence(theta, a, b, theta)
 
 
 class ThinPrismFisheye(_ThetaPlaneDistortion):
