@@ -164,9 +164,15 @@ def test_a_panorama_is_rendered_where_the_view_looks(tmp_path: Path) -> None:
     assert (down[_outside_lens()] == 0).all()
 
 
+@pytest.fixture(scope="module")
+def completion_export(tiny_exports) -> tuple[Path, int, str]:
+    """The session's ONNX export of the tiny completion run: ``(path, exit status, printed report)``."""
+    return tiny_exports("completion")
+
+
 @pytest.mark.integration
-def test_completion_needs_its_sparse_maps(tiny_exports, tmp_path: Path) -> None:
-    onnx, status, report = tiny_exports("completion")
+def test_completion_needs_its_sparse_maps(completion_export: tuple[Path, int, str], tmp_path: Path) -> None:
+    onnx, status, report = completion_export
     assert status == 0, report
     images, sparse = _images(tmp_path / "frames", count=2), tmp_path / "sparse"
     sparse.mkdir()

@@ -234,10 +234,16 @@ def test_parity_failure_leaves_nothing_at_out(
 
 
 # --------------------------------------------------------------------------------- depth and completion
-@pytest.mark.parametrize("task", ["depth", "completion"])
-def test_depth_tasks_export_through_the_cli(task: str, tiny_exports) -> None:
+@pytest.fixture(scope="module", params=["depth", "completion"])
+def depth_export(request: pytest.FixtureRequest, tiny_exports) -> tuple[str, Path, int, str]:
+    """``(task, onnx path, exit status, printed report)``: the session's export of each depth task's tiny run, taken
+    as set-up (its training and export are shared with the evaluate and predict tests)."""
+    return request.param, *tiny_exports(request.param)
+
+
+def test_depth_tasks_export_through_the_cli(depth_export: tuple[str, Path, int, str]) -> None:
     """The session's export of each tiny run (``airfisheye-export ckpt_path=<run>/checkpoints/last.ckpt``)."""
-    out, code, stdout = tiny_exports(task)
+    task, out, code, stdout = depth_export
     assert code == 0, stdout
     assert "|diff| ≤ atol 0.0001 + rtol 0.001 × |torch| everywhere" in stdout and "ratio ort/torch" in stdout
     assert stdout.index(": OK") < stdout.index("wrote ")

@@ -119,18 +119,21 @@ def test_workers_and_copies_give_the_same_bytes(tiny_dataset: Path, jpg_npy, tmp
     assert not os.path.samefile(copied, DatasetReader(tiny_dataset).layout.lidar(sid))
 
 
+# In this process, and through the pool of worker processes (a worker's error reaches the caller intact). The pool
+# costs seconds of starting interpreters: that case is slow, and the default suite takes the pool's path in
+# test_workers_and_copies_give_the_same_bytes.
 @pytest.mark.integration
-def test_a_corrupt_file_is_named(tiny_dataset: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("workers", [1, pytest.param(2, marks=pytest.mark.slow)])
+def test_a_corrupt_file_is_named(tiny_dataset: Path, tmp_path: Path, workers: int) -> None:
     src = tmp_path / "src"
     shutil.copytree(tiny_dataset, src, copy_function=os.link)
     bad = DatasetReader(src).layout.cubemap(DatasetReader(src).split("val")[0], "up", "rgb")
     bad.unlink()  # a new file, not the shared one
     bad.write_bytes(b"not a png")
-    for workers in (1, 2):  # a worker's error reaches the caller intact
-        with pytest.raises(DatasetFormatError, match=re.escape(str(bad))):
-            transcode_dataset(src, tmp_path / "out", workers=workers)
-        assert not (tmp_path / "out").exists()
-        _no_leftovers(tmp_path)
+    with pytest.raises(DatasetFormatError, match=re.escape(str(bad))):
+        transcode_dataset(src, tmp_path / "out", workers=workers)
+    assert not (tmp_path / "out").exists()
+    _no_leftovers(tmp_path)
 
 
 def test_bad_destinations_and_sources(tiny_dataset: Path, tmp_path: Path) -> None:

@@ -51,6 +51,12 @@ def test_training_with_a_kalibr_double_sphere_camchain(ds_run: tuple[Path, Path]
     assert list((run / "panels").glob("epoch_*.png"))
 
 
+# A second ONNX export of the completion model (seconds of torch.export): end to end, slow. The default suite covers
+# each step: the export through the command (tests/export/test_deploy.py::test_depth_tasks_export_through_the_cli),
+# the exported data config carrying the lens instead of the file and the refusal of another camera
+# (tests/evaluation/test_camera_mismatch.py), the inline lens serving the same camera
+# (tests/datamodules/test_calibrated_camera.py::test_an_inline_camera_dict_serves_the_same_camera).
+@pytest.mark.slow
 def test_the_onnx_model_carries_the_camera_without_the_file(
     ds_run: tuple[Path, Path], tmp_path: Path
 ) -> None:

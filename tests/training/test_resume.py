@@ -58,10 +58,16 @@ def test_last_checkpoint_holds_the_final_state(tiny_dataset: Path, tmp_path: Pat
     assert (best.stat().st_ino == last.stat().st_ino) == (state["global_step"] == 3)
 
 
+@pytest.fixture(scope="module")
+def seg_run(tiny_runs) -> Path:
+    """The session's tiny seg run (read-only)."""
+    return tiny_runs("seg")
+
+
 @pytest.mark.integration
-def test_a_one_epoch_run_stores_its_weights_once(tiny_runs) -> None:
+def test_a_one_epoch_run_stores_its_weights_once(seg_run: Path) -> None:
     """``trainer=debug``: the best checkpoint is the last one (the same step), one file under two names."""
-    folder = tiny_runs("seg") / "checkpoints"
+    folder = seg_run / "checkpoints"
     best, last = folder / "epoch_000.ckpt", folder / "last.ckpt"
     assert best.stat().st_ino == last.stat().st_ino and last.stat().st_nlink == 2
 
@@ -361,7 +367,8 @@ def test_resuming_a_tiny_run_with_more_epochs_changes_nothing_else(
     tiny_dataset: Path, tmp_path: Path
 ) -> None:
     """The scenario of a new user: a tiny run on another lens, resumed with ``trainer.max_epochs=3`` (each command
-    through ``train.py``'s entry function in this process: its argv, output and exit status)."""
+    through ``train.py``'s entry function in this process: its argv, output and exit status). One training batch an
+    epoch: the epochs, not the steps, are what a resume continues."""
     from tests.helpers.commands import TRAIN, assert_one_line_error
     from tests.helpers.commands import run_in_process as run_command
 
@@ -371,6 +378,7 @@ def test_resuming_a_tiny_run_with_more_epochs_changes_nothing_else(
         [
             *tiny_run_overrides("seg", tiny_dataset),
             "data.camera.model=kannala_brandt",
+            "trainer.limit_train_batches=1",
             f"hydra.run.dir={run}",
         ],
     )
