@@ -113,3 +113,23 @@ def trajectory_of(sample_id: str) -> str:
     """``"<env>/<traj>"`` of a sample id."""
     env, traj, _ = parse_sample_id(sample_id)
     return f"{env}/{traj}"
+
+
+#: A trajectory's calibration file in the default layout (``<env>/<traj>/calib.yaml``).
+_CALIB_YAML = Path(DEFAULT_LAYOUT["calib"]).name
+
+
+def calibration_beside(path: Path, levels: int = 3) -> Path | None:
+    """The ``calib.yaml`` of the dataset trajectory that the frames at ``path`` belong to (its folder or one of the
+    ``levels`` above it, in a folder that a ``dataset.yaml`` above says is a dataset), or ``None``.
+
+    The AirFisheye layout keeps a trajectory's lens in ``<env>/<traj>/calib.yaml`` and its frames in
+    ``<env>/<traj>/fisheye/rgb/`` (``docs/design.md``, "On-disk dataset layout"): predicting on those frames needs
+    no ``camera=``.
+    """
+    folder = path if path.is_dir() else path.parent
+    for candidate in [folder, *folder.parents][: levels + 1]:
+        calib = candidate / _CALIB_YAML
+        if calib.is_file() and any((up / DATASET_YAML).is_file() for up in candidate.parents):
+            return calib
+    return None

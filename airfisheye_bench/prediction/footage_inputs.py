@@ -5,7 +5,7 @@ frames' headers, before anything is predicted, and returns what turns each frame
 (``uint8 [H, W, 3]`` at the model's size, black outside its lens, as the served training images are):
 
 - ``fisheye`` frames: without ``camera`` they are taken to be of the lens of the dataset they belong to (its
-  ``calib.yaml``, :func:`calibration_beside`) or else of the model's lens, so they must be the model's size;
+  ``calib.yaml``, :func:`~airfisheye_bench.io.layout.calibration_beside`) or else of the model's lens, so they must be the model's size;
   with ``camera`` (a calibration file of the footage's lens) they must be that lens's size, and the lens, scaled to
   the model's size (:meth:`~airfisheye_bench.geometry.cameras.CameraModel.resized`), must be the model's camera:
   the frames are then resized to it. Anything else is refused with one line naming the mismatch, unless
@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import logging
 import math
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -31,14 +30,13 @@ from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.equirect import EquirectToFisheye
 from airfisheye_bench.geometry.transforms import gimbal_rotation
 from airfisheye_bench.io.calibration_files import camera_label, camera_mismatch, load_camera
-from airfisheye_bench.io.dataset_spec import DATASET_YAML, DEFAULT_LAYOUT
+from airfisheye_bench.io.layout import calibration_beside
 from airfisheye_bench.prediction.footage import Footage
 
 __all__ = [
     "INPUT_FORMATS",
     "ErpPreparer",
     "FramePreparer",
-    "calibration_beside",
     "erp_supersample",
     "frame_preparer",
 ]
@@ -47,8 +45,6 @@ log = logging.getLogger(__name__)
 
 #: ``input_format``: fisheye frames (of the model's lens) or equirectangular panoramas.
 INPUT_FORMATS = ("fisheye", "erp")
-#: A trajectory's calibration file in the AirFisheye layout (``<env>/<traj>/calib.yaml``).
-CALIB_YAML = Path(DEFAULT_LAYOUT["calib"]).name
 #: Most samples per pixel and axis when a panorama is finer than the camera.
 MAX_ERP_SUPERSAMPLE = 4
 
@@ -170,22 +166,6 @@ def frame_preparer(
             camera.height,
         )
     return FramePreparer(camera)
-
-
-def calibration_beside(path: Path, levels: int = 3) -> Path | None:
-    """The ``calib.yaml`` of the dataset trajectory that the frames at ``path`` belong to (its folder or one of the
-    ``levels`` above it, in a folder that a ``dataset.yaml`` above says is a dataset), or ``None``.
-
-    The AirFisheye layout keeps a trajectory's lens in ``<env>/<traj>/calib.yaml`` and its frames in
-    ``<env>/<traj>/fisheye/rgb/`` (``docs/design.md``, "On-disk dataset layout"): predicting on those frames needs
-    no ``camera=``.
-    """
-    folder = path if path.is_dir() else path.parent
-    for candidate in [folder, *folder.parents][: levels + 1]:
-        calib = candidate / CALIB_YAML
-        if calib.is_file() and any((up / DATASET_YAML).is_file() for up in candidate.parents):
-            return calib
-    return None
 
 
 def _check_panoramas(footage: Footage, allow_mismatch: bool) -> None:

@@ -20,8 +20,9 @@ from airfisheye_bench.geometry import ideal_camera
 from airfisheye_bench.geometry.cameras import camera_from_dict
 from airfisheye_bench.io import DatasetReader, trajectory_of
 from airfisheye_bench.io.calibration_files import save_camera
+from airfisheye_bench.io.layout import calibration_beside
 from airfisheye_bench.prediction.footage import open_footage, read_sparse
-from airfisheye_bench.prediction.footage_inputs import calibration_beside, frame_preparer
+from airfisheye_bench.prediction.footage_inputs import frame_preparer
 from airfisheye_bench.runs.deployment import read_deployment_metadata
 from tests.helpers import calibration_fixtures as fx
 from tests.helpers.commands import PREDICT, Outcome, assert_one_line_error, run_in_process
