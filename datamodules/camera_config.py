@@ -10,7 +10,7 @@ from typing import Any
 
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict, ideal_camera
-from airfisheye_bench.geometry.lens_draws import LensJitter, parse_lenses
+from airfisheye_bench.geometry.lens_draws import LENS_KEYS, LensJitter, parse_lenses
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
 
@@ -78,9 +78,7 @@ class CameraConfig:
             raise ConfigError(str(err)) from None
         if parsed is None:
             return (self,), (1.0,)
-        given = [
-            k for k in ("model", "fov_deg", "k", "calibration", "camera") if getattr(self, k) is not None
-        ]
+        given = [k for k in LENS_KEYS if k != "weight" and getattr(self, k) is not None]
         if given:
             raise ConfigError(
                 f"data.camera.lenses gives the lenses: drop data.camera.{given[0]} (a lens's keys go in its spec)"
