@@ -61,6 +61,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import Dataset
 
+from airfisheye_bench.config_checks.data_options import default
 from airfisheye_bench.constants import IMAGENET_MEAN, IMAGENET_STD
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import CubemapToFisheye, EquirectToFisheye
@@ -153,16 +154,18 @@ class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
         reader: DatasetSource,
         split: str,
         task: str,
-        source: str = "cubemap",
+        source: str = default("source"),
         camera: CameraConfig | None = None,
         occlusion: Occlusion | str = PAPER_OCCLUSION,
-        motion_compensation: bool = True,
-        max_depth: float = 120.0,
+        motion_compensation: bool = default("motion_compensation"),
+        max_depth: float = default("max_depth"),
         augment: FisheyeAugment | None = None,
-        skip_bad_frames: bool = False,
-        seed: int = 0,
+        skip_bad_frames: bool = default("skip_bad_frames"),
+        seed: int = default("seed"),
         lidar_spec: LidarSpec | None = None,
         lidar_min_range: float = DEFAULT_MIN_RANGE,
+        # Every return, as recorded, for a folder opened directly (from_root); the run's declared default
+        # (data.lidar.density: paper) is the datamodule's, which hands its choice on.
         lidar_density: str = "native",
         gimbal: Gimbal | None = None,
         source_fallback: bool = False,
