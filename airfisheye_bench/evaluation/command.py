@@ -28,10 +28,18 @@ from typing import Any
 
 import numpy as np
 import torch
-from omegaconf import DictConfig, OmegaConf, open_dict
+from omegaconf import DictConfig, ListConfig, OmegaConf, open_dict
 
 from airfisheye_bench.config_checks import ValueRule, check_common_values
 from airfisheye_bench.errors import ConfigError
+from airfisheye_bench.evaluation.cross_lens import (
+    TestLens,
+    cross_lens_gap,
+    largest_changes,
+    lens_data_config,
+    parse_test_lenses,
+    robustness_lenses,
+)
 from airfisheye_bench.evaluation.evaluator import EvaluationResult, evaluate_predictions
 from airfisheye_bench.evaluation.predictors import (
     TTA_MODES,
@@ -42,7 +50,9 @@ from airfisheye_bench.evaluation.predictors import (
 )
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
 from airfisheye_bench.evaluation.trained import run_datamodule
+from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.io.calibration_files import camera_mismatch
+from airfisheye_bench.io.layout import trajectory_of
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, ring_edges_for
 from airfisheye_bench.metrics.scorer import TaskScorer
 from airfisheye_bench.runs import checkpoint_run_name, resolve_checkpoint, run_config, run_directory
@@ -72,6 +82,9 @@ EVALUATE_RULES: dict[str, ValueRule] = {
     "num_panels": ValueRule("int", minimum=0),
     "threads": ValueRule("int", minimum=1, nullable=True, hint="null: ONNX Runtime's default"),
     "allow_camera_mismatch": ValueRule("bool", hint="score an ONNX model on data served with another camera"),
+    "robustness": ValueRule(
+        "bool", hint="score the trained lens with its intrinsics perturbed (cross_lens.py)"
+    ),
 }
 """``evaluate.yaml``'s own options (the common keys are :data:`airfisheye_bench.config_checks.RULES`)."""
 
@@ -100,6 +113,7 @@ def evaluate(
             f"give exactly one of ckpt_path=<.ckpt or run dir>, onnx_path=<.onnx>, predictions=<dir>; got {given or 'none'}"
         )
     source = given[0]
+    tests = _test_lenses(cfg, source)
 
     module, checkpoint, source_data = None, None, None
     task = cfg.task.name if cfg.get("task") else None
@@ -125,9 +139,8 @@ def evaluate(
             cfg.task = {"name": task}
         cfg.data.task = task
     datamodule, data_config = _datamodule(cfg, task, source_data, data_overrides or [])
-    dataset = datamodule.split_dataset(cfg.split)
     camera = datamodule.camera
-    predictor = _predictor(cfg, source, task, module, checkpoint, dataset, camera)
+    predictor = _predictor(cfg, source, task, module, checkpoint, datamodule.split_dataset(cfg.split), camera)
     if source == "onnx_path":  # after the image-size check, which no flag can waive
         _check_camera(cfg, metadata["camera"], camera)
 
@@ -138,31 +151,18 @@ def evaluate(
         class_names = datamodule.class_names if spec.uses_classes else None
         factory = partial(spec.make_metric, class_names=class_names, max_depth=max_depth)
     rings = module.hparams.ring_edges_deg if module is not None else DEFAULT_RING_EDGES_DEG
-    scorer = TaskScorer(
-        factory,
-        ring_edges_deg=ring_edges_for(camera.coverage_deg, rings),
-        depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None,
-    )
-    theta = torch.rad2deg(camera.theta_grid()).float()
+    score = partial(_score, cfg, predictor, factory, rings, spec, max_depth=max_depth, grouped=bool(tests))
 
     output_dir = Path(cfg.output_dir)
     writer = _prediction_writer(cfg, source, task)
     with writer or contextlib.nullcontext():
-        result = evaluate_predictions(
-            predictor,
-            dataset,
-            scorer,
-            theta,
-            batch_size=cfg.batch_size,
-            num_workers=cfg.num_workers,
-            num_panels=cfg.num_panels,
-            palette=datamodule.palette if spec.uses_classes else None,
-            max_depth=max_depth,
-            on_batch=writer.add_batch if writer else None,
-        )
+        result = score(datamodule, num_panels=cfg.num_panels, on_batch=writer.add_batch if writer else None)
+    cross_lens = (
+        _cross_lens(cfg, tests, task, spec, score, data_config, datamodule, result) if tests else None
+    )
     if before_writing is not None:
         before_writing()
-    record = _write(cfg, output_dir, task, datamodule, data_config, predictor, result)
+    record = _write(cfg, output_dir, task, datamodule, data_config, predictor, result, cross_lens)
     summary = "\n".join(
         [
             format_results_table(task, result.metrics, result.breakdown, spec.primary_metric),
@@ -293,6 +293,7 @@ def _write(
     data_config: dict[str, Any],
     predictor: Predictor,
     result: EvaluationResult,
+    cross_lens: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     panels = output_dir / "panels"
     max_depth = float(data_config.get("max_depth", 120.0))  # the depth colour bar's far end, as the tiles
@@ -321,7 +322,7 @@ def _write(
         config={
             # The task group's training settings (optimiser, model defaults) play no part in evaluation.
             "evaluation": {
-                k: OmegaConf.to_container(v, resolve=True) if isinstance(v, DictConfig) else v
+                k: OmegaConf.to_container(v, resolve=True) if isinstance(v, (DictConfig, ListConfig)) else v
                 for k, v in cfg.items()
                 if k not in ("task", "model", "trainer", "data", "paths")
             },
@@ -330,5 +331,166 @@ def _write(
             "num_frames": result.num_frames,
             "seconds": round(result.seconds, 3),
         },
+        cross_lens=cross_lens,
     )
     return json.loads(path.read_text())
+
+
+def _test_lenses(cfg: DictConfig, source: str) -> list[TestLens]:
+    """``lenses=`` and ``robustness=true`` as test lenses (the robustness row's are added once the trained lens is
+    known): ``[]`` for a plain evaluation."""
+    try:
+        tests = parse_test_lenses(cfg.get("lenses"))
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+    if cfg.get("robustness") and not any(lens.trained for lens in tests):
+        tests.insert(0, TestLens("trained"))
+    if tests and source == "predictions":
+        raise ConfigError(
+            "lenses= / robustness=true score a model on other lenses: they need ckpt_path= or onnx_path= "
+            "(prediction files were made for one lens)"
+        )
+    return tests
+
+
+def _score(
+    cfg: DictConfig,
+    predictor: Predictor,
+    factory: Callable[[], Any],
+    rings: Any,
+    spec: Any,
+    datamodule: Any,
+    num_panels: int = 0,
+    on_batch: Callable[[dict, torch.Tensor], None] | None = None,
+    max_depth: float = 120.0,
+    grouped: bool = False,
+) -> EvaluationResult:
+    """Score ``predictor`` on the split of ``datamodule``, through its camera (and per flight, ``grouped``)."""
+    camera = datamodule.camera
+    scorer = TaskScorer(
+        factory,
+        ring_edges_deg=ring_edges_for(camera.coverage_deg, rings),
+        depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None,
+    )
+    return evaluate_predictions(
+        predictor,
+        datamodule.split_dataset(cfg.split),
+        scorer,
+        torch.rad2deg(camera.theta_grid()).float(),
+        batch_size=cfg.batch_size,
+        num_workers=cfg.num_workers,
+        num_panels=num_panels,
+        palette=datamodule.palette if spec.uses_classes else None,
+        max_depth=max_depth,
+        on_batch=on_batch,
+        group_of=_flight if grouped else None,
+        group_metric=factory if grouped else None,
+    )
+
+
+def _flight(sample_id: str) -> str:
+    """The flight (trajectory) of a sample: the unit of a cross-lens study's intervals."""
+    try:
+        return trajectory_of(sample_id)
+    except ValueError:  # another dataset's ids: everything before the frame
+        return sample_id.rsplit("/", 1)[0]
+
+
+def _cross_lens(
+    cfg: DictConfig,
+    tests: list[TestLens],
+    task: str,
+    spec: Any,
+    score: Callable[..., EvaluationResult],
+    data_config: dict[str, Any],
+    datamodule: Any,
+    own: EvaluationResult,
+) -> dict[str, Any]:
+    """Score the model on each test lens (the trained one is ``own``) and, with ``robustness=true``, on the trained
+    lens perturbed: the ``cross_lens`` block of ``results.json``."""
+    base = OmegaConf.create(data_config)
+    trained = [lens.camera for lens in datamodule.split_dataset(cfg.split).served_lenses]
+
+    def served(data: DictConfig) -> Any:
+        return run_datamodule(apply_data_overrides(data, task=task))
+
+    def row(lens: TestLens, result: EvaluationResult, camera: CameraModel) -> dict[str, Any]:
+        log.info(
+            "lens %s: %s", lens.name, format_results_table(task, result.metrics, {}, spec.primary_metric)
+        )
+        return {
+            "name": lens.name,
+            "lens": lens.spec(),
+            "camera": camera.to_dict(),
+            "seen": lens.trained or any(_same_camera(camera, t) for t in trained),
+            "metrics": result.metrics,
+            "gap": _gaps(spec, own.metrics, result.metrics),
+            "flights": result.groups,
+            "num_frames": result.num_frames,
+        }
+
+    rows = []
+    for lens in tests:
+        if lens.trained:
+            rows.append(row(lens, own, datamodule.camera))
+            continue
+        data = lens_data_config(base, lens.camera) if lens.camera else base
+        if lens.perturb is not None:
+            data = lens_data_config(base, lens.perturb.apply(served(data).camera))
+        module = served(data)
+        rows.append(row(lens, score(module), module.camera))
+    out: dict[str, Any] = {
+        "trained_lenses": [camera.to_dict() for camera in trained],
+        "primary_metric": spec.primary_metric,
+        "lenses": rows,
+    }
+    if cfg.get("robustness"):
+        out["robustness"] = _robustness(cfg, task, spec, score, base, datamodule, own, served)
+    return out
+
+
+def _robustness(cfg, task, spec, score, base, datamodule, own, served) -> dict[str, Any]:
+    """The trained lens (a list's first) with its focal, principal point and first distortion term perturbed
+    (:func:`~airfisheye_bench.evaluation.cross_lens.robustness_lenses`): each perturbation's metrics and the
+    largest change of each from the unperturbed lens."""
+    camera = datamodule.camera
+    reference = own
+    if len(datamodule.split_dataset(cfg.split).served_lenses) > 1:  # own is the list's mixture: lens 0 alone
+        reference = score(served(lens_data_config(base, camera)))
+    rows = []
+    for lens in robustness_lenses(camera):
+        module = served(lens_data_config(base, lens.perturb.apply(camera)))
+        result = score(module)
+        rows.append(
+            {"name": lens.name, "lens": lens.spec(), "metrics": result.metrics, "flights": result.groups}
+        )
+    return {
+        "camera": camera.to_dict(),
+        "metrics": reference.metrics,
+        "flights": reference.groups,
+        "perturbations": rows,
+        "largest_change": largest_changes(reference.metrics, [r["metrics"] for r in rows]),
+    }
+
+
+def _gaps(spec: Any, own: dict[str, float], other: dict[str, float]) -> dict[str, float]:
+    """The cross-lens gap of each headline metric (:func:`~airfisheye_bench.evaluation.cross_lens.cross_lens_gap`)."""
+    out = {}
+    for key in spec.metric_keys:
+        if key in own and key in other:
+            out[key] = cross_lens_gap(own[key], other[key], spec.column(key).higher_is_better)
+    return out
+
+
+def _same_camera(a: CameraModel, b: CameraModel) -> bool:
+    """Whether two served cameras are the same lens (to rounding: a resized release camera and the ideal lens it
+    is)."""
+    da, db = a.to_dict(), b.to_dict()
+    if da.keys() != db.keys():
+        return False
+    return all(
+        np.allclose(np.asarray(da[k], dtype=float), np.asarray(db[k], dtype=float), rtol=1e-9, atol=1e-9)
+        if not isinstance(da[k], str)
+        else da[k] == db[k]
+        for k in da
+    )

@@ -40,6 +40,8 @@ class EvaluationResult:
         seconds: Wall time of the loop (loading, predicting, scoring).
         panels: ``(sample_id, tiles)`` of frames spread over the split: image | (sparse) | ground truth |
             prediction | error (:func:`~airfisheye_bench.viz.panel_titles`).
+        groups: ``{group: {key: value}}``: the task metric over each group's frames alone (``group_of``; e.g. per
+            flight, the unit of a study's intervals), empty without.
     """
 
     metrics: dict[str, float]
@@ -47,6 +49,7 @@ class EvaluationResult:
     num_frames: int
     seconds: float
     panels: list[tuple[str, list[np.ndarray]]] = field(default_factory=list)
+    groups: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
 def evaluate_predictions(
@@ -60,6 +63,8 @@ def evaluate_predictions(
     palette: np.ndarray | None = None,
     max_depth: float = 120.0,
     on_batch: Callable[[dict, torch.Tensor], None] | None = None,
+    group_of: Callable[[str], str] | None = None,
+    group_metric: Callable[[], Metric] | None = None,
 ) -> EvaluationResult:
     """Run ``predictor`` over every frame of ``dataset`` and score it.
 
@@ -76,6 +81,9 @@ def evaluate_predictions(
         palette: Class colours (panels of tasks that predict labels).
         max_depth: Far end of the depth colour maps.
         on_batch: Called with ``(batch, prediction)`` after scoring each batch (e.g. to save predictions).
+        group_of: The group of a sample id (e.g. :func:`~airfisheye_bench.studies.clustered.flight_of`): each
+            group's frames are also scored alone by a fresh ``group_metric()`` (``EvaluationResult.groups``).
+        group_metric: The task metric's factory, with ``group_of``.
 
     Returns:
         An :class:`EvaluationResult`.
@@ -94,7 +102,10 @@ def evaluate_predictions(
     loader = DataLoader(
         dataset, batch_size=batch_size, shuffle=False, num_workers=num_workers, collate_fn=collate_fn
     )
+    if (group_of is None) != (group_metric is None):
+        raise ValueError("group_of and group_metric go together")
     metrics = _stateful_metrics(scorer)
+    groups: dict[str, Metric] = {}
     panels: list[tuple[str, list[np.ndarray]]] = []
     frames = 0
     start = time.perf_counter()
@@ -111,6 +122,8 @@ def evaluate_predictions(
             else:
                 _merge_states(metrics, states)
             frames += target.shape[0]
+            if group_of is not None:
+                _update_groups(groups, group_of, group_metric, batch, prediction, target)
             for i, sample_id in enumerate(batch["sample_id"]):
                 if len(panels) < num_panels and (panel_ids is None or sample_id in panel_ids):
                     tiles = panel_row(
@@ -123,7 +136,28 @@ def evaluate_predictions(
     if frames == 0:
         raise ValueError("no frame was evaluated (empty split, or every frame skipped)")
     scores = scorer.compute()
-    return EvaluationResult(scores["metrics"], scores["breakdown"], frames, seconds, panels)
+    by_group = {
+        name: {k: float(v) for k, v in metric.compute().items()} for name, metric in sorted(groups.items())
+    }
+    return EvaluationResult(scores["metrics"], scores["breakdown"], frames, seconds, panels, by_group)
+
+
+def _update_groups(
+    groups: dict[str, Metric],
+    group_of: Callable[[str], str],
+    factory: Callable[[], Metric],
+    batch: dict,
+    prediction: torch.Tensor,
+    target: torch.Tensor,
+) -> None:
+    """Add each frame of a batch to its group's metric (the frames of one group together)."""
+    names = [group_of(sample_id) for sample_id in batch["sample_id"]]
+    for name in dict.fromkeys(names):
+        rows = torch.tensor([i for i, n in enumerate(names) if n == name])
+        metric = groups.get(name)
+        if metric is None:
+            metric = groups[name] = factory()
+        metric.update(prediction[rows], target[rows], mask=batch["valid_mask"][rows])
 
 
 #: Batch key of the metric states a loader worker scored (see :class:`_ScoringCollate`).

@@ -69,6 +69,7 @@ def write_results(
     config: dict[str, Any] | None = None,
     sources: dict[str, Any] | None = None,
     sparse_coverage: dict[str, float] | None = None,
+    cross_lens: dict[str, Any] | None = None,
 ) -> Path:
     """Write ``results.json`` atomically and return its path; ``primary_metric`` is the task spec's.
 
@@ -78,6 +79,9 @@ def write_results(
 
     ``sparse_coverage`` (a task with a sparse input: completion): its pixels per ground-truth pixel by ring over the
     split, ``{"ring_0-30": 0.031, ...}`` (``datamodules.coverage``), how dense the input the model saw was.
+
+    ``cross_lens`` (``lenses=`` / ``robustness=true``): the model scored on each test lens
+    (:mod:`airfisheye_bench.evaluation.cross_lens`).
     """
     primary = get_task(task).primary_metric
     record = {
@@ -96,6 +100,8 @@ def write_results(
         record["sparse_coverage"] = _clean(sparse_coverage)
     if sources:
         record["sources"] = _clean(sources)
+    if cross_lens:
+        record["cross_lens"] = _clean(cross_lens)
     path = Path(path)
     atomic_write_text(path, json.dumps(record, indent=2, sort_keys=False) + "\n")
     return path

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.errors import MissingFileError, UserError
+from airfisheye_bench.evaluation.leaderboard.lens_matrix import LensScore, lens_scores
 from airfisheye_bench.io.calibration_files import camera_label
 from airfisheye_bench.runs import checkpoint_run_name, run_started
 from airfisheye_bench.runs.results import RESULTS_VERSION, evaluated_label, load_results, source_records
@@ -74,6 +75,9 @@ class LeaderboardEntry:
         debug: Trained and tested with a smoke run's trainer (``trainer=debug``: :func:`is_debug_trainer` of
             ``config.trainer``): a batch or two of training and of the test split. ``airfisheye-leaderboard`` leaves
             such rows out unless ``include_debug=true``, and marks them when it ranks them.
+        lenses: The model's score on each test lens of ``airfisheye-evaluate lenses=[...]`` (``cross_lens`` of the
+            results; :mod:`~airfisheye_bench.evaluation.leaderboard.lens_matrix`), empty without.
+        lens_robustness: The robustness row's largest change of each metric, empty without.
     """
 
     task: str
@@ -93,6 +97,8 @@ class LeaderboardEntry:
     dataset_root: str | None = None
     overrides: tuple[str, ...] = ()
     debug: bool = False
+    lenses: tuple[LensScore, ...] = ()
+    lens_robustness: Mapping[str, float | None] = field(default_factory=dict)
 
     @property
     def run_with_overrides(self) -> str:
@@ -324,6 +330,7 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
     if not isinstance(dataset, Mapping) or not isinstance(model, Mapping):
         raise ValueError("'dataset' and 'model' must be objects")
     manifest = dataset.get("manifest_sha256")
+    lenses, robustness = lens_scores(record)
     return LeaderboardEntry(
         task=task,
         split=record["split"],
@@ -343,6 +350,8 @@ def _entry(record: Mapping[str, Any], path: Path) -> LeaderboardEntry:
         debug=is_debug_trainer(
             config.get("trainer") if isinstance(config := record.get("config"), Mapping) else None
         ),
+        lenses=lenses,
+        lens_robustness=robustness,
     )
 
 

@@ -48,6 +48,7 @@ from airfisheye_bench.evaluation.leaderboard.columns import (
     metric_label,
     rim_label,
 )
+from airfisheye_bench.evaluation.leaderboard.lens_matrix import lens_matrix_html
 from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
 from airfisheye_bench.evaluation.leaderboard.rank import GROUPING, TaskTable
 from airfisheye_bench.runs.results import load_results
@@ -179,6 +180,7 @@ def _task_section(table: TaskTable, panels: int, panel_width: int, shown: ShownP
         out.append("</tbody></table></div>")
         out.append(_group_chart(table, group.rows, f"{task}-{g}"))
         out.append("</div>")
+    out.append(lens_matrix_html(table.primary, [e for e in entries if not e.paper], f"lenses-{task}"))
     if details:
         out += [f'<h3 id="entries-{task}">Entries</h3>', *details]
     out.append("</section>")

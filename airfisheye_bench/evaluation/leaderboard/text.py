@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 from airfisheye_bench.evaluation.leaderboard.collect import LeaderboardEntry
 from airfisheye_bench.evaluation.leaderboard.columns import MISSING, format_value, metric_label, rim_label
+from airfisheye_bench.evaluation.leaderboard.lens_matrix import lens_matrix_markdown
 from airfisheye_bench.evaluation.leaderboard.paths import ShownPaths
 from airfisheye_bench.evaluation.leaderboard.rank import GROUPING, TaskTable
 from airfisheye_bench.specs import all_tasks
@@ -95,6 +96,8 @@ def _table_markdown(table: TaskTable) -> list[str]:
                 cells.append(format_value(table.primary, entry.breakdown.get(table.rim_key)))
             cells.append(entry.run_title)
             lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+    entries = [e for group in table.groups for _, e in group.rows if not e.paper]
+    lines += lens_matrix_markdown(table.primary, entries)
     return lines
 
 
