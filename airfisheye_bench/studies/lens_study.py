@@ -1,0 +1,378 @@
+"""The lens study (docs/results.md, "Across lenses"): does a model hold on a lens it was not trained on?
+
+Arms, each trained at the quick-start size (128², the quick start's epochs) for every task of :data:`TASKS` and
+seed of :data:`SEEDS`, with the seeds paired across arms:
+
+- ``a``: the quick start, one lens (the synthetic release's 190° equidistant);
+- ``b``: a list of lenses (:data:`TRAIN_LENSES`) with per-sample jitter (:data:`JITTER`);
+- ``c``: ``b`` with ``model.camera_input=rays`` (the lens's ray map given to the model);
+- ``d``: a pinhole model (90° perspective views of the same cube faces), scored on the fisheyes through
+  perspective views (``views=cube``).
+
+Every run is then scored on each test lens of :data:`TEST_LENSES` and the robustness row
+(``airfisheye-evaluate lenses=[...] robustness=true``), and its record -- training commit and command, evaluation
+command, the dataset's content identity, the run's own test metrics and the whole ``cross_lens`` block, flights
+included -- is written to ``docs/figures/lens_study/runs/<arm>_<task>_seed<seed>.json`` as soon as it exists. The
+test lenses are none of the training lenses except arm ``a``'s and ``b``'s equidistant 190°; the calibration files
+are under ``docs/figures/lens_study/lenses/`` (their sources in its README).
+
+:func:`summarise` reads the records alone: per arm, task and test lens the mean and sample standard deviation over
+the seeds, and the cross-lens gap ``1 - other / own`` (``other / own - 1`` for errors) with a t-interval over the
+test flights (the seeds' per-flight scores averaged first: frames of one flight are not independent), Bonferroni
+over the family of lenses.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from airfisheye_bench.atomic import atomic_write_text
+from airfisheye_bench.evaluation.cross_lens import cross_lens_gap
+from airfisheye_bench.specs import get_task
+from airfisheye_bench.studies.clustered import cluster_difference
+from airfisheye_bench.studies.provenance import REPO, git_commit, machine
+
+__all__ = [
+    "ARMS",
+    "JITTER",
+    "RECORD_FORMAT",
+    "SEEDS",
+    "TASKS",
+    "TEST_LENSES",
+    "TRAIN_LENSES",
+    "Arm",
+    "StudyRun",
+    "plan",
+    "summarise",
+]
+
+RECORD_FORMAT = "airfisheye-bench/lens-study-run/v1"
+TASKS = ("depth", "seg")
+SEEDS = (0, 1, 2)
+#: The committed calibration files of the test lenses (sources: ``docs/figures/lens_study/lenses/README.md``).
+LENS_FILES = "docs/figures/lens_study/lenses"
+#: Arm b's lenses: four designs and fields of view, none of the test lenses but the equidistant 190°.
+TRAIN_LENSES = (
+    "{model:equidistant,fov_deg:190}",
+    "{model:equisolid,fov_deg:170}",
+    "{model:stereographic,fov_deg:150}",
+    "{model:equidistant,fov_deg:100}",
+)
+#: Arm b's jitter: ±5 % focal length, ±2 px principal point, ±5 % of each distortion term.
+JITTER = "{focal:0.05,principal_point_px:2,distortion:0.05}"
+#: The test lenses: two ideal fisheyes, three real calibrations, a narrow fisheye and a pinhole.
+TEST_LENSES = (
+    "{model:equidistant,fov_deg:190}",
+    "{model:equisolid,fov_deg:180}",
+    f"{{name:tumvi_kb,calibration:'{LENS_FILES}/tumvi_kb_camchain.yaml'}}",
+    f"{{name:tumvi_ds,calibration:'{LENS_FILES}/tumvi_ds_basalt.json',camera:1}}",
+    f"{{name:woodscape_front,calibration:'{LENS_FILES}/woodscape_front.json'}}",
+    "{model:equidistant,fov_deg:120}",
+    f"{{name:pinhole_90,calibration:'{LENS_FILES}/pinhole_90.yaml'}}",
+)
+
+
+@dataclass(frozen=True)
+class Arm:
+    """One way of training: its training overrides and its evaluation's own."""
+
+    name: str
+    title: str
+    train: tuple[str, ...] = ()
+    evaluate: tuple[str, ...] = ()
+
+
+_LENS_LIST = (f"data.camera.lenses=[{','.join(TRAIN_LENSES)}]", f"data.camera.jitter={JITTER}")
+ARMS: dict[str, Arm] = {
+    arm.name: arm
+    for arm in (
+        Arm("a", "one lens (equidistant 190°)"),
+        Arm("b", "lens list + jitter", _LENS_LIST),
+        Arm("c", "lens list + jitter + rays", (*_LENS_LIST, "model.camera_input=rays")),
+        Arm(
+            "d",
+            "pinhole 90° through perspective views",
+            (f"data.camera.calibration={LENS_FILES}/pinhole_90.yaml",),
+            ("views=cube",),
+        ),
+    )
+}
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """One training run of the study and where its files go."""
+
+    arm: str
+    task: str
+    seed: int
+    out: Path
+
+    @property
+    def run_dir(self) -> Path:
+        return self.out / self.arm / self.task / f"seed{self.seed}"
+
+    @property
+    def trained(self) -> Path:
+        """The training's own record (commit, command, wall time), beside the run."""
+        return self.run_dir.with_name(f"seed{self.seed}.train.json")
+
+    @property
+    def name(self) -> str:
+        return f"{self.arm}_{self.task}_seed{self.seed}"
+
+    def train_argv(self) -> list[str]:
+        arm = ARMS[self.arm]
+        return [
+            sys.executable,
+            "train.py",
+            f"task={self.task}",
+            f"seed={self.seed}",
+            *arm.train,
+            f"hydra.run.dir={self.run_dir}",
+        ]
+
+    def evaluate_argv(self) -> list[str]:
+        return [
+            sys.executable,
+            "scripts/evaluate.py",
+            f"ckpt_path={self.run_dir}",
+            f"lenses=[{','.join(TEST_LENSES)}]",
+            "robustness=true",
+            "num_panels=0",
+            *ARMS[self.arm].evaluate,
+            f"out={self.run_dir / 'lenses'}",
+        ]
+
+
+def plan(out: str | Path, arms: Sequence[str], tasks: Sequence[str], seeds: Sequence[int]) -> list[StudyRun]:
+    """The runs of ``arms`` x ``tasks`` x ``seeds``, seed-major (a finished seed pairs every arm)."""
+    unknown = sorted(set(arms) - set(ARMS))
+    if unknown:
+        raise ValueError(f"unknown arm {unknown[0]!r}; expected some of {', '.join(ARMS)}")
+    return [StudyRun(a, t, s, Path(out)) for s in seeds for t in tasks for a in arms]
+
+
+def train(run: StudyRun, threads: int = 1) -> None:
+    """Train ``run`` from the checkout (one thread each: two runs share a 2-core machine) and record how."""
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
+    run.run_dir.parent.mkdir(parents=True, exist_ok=True)
+    start = time.time()
+    argv = run.train_argv()
+    with open(run.run_dir.with_suffix(".log"), "w") as log:
+        code = subprocess.run(argv, cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT).returncode
+    record = {
+        "commit": git_commit(REPO),
+        "rc": code,
+        "wall_s": time.time() - start,
+        "command": ["python", *argv[1:]],
+        "omp_num_threads": threads,
+    }
+    atomic_write_text(run.trained, json.dumps(record, indent=1) + "\n")
+    if code != 0:
+        raise RuntimeError(f"{run.name}: training exited {code} (log: {run.run_dir.with_suffix('.log')})")
+
+
+def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
+    """Score a trained run on every test lens and the robustness row; write its record into ``records``."""
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
+    argv = run.evaluate_argv()
+    start = time.time()
+    subprocess.run(argv, cwd=REPO, env=env, check=True, stdout=subprocess.DEVNULL)
+    evaluated = json.loads((run.run_dir / "lenses" / "results.json").read_text(encoding="utf-8"))
+    own = json.loads((run.run_dir / "results.json").read_text(encoding="utf-8"))
+    trained = json.loads(run.trained.read_text(encoding="utf-8"))
+    record = {
+        "format": RECORD_FORMAT,
+        "arm": run.arm,
+        "task": run.task,
+        "seed": run.seed,
+        "training": trained,
+        "evaluation": {
+            "commit": git_commit(REPO),
+            "command": ["python", *argv[1:-1], "out=<run>/lenses"],
+            "wall_s": time.time() - start,
+            "omp_num_threads": threads,
+        },
+        "machine": machine(),
+        "dataset": evaluated["dataset"],
+        "test_metrics": own["metrics"],
+        "cross_lens": evaluated["cross_lens"],
+    }
+    path = records / f"{run.name}.json"
+    atomic_write_text(path, json.dumps(record, indent=1) + "\n")
+    return path
+
+
+# ------------------------------------------------------------------------------------------------- summary
+
+
+def load_records(folder: str | Path) -> list[dict[str, Any]]:
+    """The study's run records in ``folder`` (others ignored), by arm, task and seed."""
+    out = []
+    for path in sorted(Path(folder).glob("*.json")):
+        record = json.loads(path.read_text(encoding="utf-8"))
+        if record.get("format") == RECORD_FORMAT:
+            out.append(record)
+    return sorted(out, key=lambda r: (r["arm"], r["task"], r["seed"]))
+
+
+#: The metrics each task's cells show (the issue's mIoU / δ1 / AbsRel).
+CELL_METRICS = {"seg": ("mIoU",), "depth": ("delta1", "abs_rel"), "completion": ("delta1", "abs_rel")}
+
+
+def summarise(records: Sequence[Mapping[str, Any]], level: float = 0.95) -> dict[str, Any]:
+    """``{task: {arm: {"seeds", "lenses": {lens: {metric: {"values", "mean", "std"}, "gap": {metric: interval}},
+    "robustness": {metric: {"values", "mean", "std"}}}}}``.
+
+    A lens's gap is measured against the run's own lens(es) (``trained``) flight by flight on the seeds' mean of each
+    flight's score, with a t-interval over the flights and a Bonferroni family of the arm's test lenses.
+    """
+    out: dict[str, Any] = {}
+    for record in records:
+        task = out.setdefault(record["task"], {})
+        arm = task.setdefault(record["arm"], {"seeds": [], "runs": []})
+        arm["seeds"].append(record["seed"])
+        arm["runs"].append(record)
+    for task_name, arms in out.items():
+        spec = get_task(task_name)
+        for name, arm in arms.items():
+            arms[name] = _arm_summary(spec, arm["seeds"], arm["runs"], level)
+    return out
+
+
+def _arm_summary(spec: Any, seeds: list[int], runs: list[Mapping[str, Any]], level: float) -> dict[str, Any]:
+    metrics = CELL_METRICS[spec.name]
+    names = list(dict.fromkeys(row["name"] for r in runs for row in r["cross_lens"]["lenses"]))
+    own_name = (
+        "trained"
+        if any(row["name"] == "trained" for r in runs for row in r["cross_lens"]["lenses"])
+        else names[0]
+    )
+    family = max(1, len(names) - 1)
+    lenses: dict[str, Any] = {}
+    for name in names:
+        rows = [_row(r, name) for r in runs]
+        rows = [row for row in rows if row is not None]
+        cell: dict[str, Any] = {"seen": any(row.get("seen") for row in rows)}
+        for metric in metrics:
+            cell[metric] = _mean_std([row["metrics"].get(metric) for row in rows])
+        if name != own_name:
+            cell["gap"] = {
+                metric: _flight_gap(spec, runs, own_name, name, metric, family, level) for metric in metrics
+            }
+        lenses[name] = cell
+    robustness = {
+        metric: _mean_std(
+            [
+                r["cross_lens"]["robustness"]["largest_change"].get(metric)
+                for r in runs
+                if "robustness" in r["cross_lens"]
+            ]
+        )
+        for metric in metrics
+    }
+    return {"seeds": sorted(seeds), "lenses": lenses, "robustness": robustness, "own": own_name}
+
+
+def _row(record: Mapping[str, Any], name: str) -> Mapping[str, Any] | None:
+    return next((row for row in record["cross_lens"]["lenses"] if row["name"] == name), None)
+
+
+def _mean_std(values: Sequence[float | None]) -> dict[str, Any]:
+    finite = [float(v) for v in values if v is not None and math.isfinite(v)]
+    n = len(finite)
+    mean = sum(finite) / n if n else math.nan
+    std = math.sqrt(sum((v - mean) ** 2 for v in finite) / (n - 1)) if n > 1 else math.nan
+    return {"values": finite, "n": n, "mean": mean, "std": std}
+
+
+def _flight_gap(
+    spec: Any, runs: Sequence[Mapping[str, Any]], own: str, other: str, metric: str, family: int, level: float
+) -> dict[str, Any]:
+    """The gap of ``metric`` from lens ``own`` to ``other``, one value per test flight (its seeds' mean score on
+    each lens first), with its interval over the flights."""
+    higher = spec.column(metric).higher_is_better if spec.column(metric) else False
+
+    def flights(name: str) -> dict[str, float]:
+        per: dict[str, list[float]] = {}
+        for record in runs:
+            row = _row(record, name)
+            for flight, values in ((row or {}).get("flights") or {}).items():
+                value = values.get(metric)
+                if value is not None and math.isfinite(value):
+                    per.setdefault(flight, []).append(float(value))
+        return {f: sum(v) / len(v) for f, v in per.items()}
+
+    mine, theirs = flights(own), flights(other)
+    gaps = {f: cross_lens_gap(mine[f], theirs[f], higher) for f in sorted(mine.keys() & theirs.keys())}
+    gaps = {f: g for f, g in gaps.items() if math.isfinite(g)}
+    if not gaps:
+        return {"n": 0}
+    return cluster_difference(gaps, family_size=family, level=level)
+
+
+# ------------------------------------------------------------------------------------------------- command
+
+
+def _clean_checkout() -> None:
+    """Refuse to train or score from code that no commit holds (a result names the commit that made it)."""
+    dirty = subprocess.run(
+        ["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO, capture_output=True, text=True
+    ).stdout.strip()
+    if dirty:
+        raise SystemExit(f"lens study: the checkout has uncommitted changes; commit them first:\n{dirty}")
+
+
+def _commit_record(path: Path) -> None:
+    """Commit one run's record as soon as it exists: a study accumulates across sessions."""
+    subprocess.run(["git", "add", str(path)], cwd=REPO, check=True)
+    message = f"Lens study: record of {path.stem} (python scripts/lens_study.py)"
+    subprocess.run(["git", "commit", "-q", "-m", message, "--", str(path)], cwd=REPO, check=True)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", default="logs/lens_study", help="where the runs are trained")
+    parser.add_argument(
+        "--record", default="docs/figures/lens_study/runs", help="where each run's record goes"
+    )
+    parser.add_argument("--arms", default="a,b,c,d")
+    parser.add_argument("--tasks", default=",".join(TASKS))
+    parser.add_argument("--seeds", default=",".join(map(str, SEEDS)))
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--commit", action="store_true", help="git-commit each record as it is written")
+    parser.add_argument("--summary", help="write the summary of the records here (no training)")
+    args = parser.parse_args(argv)
+    records = Path(args.record)
+    if args.summary:
+        summary = summarise(load_records(records))
+        atomic_write_text(
+            Path(args.summary), json.dumps(summary, indent=1, allow_nan=False, default=str) + "\n"
+        )
+        return
+    _clean_checkout()
+    records.mkdir(parents=True, exist_ok=True)
+    runs = plan(
+        args.out, args.arms.split(","), args.tasks.split(","), [int(s) for s in args.seeds.split(",")]
+    )
+    for run in runs:
+        if (records / f"{run.name}.json").is_file():
+            continue
+        if not (run.trained.is_file() and json.loads(run.trained.read_text())["rc"] == 0):
+            print(f"train {run.name}", file=sys.stderr, flush=True)
+            train(run, args.threads)
+        print(f"score {run.name}", file=sys.stderr, flush=True)
+        path = score(run, records, args.threads)
+        if args.commit:
+            _commit_record(path)

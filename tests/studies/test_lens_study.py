@@ -1,0 +1,95 @@
+"""The lens study's plan and summary: paired seeds, the commands each run records, gaps grouped by flight."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from airfisheye_bench.evaluation.cross_lens import parse_test_lenses
+from airfisheye_bench.studies.lens_study import (
+    ARMS,
+    RECORD_FORMAT,
+    TEST_LENSES,
+    TRAIN_LENSES,
+    plan,
+    summarise,
+)
+from airfisheye_bench.studies.provenance import REPO
+
+
+def test_plan_pairs_seeds_and_each_arm_trains_and_scores_as_documented(tmp_path: Path) -> None:
+    runs = plan(tmp_path, ["a", "c"], ["depth"], [0, 1])
+    assert [(r.arm, r.seed) for r in runs] == [("a", 0), ("c", 0), ("a", 1), ("c", 1)]
+    c = runs[1]
+    assert c.name == "c_depth_seed0" and c.run_dir == tmp_path / "c" / "depth" / "seed0"
+    argv = c.train_argv()
+    assert argv[1:4] == ["train.py", "task=depth", "seed=0"] and "model.camera_input=rays" in argv
+    assert any(a.startswith("data.camera.lenses=[{model:equidistant,fov_deg:190}") for a in argv)
+    evaluate = c.evaluate_argv()
+    assert "robustness=true" in evaluate and evaluate[-1] == f"out={c.run_dir / 'lenses'}"
+    assert "views=cube" in plan(tmp_path, ["d"], ["seg"], [0])[0].evaluate_argv()
+    with pytest.raises(ValueError, match="unknown arm 'e'"):
+        plan(tmp_path, ["e"], ["seg"], [0])
+
+
+def test_the_test_lenses_parse_and_their_files_are_committed() -> None:
+    lenses = parse_test_lenses([_spec(s) for s in TEST_LENSES])
+    assert [lens.name for lens in lenses][:2] == ["equidistant 190°", "equisolid 180°"]
+    for lens in lenses:
+        if "calibration" in lens.camera:
+            assert (REPO / lens.camera["calibration"]).is_file(), lens.camera
+    assert len(TRAIN_LENSES) == 4 and set(ARMS) == {"a", "b", "c", "d"}
+
+
+def _spec(text: str) -> dict:
+    """A Hydra ``{k:v,...}`` literal of this module's (no nesting, quoted paths) as a dict."""
+    out = {}
+    for item in text.strip("{}").split(","):
+        key, value = item.split(":", 1)
+        value = value.strip("'")
+        out[key] = float(value) if value.replace(".", "").isdigit() and key != "camera" else value
+    if "camera" in out:
+        out["camera"] = int(out["camera"])
+    return out
+
+
+def _record(arm: str, seed: int, own: dict[str, float], other: dict[str, float]) -> dict:
+    def row(name: str, flights: dict[str, float], seen: bool) -> dict:
+        mean = sum(flights.values()) / len(flights)
+        return {
+            "name": name,
+            "seen": seen,
+            "metrics": {"delta1": mean, "abs_rel": 0.3},
+            "flights": {f: {"delta1": v, "abs_rel": 0.3} for f, v in flights.items()},
+        }
+
+    return {
+        "format": RECORD_FORMAT,
+        "arm": arm,
+        "task": "depth",
+        "seed": seed,
+        "cross_lens": {
+            "lenses": [row("trained", own, True), row("pinhole_90", other, False)],
+            "robustness": {"largest_change": {"delta1": 0.01 * (seed + 1), "abs_rel": 0.0}},
+        },
+    }
+
+
+def test_summary_means_seeds_and_groups_the_gap_by_flight() -> None:
+    records = [
+        _record("a", 0, {"f1": 0.5, "f2": 0.6, "f3": 0.4}, {"f1": 0.4, "f2": 0.3, "f3": 0.4}),
+        _record("a", 1, {"f1": 0.5, "f2": 0.4, "f3": 0.4}, {"f1": 0.2, "f2": 0.3, "f3": 0.2}),
+    ]
+    arm = summarise(records)["depth"]["a"]
+    assert arm["seeds"] == [0, 1] and arm["own"] == "trained"
+    pinhole = arm["lenses"]["pinhole_90"]
+    assert not pinhole["seen"] and pinhole["delta1"]["n"] == 2
+    assert pinhole["delta1"]["mean"] == pytest.approx((1.1 / 3 + 0.7 / 3) / 2)  # each seed: its frames' mean
+    gap = pinhole["gap"]["delta1"]
+    # Per flight: the seeds' mean on each lens, then 1 - other / own (δ1: higher is better).
+    expected = {"f1": 1 - 0.3 / 0.5, "f2": 1 - 0.3 / 0.5, "f3": 1 - 0.3 / 0.4}
+    assert gap["clusters"] == ["f1", "f2", "f3"] and gap["mean"] == pytest.approx(sum(expected.values()) / 3)
+    assert gap["family_size"] == 1 and gap["ci"][0] < gap["mean"] < gap["ci"][1]
+    assert arm["robustness"]["delta1"]["mean"] == pytest.approx(0.015)
+    assert "gap" not in arm["lenses"]["trained"] and arm["lenses"]["trained"]["abs_rel"]["std"] == 0.0
