@@ -322,7 +322,95 @@ def _flight_gap(
     return cluster_difference(gaps, family_size=family, level=level)
 
 
+# ------------------------------------------------------------------------------------------------- report
+
+#: The markers of the generated block in ``docs/results.md`` (rewritten by ``scripts/lens_study.py --report``).
+REPORT_BEGIN = "<!-- lens-study:begin (python scripts/lens_study.py --summary docs/figures/lens_study/summary.json --report docs/results.md) -->"
+REPORT_END = "<!-- lens-study:end -->"
+_LABELS = {"mIoU": "mIoU", "delta1": "δ1", "abs_rel": "AbsRel"}
+
+
+def report_block(summary: Mapping[str, Any], source: str = "figures/lens_study/summary.json") -> str:
+    """The study's tables as markdown: per task and metric, arms by test lens (mean ± std over the seeds, ``★`` a
+    training lens), then the cross-lens gap with its family interval over the test flights, then the robustness
+    row."""
+    lines = [f"Generated from [`{source}`]({source}) (each run's record: `figures/lens_study/runs/`)."]
+    for task, arms in summary.items():
+        for metric in CELL_METRICS[task]:
+            lines += [
+                "",
+                f"**{task}, {_LABELS[metric]}** (mean ± std over the seeds; ★ a lens the arm trained on)",
+                "",
+            ]
+            lines += _table(arms, metric, _cell_value)
+        metric = CELL_METRICS[task][0]
+        lines += [
+            "",
+            f"**{task}, cross-lens gap of {_LABELS[metric]}** (1 − lens / own for δ1 and mIoU: the "
+            "fraction lost off the training lens(es); mean over the test flights of the seeds' mean, [95 % interval, "
+            "Bonferroni over the arm's test lenses], flights)",
+            "",
+        ]
+        lines += _table(arms, metric, _cell_gap, skip_own=True)
+        lines += [
+            "",
+            f"**{task}, robustness row**: largest change of {_LABELS[metric]} under focal ±2 %, principal "
+            "point ±1 % of the width (x, y), first distortion term ±5 % (mean ± std over the seeds)",
+            "",
+        ]
+        lines += ["| arm | seeds | largest change |", "|---|---:|---:|"]
+        for name, arm in arms.items():
+            lines.append(
+                f"| {name}: {ARMS[name].title} | {len(arm['seeds'])} | {_pm(arm['robustness'][metric])} |"
+            )
+    return "\n".join(lines)
+
+
+def _table(arms: Mapping[str, Any], metric: str, cell, skip_own: bool = False) -> list[str]:
+    names = list(
+        dict.fromkeys(n for arm in arms.values() for n in arm["lenses"] if not (skip_own and n == arm["own"]))
+    )
+    lines = ["| arm | seeds | " + " | ".join(names) + " |", "|---|---:|" + "---:|" * len(names)]
+    for name, arm in arms.items():
+        cells = [cell(arm["lenses"].get(lens), metric) for lens in names]
+        lines.append(f"| {name}: {ARMS[name].title} | {len(arm['seeds'])} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _pm(stat: Mapping[str, Any]) -> str:
+    if not stat or not stat.get("n"):
+        return "–"
+    std = stat["std"]
+    return f"{stat['mean']:.3f}" + (f" ± {std:.3f}" if std is not None and math.isfinite(std) else "")
+
+
+def _cell_value(lens: Mapping[str, Any] | None, metric: str) -> str:
+    if lens is None:
+        return "–"
+    return _pm(lens[metric]) + (" ★" if lens.get("seen") else "")
+
+
+def _cell_gap(lens: Mapping[str, Any] | None, metric: str) -> str:
+    gap = (lens or {}).get("gap", {}).get(metric)
+    if not gap or not gap.get("n"):
+        return "–"
+    low, high = gap.get("ci_family", [math.nan, math.nan])
+    interval = f" [{low:+.3f}, {high:+.3f}]" if math.isfinite(low) and math.isfinite(high) else ""
+    return f"{gap['mean']:+.3f}{interval}, {gap['n']}"
+
+
 # ------------------------------------------------------------------------------------------------- command
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with NaN and infinities as ``null`` (JSON has neither)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Mapping):
+        return {str(k): _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
 
 
 def _clean_checkout() -> None:
@@ -353,6 +441,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--commit", action="store_true", help="git-commit each record as it is written")
     parser.add_argument("--summary", help="write the summary of the records here (no training)")
+    parser.add_argument(
+        "--report", help="with --summary: rewrite the study's generated block of this markdown file"
+    )
     args = parser.parse_args(argv)
     records = Path(args.record)
     if args.summary:

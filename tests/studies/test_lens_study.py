@@ -7,12 +7,16 @@ from pathlib import Path
 import pytest
 
 from airfisheye_bench.evaluation.cross_lens import parse_test_lenses
+from airfisheye_bench.studies.generated_blocks import block_in, replace_block
 from airfisheye_bench.studies.lens_study import (
     ARMS,
     RECORD_FORMAT,
+    REPORT_BEGIN,
+    REPORT_END,
     TEST_LENSES,
     TRAIN_LENSES,
     plan,
+    report_block,
     summarise,
 )
 from airfisheye_bench.studies.provenance import REPO
@@ -93,3 +97,22 @@ def test_summary_means_seeds_and_groups_the_gap_by_flight() -> None:
     assert gap["family_size"] == 1 and gap["ci"][0] < gap["mean"] < gap["ci"][1]
     assert arm["robustness"]["delta1"]["mean"] == pytest.approx(0.015)
     assert "gap" not in arm["lenses"]["trained"] and arm["lenses"]["trained"]["abs_rel"]["std"] == 0.0
+
+
+def test_the_report_tables_come_from_the_summary() -> None:
+    records = [
+        _record("a", 0, {"f1": 0.5, "f2": 0.6, "f3": 0.4}, {"f1": 0.4, "f2": 0.3, "f3": 0.4}),
+        _record("a", 1, {"f1": 0.5, "f2": 0.4, "f3": 0.4}, {"f1": 0.2, "f2": 0.3, "f3": 0.2}),
+    ]
+    summary = summarise(records)
+    text = report_block(summary)
+    lines = text.splitlines()
+    assert "| arm | seeds | trained | pinhole_90 |" in lines
+    delta1 = summary["depth"]["a"]["lenses"]
+    row = f"| a: one lens (equidistant 190°) | 2 | {delta1['trained']['delta1']['mean']:.3f} ± "
+    assert any(line.startswith(row) and line.endswith(" ★ | 0.300 ± 0.094 |") for line in lines), lines
+    gap = delta1["pinhole_90"]["gap"]["delta1"]
+    assert f"| a: one lens (equidistant 190°) | 2 | {gap['mean']:+.3f} [{gap['ci_family'][0]:+.3f}, " in text
+    assert "| a: one lens (equidistant 190°) | 2 | 0.015 ± 0.007 |" in lines
+    document = f"x\n{REPORT_BEGIN}\nold\n{REPORT_END}\ny"
+    assert block_in(replace_block(document, text, REPORT_BEGIN, REPORT_END), REPORT_BEGIN, REPORT_END) == text
