@@ -18,9 +18,15 @@ every root, or one root at every size, also work). ``--out FILE`` writes the row
 (commit, command, machine, the load average before and after, and each root's dataset identity under ``datasets``:
 name, root and content SHA-256, :func:`~airfisheye_bench.runs.results.dataset_identity`).
 
+``--lenses fixed drawn`` times the same configuration with the split's one lens (``fixed``) and with a lens drawn
+per sample (``drawn``: :data:`DRAWN_LENSES` with :data:`DRAWN_JITTER`, the lens study's arm b), their repeats
+interleaved so both see the same machine; the drawn lenses are drawn for epochs no earlier loop served, so every
+sample's lens is one a long training would meet (a jittered lens is rarely served twice).
+
 Usage:
     python scripts/bench_loader.py [--root DIR ... | --preset small] [--size 512 ...] [--samples 40] [--repeats 5]
-        [--tasks seg depth completion] [--sources cubemap fisheye] [--remap-on worker device] [--out FILE]
+        [--tasks seg depth completion] [--sources cubemap fisheye] [--remap-on worker device]
+        [--lenses fixed drawn] [--out FILE]
 """
 
 from __future__ import annotations
@@ -47,6 +53,14 @@ from datamodules import AirFisheyeDataset, CameraConfig, FisheyeAugment
 
 # The checkout this package sits in (benchmarks run from one).
 ROOT = Path(__file__).resolve().parents[2]
+#: ``--lenses drawn``: the lens study's training lenses and jitter (:mod:`airfisheye_bench.studies.lens_study`).
+DRAWN_LENSES = (
+    {"model": "equidistant", "fov_deg": 190},
+    {"model": "equisolid", "fov_deg": 170},
+    {"model": "stereographic", "fov_deg": 150},
+    {"model": "equidistant", "fov_deg": 100},
+)
+DRAWN_JITTER = {"focal": 0.05, "principal_point_px": 2, "distortion": 0.05}
 
 
 def rss_mb() -> float:
@@ -71,22 +85,54 @@ def bench(
     root, task: str, source: str, size: int, samples: int, repeats: int, remap_on: str = "worker"
 ) -> dict[str, float]:
     """CPU ms per sample (min and median over ``repeats`` loops), wall ms, decode ms and RSS growth (MB)."""
+    return bench_lenses(root, task, source, size, samples, repeats, remap_on, ("fixed",))["fixed"]
+
+
+def _dataset(root, task: str, source: str, size: int, lenses: str) -> AirFisheyeDataset:
     augment = FisheyeAugment(hflip=0.5, rotate_deg=10.0)
-    ds = AirFisheyeDataset.from_root(
-        root, "train", task, source=source, camera=CameraConfig(size=size), augment=augment
+    camera = (
+        CameraConfig(size=size)
+        if lenses == "fixed"
+        else CameraConfig(size=size, lenses=DRAWN_LENSES, jitter=DRAWN_JITTER)
     )
+    ds = AirFisheyeDataset.from_root(root, "train", task, source=source, camera=camera, augment=augment)
     ds.warm_up()
-    load = ds.load_faces if remap_on == "device" else ds.__getitem__
-    n = min(samples, len(ds))
-    load(0)  # first call compiles kernels and fills caches
+    return ds
+
+
+def bench_lenses(
+    root,
+    task: str,
+    source: str,
+    size: int,
+    samples: int,
+    repeats: int,
+    remap_on: str = "worker",
+    lenses: tuple[str, ...] = ("fixed",),
+) -> dict[str, dict[str, float]]:
+    """:func:`bench`'s numbers for each of ``lenses`` (``fixed``, ``drawn``), their loops interleaved."""
+    datasets = {name: _dataset(root, task, source, size, name) for name in lenses}
+    loads = {name: ds.load_faces if remap_on == "device" else ds.__getitem__ for name, ds in datasets.items()}
+    n = min(samples, len(next(iter(datasets.values()))))
+    for load in loads.values():
+        load(0)  # first call compiles kernels and fills caches
     rss0 = rss_mb()
-    cpu, wall = [], []
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        for i in range(n):
-            load(i % len(ds))
-        wall.append((time.perf_counter() - t0) / n * 1e3)
-        cpu.append((time.process_time() - c0) / n * 1e3)
+    cpu: dict[str, list[float]] = {name: [] for name in lenses}
+    wall: dict[str, list[float]] = {name: [] for name in lenses}
+    for repeat in range(repeats):
+        for name, load in loads.items():
+            datasets[name].set_epoch(repeat + 1)  # new draws: a lens no earlier loop served
+            t0, c0 = time.perf_counter(), time.process_time()
+            for i in range(n):
+                load(i % len(datasets[name]))
+            wall[name].append((time.perf_counter() - t0) / n * 1e3)
+            cpu[name].append((time.process_time() - c0) / n * 1e3)
+    return {name: _summary(datasets[name], source, n, cpu[name], wall[name], rss0) for name in lenses}
+
+
+def _summary(
+    ds: AirFisheyeDataset, source: str, n: int, cpu: list[float], wall: list[float], rss0: float
+) -> dict[str, float]:
     return {
         "cpu_min": min(cpu),
         "cpu_median": statistics.median(cpu),
@@ -132,6 +178,13 @@ def main(argv: list[str] | None = None) -> list[dict]:
         "--remap-on", nargs="+", default=["worker"], choices=REMAP_SITES, help="data.remap_on (cubemap only)"
     )
     parser.add_argument(
+        "--lenses",
+        nargs="+",
+        default=["fixed"],
+        choices=["fixed", "drawn"],
+        help="one lens, or one drawn per sample",
+    )
+    parser.add_argument(
         "--out", default=None, help="also write the rows with their provenance to this JSON file"
     )
     args = parser.parse_args(argv)
@@ -141,11 +194,11 @@ def main(argv: list[str] | None = None) -> list[dict]:
     load_before = os.getloadavg()
     print(f"one process, one thread; {args.samples} samples x {args.repeats} repeat(s); load {load_before}")
     print(
-        "| dataset | size | task | source | remap on | ms / sample (CPU, min) | ms / sample (CPU, median) "
+        "| dataset | size | task | source | remap on | lenses | ms / sample (CPU, min) | ms / sample (CPU, median) "
         "| ms / sample (wall, median) | of which file decode (CPU) | samples/s per core (CPU, median) "
         "| RSS growth (MB) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     results = []
     for root, size in pairs(roots, args.size):
         for task in args.tasks:
@@ -153,21 +206,26 @@ def main(argv: list[str] | None = None) -> list[dict]:
                 for remap_on in args.remap_on:
                     if remap_on == "device" and source != "cubemap":
                         continue  # nothing to remap
-                    r = bench(root, task, source, size, args.samples, args.repeats, remap_on)
-                    row = {
-                        "root": str(root),
-                        "size": size,
-                        "task": task,
-                        "source": source,
-                        "remap_on": remap_on,
-                    }
-                    row |= r | {"samples_per_s_per_core": 1e3 / r["cpu_median"]}
-                    results.append(row)
-                    print(
-                        f"| {Path(root).name} | {size} | {task} | {source} | {remap_on} | {r['cpu_min']:.1f} "
-                        f"| {r['cpu_median']:.1f} | {r['wall_median']:.1f} | {r['decode']:.1f} "
-                        f"| {row['samples_per_s_per_core']:.1f} | {r['rss_growth']:.1f} |"
+                    lenses = tuple(args.lenses) if source != "fisheye" else ("fixed",)
+                    measured = bench_lenses(
+                        root, task, source, size, args.samples, args.repeats, remap_on, lenses
                     )
+                    for name, r in measured.items():
+                        row = {
+                            "root": str(root),
+                            "size": size,
+                            "task": task,
+                            "source": source,
+                            "remap_on": remap_on,
+                            "lenses": name,
+                        }
+                        row |= r | {"samples_per_s_per_core": 1e3 / r["cpu_median"]}
+                        results.append(row)
+                        print(
+                            f"| {Path(root).name} | {size} | {task} | {source} | {remap_on} | {name} "
+                            f"| {r['cpu_min']:.1f} | {r['cpu_median']:.1f} | {r['wall_median']:.1f} "
+                            f"| {r['decode']:.1f} | {row['samples_per_s_per_core']:.1f} | {r['rss_growth']:.1f} |"
+                        )
     if args.out:
         record = {
             "command": shlex.join(
