@@ -229,7 +229,8 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
     """Time the full per-frame work (render faces + fisheye, LiDAR, visibility, encode, write) of ``preset``.
 
     Runs in this process with one torch thread on the first trajectory of the preset, after one warm-up frame;
-    the one-off scene + flight construction is timed separately.
+    the one-off scene + flight construction is timed separately. ``content_sha256`` is the content identity
+    (:func:`~airfisheye_bench.io.content.content_identity`) of the frames it wrote: what was timed.
     """
     cfg = get_preset(preset)
     plans = plan_trajectories(cfg, ENVIRONMENTS)
@@ -247,6 +248,7 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
             for i in range(1, frames + 1):
                 worker.run(Job(0, i))
             per_frame = (time.perf_counter() - start) / frames
+            content = str(content_identity(tmp)["content_sha256"])
     finally:
         torch.set_num_threads(previous)
     cam = cfg.fisheye_camera()
@@ -256,11 +258,13 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
         5 * cfg.face_size**2 + fisheye_rays + 2 * lidar_rays
     )  # + one visibility segment per LiDAR return (upper bound)
     return {
+        "frames": frames,
         "build_s": build,
         "frame_s": per_frame,
         "fps": 1.0 / per_frame,
         "rays": rays,
         "rays_per_s": rays / per_frame,
+        "content_sha256": content,
     }
 
 
