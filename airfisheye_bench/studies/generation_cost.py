@@ -1,10 +1,14 @@
 """What generating a preset costs: the full frame writer's seconds per frame on one core, and the whole preset's
 core-hours from it, with the load average around each measurement (the machine may be shared).
 
+The core-hours are CPU time: the writer's process has one thread, so its CPU seconds per frame are what a core of
+its own takes, while the wall seconds also hold the time the process waited for a core (on a shared machine, much
+of it); both are recorded.
+
 Each preset is timed by :func:`~airfisheye_bench.synth.cli.bench_frame_writer` (``airfisheye-generate bench``): one
 process with one torch thread renders, encodes and writes frames of the preset's first trajectory, after one warm-up
-frame; its scene and flight are built once and timed apart. A preset's generation is then ``total_frames x s/frame``
-plus one build per trajectory and process, in core-hours: the writer runs one single-threaded process per core
+frame; its scene and flight are built once and timed apart. A preset's generation is then ``total_frames x`` CPU
+s/frame plus one build per trajectory and process, in core-hours: the writer runs one single-threaded process per core
 (``workers=``, and each shard of :mod:`~airfisheye_bench.synth.shards` on its machine), so the wall time is the
 core-hours over the cores, as long as the cores are not shared.
 
@@ -40,20 +44,22 @@ END = "<!-- generation-cost:end -->"
 def cost_row(
     preset: str, timing: dict[str, Any], load_before: Sequence[float], load_after: Sequence[float]
 ) -> dict:
-    """One preset's record: the timing, the preset's size and its core-hours (frames x s/frame + one scene and flight
-    build per trajectory).
+    """One preset's record: the timing, the preset's size and its core-hours (frames x CPU s/frame + one scene and
+    flight build per trajectory).
 
     Example:
-        >>> row = cost_row("tiny", {"frames": 2, "frame_s": 0.1, "build_s": 1.2, "content_sha256": "0" * 64}, [1, 1, 1], [1, 1, 1])
+        >>> timing = {"frames": 2, "frame_s": 0.3, "frame_cpu_s": 0.1, "build_s": 1.2, "content_sha256": "0" * 64}
+        >>> row = cost_row("tiny", timing, [1, 1, 1], [1, 1, 1])
         >>> row["total_frames"], round(row["core_hours"] * 3600, 1)
         (12, 4.8)
     """
     cfg = get_preset(preset)
-    seconds = cfg.total_frames * timing["frame_s"] + cfg.num_trajectories * timing["build_s"]
+    seconds = cfg.total_frames * timing["frame_cpu_s"] + cfg.num_trajectories * timing["build_s"]
     return {
         "preset": preset,
         "frames_timed": int(timing["frames"]),
         "frame_s": round(float(timing["frame_s"]), 4),
+        "frame_cpu_s": round(float(timing["frame_cpu_s"]), 4),
         "build_s": round(float(timing["build_s"]), 3),
         "total_frames": cfg.total_frames,
         "trajectories": cfg.num_trajectories,
@@ -77,8 +83,9 @@ def measure(presets: Sequence[str], frames: int, device: str = "cpu") -> list[di
 def cost_table(record: dict[str, Any]) -> str:
     """The Markdown table of a record: per preset, s/frame, the preset's frames and core-hours, the load around it."""
     lines = [
-        "| preset | faces, fisheye, LiDAR | s/frame (1 core) | scene + flight (s) | frames | core-hours | load average (1 min) before → after |",
-        "|---|---|---:|---:|---:|---:|---|",
+        "| preset | faces, fisheye, LiDAR | CPU s/frame (1 thread) | wall s/frame | scene + flight (s) | frames | "
+        "core-hours | load average (1 min) before → after |",
+        "|---|---|---:|---:|---:|---:|---:|---|",
     ]
     for row in record["presets"]:
         cfg = get_preset(row["preset"])
@@ -87,7 +94,8 @@ def cost_table(record: dict[str, Any]) -> str:
         )
         hours = row["core_hours"]
         lines.append(
-            f"| `{row['preset']}` | {sizes} | {row['frame_s']:.3g} | {row['build_s']:.2f} | {row['total_frames']} | "
+            f"| `{row['preset']}` | {sizes} | {row['frame_cpu_s']:.3g} | {row['frame_s']:.3g} | {row['build_s']:.2f} | "
+            f"{row['total_frames']} | "
             f"{hours:.3g} | {row['load_average_before'][0]:.1f} → {row['load_average_after'][0]:.1f} |"
         )
     largest = max(record["presets"], key=lambda row: row["core_hours"])
@@ -103,11 +111,11 @@ def cost_table(record: dict[str, Any]) -> str:
 
 def array_estimate(row: dict[str, Any], cores: int = NODE_CORES) -> str:
     """An estimate, in words, of a preset's generation as a SLURM array of one shard per trajectory, ``cores``
-    single-threaded processes per job: the longest shard's frames at the measured s/frame over the cores, plus each
-    process building the shard's scene once. It assumes the processes of a job scale over its cores.
+    single-threaded processes per job: the longest shard's frames at the measured CPU s/frame over the cores, plus
+    each process building the shard's scene once. It assumes the processes of a job scale over its cores.
 
     Example:
-        >>> row = {"preset": "paper", "frame_s": 10.0, "build_s": 5.0, "core_hours": 72.5}
+        >>> row = {"preset": "paper", "frame_cpu_s": 10.0, "build_s": 5.0, "core_hours": 72.5}
         >>> print(array_estimate(row))  # doctest: +NORMALIZE_WHITESPACE
         An estimate, not a measurement: `paper` as a SLURM array of 12 shards (one per trajectory) of 16 cores each
         takes about 0.43 h per job (its longest shard: 2470 frames), 72.5 core-hours in all, if a job's 16 processes
@@ -116,7 +124,7 @@ def array_estimate(row: dict[str, Any], cores: int = NODE_CORES) -> str:
     plans = plan_trajectories(get_preset(row["preset"]), ENVIRONMENTS)
     shards = shard_trajectories(plans, len(plans))
     longest = max(sum(plans[t].num_frames for t in shard) for shard in shards)
-    hours = (longest * row["frame_s"] / cores + row["build_s"]) / 3600
+    hours = (longest * row["frame_cpu_s"] / cores + row["build_s"]) / 3600
     return (
         f"An estimate, not a measurement: `{row['preset']}` as a SLURM array of {len(shards)} shards (one per "
         f"trajectory) of {cores} cores each takes about {hours:.2g} h per job (its longest shard: {longest} frames), "

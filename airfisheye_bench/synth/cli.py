@@ -229,7 +229,8 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
     """Time the full per-frame work (render faces + fisheye, LiDAR, visibility, encode, write) of ``preset``.
 
     Runs in this process with one torch thread on the first trajectory of the preset, after one warm-up frame;
-    the one-off scene + flight construction is timed separately. ``content_sha256`` is the content identity
+    the one-off scene + flight construction is timed separately. ``frame_cpu_s`` is the process's CPU time per
+    frame (one thread: what a core not shared with other work takes, whatever else ran). ``content_sha256`` is the content identity
     (:func:`~airfisheye_bench.io.content.content_identity`) of the frames it wrote: what was timed.
     """
     cfg = get_preset(preset)
@@ -244,10 +245,11 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
             worker.recording(0)
             build = time.perf_counter() - start
             worker.run(Job(0, 0))  # warm-up (lazy tables, allocator)
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             for i in range(1, frames + 1):
                 worker.run(Job(0, i))
             per_frame = (time.perf_counter() - start) / frames
+            cpu_per_frame = (time.process_time() - cpu) / frames
             content = str(content_identity(tmp)["content_sha256"])
     finally:
         torch.set_num_threads(previous)
@@ -261,6 +263,7 @@ def bench_frame_writer(preset: str, frames: int = 8, device: str = "cpu") -> dic
         "frames": frames,
         "build_s": build,
         "frame_s": per_frame,
+        "frame_cpu_s": cpu_per_frame,
         "fps": 1.0 / per_frame,
         "rays": rays,
         "rays_per_s": rays / per_frame,

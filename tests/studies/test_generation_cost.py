@@ -13,8 +13,11 @@ def test_a_preset_is_timed_with_the_load_and_the_frames_it_wrote() -> None:
     first, again = (generation_cost.measure(["tiny"], frames=1)[0] for _ in range(2))
     cfg = get_preset("tiny")
     assert first["frames_timed"] == 1 and first["frame_s"] > 0 and first["build_s"] > 0
+    assert (
+        0 < first["frame_cpu_s"] < 2 * first["frame_s"]
+    )  # one thread: CPU time does not exceed the wall's much
     assert len(first["load_average_before"]) == len(first["load_average_after"]) == 3
-    seconds = cfg.total_frames * first["frame_s"] + cfg.num_trajectories * first["build_s"]
+    seconds = cfg.total_frames * first["frame_cpu_s"] + cfg.num_trajectories * first["build_s"]
     assert first["core_hours"] == pytest.approx(seconds / 3600, rel=1e-3)
     # The identity is of what was written, not of when: the same frames again give the same one.
     assert first["content_sha256"] == again["content_sha256"] and len(first["content_sha256"]) == 64
