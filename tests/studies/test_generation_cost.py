@@ -1,11 +1,18 @@
-"""The generation cost record: what it measures on a preset."""
+"""The generation cost record: what it measures on a preset, and the table of docs/datasets.md generated from it."""
 
 from __future__ import annotations
+
+import json
+from pathlib import Path
 
 import pytest
 
 from airfisheye_bench.studies import generation_cost
+from airfisheye_bench.studies.generated_blocks import block_in
 from airfisheye_bench.synth.presets import get_preset
+
+ROOT = Path(__file__).resolve().parents[2]
+RECORD = ROOT / "docs" / "figures" / "generation_cost.json"
 
 
 @pytest.mark.integration
@@ -21,3 +28,11 @@ def test_a_preset_is_timed_with_the_load_and_the_frames_it_wrote() -> None:
     assert first["core_hours"] == pytest.approx(seconds / 3600, rel=1e-3)
     # The identity is of what was written, not of when: the same frames again give the same one.
     assert first["content_sha256"] == again["content_sha256"] and len(first["content_sha256"]) == 64
+
+
+def test_the_docs_table_is_the_committed_records() -> None:
+    record = json.loads(RECORD.read_text())
+    docs = (ROOT / "docs" / "datasets.md").read_text()
+    assert block_in(docs, generation_cost.BEGIN, generation_cost.END) == generation_cost.cost_table(record)
+    assert "paper" in {row["preset"] for row in record["presets"]}
+    assert all(row["frames_timed"] <= 2 for row in record["presets"])
