@@ -25,7 +25,7 @@ def test_a_preset_is_timed_with_the_load_and_the_frames_it_wrote() -> None:
     )  # one thread: CPU time does not exceed the wall's much
     assert len(first["load_average_before"]) == len(first["load_average_after"]) == 3
     seconds = cfg.total_frames * first["frame_cpu_s"] + cfg.num_trajectories * first["build_s"]
-    assert first["core_hours"] == pytest.approx(seconds / 3600, rel=1e-3)
+    assert first["core_hours"] == pytest.approx(seconds / 3600, rel=1e-2)  # the record rounds the seconds
     # The identity is of what was written, not of when: the same frames again give the same one.
     assert first["content_sha256"] == again["content_sha256"] and len(first["content_sha256"]) == 64
 
