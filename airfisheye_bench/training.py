@@ -327,7 +327,7 @@ def check_training_batches(trainer: L.Trainer, datamodule: L.LightningDataModule
         f"no training batch: the {frames} training frames split over {world} process(es) give each "
         f"{per_rank} frame(s), fewer than data.batch_size={datamodule.batch_size} (incomplete batches are dropped); "
         f"lower data.batch_size to at most {per_rank}"
-        + (", use fewer processes (trainer.devices)" if world > 1 else "")
+        + (", use fewer processes (trainer.devices, trainer.num_nodes)" if world > 1 else "")
         + ", or train on a larger dataset (data.preset=quickstart or data.root=...)"
     )
 

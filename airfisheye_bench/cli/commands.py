@@ -459,6 +459,12 @@ class GenerateOptions:
         "also write a contact sheet PNG inside the dataset folder (contact_sheet.png)"
     )
     progress: bool = option("show progress bars")
+    shards: int = option("split the work into this many shards of whole trajectories (with shard=)")
+    shard: Any = option(
+        "write only this shard, 0 .. shards-1, into out= (the last to finish merges), or merge: finish the "
+        "dataset of shards all written",
+        "int|merge|null",
+    )
 
 
 @dataclass
@@ -574,4 +580,6 @@ def generate(argv: Sequence[str] | None = None) -> int:
         verify=opts.verify,
         contact_sheet=opts.contact_sheet,
         progress=opts.progress,
+        shards=opts.shards,
+        shard=opts.shard,
     )

@@ -13,6 +13,10 @@ each point's beam and each frame's scan phase), then writes the split files,
   line per finished unit (a trajectory's metadata or one frame) to a journal; an interrupted run started again
   with the same arguments skips the journaled units, redoes the rest and ends byte-identical to an
   uninterrupted run. The journal and state file are removed at the end.
+* **Sharded.** Several processes, on one machine or many sharing a file system, can each write whole trajectories
+  of the same folder (:mod:`~airfisheye_bench.synth.shards`): each keeps a journal of its own, every journal counts
+  as done, and the dataset is finished (:func:`merge_journals`) once every unit of every trajectory is journaled.
+  The files are the same bytes as one process would write.
 * **Verifiable.** ``manifest.json`` lists every file's SHA-256; :func:`~airfisheye_bench.io.manifest.verify`
   checks a dataset against it.
 
@@ -28,14 +32,15 @@ import json
 import logging
 import multiprocessing as mp
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from airfisheye_bench.atomic import atomic_write_bytes, atomic_write_text, remove_stale_temporaries
+from airfisheye_bench.atomic import TEMP_GLOB, atomic_write_bytes, atomic_write_text, remove_stale_temporaries
+from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.geometry import FACE_NAMES, CameraModel, CubemapToFisheye, ideal_camera
 from airfisheye_bench.geometry.lidar import LidarSpec
 from airfisheye_bench.io import codecs
@@ -69,6 +74,8 @@ log = logging.getLogger(__name__)
 
 STATE_NAME = ".airfisheye-generate.json"
 JOURNAL_NAME = ".airfisheye-journal.jsonl"
+#: Every journal of a folder: the one of a whole run (:data:`JOURNAL_NAME`) and each shard's.
+JOURNAL_GLOB = ".airfisheye-journal*.jsonl"
 
 
 def calib_camera(config: SynthConfig) -> CameraModel:
@@ -256,8 +263,9 @@ def generate_dataset(
 
     Args:
         config: A :class:`SynthConfig` or a preset name (``tiny``, ``quickstart``, ``small``, ``medium``, ``paper``, ``occlusion``).
-        out_dir: Output folder: new, empty, a partial run of the same config and seed (resumed), or a complete
-            dataset of the same config and seed (returned as is).
+        out_dir: Output folder: new, empty, a partial run of the same config and seed (resumed; units that shards
+            of :mod:`~airfisheye_bench.synth.shards` wrote count as done), or a complete dataset of the same config
+            and seed (returned as is).
         seed: Base seed.
         workers: Processes rendering frames (the output does not depend on it).
         device: Torch device for ray casting (``cpu``; ``cuda`` when available).
@@ -267,51 +275,117 @@ def generate_dataset(
         ``out_dir``.
 
     Raises:
-        ValueError: ``out_dir`` holds something else (another dataset, another config/seed, unrelated files).
+        ConfigError: ``out_dir`` holds something else (another dataset, another config/seed, unrelated files).
 
     Example:
         >>> root = generate_dataset("tiny", "/tmp/airfisheye-tiny", workers=2)     # doctest: +SKIP
         >>> from airfisheye_bench.io.manifest import verify; verify(root).ok   # doctest: +SKIP
         True
     """
+    config = as_config(config)
+    if int(workers) < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    root = Path(out_dir)
+    if open_output(root, generator_identity(config, seed)):
+        log.info("%s is already complete", root)
+        return root
+    remove_stale_temporaries(root)
+    plans = plan_trajectories(config, ENVIRONMENTS)
+    every = range(len(plans))
+    write_trajectories(
+        root, (config, seed, plans), every, root / JOURNAL_NAME, int(workers), device, progress, config.name
+    )
+    missing = merge_journals(root, config, seed, plans)
+    if missing:  # every unit was just written: only files removed meanwhile (by another process) lead here
+        raise RuntimeError(f"{root}: units vanished while it was written, in {sorted(missing)}; run it again")
+    return root
+
+
+def as_config(config: SynthConfig | str) -> SynthConfig:
+    """``config`` itself, or the preset it names."""
     if isinstance(config, str):
         config = get_preset(config)
     if not isinstance(config, SynthConfig):
         raise ValueError(f"config must be a SynthConfig or a preset name, got {type(config).__name__}")
-    if int(workers) < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
-    root = Path(out_dir)
-    identity = generator_identity(config, seed)
-    if _is_complete(root, identity):
-        log.info("%s is already complete", root)
-        return root
-    _prepare_output(root, identity)
-    remove_stale_temporaries(root)
+    return config
 
-    plans = plan_trajectories(config, ENVIRONMENTS)
-    journal = root / JOURNAL_NAME
-    done = _read_journal(journal, root)
+
+def open_output(root: Path, identity: dict) -> bool:
+    """Make ``root`` ready to write the dataset of ``identity`` (its state file in place); ``True``: it is complete
+    already and nothing is to be written.
+
+    Raises:
+        ConfigError: ``root`` holds another dataset, an unfinished one of other settings, or unrelated files.
+    """
+    return _is_complete(root, identity) or _prepare_output(root, identity)
+
+
+def write_trajectories(
+    root: Path,
+    run: tuple[SynthConfig, int, list[TrajectoryPlan]],
+    trajectories: Sequence[int],
+    journal: Path,
+    workers: int,
+    device: str,
+    progress: bool,
+    label: str,
+) -> int:
+    """Write every unit (metadata, frames) of ``trajectories`` (indices into the plans) that no journal of ``root``
+    holds yet, appending each finished one to ``journal``; the number of frames rendered.
+
+    ``run``: the config, seed and plans. Journals of other processes writing other trajectories of the same folder
+    are read, never written: each process appends to its own.
+    """
+    config, seed, plans = run
+    done = read_journals(root)
     jobs = [
-        Job(t, f)
-        for t, plan in enumerate(plans)
-        for f in range(-1, plan.num_frames)
-        if Job(t, f).key not in done
+        Job(t, f) for t in trajectories for f in range(-1, plans[t].num_frames) if Job(t, f).key not in done
     ]
-    total_frames = sum(p.num_frames for p in plans)
-    done_frames = total_frames - sum(1 for j in jobs if j.frame >= 0)
-    bar = ProgressReport(total_frames, f"generate {config.name}", "frame", progress, done_frames, log)
+    total_frames = sum(plans[t].num_frames for t in trajectories)
+    to_render = sum(1 for j in jobs if j.frame >= 0)
+    bar = ProgressReport(total_frames, f"generate {label}", "frame", progress, total_frames - to_render, log)
     try:
         with open(journal, "a", encoding="utf-8") as jf:
-            for key, files in _execute(jobs, (config, seed, str(root), plans, device), int(workers)):
+            for key, files in _execute(jobs, (config, seed, str(root), plans, device), workers):
                 jf.write(json.dumps({"unit": key, "files": files}, sort_keys=True) + "\n")
                 jf.flush()
-                done[key] = files
                 if not key.endswith(":-1"):
                     bar.update(1)
     finally:
         bar.close()
-    _finalize(root, config, seed, plans, done)
-    return root
+    return to_render
+
+
+def missing_units(plans: list[TrajectoryPlan], done: dict[str, dict]) -> dict[str, int]:
+    """Trajectories not finished in ``done``: their key and how many of their units (metadata, frames) are missing.
+
+    Example:
+        >>> plans = plan_trajectories(get_preset("tiny"), ENVIRONMENTS)
+        >>> missing_units(plans, {"0:-1": {}, **{f"0:{i}": {} for i in range(8)}})
+        {'modular_houses/traj00': 3, 'town/traj00': 3}
+    """
+    missing = {}
+    for t, plan in enumerate(plans):
+        count = sum(1 for f in range(-1, plan.num_frames) if Job(t, f).key not in done)
+        if count:
+            missing[plan.key] = count
+    return missing
+
+
+def merge_journals(root: Path, config: SynthConfig, seed: int, plans: list[TrajectoryPlan]) -> dict[str, int]:
+    """Finish the dataset of ``root`` if every unit of every trajectory is journaled (by any process): its split
+    files, ``dataset.yaml`` and ``manifest.json``, then the journals and state file are removed. The trajectories
+    still missing units (:func:`missing_units`; empty: the dataset is complete).
+
+    Several processes may call it at once: what they write is the same, file by file, and each write is atomic.
+    """
+    if _is_complete(root, generator_identity(config, seed)):
+        return {}
+    done = read_journals(root)
+    missing = missing_units(plans, done)
+    if not missing:
+        _finalize(root, config, seed, plans, done)
+    return missing
 
 
 def stale_file(root: str | Path, config: SynthConfig | str, seed: int = 0, device: str = "cpu") -> str | None:
@@ -427,7 +501,8 @@ def _finalize(root: Path, config: SynthConfig, seed: int, plans: list[Trajectory
     files[DATASET_YAML] = FileEntry(sha256_file(root / DATASET_YAML), (root / DATASET_YAML).stat().st_size)
     write_manifest(root, files)  # its presence (without the state file) marks a complete dataset
     (root / STATE_NAME).unlink(missing_ok=True)
-    (root / JOURNAL_NAME).unlink(missing_ok=True)
+    for journal in root.glob(JOURNAL_GLOB):
+        journal.unlink(missing_ok=True)
 
 
 def _is_complete(root: Path, identity: dict) -> bool:
@@ -435,30 +510,48 @@ def _is_complete(root: Path, identity: dict) -> bool:
         return False
     spec = DatasetSpec.load(root)
     if spec.generator != identity:
-        raise ValueError(
-            f"out_dir {str(root)!r} already holds a complete dataset generated with different settings "
+        raise ConfigError(
+            f"out={root} already holds a complete dataset generated with different settings "
             f"(generator {spec.generator and spec.generator.get('config', {}).get('name')!r}, seed "
             f"{spec.generator and spec.generator.get('seed')}); choose another folder or delete it"
         )
     return True
 
 
-def _prepare_output(root: Path, identity: dict) -> None:
+def _prepare_output(root: Path, identity: dict) -> bool:
+    """Write the state file of a new dataset, or check an unfinished one's; ``True`` when ``root`` turned out to be
+    complete (another process finished it meanwhile)."""
     state = root / STATE_NAME
     if state.is_file():
         previous = json.loads(state.read_text(encoding="utf-8"))
         if previous != identity:
-            raise ValueError(
-                f"out_dir {str(root)!r} holds an unfinished dataset of different settings "
-                f"(seed/config differ); resume it with the same preset and seed, or delete the folder"
+            raise ConfigError(
+                f"out={root} holds an unfinished dataset of different settings (seed/config differ); resume it "
+                "with the same preset, options and seed, or delete the folder"
             )
-        return
-    if root.exists() and any(root.iterdir()):
-        raise ValueError(
-            f"out_dir {str(root)!r} exists and is not empty (and is not a dataset being generated)"
-        )
+        return False
+    # Shards started together race to write the state file: the generator's own hidden files are no obstacle.
+    foreign = [p.name for p in root.iterdir() if not is_generator_file(p.name)] if root.exists() else []
+    if foreign:
+        if "manifest.json" in foreign:  # completed by another process since it was checked
+            return _is_complete(root, identity)
+        raise ConfigError(f"out={root} exists and is not empty (and is not a dataset being generated)")
     root.mkdir(parents=True, exist_ok=True)
     atomic_write_text(state, json.dumps(identity, sort_keys=True))
+    return False
+
+
+def is_generator_file(name: str) -> bool:
+    """Whether a file name at a dataset's top is the generator's own state (state file, journals, temporaries)."""
+    return name.startswith(".airfisheye-") or Path(name).match(TEMP_GLOB)
+
+
+def read_journals(root: Path) -> dict[str, dict]:
+    """Finished units of every journal of ``root`` (the whole run's and each shard's), by unit key."""
+    done: dict[str, dict] = {}
+    for journal in sorted(root.glob(JOURNAL_GLOB)):
+        done.update(_read_journal(journal, root))
+    return done
 
 
 def _read_journal(journal: Path, root: Path) -> dict[str, dict]:

@@ -1,4 +1,5 @@
-"""Slow end-to-end runs through ``python train.py``: exact resume after SIGKILL, and DDP on 2 and 3 gloo ranks."""
+"""Slow end-to-end runs through ``python train.py``: exact resume after SIGKILL, DDP on 2 and 3 gloo ranks, and a job of
+two SLURM nodes on this machine (its sampling, its metrics, its resume)."""
 
 from __future__ import annotations
 
@@ -34,18 +35,7 @@ def run_train(
 ) -> subprocess.CompletedProcess:
     """``python train.py`` (through ``tests.helpers.killer`` when ``kill`` is ``(hook, step)``); ``dataset=None``
     passes no data or run overrides (a resume re-using the run's configuration)."""
-    base = []
-    if dataset is not None:
-        base = [
-            f"data.root={dataset}",
-            "data.camera.size=64",
-            "data.batch_size=2",
-            "data.num_workers=0",
-            "data.persistent_workers=false",
-            "callbacks.rich_progress_bar=null",
-            "trainer.deterministic=true",
-            "trainer.log_every_n_steps=1",
-        ]
+    base = tiny_overrides(dataset) if dataset is not None else []
     launcher = (
         [str(ROOT / "train.py")] if kill is None else ["-m", "tests.helpers.killer", kill[0], str(kill[1])]
     )
@@ -57,6 +47,20 @@ def run_train(
             f"train.py failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
         )
     return proc
+
+
+def tiny_overrides(dataset: Path) -> list[str]:
+    """A seconds-long run on ``dataset`` at 64², batches of 2, loaded in the main process, deterministic."""
+    return [
+        f"data.root={dataset}",
+        "data.camera.size=64",
+        "data.batch_size=2",
+        "data.num_workers=0",
+        "data.persistent_workers=false",
+        "callbacks.rich_progress_bar=null",
+        "trainer.deterministic=true",
+        "trainer.log_every_n_steps=1",
+    ]
 
 
 def last_checkpoint(run_dir: Path) -> dict:
@@ -160,3 +164,116 @@ def test_ddp_matches_a_single_process_evaluation(devices: int, tiny_dataset: Pat
             assert single[key] != single[key]  # NaN in both
         else:
             assert single[key] == pytest.approx(value, abs=1e-6), key
+
+
+#: A job of two nodes with one process each, what `python train.py -m hydra/launcher=slurm trainer=ddp
+#: trainer.devices=1 trainer.num_nodes=2` asks SLURM for (docs/tracking.md, "SLURM clusters"): 2 epochs of 2 steps
+#: per rank (the tiny preset's 8 training frames in batches of 2 over 2 ranks), last.ckpt after every step.
+TWO_NODES = [
+    "task=seg",
+    "trainer=ddp",
+    "trainer.accelerator=cpu",
+    "trainer.devices=1",
+    "trainer.num_nodes=2",
+    "trainer.sync_batchnorm=false",
+    "trainer.max_epochs=2",
+    "model.encoder_name=timm-mobilenetv3_small_minimal_100",
+    "callbacks.last_checkpoint.every_n_train_steps=1",
+]
+
+
+def _batches(record: dict[int, list[dict]], rank: int, epoch: int) -> list[list[str]]:
+    return [line["ids"] for line in record[rank] if line.get("epoch") == epoch]
+
+
+def _assert_close(ddp: dict, single: dict, what: str) -> None:
+    for key, value in single.items():
+        if value != value:  # NaN: a class absent from the split
+            assert ddp[key] != ddp[key], f"{what} {key}"
+        else:
+            assert ddp[key] == pytest.approx(value, abs=1e-6), f"{what} {key}"
+
+
+@pytest.mark.slow
+def test_a_job_of_two_slurm_nodes_samples_scores_and_resumes_as_one_process_would(
+    tiny_dataset: Path, tmp_path: Path
+) -> None:
+    import csv
+
+    import lightning as L
+
+    from airfisheye_bench.io import DatasetReader
+    from airfisheye_bench.tasks import SegmentationTask
+    from datamodules import AirFisheyeDataModule
+    from tests.helpers import cluster  # Lightning: imported by the slow tests only, not at collection
+
+    straight, killed = tmp_path / "straight", tmp_path / "killed"
+    job = [*tiny_overrides(tiny_dataset), *TWO_NODES]
+    tasks = cluster.run_job([*job, f"hydra.run.dir={straight}"], tmp_path / "seen")
+    assert [t.returncode for t in tasks] == [0, 0], [t.stderr[-3000:] for t in tasks]
+    seen = cluster.read_record(tmp_path / "seen")
+
+    # Lightning found the ranks and the rendezvous where SLURM's variables put them: MASTER_ADDR is the node list's
+    # first host, the world size the job's tasks, the node rank SLURM_NODEID.
+    setups = [line for lines in seen.values() for line in lines if "environment" in line]
+    assert {(s["environment"], s["MASTER_ADDR"], s["world_size"]) for s in setups} == {
+        ("SLURMEnvironment", "127.0.0.1", 2)
+    }
+    assert {(s["global_rank"], s["node_rank"], int(s["SLURM_NODEID"])) for s in setups} == {
+        (0, 0, 0),
+        (1, 1, 1),
+    }
+    # Every training frame once per epoch across the ranks, two batches each.
+    frames = sorted(DatasetReader(tiny_dataset).split("train"))
+    for epoch in (0, 1):
+        batches = {rank: _batches(seen, rank, epoch) for rank in (0, 1)}
+        assert [len(b) for b in batches.values()] == [2, 2], batches
+        assert sorted(i for b in batches.values() for ids in b for i in ids) == frames, (epoch, batches)
+
+    # The synced validation and test metrics are those of one process evaluating the same checkpoint.
+    trainer = L.Trainer(
+        accelerator="cpu", devices=1, logger=False, enable_checkpointing=False, enable_progress_bar=False
+    )
+    dm = AirFisheyeDataModule("seg", root=tiny_dataset, camera={"size": 64}, eval_batch_size=1, num_workers=0)
+    final = SegmentationTask.load_from_checkpoint(
+        straight / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True
+    )
+    (single_val,) = trainer.validate(final, datamodule=dm)
+    with open(straight / "metrics.csv", newline="") as f:
+        last_val = [row for row in csv.DictReader(f) if row.get("val/loss")][
+            -1
+        ]  # the final weights' validation
+    logged = {k: float(v) for k, v in last_val.items() if k.startswith("val/") and v}
+    assert logged.keys() == single_val.keys()
+    _assert_close(logged, single_val, "val")
+    results = json.loads((straight / "results.json").read_text())
+    tested = SegmentationTask.load_from_checkpoint(
+        results["model"]["checkpoint"], map_location="cpu", weights_only=True
+    )
+    trainer.test(tested, datamodule=dm)
+    assert results["metrics"].keys() == tested.test_results["metrics"].keys()
+    _assert_close(
+        {k: float("nan") if v is None else v for k, v in results["metrics"].items()},
+        tested.test_results["metrics"],
+        "test",
+    )
+
+    # Both nodes killed inside the second epoch, after its first step: the job resumed (with a new job id, as a
+    # requeued job gets) continues each rank at its shard's position and ends where the uninterrupted job did.
+    tasks = cluster.run_job(
+        [*job, f"hydra.run.dir={killed}"], tmp_path / "killed-seen", kill=("on_train_batch_start", 3)
+    )
+    assert [t.returncode for t in tasks] == [-9, -9], [t.stderr[-3000:] for t in tasks]
+    assert last_checkpoint(killed)["AirFisheyeDataModule"] == {"train_epoch": 1, "train_batches_done": 1}
+    tasks = cluster.run_job(["ckpt_path=last", f"hydra.run.dir={killed}"], tmp_path / "resumed-seen")
+    assert [t.returncode for t in tasks] == [0, 0], [t.stderr[-3000:] for t in tasks]
+    resumed = cluster.read_record(tmp_path / "resumed-seen")
+    for rank in (0, 1):
+        assert _batches(resumed, rank, 1) == _batches(seen, rank, 1)[1:], rank
+    a, b = last_checkpoint(straight), last_checkpoint(killed)
+    assert (a["epoch"], a["global_step"]) == (b["epoch"], b["global_step"]) == (1, 4)
+    assert a["state_dict"].keys() == b["state_dict"].keys()
+    for key in a["state_dict"]:
+        torch.testing.assert_close(a["state_dict"][key], b["state_dict"][key], rtol=0, atol=0, msg=key)
+    assert (killed / "metrics.csv").read_text() == (straight / "metrics.csv").read_text()
+    assert json.loads((killed / "results.json").read_text())["metrics"] == results["metrics"]
