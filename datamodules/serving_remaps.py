@@ -92,7 +92,10 @@ class RemapServing:
     def _remap_count(self) -> int:
         """How many remaps (a view and a lens each) this split can serve."""
         views = self.gimbal.view_count() if self.gimbal is not None else 1
-        return views * (self.lens_draws.count() if self._lenses_vary else 1)
+        if not self._lenses_vary:
+            return views
+        pool = self.lens_draws.pool
+        return views * (self.lens_draws.count() if pool is None else min(pool, self.lens_draws.count()))
 
     def _remap_bytes(self) -> int:
         """About what one view's or lens's remap holds: its two tables (bilinear taps and weights, nearest index,
@@ -139,10 +142,14 @@ class RemapServing:
         """The lens of sample ``index`` in the current epoch (``None``: the one lens of ``data.camera``)."""
         if self.lens_draws is None:
             return None
-        training = self.lens_draws.training
-        return self.lens_draws.draw(
-            index, draw_seed(self.seed, self._epoch.get(), index) if training else None
-        )
+        if not self.lens_draws.training:
+            return self.lens_draws.draw(index, None)
+        epoch = self._epoch.get()
+        seed = draw_seed(self.seed, epoch, index)
+        if self.lens_draws.pool is not None:  # one of the epoch's lenses: the slot's own draw, whoever serves it
+            slot = seed % self.lens_draws.pool
+            seed = draw_seed(self.seed, epoch, -1 - slot)
+        return self.lens_draws.draw(index, seed)
 
     def sample_view(self, index: int) -> View | None:
         """The gimbal view of sample ``index`` in the current epoch (``None`` without a gimbal)."""

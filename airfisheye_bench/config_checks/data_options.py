@@ -215,7 +215,8 @@ DATA_OPTIONS: tuple[DataOption, ...] = (
     _o(
         "camera.jitter",
         None,
-        "each training sample's lens perturbed: {focal: r, principal_point_px: p, distortion: d}",
+        "each training sample's lens perturbed: {focal: r, principal_point_px: p, distortion: d, pool: n} (pool: lenses "
+        "an epoch draws, null: one per sample)",
         ValueRule(
             "custom",
             check=r.jitter_problem,

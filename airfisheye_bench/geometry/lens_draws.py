@@ -11,8 +11,10 @@ and one factor in ``[1 - d, 1 + d]`` per distortion coefficient of its model
 A training sample draws its lens (by weight) and its jitter from ``(seed, epoch, index)`` alone, as its
 augmentation and gimbal view do, so a resumed run serves the lenses an uninterrupted one would have. Jitter is drawn
 on a grid (:data:`FOCAL_STEP`, :data:`PRINCIPAL_POINT_STEP_PX`, :data:`DISTORTION_STEP`; a range under one step
-does not jitter): a lens seen again is the same lens, and its remap tables come from the cache. Evaluation serves
-sample ``i`` through lens ``i mod n``, unjittered.
+does not jitter): a lens seen again is the same lens, and its remap tables come from the cache. With ``pool: P`` an epoch draws
+``P`` lenses (each from ``(seed, epoch, slot)``) and each training sample serves one of them (its slot from
+``(seed, epoch, index)``): at most ``P`` tables are built per epoch, where a draw per sample builds one per sample at
+512². Evaluation serves sample ``i`` through lens ``i mod n``, unjittered.
 
 A sample carries its draw as ``lens`` (int64: the index in the list) and ``lens_params`` (float32
 ``[3 + D]``: focal factor, principal-point shift x and y in pixels, the ``D`` distortion factors, 1 beyond its
@@ -45,8 +47,9 @@ FOCAL_STEP = 0.0025
 PRINCIPAL_POINT_STEP_PX = 0.5
 #: Distortion factors are drawn on multiples of 0.5 %.
 DISTORTION_STEP = 0.005
-#: The keys of ``data.camera.jitter``.
-JITTER_KEYS = ("focal", "principal_point_px", "distortion")
+#: The keys of ``data.camera.jitter``: the three ranges and the per-epoch pool.
+JITTER_KEYS = ("focal", "principal_point_px", "distortion", "pool")
+_RANGE_KEYS = JITTER_KEYS[:3]
 #: The keys of a lens spec of ``data.camera.lenses`` (a served lens's, and its sampling weight).
 LENS_KEYS = ("model", "fov_deg", "k", "calibration", "camera", "weight")
 # Keeps the lens draws apart from the augmentation's and the gimbal's, which take the same per-sample seed.
@@ -56,11 +59,14 @@ _SALT = 0x1E45
 @dataclass(frozen=True)
 class LensJitter:
     """A parsed ``data.camera.jitter``: the half-widths of the focal factor, principal-point shift (pixels) and
-    distortion factors."""
+    distortion factors, and ``pool``: how many lenses an epoch draws, each training sample serving one of them
+    (``None``: every sample its own draw). A pool bounds the lookup tables an epoch builds: a jittered lens is
+    rarely drawn twice, and its tables cost several times a sample at 512² (docs/benchmarks.md)."""
 
     focal: float = 0.0
     principal_point_px: float = 0.0
     distortion: float = 0.0
+    pool: int | None = None
 
     @classmethod
     def parse(cls, value: Any) -> LensJitter | None:
@@ -73,15 +79,19 @@ class LensJitter:
             return None
         if not isinstance(value, Mapping):
             raise ValueError(
-                f"data.camera.jitter: expected null or {{focal: r, principal_point_px: p, distortion: d}}, got {value!r}"
+                f"data.camera.jitter: expected null or {{focal: r, principal_point_px: p, distortion: d, pool: n}}, got {value!r}"
             )
         unknown = sorted(set(map(str, value)) - set(JITTER_KEYS))
         if unknown:
             raise ValueError(
                 f"data.camera.jitter: unknown key {unknown[0]!r}; expected some of {', '.join(JITTER_KEYS)}"
             )
-        out = {}
-        for key in JITTER_KEYS:
+        out: dict[str, Any] = {}
+        pool = value.get("pool")
+        if pool is not None and not (isinstance(pool, (int, np.integer)) and not isinstance(pool, bool) and pool >= 1):
+            raise ValueError(f"data.camera.jitter.pool={pool!r}: expected null or a whole number of lenses >= 1")
+        out["pool"] = None if pool is None else int(pool)
+        for key in _RANGE_KEYS:
             x = value.get(key, 0.0)
             x = 0.0 if x is None else x
             limit = math.inf if key == "principal_point_px" else 1.0
@@ -152,6 +162,11 @@ class LensDraws:
     def width(self) -> int:
         """``D`` of ``lens_params``: the most distortion coefficients of a lens of the list."""
         return max(self.distortion_counts, default=0)
+
+    @property
+    def pool(self) -> int | None:
+        """How many lenses a training epoch draws (``data.camera.jitter.pool``; ``None``: one per sample)."""
+        return self.jitter.pool if self.jitter is not None and self.training else None
 
     def draw(self, index: int, seed: int | None) -> LensDraw:
         """The lens of sample ``index``: ``seed`` is its per-sample, per-epoch draw seed (training; ignored, and

@@ -18,10 +18,13 @@ every root, or one root at every size, also work). ``--out FILE`` writes the row
 (commit, command, machine, the load average before and after, and each root's dataset identity under ``datasets``:
 name, root and content SHA-256, :func:`~airfisheye_bench.runs.results.dataset_identity`).
 
-``--lenses fixed drawn`` times the same configuration with the split's one lens (``fixed``) and with a lens drawn
-per sample (``drawn``: :data:`DRAWN_LENSES` with :data:`DRAWN_JITTER`, the lens study's arm b), their repeats
-interleaved so both see the same machine; the drawn lenses are drawn for epochs no earlier loop served, so every
-sample's lens is one a long training would meet (a jittered lens is rarely served twice).
+``--lenses fixed drawn pooled`` times the same configuration with the split's one lens (``fixed``), with a lens
+drawn per sample (``drawn``: :data:`DRAWN_LENSES` with :data:`DRAWN_JITTER`, the lens study's arm b) and with the
+epoch's lenses drawn from a pool of :data:`POOL` (``pooled``), their repeats interleaved so all see the same
+machine. Each loop serves an epoch no earlier loop served, so a drawn lens is one a long training would meet (a
+jittered lens is rarely served twice). ``pooled`` loops twice over its epoch: the first builds the pool's tables
+(``cold_*``: what an epoch pays once per worker), the second serves from them (the row's times: every later sample
+of the epoch).
 
 Usage:
     python scripts/bench_loader.py [--root DIR ... | --preset small] [--size 512 ...] [--samples 40] [--repeats 5]
@@ -61,6 +64,8 @@ DRAWN_LENSES = (
     {"model": "equidistant", "fov_deg": 100},
 )
 DRAWN_JITTER = {"focal": 0.05, "principal_point_px": 2, "distortion": 0.05}
+#: ``--lenses pooled``: the same with a pool of this many lenses per epoch (``data.camera.jitter.pool``).
+POOL = 16
 
 
 def rss_mb() -> float:
@@ -90,10 +95,11 @@ def bench(
 
 def _dataset(root, task: str, source: str, size: int, lenses: str) -> AirFisheyeDataset:
     augment = FisheyeAugment(hflip=0.5, rotate_deg=10.0)
+    jitter = {**DRAWN_JITTER, "pool": POOL} if lenses == "pooled" else DRAWN_JITTER
     camera = (
         CameraConfig(size=size)
         if lenses == "fixed"
-        else CameraConfig(size=size, lenses=DRAWN_LENSES, jitter=DRAWN_JITTER)
+        else CameraConfig(size=size, lenses=DRAWN_LENSES, jitter=jitter)
     )
     ds = AirFisheyeDataset.from_root(root, "train", task, source=source, camera=camera, augment=augment)
     ds.warm_up()
@@ -119,15 +125,24 @@ def bench_lenses(
     rss0 = rss_mb()
     cpu: dict[str, list[float]] = {name: [] for name in lenses}
     wall: dict[str, list[float]] = {name: [] for name in lenses}
+    cold: list[float] = []
     for repeat in range(repeats):
         for name, load in loads.items():
             datasets[name].set_epoch(repeat + 1)  # new draws: a lens no earlier loop served
+            if name == "pooled":  # the first pass builds the epoch's pool
+                c0 = time.process_time()
+                for i in range(n):
+                    load(i % len(datasets[name]))
+                cold.append((time.process_time() - c0) / n * 1e3)
             t0, c0 = time.perf_counter(), time.process_time()
             for i in range(n):
                 load(i % len(datasets[name]))
             wall[name].append((time.perf_counter() - t0) / n * 1e3)
             cpu[name].append((time.process_time() - c0) / n * 1e3)
-    return {name: _summary(datasets[name], source, n, cpu[name], wall[name], rss0) for name in lenses}
+    out = {name: _summary(datasets[name], source, n, cpu[name], wall[name], rss0) for name in lenses}
+    if cold:
+        out["pooled"] |= {"cold_cpu_median": statistics.median(cold), "pool": POOL}
+    return out
 
 
 def _summary(
@@ -181,8 +196,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
         "--lenses",
         nargs="+",
         default=["fixed"],
-        choices=["fixed", "drawn"],
-        help="one lens, or one drawn per sample",
+        choices=["fixed", "drawn", "pooled"],
+        help="one lens, one drawn per sample, or from a per-epoch pool",
     )
     parser.add_argument(
         "--out", default=None, help="also write the rows with their provenance to this JSON file"

@@ -55,6 +55,22 @@ def test_training_draws_follow_seed_epoch_and_index(tiny_dataset: Path) -> None:
     assert [_dataset(tiny_dataset, seed=4).sample_lens(i) for i in range(len(ds))] != draws
 
 
+def test_a_pool_bounds_the_lenses_an_epoch_serves(tiny_dataset: Path) -> None:
+    pooled = _dataset(tiny_dataset, seed=3, jitter={**JITTER, "pool": 2})
+    epochs = []
+    for epoch in (0, 1):
+        pooled.set_epoch(epoch)
+        draws = [pooled.sample_lens(i) for i in range(len(pooled))]
+        assert 1 <= len(set(draws)) <= 2 and pooled._remap_count() == 2
+        epochs.append(draws)
+    assert set(epochs[0]) != set(epochs[1])  # each epoch its own pool
+    again = _dataset(tiny_dataset, seed=3, jitter={**JITTER, "pool": 2})
+    again.set_epoch(1)
+    assert [again.sample_lens(i) for i in range(len(again))] == epochs[1]  # from (seed, epoch, index) alone
+    with pytest.raises(ValueError, match=r"^data.camera.jitter.pool=0: expected null or a whole number"):
+        LensJitter.parse({"pool": 0})
+
+
 def test_weights_are_respected() -> None:
     draws = LensDraws(weights=(1.0, 3.0))
     counts = Counter(draws.draw(i, seed=i * 7919 + 1).lens for i in range(2000))

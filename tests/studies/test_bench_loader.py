@@ -75,12 +75,15 @@ def test_fixed_and_drawn_lenses_side_by_side(tiny_dataset: Path) -> None:
     """``--lenses fixed drawn``: the same configuration timed with one lens and with a lens drawn per sample."""
     results = loader_speed.main(
         ["--root", str(tiny_dataset), "--size", "32", "--samples", "2", "--repeats", "2", "--tasks", "depth"]
-        + ["--sources", "cubemap", "fisheye", "--lenses", "fixed", "drawn"]
+        + ["--sources", "cubemap", "fisheye", "--lenses", "fixed", "drawn", "pooled"]
     )
     # A pre-rendered fisheye has one lens: it is timed fixed only.
     assert [(r["source"], r["lenses"]) for r in results] == [
         ("cubemap", "fixed"),
         ("cubemap", "drawn"),
+        ("cubemap", "pooled"),
         ("fisheye", "fixed"),
     ]
     assert all(r["cpu_median"] > 0 for r in results)
+    pooled = results[2]
+    assert pooled["pool"] == loader_speed.POOL and pooled["cold_cpu_median"] > 0
