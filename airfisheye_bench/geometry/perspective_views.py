@@ -76,6 +76,7 @@ __all__ = [
     "PerspectiveViews",
     "cube_views",
     "parse_views",
+    "views_problem",
 ]
 
 #: The named view sets (``views=``); a list of ``[yaw, pitch(, roll)]`` is the other form.
@@ -110,7 +111,7 @@ def parse_views(value: Any) -> tuple[PerspectiveView, ...]:
     """``views=`` as given: ``cube`` or a list of ``[yaw, pitch]`` / ``[yaw, pitch, roll]`` (degrees).
 
     Raises:
-        ValueError: one line naming the entry and the forms.
+        ValueError: one line naming the entry and the forms (:func:`views_problem`).
 
     Example:
         >>> [v.name for v in parse_views([[0, 0], [60, 0, 5]])]
@@ -120,11 +121,32 @@ def parse_views(value: Any) -> tuple[PerspectiveView, ...]:
         ...
         ValueError: views='tiles': expected cube, or a list of views [yaw, pitch] or [yaw, pitch, roll] in degrees
     """
+    problem = views_problem(value)
+    if problem is not None:
+        raise ValueError(f"views={value!r}: {problem}")
     if value == "cube":
         return cube_views()
-    if isinstance(value, str) or not isinstance(value, Sequence) or not value:
-        raise ValueError(f"views={value!r}: expected {_FORMS}")
     views = []
+    for entry in value:
+        angles = [float(a) for a in entry] + [0.0] * (3 - len(entry))
+        name = f"yaw{angles[0]:g}_pitch{angles[1]:g}" + (f"_roll{angles[2]:g}" if angles[2] else "")
+        views.append(PerspectiveView(name, gimbal_rotation(*angles)))
+    return tuple(views)
+
+
+def views_problem(value: Any) -> str | None:
+    """Why ``views=`` refuses ``value`` (``None``: it is a view set), without the key: the config check's rule.
+
+    Example:
+        >>> views_problem("cube") is None, views_problem([[0, 0], [90, 0]]) is None
+        (True, True)
+        >>> views_problem([[0, 0], [90]])
+        'view [90]: expected cube, or a list of views [yaw, pitch] or [yaw, pitch, roll] in degrees'
+    """
+    if value == "cube":
+        return None
+    if isinstance(value, str) or not isinstance(value, Sequence) or not value:
+        return f"expected {_FORMS}"
     for entry in value:
         if (
             isinstance(entry, str)
@@ -134,11 +156,9 @@ def parse_views(value: Any) -> tuple[PerspectiveView, ...]:
                 isinstance(a, int | float) and not isinstance(a, bool) and np.isfinite(a) for a in entry
             )
         ):
-            raise ValueError(f"views={list(value)!r}: view {entry!r}: expected {_FORMS}")
-        angles = [float(a) for a in entry] + [0.0] * (3 - len(entry))
-        name = f"yaw{angles[0]:g}_pitch{angles[1]:g}" + (f"_roll{angles[2]:g}" if angles[2] else "")
-        views.append(PerspectiveView(name, gimbal_rotation(*angles)))
-    return tuple(views)
+            shown = list(entry) if isinstance(entry, Sequence) and not isinstance(entry, str) else entry
+            return f"view {shown!r}: expected {_FORMS}"
+    return None
 
 
 class PerspectiveViews:
