@@ -18,6 +18,7 @@ import torch
 from omegaconf import open_dict
 from PIL import Image
 
+from airfisheye_bench.cli import export
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.command import evaluate
 from airfisheye_bench.evaluation.perspective import perspective_predictor
@@ -135,8 +136,6 @@ def pinhole_run(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) ->
 
 @pytest.fixture(scope="module")
 def pinhole_onnx(pinhole_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from airfisheye_bench.cli import export
-
     out = tmp_path_factory.mktemp("pinhole_onnx") / "depth.onnx"
     with contextlib.redirect_stdout(io.StringIO()):
         try:
