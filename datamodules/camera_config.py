@@ -9,7 +9,7 @@ from functools import cached_property
 from typing import Any
 
 from airfisheye_bench.errors import ConfigError
-from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict, ideal_camera
+from airfisheye_bench.geometry.cameras import CameraModel, Pinhole, camera_from_dict, ideal_camera
 from airfisheye_bench.geometry.lens_draws import LENS_KEYS, LensJitter, parse_lenses
 from airfisheye_bench.geometry.serving import ServedCamera, serve_camera
 from airfisheye_bench.io.calibration_files import load_camera
@@ -21,8 +21,9 @@ class CameraConfig:
 
     Args:
         size: Output width and height in pixels (the paper trains at 512); ``None``: the camera's own size.
-        model: Lens model (``equidistant``, ``equisolid``, ``stereographic``, ``orthographic``, ``kannala_brandt``).
-        fov_deg: Field of view in degrees.
+        model: Lens model (``equidistant``, ``equisolid``, ``stereographic``, ``orthographic``, ``kannala_brandt``,
+            or ``pinhole``: perspective views, as a model trained on ordinary images takes).
+        fov_deg: Field of view in degrees (the image circle; ``pinhole``: across the width, 90 when unset).
         k: Kannala-Brandt coefficients.
         calibration: A calibration file (any format of :mod:`airfisheye_bench.io.calibration_files`) whose lens
             is served instead of the release's (``source=cubemap``), or that camera's flat dict (what an ONNX
@@ -158,12 +159,18 @@ class CameraConfig:
             )
         model = self.model or calibrated.model
         fov_deg = self.fov_deg if self.fov_deg is not None else calibrated.fov_deg
+        if fov_deg is None or (model == Pinhole.model and self.fov_deg is None):
+            # The release's fisheye field of view is no pinhole's: a pinhole takes its own default (90 deg).
+            fov_deg = Pinhole.defaults["fov_deg"] if model == Pinhole.model else 190.0
         k = (
             self.k
             if self.k is not None
             else (getattr(calibrated, "k", None) if model == "kannala_brandt" else None)
         )
-        camera = ideal_camera(size, size, fov_deg=fov_deg if fov_deg is not None else 190.0, model=model, k=k)
+        try:
+            camera = ideal_camera(size, size, fov_deg=fov_deg, model=model, k=k)
+        except ValueError as err:
+            raise ConfigError(f"data.camera.model={model}, data.camera.fov_deg={fov_deg:g}: {err}") from None
         return ServedCamera(camera, camera, 1.0, (0.0, 0.0), None)
 
 

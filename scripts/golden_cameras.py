@@ -10,7 +10,8 @@ cover the image. Nothing here uses this project's camera code to make a referenc
   unified model without distortion (basalt's ``alpha = xi / (1 + xi)``, ``f_basalt = f / (1 + xi)``).
 - ``opencv_fisheye.json``: ``cv2.fisheye.projectPoints`` / ``undistortPoints`` (valid below 90 deg only).
 - ``opencv_omnidir.json``: ``cv2.omnidir.projectPoints`` (opencv-contrib), the full MEI model with p1, p2.
-- ``opencv_pinhole.json``: ``cv2.projectPoints`` and ``cv2.undistortPoints`` with tight criteria (plumb_bob).
+- ``opencv_pinhole.json``: ``cv2.projectPoints`` and ``cv2.undistortPoints`` with tight criteria (plumb_bob), and
+  with no distortion on the ideal pinhole (its focal ``(W / 2) / tan(fov_deg / 2)`` written out here).
 - ``kitti360.json``: the KITTI-360 devkit's ``CameraFisheye.cam2image`` (ignores p1, p2: compared with them zeroed).
 - ``woodscape.json``: WoodScape's ``projection.py`` (``Camera`` + ``RadialPolyCamProjection``), both directions.
 - ``ocamcalib.json``: OCamCalib's ``world2cam`` / ``cam2world`` (the toolbox's C functions, transcribed below
@@ -252,8 +253,37 @@ def opencv_pinhole_cases(cv2) -> list[dict]:
                 "uv": uv.tolist(),
                 "rays": (rays / np.linalg.norm(rays, axis=1, keepdims=True)).tolist(),
             },
-        }
+        },
+        ideal_pinhole_case(cv2),
     ]
+
+
+#: The ideal pinhole (``model: pinhole``): a 100 deg field of view across a 4:3 frame, the principal point off-centre.
+IDEAL_PINHOLE = {"model": "pinhole", "width": 640, "height": 480, "fov_deg": 100.0, "cx": 322.7, "cy": 236.4}
+
+
+def ideal_pinhole_case(cv2) -> dict:
+    """``cv2.projectPoints`` / ``cv2.undistortPoints`` with zero distortion, ``fx = fy = (W / 2) / tan(fov / 2)``."""
+    cam = IDEAL_PINHOLE
+    f = (cam["width"] / 2.0) / math.tan(math.radians(cam["fov_deg"]) / 2.0)
+    K = np.array([[f, 0.0, cam["cx"]], [0, f, cam["cy"]], [0, 0, 1.0]])
+    D = np.zeros(5)
+    points = directions(80.0, seed=3)  # the frame's corners are at 60 deg; beyond, pixels a larger sensor has
+    uv, _ = cv2.projectPoints(points[:, None, :], np.zeros(3), np.zeros(3), K, D)
+    uv = uv[:, 0, :]
+    pix = pixels(cam["width"], cam["height"], seed=4)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-15)
+    und = cv2.undistortPoints(pix[:, None, :], K, D, None, None, None, crit)[:, 0, :]
+    rays = np.concatenate([und, np.ones((len(und), 1))], 1)
+    return {
+        "name": "ideal_pinhole",
+        "camera": cam,
+        "project": {"points": points.tolist(), "uv": uv.tolist(), "valid": [True] * len(points)},
+        "unproject": {
+            "uv": pix.tolist(),
+            "rays": (rays / np.linalg.norm(rays, axis=1, keepdims=True)).tolist(),
+        },
+    }
 
 
 # ---------------------------------------------------------------------------------------------- KITTI-360

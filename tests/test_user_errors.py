@@ -542,6 +542,16 @@ SCHEMA_TABLE = [
     ("train", ["data.camera.fov_deg=wide"], "data.camera.fov_deg='wide': expected a number"),
     (
         "train",
+        ["data.camera.model=pinhole", "data.camera.fov_deg=180"],
+        "data.camera.fov_deg=180: fov_deg must be in (0, 180), got 180.0 (data.camera.model=pinhole)",
+    ),
+    (
+        "train",
+        ["data.camera.model=orthographic", "data.camera.fov_deg=200"],
+        "data.camera.fov_deg=200: fov_deg=200.0 cannot be represented by the orthographic model",
+    ),
+    (
+        "train",
         ["data.camera.model=fisheye9000"],
         "data.camera.model='fisheye9000': expected one of equidistant",
     ),

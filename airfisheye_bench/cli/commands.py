@@ -417,6 +417,13 @@ class PredictOptions:
     threads: int | None = option("ONNX Runtime intra-op threads (null: its default)")
     tta: str | None = option("test-time augmentation: null | flip")
     progress: bool = option("show a progress bar (log lines when not in a terminal)")
+    views: Any = option(
+        "a perspective model on fisheye frames: cube | [[yaw,pitch],...] (the footage's lens from camera=)",
+        "str|list|null",
+    )
+    view_depth: str = option(
+        "with views: what the model's depth measures: range (this project's) | z (its axis)"
+    )
 
 
 PREDICT = Command(

@@ -156,15 +156,22 @@ DATA_OPTIONS: tuple[DataOption, ...] = (
     _o(
         "camera.model",
         None,
-        "the lens model (null: the release's lens)",
+        "the lens model (null: the release's lens); pinhole: perspective views of the same data",
         ValueRule("choice", choices=r.lens_models, nullable=True, hint="null: the release's lens"),
         cost=1,
     ),
     _o(
         "camera.fov_deg",
         None,
-        "the lens's field of view in degrees (null: the release's)",
-        ValueRule("number", minimum=1, nullable=True, hint="degrees; null: the release's"),
+        "the lens's field of view in degrees (null: the release's); pinhole: across the width, below 180 (null: 90)",
+        ValueRule(
+            "custom",
+            check=r.lens_fov_problem,
+            uses=("data.camera.model",),
+            nullable=True,
+            hint="degrees; null: the release's",
+        ),
+        cost=1,
     ),
     _o(
         "camera.k",

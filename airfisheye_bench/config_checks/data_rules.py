@@ -24,6 +24,24 @@ def lens_models() -> tuple[str, ...]:
     return LENS_MODELS
 
 
+def lens_fov_problem(value: Any, model: Any) -> str | None:
+    """``data.camera.fov_deg``: degrees the lens of ``data.camera.model`` can have (the model's own check: a pinhole's
+    is below 180, an orthographic lens's at most 180, ...)."""
+    from airfisheye_bench.geometry.cameras.ideal import (  # imports torch: only when checked
+        LENS_MODELS,
+        ideal_camera,
+    )
+
+    problem = ValueRule("number", minimum=1).problem(value)
+    if problem is not None or model not in LENS_MODELS:
+        return problem  # an unknown model is data.camera.model's to refuse
+    try:
+        ideal_camera(8, 8, fov_deg=float(value), model=str(model))
+    except ValueError as err:
+        return f"{err} (data.camera.model={model})"
+    return None
+
+
 def camera_fits() -> tuple[str, ...]:
     from airfisheye_bench.geometry.serving import FITS  # imports torch: only when checked
 

@@ -14,6 +14,13 @@ mirrored input (:func:`~airfisheye_bench.evaluation.predictors.flip_tta`). The o
 ``results.json`` (the leaderboard format; ``model`` records what was evaluated, the training run, the weights
 the model started from and the TTA) and ``panels/`` (frames spread over the split, titled columns, depth colour
 bars in metres); the table is printed and written to the command's log (``evaluate.log``).
+
+``views=cube`` (or a list of ``[yaw, pitch]`` views) scores a perspective model (one trained with
+``data.camera.model=pinhole``) on the fisheye: the data config is the model's with the camera group back to the
+release's lens at the model's size (``data.camera.*`` on top), each fisheye image is rendered into the views at the
+model's own camera, and the outputs are resampled back (:mod:`~airfisheye_bench.evaluation.perspective`;
+``view_depth=z`` for a model whose depth is z along its axis). ``results.json`` records the views under
+``model.views``. Without ``views=`` such a model is scored on its own views, as any model on its own camera.
 """
 
 from __future__ import annotations
@@ -41,6 +48,7 @@ from airfisheye_bench.evaluation.cross_lens import (
     robustness_lenses,
 )
 from airfisheye_bench.evaluation.evaluator import EvaluationResult, evaluate_predictions
+from airfisheye_bench.evaluation.perspective import perspective_predictor
 from airfisheye_bench.evaluation.predictors import (
     TTA_MODES,
     CheckpointPredictor,
@@ -50,7 +58,8 @@ from airfisheye_bench.evaluation.predictors import (
 )
 from airfisheye_bench.evaluation.submission import DEPTH_FORMATS, SubmissionWriter
 from airfisheye_bench.evaluation.trained import run_datamodule
-from airfisheye_bench.geometry.cameras import CameraModel
+from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
+from airfisheye_bench.geometry.perspective_views import DEPTH_CONVENTIONS, views_problem
 from airfisheye_bench.io.calibration_files import camera_mismatch
 from airfisheye_bench.io.layout import trajectory_of
 from airfisheye_bench.metrics import DEFAULT_DEPTH_EDGES_M, DEFAULT_RING_EDGES_DEG, ring_edges_for
@@ -84,6 +93,12 @@ EVALUATE_RULES: dict[str, ValueRule] = {
     "allow_camera_mismatch": ValueRule("bool", hint="score an ONNX model on data served with another camera"),
     "robustness": ValueRule(
         "bool", hint="score the trained lens with its intrinsics perturbed (cross_lens.py)"
+    ),
+    "views": ValueRule(
+        "custom", check=views_problem, nullable=True, hint="a perspective model through views of the fisheye"
+    ),
+    "view_depth": ValueRule(
+        "choice", choices=DEPTH_CONVENTIONS, hint="what the views' depth output measures"
     ),
 }
 """``evaluate.yaml``'s own options (the common keys are :data:`airfisheye_bench.config_checks.RULES`)."""
@@ -138,10 +153,33 @@ def evaluate(
         if not cfg.get("task"):
             cfg.task = {"name": task}
         cfg.data.task = task
+    views = cfg.get("views")
+    model_camera = None
+    if views is not None:  # a perspective model on the fisheye: its own camera, the fisheye served instead
+        if source == "predictions":
+            raise ConfigError("views= runs a perspective model on the fisheye: give ckpt_path= or onnx_path=")
+        views = OmegaConf.to_container(views) if isinstance(views, ListConfig) else views
+        model_camera = (
+            camera_from_dict(metadata["camera"])
+            if source == "onnx_path"
+            else _checkpoint_camera(checkpoint, source_data, task)
+        )
+        source_data = fisheye_data(source_data)
     datamodule, data_config = _datamodule(cfg, task, source_data, data_overrides or [])
     camera = datamodule.camera
-    predictor = _predictor(cfg, source, task, module, checkpoint, datamodule.split_dataset(cfg.split), camera)
-    if source == "onnx_path":  # after the image-size check, which no flag can waive
+    inner = _predictor(
+        cfg, source, task, module, checkpoint, datamodule.split_dataset(cfg.split), model_camera or camera
+    )
+    what = f"ONNX model {cfg.onnx_path}" if source == "onnx_path" else f"checkpoint {checkpoint}"
+
+    def predictor_for(served: CameraModel) -> Predictor:
+        """The model on data served through ``served``: through perspective views of it with ``views=``."""
+        if views is None:
+            return inner
+        return perspective_predictor(inner, served, model_camera, views, cfg.view_depth, what)
+
+    predictor = predictor_for(camera)
+    if views is None and source == "onnx_path":  # after the image-size check, which no flag can waive
         _check_camera(cfg, metadata["camera"], camera)
 
     max_depth = float(data_config.get("max_depth", 120.0))
@@ -151,7 +189,9 @@ def evaluate(
         class_names = datamodule.class_names if spec.uses_classes else None
         factory = partial(spec.make_metric, class_names=class_names, max_depth=max_depth)
     rings = module.hparams.ring_edges_deg if module is not None else DEFAULT_RING_EDGES_DEG
-    score = partial(_score, cfg, predictor, factory, rings, spec, max_depth=max_depth, grouped=bool(tests))
+    score = partial(
+        _score, cfg, predictor_for, factory, rings, spec, max_depth=max_depth, grouped=bool(tests)
+    )
 
     output_dir = Path(cfg.output_dir)
     writer = _prediction_writer(cfg, source, task)
@@ -223,6 +263,27 @@ def _datamodule(
     return datamodule, OmegaConf.to_container(data)
 
 
+def _checkpoint_camera(checkpoint: Path, run_data: DictConfig | None, task: str) -> CameraModel:
+    """The camera a checkpoint was trained for: what its run's data config serves."""
+    if run_data is None:
+        raise ConfigError(
+            f"views= needs the camera {checkpoint} was trained for, from its run's config.yaml: keep the checkpoint "
+            "inside its run directory, or give its exported .onnx"
+        )
+    return run_datamodule(apply_data_overrides(run_data, task=task)).camera
+
+
+def fisheye_data(model_data: DictConfig | None) -> DictConfig | None:
+    """A perspective model's data config serving the dataset's fisheye instead of its views: the camera group back
+    to its defaults (the release's lens) at the model's image size; ``data.camera.*`` on the command line apply on
+    top. ``None`` stays ``None`` (the evaluation's own data group)."""
+    if model_data is None:
+        return None
+    data = OmegaConf.create(OmegaConf.to_container(model_data, resolve=True))
+    data.camera = {"size": model_data.get("camera", {}).get("size")}
+    return data
+
+
 def _check_camera(cfg: DictConfig, model_camera: dict[str, Any], served) -> None:
     """Refuse to score an ONNX model on data served with another camera than the one it was exported for."""
     mismatch = camera_mismatch(model_camera, served)
@@ -240,6 +301,7 @@ def _check_camera(cfg: DictConfig, model_camera: dict[str, Any], served) -> None
 def _predictor(
     cfg: DictConfig, source: str, task: str, module, checkpoint: Path | None, dataset, camera
 ) -> Predictor:
+    """The predictor of the source; ``camera`` is what the model is fed (the served one, or its views')."""
     tta = cfg.get("tta")
     if source == "ckpt_path":
         device = cfg.device if cfg.device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu")
@@ -322,7 +384,7 @@ def _write(
         config={
             # The task group's training settings (optimiser, model defaults) play no part in evaluation.
             "evaluation": {
-                k: OmegaConf.to_container(v, resolve=True) if isinstance(v, (DictConfig, ListConfig)) else v
+                k: OmegaConf.to_container(v, resolve=True) if isinstance(v, DictConfig | ListConfig) else v
                 for k, v in cfg.items()
                 if k not in ("task", "model", "trainer", "data", "paths")
             },
@@ -355,7 +417,7 @@ def _test_lenses(cfg: DictConfig, source: str) -> list[TestLens]:
 
 def _score(
     cfg: DictConfig,
-    predictor: Predictor,
+    predictor_for: Callable[[CameraModel], Predictor],
     factory: Callable[[], Any],
     rings: Any,
     spec: Any,
@@ -365,7 +427,8 @@ def _score(
     max_depth: float = 120.0,
     grouped: bool = False,
 ) -> EvaluationResult:
-    """Score ``predictor`` on the split of ``datamodule``, through its camera (and per flight, ``grouped``)."""
+    """Score the model (``predictor_for`` its camera) on the split of ``datamodule``, through its camera (and per
+    flight, ``grouped``)."""
     camera = datamodule.camera
     scorer = TaskScorer(
         factory,
@@ -373,7 +436,7 @@ def _score(
         depth_edges_m=DEFAULT_DEPTH_EDGES_M if spec.depth_breakdown else None,
     )
     return evaluate_predictions(
-        predictor,
+        predictor_for(camera),
         datamodule.split_dataset(cfg.split),
         scorer,
         torch.rad2deg(camera.theta_grid()).float(),

@@ -118,11 +118,16 @@ class CheckpointPredictor:
         self.checkpoint = Path(checkpoint) if checkpoint else None
         self.tta = check_tta(tta)
 
-    @torch.no_grad()
     def __call__(self, batch: dict) -> Tensor:
+        return to_prediction(self.task, self.output(batch))
+
+    @torch.no_grad()
+    def output(self, batch: dict) -> Tensor:
+        """The model's primary output (logits or depth, with the TTA) on the CPU: what ``__call__`` turns into the
+        prediction, and what a wrapper that blends outputs (:mod:`~airfisheye_bench.evaluation.perspective`) takes."""
         inputs = [t.to(self.device, non_blocking=True) for t in self.module.model_inputs(batch)]
         output = flip_tta(self._run, inputs) if self.tta == "flip" else self._run(inputs)
-        return to_prediction(self.task, output).cpu()
+        return output.cpu()
 
     def _run(self, inputs: list[Tensor]) -> Tensor:
         return self.module(*inputs)
@@ -174,12 +179,15 @@ class OnnxPredictor:
         self.fixed_size = tuple(spatial) if all(isinstance(d, int) for d in spatial) else None
 
     def __call__(self, batch: dict) -> Tensor:
+        return to_prediction(self.task, self.output(batch))
+
+    def output(self, batch: dict) -> Tensor:
+        """The model's primary output (logits or depth, with the TTA), as :meth:`CheckpointPredictor.output`."""
         missing = [n for n in self.input_names if n not in batch]
         if missing:
             raise ValueError(f"{self.path}: the batch lacks the model inputs {missing} (has {sorted(batch)})")
         inputs = [batch[n].detach().cpu().float() for n in self.input_names]
-        output = flip_tta(self._run, inputs) if self.tta == "flip" else self._run(inputs)
-        return to_prediction(self.task, output)
+        return flip_tta(self._run, inputs) if self.tta == "flip" else self._run(inputs)
 
     def _run(self, inputs: list[Tensor]) -> Tensor:
         feed = {n: np.ascontiguousarray(t.numpy()) for n, t in zip(self.input_names, inputs, strict=True)}

@@ -13,7 +13,7 @@ resolved against), as for ``airfisheye-evaluate`` and ``airfisheye-export``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from airfisheye_bench.config_checks import check_common_values
 from airfisheye_bench.errors import ConfigError, InputFileError
+from airfisheye_bench.evaluation.perspective import perspective_predictor
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor, OnnxPredictor, Predictor
 from airfisheye_bench.geometry.cameras import CameraModel, camera_from_dict
 from airfisheye_bench.runs import resolve_checkpoint, run_config
@@ -31,7 +32,7 @@ from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
 from datamodules.config import apply_data_overrides, instantiate_datamodule
 
-__all__ = ["TrainedModel", "load_trained", "run_datamodule"]
+__all__ = ["TrainedModel", "load_trained", "run_datamodule", "through_views"]
 
 
 @dataclass(frozen=True)
@@ -115,6 +116,25 @@ def load_trained(
         max_depth=float(module.max_depth),
         path=checkpoint,
     )
+
+
+def through_views(
+    model: TrainedModel, fisheye: CameraModel, views: Any, view_depth: str = "range"
+) -> TrainedModel:
+    """A perspective ``model`` run on images of ``fisheye`` through ``views`` (``views=``:
+    :func:`~airfisheye_bench.evaluation.perspective.perspective_predictor`): its camera is then the fisheye, its
+    predictor renders each frame into the views and resamples the outputs back. Views that leave some of the
+    fisheye unseen are allowed here (those pixels get no prediction: 0, or 255 for labels)."""
+    predictor = perspective_predictor(
+        model.predictor,
+        fisheye,
+        model.camera,
+        views,
+        view_depth,
+        what=str(model.path),
+        require_coverage=False,
+    )
+    return replace(model, predictor=predictor, camera=fisheye)
 
 
 def run_datamodule(data: DictConfig) -> Any:

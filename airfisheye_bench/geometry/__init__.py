@@ -20,6 +20,7 @@ from airfisheye_bench.geometry.occlusion import (
     ordering_reference,
     project_lidar,
 )
+from airfisheye_bench.geometry.perspective_views import PerspectiveViews, parse_views
 from airfisheye_bench.geometry.transforms import (
     CAM_FROM_FLU,
     check_rigid,
@@ -44,6 +45,7 @@ __all__ = [
     "EquirectToFisheye",
     "LidarProjection",
     "LidarSpec",
+    "PerspectiveViews",
     "camera_from_dict",
     "check_rigid",
     "euler_to_matrix",
@@ -59,6 +61,7 @@ __all__ = [
     "occlusion_mask",
     "ordering_reference",
     "organize_scan",
+    "parse_views",
     "project_lidar",
     "quaternion_to_matrix",
     "relative_transform",

@@ -23,6 +23,13 @@ model's size (warned once). ``input_format=erp`` reads equirectangular panoramas
 lens first (``erp_yaw_deg``, ``erp_pitch_deg``: where it looks). Pixels outside the model's lens are black in the
 input, as in training, and carry no prediction (:mod:`~airfisheye_bench.prediction.footage_inputs`).
 
+**A perspective model on fisheye footage** (``views=cube``, or a list of ``[yaw, pitch]`` views; a model trained with
+``data.camera.model=pinhole``): each frame is rendered into the views at the model's camera and the outputs are
+resampled back (:func:`~airfisheye_bench.evaluation.trained.through_views`; ``view_depth=z`` for a model whose depth is
+z along its axis). The footage's fisheye lens is then needed: ``camera=<calibration file>``, or the ``calib.yaml`` of
+the dataset the frames belong to; the frames are predicted at that lens's size, and ``predict.json`` records the
+views.
+
 **Completion** needs the LiDAR: ``sparse=<folder>`` of one range map per frame, named as the frame, in the model's
 camera and size (``<name>.npy`` in metres or 16-bit ``<name>.png`` of range * 256); without it a completion model is
 refused: images alone do not give its input.
@@ -48,7 +55,11 @@ from airfisheye_bench.atomic import atomic_write_text, check_writable
 from airfisheye_bench.errors import ConfigError, MissingFileError, OutputExistsError
 from airfisheye_bench.evaluation.predictors import TTA_MODES
 from airfisheye_bench.evaluation.submission import write_prediction
-from airfisheye_bench.evaluation.trained import TrainedModel, load_trained
+from airfisheye_bench.evaluation.trained import TrainedModel, load_trained, through_views
+from airfisheye_bench.geometry.cameras import CameraModel
+from airfisheye_bench.geometry.perspective_views import DEPTH_CONVENTIONS, views_problem
+from airfisheye_bench.io.calibration_files import load_camera
+from airfisheye_bench.io.layout import calibration_beside
 from airfisheye_bench.io.progress_report import ProgressReport
 from airfisheye_bench.prediction.footage import open_footage, read_sparse
 from airfisheye_bench.prediction.footage_inputs import INPUT_FORMATS, frame_preparer
@@ -116,6 +127,8 @@ def predict_footage(
     threads: int | None = None,
     tta: str | None = None,
     progress: bool = True,
+    views: Any = None,
+    view_depth: str = "range",
 ) -> PredictReport:
     """Predict every frame of ``input`` with the model of ``ckpt_path`` and write the outputs into ``out``.
 
@@ -136,6 +149,8 @@ def predict_footage(
         threads: ONNX Runtime intra-op threads (``None``: its default).
         tta: ``None`` or ``flip`` (:func:`~airfisheye_bench.evaluation.predictors.flip_tta`).
         progress: Show a progress bar (in a terminal; log lines otherwise).
+        views: A perspective model on fisheye footage: ``cube`` or a list of ``[yaw, pitch(, roll)]`` (degrees).
+        view_depth: With ``views``: ``range`` (this project's models) or ``z`` (depth along the view's axis).
 
     Raises:
         UserError: a bad option, a missing, empty or unreadable input, a frame of another camera (without
@@ -143,6 +158,7 @@ def predict_footage(
             written then.
     """
     _check_options(input_format, depth_format, batch_size, tta, device)
+    _check_views(views, view_depth)
     source = Path(input).expanduser()
     out = Path(out).expanduser() if out is not None else Path("predictions") / (source.stem or source.name)
     if out.exists():
@@ -155,6 +171,15 @@ def predict_footage(
             f"sparse={sparse_dir} is not a folder; give the folder of the frames' range maps"
         )
     model = load_trained(ckpt_path, device=device, threads=threads, tta=tta)
+    if views is not None:
+        if input_format != "fisheye":
+            raise ConfigError(
+                "views= renders fisheye frames into a perspective model's views; panoramas (input_format=erp) are "
+                "rendered into the model's camera directly: drop views="
+            )
+        lens_file = camera or _beside(footage)
+        model = through_views(model, _footage_lens(lens_file, camera_name), views, view_depth)
+        camera = lens_file
     _check_inputs(model, sparse_dir)
     prepare = frame_preparer(
         model.camera,
@@ -196,6 +221,7 @@ def predict_footage(
                     else {}
                 ),
                 "footage_camera": camera,
+                **({"views": views, "view_depth": view_depth} if views is not None else {}),
                 "allow_camera_mismatch": allow_camera_mismatch,
                 "resized_frames": prepare.resized,
                 "sparse": str(sparse_dir) if sparse_dir is not None else None,
@@ -220,6 +246,33 @@ def _check_options(
         raise ConfigError(f"tta={tta}: expected null or flip")
     if device not in ("auto", "cpu", "cuda"):
         raise ConfigError(f"device={device}: expected one of auto, cpu, cuda")
+
+
+def _beside(footage) -> str:
+    """The calibration of the dataset the frames belong to, which ``views=`` needs without ``camera=``."""
+    found = calibration_beside(footage.path)
+    if found is None:
+        raise ConfigError(
+            "views= renders the footage's fisheye frames into the model's views, so it needs their lens: give "
+            "camera=<its calibration file>"
+        )
+    return str(found)
+
+
+def _footage_lens(lens_file: str, lens_name: str | None) -> CameraModel:
+    try:
+        return load_camera(lens_file, lens_name, option="camera_name")
+    except FileNotFoundError:
+        raise MissingFileError(f"camera={lens_file}: no such calibration file") from None
+    except ValueError as err:
+        raise ConfigError(f"camera={lens_file}: {err}") from None
+
+
+def _check_views(views: Any, view_depth: str) -> None:
+    if views is not None and (problem := views_problem(views)) is not None:
+        raise ConfigError(f"views={views!r}: {problem}")
+    if view_depth not in DEPTH_CONVENTIONS:
+        raise ConfigError(f"view_depth={view_depth}: expected one of {', '.join(DEPTH_CONVENTIONS)}")
 
 
 def _check_inputs(model: TrainedModel, sparse: Path | None) -> None:

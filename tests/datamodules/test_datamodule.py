@@ -116,6 +116,22 @@ def test_remap_label_agreement_at_fine_faces(tmp_path: Path) -> None:
     assert disagreement <= 0.01 and depth_error < 0.005
 
 
+def test_a_pinhole_at_90_degrees_serves_the_front_face(tiny_dataset: Path) -> None:
+    """``data.camera.model=pinhole data.camera.fov_deg=90`` at the faces' size: each pixel centre's ray is a front
+    texel's, so the whole frame is valid and depth (range, as every served depth) and labels are the face's own."""
+    reader = DatasetReader(tiny_dataset)
+    size = reader.cube_face(reader.split("test")[0], "front", "depth").shape[0]
+    camera = CameraConfig(size=size, model="pinhole", fov_deg=90.0)
+    depth = AirFisheyeDataset.from_root(tiny_dataset, "test", "depth", camera=camera)[0]
+    seg = AirFisheyeDataset.from_root(tiny_dataset, "test", "seg", camera=camera)[0]
+    assert depth["valid_mask"].all() and seg["valid_mask"].all()
+    face = torch.from_numpy(reader.cube_face(depth["sample_id"], "front", "depth"))
+    kept = depth["depth"][0] > 0
+    assert kept.float().mean() > 0.2  # the rest is sky
+    torch.testing.assert_close(depth["depth"][0][kept], face[kept], rtol=0, atol=0)
+    assert (seg["label"] != 255).float().mean() > 0.2
+
+
 def test_sparse_depth_holds_visible_points(tiny_dataset: Path) -> None:
     """Points kept by the occlusion correction are visible per the exact ground truth (precision >= 0.98)."""
     ds = AirFisheyeDataset.from_root(tiny_dataset, "train", "completion", camera=CameraConfig(size=64))

@@ -48,6 +48,7 @@ def test_every_golden_file_names_its_source_version_and_command() -> None:
         "ocam",
         "radial_poly",
         "pinhole_radtan",
+        "pinhole",
     }
 
 
@@ -174,6 +175,29 @@ def test_live_cv2_pinhole_project_and_undistort() -> None:
     assert valid.all() and np.abs(uv - expected[:, 0]).max() <= MAX_PX
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-15)
     und = cv2.undistortPoints(uv[:, None], K, D, None, None, None, crit)[:, 0]
+    rays = np.concatenate([und, np.ones((len(und), 1))], 1)
+    assert angle_between(cam.unproject(uv), rays).max() <= MAX_RAD
+
+
+def test_live_cv2_ideal_pinhole_project_and_undistort() -> None:
+    """The ideal pinhole is cv2.projectPoints with zero distortion and fx = fy = (W / 2) / tan(fov_deg / 2), over
+    the whole frame (its corners beyond fov_deg / 2) and past it; cv2.undistortPoints gives its rays."""
+    cv2 = _cv2()
+    cam = camera_from_dict(
+        {"model": "pinhole", "width": 800, "height": 600, "fov_deg": 120.0, "cx": 401.2, "cy": 297.9}
+    )
+    f = 400.0 / math.tan(math.radians(60.0))
+    K = np.array([[f, 0.0, cam.cx], [0, f, cam.cy], [0, 0, 1.0]])
+    dirs = sphere_directions(3000, seed=11)
+    dirs = dirs[dirs[:, 2] > math.cos(math.radians(80))].numpy()
+    expected, _ = cv2.projectPoints(dirs[:, None], np.zeros(3), np.zeros(3), K, np.zeros(5))
+    uv, valid = cam.project(dirs)
+    assert valid.all() and np.abs(uv - expected[:, 0]).max() <= MAX_PX
+    inside = cam.in_image(uv)
+    theta = np.degrees(np.arccos(dirs[inside][:, 2]))
+    assert theta.max() > 61.0  # the frame's corners see past fov_deg / 2 (65 deg)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-15)
+    und = cv2.undistortPoints(uv[:, None], K, np.zeros(5), None, None, None, crit)[:, 0]
     rays = np.concatenate([und, np.ones((len(und), 1))], 1)
     assert angle_between(cam.unproject(uv), rays).max() <= MAX_RAD
 

@@ -9,9 +9,9 @@ from typing import ClassVar
 import pytest
 import torch
 
-from airfisheye_bench.geometry.cameras import CAMERA_MODELS, camera_from_dict
+from airfisheye_bench.geometry.cameras import CAMERA_MODELS, camera_from_dict, ideal_camera
 from tests.helpers import calibration_fixtures as fx
-from tests.helpers.camera_tester import CALIBRATIONS, CameraModelTester
+from tests.helpers.camera_tester import CALIBRATIONS, CameraModelTester, angle_between
 
 
 class TestEquidistant(CameraModelTester):
@@ -252,6 +252,55 @@ class TestPinholeCubeFace(CameraModelTester):
         "cx": 31.5,
         "cy": 31.5,
     }
+
+
+class TestPinhole(CameraModelTester):
+    # The ideal perspective lens: a 100 deg field of view across a 4:3 frame, the principal point off-centre; the
+    # whole frame is valid (no image circle).
+    camera_dict: ClassVar[dict] = {
+        "model": "pinhole",
+        "width": 320,
+        "height": 240,
+        "fov_deg": 100.0,
+        "cx": 161.3,
+        "cy": 118.2,
+    }
+
+    def test_the_whole_frame_is_valid_and_the_rings_reach_the_corners(self, camera) -> None:
+        assert camera.valid_mask().all()
+        corner = math.degrees(float(camera.theta_grid().max()))
+        assert camera.coverage_deg == pytest.approx(2 * corner) and corner > camera.fov_deg / 2
+
+    def test_fov_is_across_the_width(self, camera) -> None:
+        edge = torch.tensor([[-0.5, camera.cy], [camera.width - 0.5, camera.cy]], dtype=torch.float64)
+        rays = camera.unproject(edge)
+        spread = math.degrees(float(angle_between(rays[:1], rays[1:])))
+        focal = (camera.width / 2) / math.tan(math.radians(camera.fov_deg) / 2)
+        # The principal point is off-centre: the two edges' angles add up to the field of view only at cx = W/2 - 1/2.
+        assert camera.focal == pytest.approx(focal)
+        assert math.radians(spread) == pytest.approx(
+            math.atan((camera.cx + 0.5) / focal) + math.atan((camera.width - 0.5 - camera.cx) / focal)
+        )
+
+
+def test_pinhole_at_90_degrees_is_a_cube_face() -> None:
+    """The default principal point and fov_deg=90 on an S x S image: the cube face's camera (focal S / 2)."""
+    face = camera_from_dict(TestPinholeCubeFace.camera_dict)
+    pinhole = ideal_camera(64, 64, fov_deg=90.0, model="pinhole")
+    dirs = torch.randn(500, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(3))
+    uv_a, valid_a = face.project(dirs)
+    uv_b, valid_b = pinhole.project(dirs)
+    assert torch.equal(valid_a, valid_b)
+    torch.testing.assert_close(uv_a[valid_a], uv_b[valid_b], rtol=0, atol=1e-9)
+
+
+def test_pinhole_field_of_view_is_below_180_and_focal_sets_it() -> None:
+    for fov in (0.0, 180.0, 200.0):
+        with pytest.raises(ValueError, match=r"fov_deg must be in \(0, 180\)"):
+            ideal_camera(64, 64, fov_deg=fov, model="pinhole")
+    assert ideal_camera(64, 64, model="pinhole", focal=32.0).fov_deg == pytest.approx(90.0)
+    zoomed = ideal_camera(64, 64, fov_deg=90.0, model="pinhole").perturbed(1.25, (0.5, -1.0))
+    assert zoomed.focal == pytest.approx(40.0) and (zoomed.cx, zoomed.cy) == (32.0, 30.5)
 
 
 def test_every_model_is_tested_on_a_real_calibration_or_an_ideal_lens() -> None:

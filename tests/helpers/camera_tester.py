@@ -125,9 +125,9 @@ class CameraModelTester:
         back = camera.unproject(uv[valid])
         assert torch.isfinite(back).all()
         assert angle_between(back, dirs[valid]).max() <= self.max_angle_rad
-        if camera.fov_deg is not None:
-            theta = torch.acos(dirs[valid][:, 2].clamp(-1, 1))
-            assert theta.max() <= math.radians(camera.fov_deg) / 2 + 1e-12
+        # Within the image circle where fov_deg is one (the pinhole's is its width's field of view instead).
+        theta = torch.acos(dirs[valid][:, 2].clamp(-1, 1))
+        assert theta.max() <= camera.max_theta + 1e-12
 
     # ------------------------------------------------------------------ no hole in the valid region
     def test_every_pixel_about_the_principal_point_has_its_ray(self, camera: CameraModel) -> None:

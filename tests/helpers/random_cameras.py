@@ -181,6 +181,11 @@ def _pinhole_rational(rng: np.random.Generator) -> dict:
     return {**cam, "k4": k4, "k5": k5, "k6": k6}
 
 
+def _pinhole(rng: np.random.Generator) -> dict:
+    """The ideal pinhole from a long lens to nearly a hemisphere across the width (its corners beyond)."""
+    return {"model": "pinhole", **_frame(rng), "fov_deg": rng.uniform(10.0, 170.0)}
+
+
 def _ocam(rng: np.random.Generator) -> dict:
     """A lens ``r = f theta (1 + a theta^2 + b theta^4)`` fitted as OCamCalib does: world2cam of 6-16 terms in
     ``theta - pi/2`` over the calibrated range only (then written with six decimals, as export_data.m does), so
@@ -227,6 +232,7 @@ FAMILIES: dict[str, Callable[[np.random.Generator], dict]] = {
     "radial_poly": _radial_poly,
     "pinhole_radtan": _pinhole_radtan,
     "pinhole_rational": _pinhole_rational,
+    "pinhole": _pinhole,
 }
 
 

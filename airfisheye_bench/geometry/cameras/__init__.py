@@ -18,6 +18,7 @@ from airfisheye_bench.geometry.cameras.radial import (
     Equidistant,
     Equisolid,
     Orthographic,
+    Pinhole,
     RadialCamera,
     Stereographic,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "KannalaBrandt",
     "Ocam",
     "Orthographic",
+    "Pinhole",
     "PinholeRadtan",
     "RadTanThinPrismFisheye",
     "RadialCamera",

@@ -56,6 +56,9 @@ class CameraModel:
     omitted_defaults: ClassVar[dict[str, Any]] = {}
     #: The distortion coefficients, in declaration order (``Param.distortion``).
     distortion_params: ClassVar[tuple[str, ...]] = ()
+    #: Whether ``fov_deg`` is an image circle that limits the valid region (every model but the ideal pinhole, whose
+    #: ``fov_deg`` is its field of view across the width and whose whole frame is valid).
+    fov_limits_region: ClassVar[bool] = True
     #: The constructor's signature (from ``declaration``).
     __signature__: ClassVar[inspect.Signature]
 
@@ -122,15 +125,21 @@ class CameraModel:
 
     # ------------------------------------------------------------------ public API
     @property
+    def _fov_limit(self) -> bool:
+        """Whether ``fov_deg`` limits the valid region (set, and an image circle: :attr:`fov_limits_region`)."""
+        return self.fov_deg is not None and self.fov_limits_region
+
+    @property
     def max_theta(self) -> float:
-        """Half the field of view in radians (``pi`` without ``fov_deg``: the model's region decides alone)."""
-        return math.pi if self.fov_deg is None else math.radians(self.fov_deg) / 2.0
+        """Half the field of view in radians (``pi`` without ``fov_deg``, or where it is no image circle: the
+        model's region decides alone)."""
+        return math.radians(self.fov_deg) / 2.0 if self._fov_limit else math.pi
 
     @property
     def coverage_deg(self) -> float:
-        """Full field of view the image covers (degrees): ``fov_deg`` when set, else twice the largest incidence
-        angle of a valid pixel (what the incidence-angle rings must reach)."""
-        if self.fov_deg is not None:
+        """Full field of view the image covers (degrees): ``fov_deg`` when it is the image circle, else twice the
+        largest incidence angle of a valid pixel (what the incidence-angle rings must reach)."""
+        if self._fov_limit:
             return self.fov_deg
         theta = self._theta64[self._valid]
         return 2.0 * math.degrees(float(theta.max())) if len(theta) else 0.0
@@ -156,7 +165,7 @@ class CameraModel:
         # camera centre has no direction: neither projects.
         off_back_axis = (x != 0) | (y != 0) | (z > 0)
         valid = finite & off_back_axis & in_region & torch.isfinite(u) & torch.isfinite(v)
-        if self.fov_deg is not None:
+        if self._fov_limit:
             valid &= torch.atan2(torch.hypot(x, y), z) <= self.max_theta + 1e-12
         uv = torch.stack([u, v], -1).view(*batch_shape, 2)
         return back(uv.to(out_dtype), was_numpy), back(valid.view(batch_shape), was_numpy)

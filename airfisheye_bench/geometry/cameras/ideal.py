@@ -1,5 +1,6 @@
-"""``ideal_camera``: the ideal fisheye lenses and the single-focal Kannala-Brandt lens by the config's spelling
-(``data.camera``: ``model``, ``fov_deg``, ``k``), with the image circle inscribed unless ``focal`` is given.
+"""``ideal_camera``: the ideal fisheye lenses, the single-focal Kannala-Brandt lens and the ideal pinhole by the
+config's spelling (``data.camera``: ``model``, ``fov_deg``, ``k``), with the image circle inscribed unless ``focal``
+is given (the pinhole's ``fov_deg`` is its field of view across the width instead: it has no image circle).
 
 Conventions (docs/design.md): the default principal point is the image centre ``((W-1)/2, (H-1)/2)``; unless
 ``focal`` is given it is chosen so that the image circle (``theta = fov_deg / 2``) is inscribed in the image:
@@ -11,14 +12,15 @@ Cameras are annotated as :class:`CameraModel`; the ideal lenses are built with `
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from airfisheye_bench.geometry.cameras.base import CameraModel
 from airfisheye_bench.geometry.cameras.kannala_brandt import KannalaBrandt
-from airfisheye_bench.geometry.cameras.radial import RADIAL_MODELS
+from airfisheye_bench.geometry.cameras.radial import RADIAL_MODELS, Pinhole
 
 #: The lens models :func:`ideal_camera` builds (``data.camera.model``).
-LENS_MODELS = (*RADIAL_MODELS, KannalaBrandt.model)
+LENS_MODELS = (*RADIAL_MODELS, KannalaBrandt.model, Pinhole.model)
 
 
 def ideal_camera(
@@ -37,11 +39,13 @@ def ideal_camera(
         width: Image width in pixels.
         height: Image height in pixels.
         fov_deg: Full field of view in degrees; pixels with ``theta > fov_deg / 2`` are outside the image circle.
+            ``pinhole``: the field of view across the width (below 180), the whole frame valid.
         model: One of :data:`LENS_MODELS`: ``equidistant`` (default), ``equisolid``, ``stereographic``,
-            ``orthographic``, ``kannala_brandt``.
+            ``orthographic``, ``kannala_brandt``, ``pinhole``.
         cx: Principal point column; default ``(width - 1) / 2``.
         cy: Principal point row; default ``(height - 1) / 2``.
-        focal: Focal length in pixels; default inscribes the image circle in the image.
+        focal: Focal length in pixels; default inscribes the image circle in the image (``pinhole``: given, it
+            sets ``fov_deg``, ``2 atan(W / (2 focal))``).
         k: Kannala-Brandt coefficients ``(k1, k2, k3, k4)``; only for ``kannala_brandt``.
 
     Example:
@@ -54,6 +58,8 @@ def ideal_camera(
         True
         >>> ideal_camera(512, 512, model="kannala_brandt", k=(0.01, 0.0, 0.0, 0.0)).model
         'kannala_brandt'
+        >>> ideal_camera(512, 512, fov_deg=90.0, model="pinhole").focal  # a cube face
+        256.00000000000006
     """
     if model not in LENS_MODELS:
         raise ValueError(f"model must be one of {LENS_MODELS}, got {model!r}")
@@ -63,6 +69,10 @@ def ideal_camera(
         raise ValueError(
             f"k (distortion coefficients) is only used by the kannala_brandt model, not {model!r}"
         )
+    if model == Pinhole.model:
+        if focal is not None:
+            fov_deg = math.degrees(2.0 * math.atan(width / (2.0 * float(focal))))
+        return Pinhole(width, height, fov_deg, cx, cy)
     return RADIAL_MODELS[model](width, height, fov_deg, cx, cy, focal)
 
 

@@ -1,4 +1,5 @@
-"""The ideal radially symmetric fisheye models: ``r(theta)`` with one focal length (docs/design.md).
+"""The ideal radially symmetric lenses: ``r(theta)`` with one focal length, the fisheyes and the pinhole
+(docs/design.md).
 
 ================  ==========================  =========================
 model             r(theta)                    largest FOV it represents
@@ -7,21 +8,32 @@ equidistant       f theta                     360 deg
 equisolid         2 f sin(theta / 2)          360 deg
 stereographic     2 f tan(theta / 2)          < 360 deg
 orthographic      f sin(theta)                180 deg
+pinhole           f tan(theta)                < 180 deg
 ================  ==========================  =========================
 
-The default principal point is the image centre ``((W-1)/2, (H-1)/2)``; the default focal length inscribes the
-image circle (``theta = fov_deg / 2``) in the image: ``r_max = min(W, H) / 2``.
+The default principal point is the image centre ``((W-1)/2, (H-1)/2)``; the default focal length of the fisheye
+lenses inscribes the image circle (``theta = fov_deg / 2``) in the image: ``r_max = min(W, H) / 2``. The pinhole
+(:class:`Pinhole`, the perspective lens of a model trained on ordinary images) has no image circle: its ``fov_deg``
+is the field of view across the image's width, ``f = (W / 2) / tan(fov_deg / 2)``, and its whole frame is valid.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import torch
 
 from airfisheye_bench.geometry.cameras.base import CameraModel, ray_at_incidence
-from airfisheye_bench.geometry.cameras.params import Param, field_of_view, number, optional, positive
+from airfisheye_bench.geometry.cameras.params import (
+    Param,
+    field_of_view,
+    interval,
+    number,
+    optional,
+    positive,
+)
 
 
 class RadialCamera(CameraModel):
@@ -158,4 +170,78 @@ RADIAL_MODELS: dict[str, type[RadialCamera]] = {
     cls.model: cls for cls in (Equidistant, Equisolid, Stereographic, Orthographic)
 }
 
-__all__ = ["RADIAL_MODELS", "Equidistant", "Equisolid", "Orthographic", "RadialCamera", "Stereographic"]
+
+class Pinhole(CameraModel):
+    """The ideal perspective lens, ``r = f tan(theta)``: a pinhole without distortion, as the views a model
+    trained on ordinary (perspective) images takes.
+
+    Its ``fov_deg`` is not an image circle: it is the full field of view across the image's width, which sets the
+    focal length ``f = (W / 2) / tan(fov_deg / 2)`` (the same in x and y), and every pixel of the frame is valid
+    (the corners see further than ``fov_deg / 2``). The valid region is the half-space in front of the camera. At
+    ``fov_deg = 90`` on an ``S x S`` image with the default principal point it is a cube face (focal ``S / 2``).
+
+    Args:
+        width: Image width in pixels.
+        height: Image height in pixels.
+        fov_deg: Full field of view across the width, in degrees, in ``(0, 180)``.
+        cx: Principal point column; default ``(width - 1) / 2``.
+        cy: Principal point row; default ``(height - 1) / 2``.
+
+    Example:
+        >>> import numpy as np
+        >>> cam = Pinhole(64, 64, fov_deg=90.0)
+        >>> cam.focal, cam.valid_mask().all().item()
+        (32.00000000000001, True)
+        >>> uv, valid = cam.project(np.array([[1.0, 0.0, 1.0], [0.0, 0.0, -1.0]]))
+        >>> uv[0].round(6).tolist(), valid.tolist()
+        ([63.5, 31.5], [True, False])
+        >>> round(cam.coverage_deg, 1)  # the corner pixels' centres: what the incidence-angle rings must reach
+        108.6
+    """
+
+    model = "pinhole"
+    declaration = (
+        Param("fov_deg", 90.0, check=interval(0.0, 180.0, open_lo=True, open_hi=True)),
+        Param("cx", None, check=optional(number), scale="cx"),
+        Param("cy", None, check=optional(number), scale="cy"),
+    )
+    fov_limits_region = False
+
+    fov_deg: float
+    #: Focal length in pixels (derived from ``fov_deg`` and the width).
+    focal: float
+
+    def _setup(self) -> None:
+        if self.cx is None:
+            self.cx = (self.width - 1) / 2.0
+        if self.cy is None:
+            self.cy = (self.height - 1) / 2.0
+        self.focal = (self.width / 2.0) / math.tan(math.radians(self.fov_deg) / 2.0)
+
+    def _project(self, x, y, z):
+        return self.cx + self.focal * (x / z), self.cy + self.focal * (y / z), z > 0
+
+    def _unproject(self, u, v):
+        mx, my = (u - self.cx) / self.focal, (v - self.cy) / self.focal
+        return mx, my, torch.ones_like(mx)
+
+    def perturbed(
+        self, focal: float = 1.0, shift: tuple[float, float] = (0.0, 0.0), distortion: Sequence[float] = ()
+    ) -> Pinhole:
+        """The same lens zoomed by ``focal`` (its field of view narrowed to keep ``f`` times the focal length)
+        with its principal point shifted by ``shift``; it has no distortion coefficients."""
+        half = math.atan(math.tan(math.radians(self.fov_deg) / 2.0) / focal)
+        return Pinhole(
+            self.width, self.height, math.degrees(2.0 * half), self.cx + shift[0], self.cy + shift[1]
+        )
+
+
+__all__ = [
+    "RADIAL_MODELS",
+    "Equidistant",
+    "Equisolid",
+    "Orthographic",
+    "Pinhole",
+    "RadialCamera",
+    "Stereographic",
+]

@@ -14,7 +14,7 @@ from airfisheye_bench.geometry.cameras.fov import Fov
 from airfisheye_bench.geometry.cameras.kannala_brandt import KannalaBrandt
 from airfisheye_bench.geometry.cameras.ocam import Ocam
 from airfisheye_bench.geometry.cameras.pinhole_radtan import PinholeRadtan
-from airfisheye_bench.geometry.cameras.radial import RADIAL_MODELS
+from airfisheye_bench.geometry.cameras.radial import RADIAL_MODELS, Pinhole
 from airfisheye_bench.geometry.cameras.radial_poly import RadialPoly
 from airfisheye_bench.geometry.cameras.thin_prism import RadTanThinPrismFisheye, ThinPrismFisheye
 from airfisheye_bench.geometry.cameras.unified import Unified
@@ -33,6 +33,7 @@ CAMERA_MODELS: dict[str, type[CameraModel]] = {
     Ocam.model: Ocam,
     RadialPoly.model: RadialPoly,
     PinholeRadtan.model: PinholeRadtan,
+    Pinhole.model: Pinhole,
 }
 
 #: Keys of the single-focal Kannala-Brandt form written before issue #22 (``focal``, ``k: [k1..k4]``).
