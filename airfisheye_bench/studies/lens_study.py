@@ -14,7 +14,7 @@ Every run is then scored on each test lens of :data:`TEST_LENSES` and the robust
 command, the dataset's content identity, the run's own test metrics and the whole ``cross_lens`` block, flights
 included -- is written to ``docs/figures/lens_study/runs/<arm>_<task>_seed<seed>.json`` as soon as it exists. The
 test lenses are none of the training lenses except arm ``a``'s and ``b``'s equidistant 190°; the calibration files
-are under ``docs/figures/lens_study/lenses/`` (their sources in its README).
+are under ``docs/lenses/`` (their sources in its README).
 
 :func:`summarise` reads the records alone: per arm, task and test lens the mean and sample standard deviation over
 the seeds, and the cross-lens gap ``1 - other / own`` (``other / own - 1`` for errors) with a t-interval over the
@@ -59,8 +59,8 @@ __all__ = [
 RECORD_FORMAT = "airfisheye-bench/lens-study-run/v1"
 TASKS = ("depth", "seg")
 SEEDS = (0, 1, 2)
-#: The committed calibration files of the test lenses (sources: ``docs/figures/lens_study/lenses/README.md``).
-LENS_FILES = "docs/figures/lens_study/lenses"
+#: The committed calibration files of the test lenses (sources: ``docs/lenses/README.md``).
+LENS_FILES = "docs/lenses"
 #: Arm b's lenses: four designs and fields of view, none of the test lenses but the equidistant 190°.
 TRAIN_LENSES = (
     "{model:equidistant,fov_deg:190}",
