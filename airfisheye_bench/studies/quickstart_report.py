@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from airfisheye_bench.geometry.lidar_density import reading_size
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.studies.generated_blocks import replace_block
 from airfisheye_bench.studies.quickstart import QUICKSTART_TASKS, mean_std
@@ -213,12 +214,13 @@ def ratio_not_comparable(depth: dict[str, Any], completion: dict[str, Any], pape
     """Why the record's completion-over-monocular ratio does not compare with the paper's (empty: it does).
 
     The ratio measures what the LiDAR adds to a monocular model; it compares only when the LiDAR input is as sparse
-    as the paper's (``data.lidar.density=paper`` in every completion seed) and the monocular model is about as good.
+    as the paper's (a reading of the paper's density, ``data.lidar.density=paper|paper_1536|paper_512``, in every
+    completion seed) and the monocular model is about as good.
     """
     reasons = []
     # A seed without the key was trained before the synthetic default became `paper`: every return.
     densities = sorted({s.get("lidar_density") or "native" for s in completion["seeds"].values()})
-    if densities != ["paper"]:
+    if any(reading_size(d) is None for d in densities):
         reasons.append(
             f"the completion input is at density {', '.join(densities)}, not the paper sensor's "
             "(data.lidar.density=paper; at 128² every return lands on most pixels, so completion interpolates)"
