@@ -159,7 +159,7 @@ def paper_density_subset(
 def shared_pixels(reference: LidarSpec, image_size: int) -> float:
     """How many times fewer pixels ``reference``'s nominal beams land on in an ``image_size``^2, 190 deg fisheye than
     on the paper's 1536^2 one (where a pixel rarely gets two beams): 1 at 1536^2.
-    At 512^2 the paper sensor's columns are 0.37 px apart and several beams share a pixel, whose sparse map keeps
+    At 512^2 the paper sensor's columns are 0.36 px apart and several beams share a pixel, whose sparse map keeps
     one: the 512^2 reading counts the pixels with a return, not the returns (docs/design.md, "Sparse input
     density"). The sensor looks along the camera's optical axis, as on the synthetic rig.
 
