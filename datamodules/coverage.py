@@ -1,15 +1,17 @@
 """How densely the served sparse LiDAR covers the ground truth, by incidence-angle ring, and how densely the paper's
-sensor covers the same frames on the paper's 1536^2 image (docs/design.md, "Sparse input density").
+sensor would cover the same frames on the paper's images (docs/design.md, "Sparse input density").
 
 :func:`sparse_coverage` measures the ``sparse_depth`` of every ``every``-th frame exactly as the split serves it,
-and beside it the yardstick, computed from the LiDAR spec and the camera: the pixels of the paper's
-1536^2, 190 deg fisheye that a nominal beam of its 64 x 2048 sensor lands on (turned by the frame's
-``T_cam_lidar``), counted where the frame has ground truth (a 1536^2 pixel has it where the served pixel it lies in has; the
-ground-truth pixels of a ring are the served ones times the pixel area ratio). Both are sparse pixels per ground-truth pixel; the paper sensor's returns beyond its range
-or outside its field of view have no ground truth or no beam either way.
+and beside it the yardstick of each reading of the paper's density, *modelled*, not measured: the pixels of a
+190 deg fisheye of 1536^2 (``model_1536``) or 512^2 (``model_512``) that a nominal beam of the assumed 64 x 2048
+sensor lands on (turned by the frame's ``T_cam_lidar``), counted where the frame has ground truth (a pixel of the
+model's image has it where the served pixel it lies in has; the ground-truth pixels of a ring are the served ones
+times the pixel area ratio). All are sparse pixels per ground-truth pixel; the paper sensor's returns beyond its
+range or outside its field of view have no ground truth or no beam either way.
 
-:func:`dataset_coverage` measures a dataset folder both ways (every return, and ``data.lidar.density=paper``) on a
-few frames, and :func:`format_coverage` prints it: ``airfisheye-inspect`` states it for every dataset with LiDAR.
+:func:`dataset_coverage` measures a dataset folder every way it can be served (every return, and each reading:
+``data.lidar.density=paper_1536|paper_512``) on a few frames, and :func:`format_coverage` prints it:
+``airfisheye-inspect`` states it for every dataset with LiDAR.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any
 import torch
 
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES, beam_pixels, paper_camera
+from airfisheye_bench.geometry.lidar_density import PAPER_READINGS, beam_pixels, paper_camera
 from airfisheye_bench.io.datasets.airfisheye import DatasetReader
 from airfisheye_bench.metrics import RingCoverage, ring_edges_for
 from airfisheye_bench.specs import get_task
@@ -28,7 +30,7 @@ from datamodules.datamodule import AirFisheyeDataModule
 from datamodules.dataset import AirFisheyeDataset
 from datamodules.multi_source import MultiSourceDataset
 
-__all__ = ["FRAMES", "dataset_coverage", "format_coverage", "input_coverage", "sparse_coverage"]
+__all__ = ["FRAMES", "SERVED", "dataset_coverage", "format_coverage", "input_coverage", "sparse_coverage"]
 
 #: Frames :func:`dataset_coverage` measures by default, spread over the split: a few seconds on any release.
 FRAMES = 4
@@ -46,29 +48,33 @@ def sparse_coverage(
     dataset: AirFisheyeDataset | MultiSourceDataset, every: int = 1, reference: LidarSpec | None = None
 ) -> dict[str, dict[str, float]]:
     """Sparse pixels per ground-truth pixel by ring over every ``every``-th frame of a completion split (every
-    source of a mixture pooled): ``{"served": {"ring_0-30": ...}}``, and with a ``reference`` sensor (the paper's:
-    ``LidarSpec()``) its coverage of the same frames on the paper's 1536^2 image as ``"paper_1536"``."""
+    source of a mixture pooled): ``{"served": {"ring_0-30": ...}}``, and with a ``reference`` sensor (the paper's
+    assumed one: ``LidarSpec()``) its modelled coverage of the same frames on each reading's image
+    (:data:`~airfisheye_bench.geometry.lidar_density.PAPER_READINGS`) as ``"model_1536"`` and ``"model_512"``."""
     parts = _parts(dataset)
     edges = _edges(parts)
     served = [RingCoverage(torch.rad2deg(part.camera.theta_grid()), edges) for part in parts]
-    paper, camera = RingCoverage(torch.zeros(0), edges), paper_camera()
+    sizes = sorted(set(PAPER_READINGS.values()), reverse=True) if reference is not None else []
+    models = {size: (RingCoverage(torch.zeros(0), edges), paper_camera(size)) for size in sizes}
     for part, coverage in zip(parts, served, strict=True):
         for index in range(0, len(part), every):
             sample = part[index]
             truth = sample["depth"][0]
             coverage.update(sample["sparse_depth"][0], truth)
-            if reference is not None:  # the paper's pixels hit by a beam, where the served truth has depth
+            for (
+                model,
+                camera,
+            ) in models.values():  # the model's pixels hit by a beam, where the truth has depth
                 hit = beam_pixels(reference, camera, part.T_cam_lidar(sample["sample_id"]))
                 theta = torch.rad2deg(torch.acos(camera.unproject(hit.double())[:, 2].clamp(-1.0, 1.0)))
                 scale = part.camera.width / camera.width
                 u, v = ((hit + 0.5) * scale).long().clamp(max=part.camera.width - 1).unbind(-1)
                 has_truth = truth[v, u] > 0
-                paper.add_pixels(theta[has_truth], coverage.theta[truth > 0], truth_weight=scale**-2)
+                model.add_pixels(theta[has_truth], coverage.theta[truth > 0], truth_weight=scale**-2)
     for coverage in served[1:]:
         served[0].add(coverage)
     out = {"served": served[0].compute()}
-    if reference is not None:
-        out["paper_1536"] = paper.compute()
+    out.update({f"model_{size}": model.compute() for size, (model, _) in models.items()})
     return out
 
 
@@ -80,12 +86,17 @@ def input_coverage(dataset: AirFisheyeDataset | MultiSourceDataset, task: str) -
     return sparse_coverage(dataset)["served"]
 
 
+#: The densities :func:`dataset_coverage` serves: every return and each reading (``paper`` is ``paper_1536``).
+SERVED = ("native", *PAPER_READINGS)
+
+
 def dataset_coverage(
     root: str | Path, size: int, every: int | None = None, split: str = "test"
 ) -> dict[str, Any] | None:
     """The completion input's coverage of a dataset folder, by ring, as training serves it at ``size``^2: with
-    every return (``native``) and at the paper sensor's density (``paper``: ``data.lidar.density=paper``), beside
-    the paper sensor on the paper's 1536^2 image (``paper_1536``), over every ``every``-th frame of ``split``.
+    every return (``native``) and under each reading of the paper's density (``paper_1536``, ``paper_512``), beside
+    the assumed paper sensor modelled on each reading's image (``model_1536``, ``model_512``), over every
+    ``every``-th frame of ``split``.
 
     Args:
         root: A dataset in the AirFisheye layout.
@@ -94,51 +105,57 @@ def dataset_coverage(
         split: The split measured.
 
     Returns:
-        ``{"split", "size", "every", "frames", "rings": {"native" | "paper" | "paper_1536": {"ring_0-30": ...}}}``;
-        ``None`` for a dataset without LiDAR (no completion input).
+        ``{"split", "size", "every", "frames", "rings": {density or model: {"ring_0-30": ...}}}``; ``None`` for a
+        dataset without LiDAR (no completion input).
     """
     if not DatasetReader(root).spec.has("lidar"):
         return None
     rings: dict[str, dict[str, float]] = {}
-    for density in LIDAR_DENSITIES:
+    for density in SERVED:
         datamodule = AirFisheyeDataModule(
             "completion", root=root, preset=None, camera={"size": size}, lidar={"density": density}
         )
         dataset = datamodule.split_dataset(split)
         every = every or max(1, len(dataset) // FRAMES)
-        # The paper sensor's coverage depends on the frames, not on the served density: measured once.
+        # The modelled sensor depends on the frames, not on the served density: computed once.
         coverage = sparse_coverage(dataset, every, reference=LidarSpec() if density == "native" else None)
-        rings[density] = coverage["served"]
-        rings.update({"paper_1536": coverage["paper_1536"]} if "paper_1536" in coverage else {})
+        rings[density] = coverage.pop("served")
+        rings.update(coverage)
     frames = len(range(0, len(dataset), every))
     return {"split": split, "size": size, "every": every, "frames": frames, "rings": rings}
 
 
 def format_coverage(coverage: dict[str, Any]) -> str:
-    """:func:`dataset_coverage` as a few lines: one per ring, the served input (every return, paper density) beside
-    the paper sensor at 1536^2.
+    """:func:`dataset_coverage` as a few lines: one per ring, the served input (every return, each reading of the
+    paper's density) beside the paper sensor modelled on each reading's image.
 
     Example:
-        >>> rings = {"native": {"ring_0-30": 0.918}, "paper": {"ring_0-30": 0.11}, "paper_1536": {"ring_0-30": 0.112}}
+        >>> rings = {"native": {"ring_0-30": 0.918}, "paper_1536": {"ring_0-30": 0.11}, "paper_512": {"ring_0-30": 0.8},
+        ...          "model_1536": {"ring_0-30": 0.112}, "model_512": {"ring_0-30": 0.81}}
         >>> print(format_coverage({"split": "test", "size": 128, "every": 8, "frames": 3, "rings": rings}))
         sparse LiDAR coverage (completion input, sparse pixels per ground-truth pixel), test split, 3 frames (every=8):
-          ring           native 128^2   paper 128^2   paper sensor 1536^2
-          ring_0-30            0.9180        0.1100                0.1120
-          (paper: data.lidar.density=paper, the paper sensor's returns per pixel at the served size)
+          ring         native 128^2   paper_1536 128^2   paper_512 128^2   model 1536^2   model 512^2
+          ring_0-30          0.9180             0.1100            0.8000         0.1120        0.8100
+          (paper_1536, paper_512: data.lidar.density, the paper sensor's returns per pixel of its 1536^2 or 512^2
+          image at the served size; model: the assumed 64 x 2048 sensor's nominal beams on that image, modelled,
+          not measured)
     """
     size, rings = coverage["size"], coverage["rings"]
-    columns = (f"native {size}^2", f"paper {size}^2", "paper sensor 1536^2")
+    keys = (*SERVED, *(f"model_{s}" for s in sorted(set(PAPER_READINGS.values()), reverse=True)))
+    columns = [f"{k} {size}^2" if k in SERVED else f"model {k.removeprefix('model_')}^2" for k in keys]
     lines = [
         "sparse LiDAR coverage (completion input, sparse pixels per ground-truth pixel), "
         f"{coverage['split']} split, {coverage['frames']} frames (every={coverage['every']}):",
-        f"  {'ring':<12}" + "".join(f"{c:>{len(c) + 3}}" for c in columns),
+        f"  {'ring':<10}" + "".join(f"{c:>{len(c) + 3}}" for c in columns),
     ]
     for ring in rings["native"]:
-        values = (rings[k].get(ring, float("nan")) for k in ("native", "paper", "paper_1536"))
+        values = (rings.get(k, {}).get(ring, float("nan")) for k in keys)
         lines.append(
-            f"  {ring:<12}" + "".join(f"{v:>{len(c) + 3}.4f}" for c, v in zip(columns, values, strict=True))
+            f"  {ring:<10}" + "".join(f"{v:>{len(c) + 3}.4f}" for c, v in zip(columns, values, strict=True))
         )
-    lines.append(
-        "  (paper: data.lidar.density=paper, the paper sensor's returns per pixel at the served size)"
-    )
+    lines += [
+        "  (paper_1536, paper_512: data.lidar.density, the paper sensor's returns per pixel of its 1536^2 or 512^2",
+        "  image at the served size; model: the assumed 64 x 2048 sensor's nominal beams on that image, modelled,",
+        "  not measured)",
+    ]
     return "\n".join(lines)

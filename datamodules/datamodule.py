@@ -87,8 +87,9 @@ class AirFisheyeDataModule(L.LightningDataModule):
             without, the synthetic ``preset`` is generated with that sensor (cached apart). The deprecated
             ``format_options.lidar`` of TartanAir and Omni360 stands for it for one release (warned), and beside a
             different ``preset`` is refused. ``min_range``: returns closer than this many metres are self-hits, removed and counted.
-            ``density``: ``native`` (every return) or ``paper`` (a fixed subset of the beams: the returns per
-            pixel of the paper's sensor on its 1536^2 image, at any served size; docs/design.md).
+            ``density``: ``native`` (every return), ``paper_1536`` (or ``paper``) or ``paper_512`` (a fixed subset
+            of the beams: the returns per pixel of the paper's sensor on its 1536^2 or its 512^2 image, at any
+            served size; docs/design.md, "Sparse input density").
         format: How ``root`` is laid out: ``airfisheye`` (the release's layout, and the synthetic data) or a public
             dataset's own layout (:data:`~airfisheye_bench.io.datasets.DATASET_FORMATS`; ``docs/design.md``,
             "Dataset formats"). Any format but ``airfisheye`` needs ``root``.

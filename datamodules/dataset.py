@@ -37,8 +37,9 @@ training resolution); ``equirect`` remaps equirectangular panoramas the same way
 LiDAR (``sparse_depth``): the scan's rings come from where they are known (docs/design.md, "Rings": a ring field
 or the generator's ``lidar_beam``, the firing order of KITTI ``.bin``, else the channel table), then returns closer
 than ``lidar_min_range`` and returns no channel explains are removed and counted (``lidar_counts``; logged for
-the first frame a process serves), and with ``lidar_density="paper"`` only the returns of a fixed subset of beams
-are served, of those the occlusion correction kept on the whole scan at the paper's pixel scale. The scan is the
+the first frame a process serves), and with a paper reading of ``lidar_density`` (``paper`` = ``paper_1536``,
+``paper_512``) only the returns of a fixed subset of beams are served, of those the occlusion correction kept on the
+whole scan at the reading image's pixel scale. The scan is the
 source's own (``lidar_scan``) or, with ``lidar_spec`` (``data.lidar.preset``), that sensor's (``cast_scan``: cast
 into the depth by a source that simulates its LiDAR, the recorded scan otherwise); one whose LiDAR sees from the
 camera's centre (``parallax_free``) has no point the camera cannot see, and its scans are projected without
@@ -129,10 +130,10 @@ class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
             which it describes, where the LiDAR is recorded); ``None``: the reader's own scans and each frame's
             calibration's spec.
         lidar_min_range: Returns closer than this (metres) are self-hits: removed and counted.
-        lidar_density: ``native`` serves every return; ``paper`` a fixed subset of the scan's beams with which the
-            served image gets the returns per pixel of the paper's sensor on its 1536^2 image
-            (:mod:`~airfisheye_bench.geometry.lidar_density`), of the returns the occlusion correction kept on the
-            whole scan at the paper's pixel scale (``paper_scale_camera``).
+        lidar_density: ``native`` serves every return; ``paper_1536`` (or ``paper``) and ``paper_512`` a fixed
+            subset of the scan's beams with which the served image gets the returns per pixel of the paper's sensor
+            on its 1536^2 or its 512^2 image (:mod:`~airfisheye_bench.geometry.lidar_density`), of the returns the
+            occlusion correction kept on the whole scan at that image's pixel scale (``paper_scale_camera``).
         gimbal: A virtual gimbal for this split (``Gimbal.parse(data.gimbal).for_split(training)``): each sample's
             camera is turned to its view before the remap (``source=cubemap`` or ``equirect``), and the LiDAR with it;
             ``None``: the recorded orientation.

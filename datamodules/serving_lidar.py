@@ -15,7 +15,12 @@ import torch
 
 from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.lidar import LidarSpec
-from airfisheye_bench.geometry.lidar_density import paper_density_subset, paper_scale_camera
+from airfisheye_bench.geometry.lidar_density import (
+    PAPER_IMAGE_SIZE,
+    paper_density_subset,
+    paper_scale_camera,
+    reading_size,
+)
 from airfisheye_bench.geometry.occlusion import (
     ORACLE,
     Occlusion,
@@ -95,13 +100,16 @@ class LidarServing:
             visible = oracle_visible(self.reader, sample_id, keep)
             points, rings, method = points[visible], rings[visible], Occlusion("none")
         T = _augmented(_turned(self.T_cam_lidar(sample_id), turn), params)
-        if self.lidar_density == "paper":
-            subset = paper_density_subset(spec, max(camera.width, camera.height), camera.coverage_deg)
+        image_size = reading_size(self.lidar_density)  # the paper's image this density counts returns on
+        if image_size is not None:
+            subset = paper_density_subset(
+                spec, max(camera.width, camera.height), camera.coverage_deg, image_size=image_size
+            )
             if (method.method if isinstance(method, Occlusion) else method) != "none":
-                # The correction decides on the whole scan at the paper's pixel scale, as the paper's pipeline
-                # would; the subset of its kept returns is served (docs/design.md, "Sparse input density").
+                # The correction decides on the whole scan at the reading image's pixel scale, as the paper's
+                # pipeline would; the subset of its kept returns is served (docs/design.md, "Sparse input density").
                 visible = self._paper_scale_visible(
-                    sample_id, points, T, spec, method, rings, params, turn, camera
+                    sample_id, points, T, spec, method, rings, params, turn, camera, image_size
                 )
                 points, rings, method = points[visible], rings[visible], Occlusion("none")
             served = subset.mask(points, rings, spec)
@@ -119,9 +127,20 @@ class LidarServing:
         return torch.from_numpy(depth)[None]
 
     def _paper_scale_visible(
-        self, sample_id, points, T, spec, method, rings, params, turn=None, camera=None
+        self,
+        sample_id,
+        points,
+        T,
+        spec,
+        method,
+        rings,
+        params,
+        turn=None,
+        camera=None,
+        image_size=PAPER_IMAGE_SIZE,
     ) -> np.ndarray:
-        """The correction's mask on the whole scan at the paper's pixel scale (1-2 s a frame at 1536^2 for the
+        """The correction's mask on the whole scan at the pixel scale of the reading's ``image_size``^2 image (the
+        paper's 1536^2 by default; 1-2 s a frame at 1536^2 for the
         image-based methods). Without a rotation it is the same every epoch (a flip mirrors the kept points
         afterwards), so it is kept per frame (and lens of ``data.camera.lenses``) for the life of the worker: a few MB
         for a few hundred frames. A gimbal view that varies per sample is a rotation too, and a jittered lens a
@@ -134,7 +153,9 @@ class LidarServing:
         key = (sample_id, lens)
         if cacheable and key in self._visible_cache:
             return self._visible_cache[key]
-        visible = np.asarray(occlusion_mask(points, T, paper_scale_camera(camera), spec, method, rings))
+        visible = np.asarray(
+            occlusion_mask(points, T, paper_scale_camera(camera, image_size), spec, method, rings)
+        )
         if cacheable:
             self._visible_cache[key] = visible
         return visible

@@ -26,6 +26,7 @@ import torch
 from airfisheye_bench.atomic import atomic_write_json
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.evaluation.predictors import CheckpointPredictor
+from airfisheye_bench.geometry.lidar_density import LIDAR_DENSITIES
 from airfisheye_bench.metrics.regions import DEFAULT_NEAR_M, DEFAULT_RADIUS_PX
 from airfisheye_bench.runs import resolve_checkpoint, run_config
 from airfisheye_bench.studies.crossover import (
@@ -60,8 +61,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--density",
         default="native",
-        choices=("native", "paper"),
-        help="without --ckpt: data.lidar.density (paper: the paper sensor's returns per pixel at every size)",
+        choices=LIDAR_DENSITIES,
+        help="without --ckpt: data.lidar.density (paper = paper_1536, paper_512: the paper sensor's returns per "
+        "pixel of its 1536^2 or 512^2 image, at every size)",
     )
     parser.add_argument("--split", default="test")
     parser.add_argument(

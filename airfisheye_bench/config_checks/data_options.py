@@ -271,12 +271,12 @@ DATA_OPTIONS: tuple[DataOption, ...] = (
     _o(
         "lidar.density",
         "paper",
-        "the sparse input's returns per pixel: paper (the paper sensor's on its 1536^2 "
-        "image) or native (every return)",
+        "the sparse input's returns per pixel: paper_1536 (the paper sensor's on its 1536^2 image; paper is "
+        "paper_1536), paper_512 (on the 512^2 image it trained on) or native (every return)",
         ValueRule(
             "choice",
             choices=r.lidar_densities,
-            hint="the sparse input's returns per pixel: the scan's, or the paper's",
+            hint="the sparse input's returns per pixel: the scan's, or the paper's under one of its readings",
         ),
         cost=1,
     ),

@@ -98,14 +98,14 @@ def cost_table(record: dict[str, Any]) -> str:
             f"{row['total_frames']} | "
             f"{hours:.3g} | {row['load_average_before'][0]:.1f} → {row['load_average_after'][0]:.1f} |"
         )
-    largest = max(record["presets"], key=lambda row: row["core_hours"])
-    lines += ["", array_estimate(largest)]
     source = record["provenance"]
     lines.append("")
     lines.append(
         f"From `docs/figures/generation_cost.json` (`{source['command']}` at commit `{source['commit']}`, on "
         f"{source['machine']}; {record['presets'][0]['frames_timed']} frames timed per preset after one warm-up frame)."
     )
+    largest = max(record["presets"], key=lambda row: row["core_hours"])
+    lines += ["", array_estimate(largest)]
     return "\n".join(lines)
 
 

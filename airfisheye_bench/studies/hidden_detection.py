@@ -10,7 +10,13 @@ Per frame (from :func:`airfisheye_bench.studies.occlusion_study.measure_frame`'s
 
 Counts are pooled per flight (frames of one flight are not independent), precision / recall / F1 computed per
 flight, and each reported as the mean over the flights with a t-interval over the flights; methods are compared
-pairwise, flight by flight, with a Holm correction over the pairs (:mod:`airfisheye_bench.studies.clustered`).
+pairwise, flight by flight (:func:`paired_f1`): the family is the pairs compared, for the Holm correction, the
+Bonferroni interval and the minimum detectable effects alike (:mod:`airfisheye_bench.studies.clustered`).
+
+A record written before that (``hidden_detection_1536.json``: Bonferroni over every pair of methods, Holm over the
+pairs compared) is restated from its per-flight scores without measuring again (:func:`restate`,
+``scripts/hidden_detection.py``), into a record of its own whose table ``docs/results.md`` shows
+(:func:`paired_report`, between :data:`REPORT_BEGIN` and :data:`REPORT_END`).
 """
 
 from __future__ import annotations
@@ -18,11 +24,24 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.studies.clustered import cluster_difference, holm
 
-__all__ = ["detection_counts", "detection_table", "hidden_detection", "precision_recall_f1", "ratio"]
+__all__ = [
+    "REPORT_BEGIN",
+    "REPORT_END",
+    "detection_counts",
+    "detection_table",
+    "hidden_detection",
+    "paired_f1",
+    "paired_report",
+    "paired_table",
+    "precision_recall_f1",
+    "ratio",
+    "restate",
+]
 
 SCORES = ("precision", "recall", "f1")
 
@@ -88,17 +107,77 @@ def hidden_detection(
         for method, flights in per_flight.items()
         if flights
     }
-    pairs = list(itertools.combinations([m for m in methods if per_flight[m]], 2))
-    paired: dict[str, dict[str, Any]] = {}
-    for a, b in pairs:
+    paired = paired_f1(per_flight)
+    return {"per_flight": per_flight, "scores": scores, "paired_f1": paired, "flights": len(by_flight)}
+
+
+def _f1(scores: Mapping[str, float | None]) -> float:
+    """A flight's F1, NaN where it has none (``null`` in a record read back)."""
+    value = scores.get("f1")
+    return math.nan if value is None else float(value)
+
+
+def paired_f1(
+    per_flight: Mapping[str, Mapping[str, Mapping[str, float | None]]],
+) -> dict[str, dict[str, Any]]:
+    """Each pair of methods' F1 difference, flight by flight (:func:`cluster_difference`), over the flights where
+    both have an F1. The family is the pairs compared, for every correction alike: the Bonferroni interval and the
+    minimum detectable effects at the family's level, and Holm's adjusted p-values (``p_holm``). A method without an
+    F1 on two shared flights (one that removes nothing has no precision) is in no pair.
+
+    Example:
+        >>> flights = {"a": {"f1": 0.5}, "b": {"f1": 0.7}, "c": {"f1": 0.6}}
+        >>> per_flight = {"x": flights, "y": {k: {"f1": v["f1"] - 0.1} for k, v in flights.items()},
+        ...               "none": {k: {"f1": None} for k in flights}}
+        >>> paired = paired_f1(per_flight)
+        >>> list(paired), paired["x - y"]["family_size"], round(paired["x - y"]["mean"], 3)
+        (['x - y'], 1, 0.1)
+    """
+    compared: dict[str, dict[str, float]] = {}
+    for a, b in itertools.combinations(list(per_flight), 2):
         shared = sorted(set(per_flight[a]) & set(per_flight[b]))
-        diffs = {f: per_flight[a][f]["f1"] - per_flight[b][f]["f1"] for f in shared}
+        diffs = {f: _f1(per_flight[a][f]) - _f1(per_flight[b][f]) for f in shared}
         diffs = {f: d for f, d in diffs.items() if not math.isnan(d)}
         if len(diffs) > 1:
-            paired[f"{a} - {b}"] = cluster_difference(diffs, family_size=len(pairs))
+            compared[f"{a} - {b}"] = diffs
+    paired = {key: cluster_difference(diffs, family_size=len(compared)) for key, diffs in compared.items()}
     for key, p in holm({k: v["p"] for k, v in paired.items()}).items():
         paired[key]["p_holm"] = p
-    return {"per_flight": per_flight, "scores": scores, "paired_f1": paired, "flights": len(by_flight)}
+    return paired
+
+
+def restate(record: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """``{size: paired F1 differences}`` recomputed by :func:`paired_f1` from the per-flight scores an
+    ``occlusion_study`` record holds (``results.<size>.hidden_detection.per_flight``): the comparisons of a record
+    written before the family was the pairs compared, without measuring the frames again."""
+    return {
+        size: paired_f1(result["hidden_detection"]["per_flight"])
+        for size, result in record["results"].items()
+        if "hidden_detection" in result
+    }
+
+
+#: The generated block of ``docs/results.md`` (section 4.0) that :func:`paired_report` writes.
+REPORT_BEGIN = (
+    "<!-- results-detection:begin (generated by scripts/hidden_detection.py --report docs/results.md from "
+    "docs/figures/occlusion_ablation/hidden_detection_1536_paired.json; do not edit) -->"
+)
+REPORT_END = "<!-- results-detection:end -->"
+
+
+def paired_report(restated: Mapping[str, Any], name: str) -> str:
+    """The block of ``docs/results.md``: each size's :func:`paired_table` from a restated record (the file
+    ``name`` under ``docs/figures/``), and where it and its source come from."""
+    lines = []
+    for size, paired in restated["paired_f1"].items():
+        lines += [f"At {size} px, over the test flights:", "", paired_table(paired), ""]
+    source = restated["source"]
+    lines.append(
+        f"From [`{Path(name).name}`](figures/{name}) (`{restated['provenance']['command']}`, commit "
+        f"`{restated['provenance']['commit']}`), restated from the per-flight scores of "
+        f"[`{Path(source['file']).name}`]({source['file'].removeprefix('docs/')}) (commit `{source['commit']}`)."
+    )
+    return "\n".join(lines)
 
 
 def detection_table(result: Mapping[str, Any]) -> str:
@@ -116,12 +195,24 @@ def detection_table(result: Mapping[str, Any]) -> str:
             cells.append(f"{d['mean']:.3f} [{lo:.3f}, {hi:.3f}]")
         lines.append(f"| `{method}` | {by_score['f1']['n']} | " + " | ".join(cells) + " |")
     if result["paired_f1"]:
-        lines += ["", "| F1 difference | flights | mean [95 %; family] | p (Holm) |", "|---|---|---:|---:|"]
-        for pair, d in result["paired_f1"].items():
-            lo, hi = d["ci"]
-            flo, fhi = d["ci_family"]
-            lines.append(
-                f"| {pair} | {d['n']} | {d['mean']:+.3f} [{lo:+.3f}, {hi:+.3f}; {flo:+.3f}, {fhi:+.3f}] | "
-                f"{d['p_holm']:.2g} |"
-            )
+        lines += ["", paired_table(result["paired_f1"])]
+    return "\n".join(lines)
+
+
+def paired_table(paired: Mapping[str, Mapping[str, Any]]) -> str:
+    """Markdown: each pair's F1 difference over the flights, its 95 % and family-wise intervals, Holm's p and the
+    minimum detectable effect (80 % power: alone; at the family's level)."""
+    family = {int(d["family_size"]) for d in paired.values()}
+    lines = [
+        f"| F1 difference | flights | mean [95 %; family of {'/'.join(map(str, sorted(family)))}] | p (Holm) | "
+        "detectable (80 %): alone; family |",
+        "|---|---|---:|---:|---:|",
+    ]
+    for pair, d in paired.items():
+        lo, hi = d["ci"]
+        flo, fhi = d["ci_family"]
+        lines.append(
+            f"| {pair} | {d['n']} | {d['mean']:+.3f} [{lo:+.3f}, {hi:+.3f}; {flo:+.3f}, {fhi:+.3f}] | "
+            f"{d['p_holm']:.2g} | {d['mde']:.3f}; {d['mde_family']:.3f} |"
+        )
     return "\n".join(lines)

@@ -3,7 +3,9 @@
 A number in the docs is only as good as the file it is read from: the file names the commit that computed it (full,
 ``+dirty`` when tracked files differed, which the docs never cite), the command, the machine, and the dataset's
 content identity when data were involved (:func:`airfisheye_bench.runs.results.dataset_identity`). The commit and the
-machine are :func:`git_commit` and :func:`machine`, which the quick-start record and the benchmarks write too.
+machine are :func:`git_commit` and :func:`machine`, which the quick-start record and the benchmarks write too; the
+load average (:func:`load_average`) says what else the machine ran when the record was written, without which a
+timing means little.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import torch
 
 from airfisheye_bench.runs.results import dataset_identity
 
-__all__ = ["REPO", "git_commit", "machine", "provenance"]
+__all__ = ["REPO", "git_commit", "load_average", "machine", "provenance"]
 
 #: The checkout the studies run from.
 REPO = Path(__file__).resolve().parents[2]
@@ -34,18 +36,19 @@ def provenance(
     dataset: str | Path | None = None,
     dataset_name: str | None = None,
 ) -> dict[str, Any]:
-    """``{"commit", "command", "machine"[, "dataset"]}`` of a study run as ``python <script> <argv>``.
+    """``{"commit", "command", "machine", "load_average"[, "dataset"]}`` of a study run as ``python <script> <argv>``.
 
     Example:
         >>> p = provenance("scripts/x.py", ["--a", "1"])
         >>> p["command"], sorted(p)
-        ('python scripts/x.py --a 1', ['command', 'commit', 'machine'])
+        ('python scripts/x.py --a 1', ['command', 'commit', 'load_average', 'machine'])
     """
     args = list(sys.argv[1:] if argv is None else argv)
     out: dict[str, Any] = {
         "commit": git_commit(REPO),
         "command": " ".join(["python", script, *args]),
         "machine": machine(),
+        "load_average": load_average(),
     }
     if dataset is not None:
         out["dataset"] = dataset_identity(dataset, dataset_name or Path(dataset).name)
@@ -73,6 +76,11 @@ def machine() -> str:
         f"{platform.machine()}, {_cpu_model()}, {_cpu_count()} CPU cores, torch {torch.__version__}, "
         f"numpy {np.__version__}"
     )
+
+
+def load_average() -> list[float] | None:
+    """The 1, 5 and 15 minute load averages now (``None`` where the system has none)."""
+    return [round(x, 2) for x in os.getloadavg()] if hasattr(os, "getloadavg") else None
 
 
 def _cpu_model() -> str:

@@ -16,8 +16,10 @@ preset         frames  faces      fisheye     LiDAR         use
 
 "ray" marks presets whose pre-rendered fisheye is ray-cast directly through the lens model (exact, the
 yardstick for the cubemap remap); the larger presets build it with the cubemap remap, like the real release.
-The quickstart LiDAR (64 x 256 over 270 deg) is thinned so that its projection into the 160^2 fisheye is about as
-sparse as the paper's 64 x 2048 scans at 512^2.
+The quickstart LiDAR (64 x 256 over 270 deg) has about the returns per pixel on the 160^2 fisheye that the assumed
+64 x 2048 scan has on a 512^2 one. What a run is served is set by ``data.lidar.density``: the synthetic default,
+``paper`` (``paper_1536``), thins it to the returns per pixel of the paper's 1536^2 image; ``paper_512`` to the scan
+projected at 512^2 (docs/design.md, "Sparse input density": which the paper trained with is not known).
 
 ``occlusion`` is the rig where occlusion matters: the camera sits 0.8 m beside and 0.8 m below the LiDAR (the
 other presets: ~0.3 m), the drone flies 1.5-6 m above the ground and 1 m above obstacles with the gimbal at most

@@ -1,5 +1,6 @@
-"""``data.lidar.density=paper``'s beam subset (geometry/lidar_density.py): which beams, and that they give the
-paper sensor's pixels per beam on its 1536^2 image."""
+"""``data.lidar.density``'s beam subsets (geometry/lidar_density.py): which beams, and that they give the paper
+sensor's pixels with a beam per pixel on its 1536^2 image (``paper``, ``paper_1536``) or on a 512^2 one
+(``paper_512``)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from airfisheye_bench.geometry.lidar_density import (
     evenly_spaced,
     paper_camera,
     paper_density_subset,
+    shared_pixels,
 )
 from airfisheye_bench.metrics import DEFAULT_RING_EDGES_DEG
 
@@ -82,3 +84,24 @@ def test_the_subset_covers_the_rings_as_the_paper_sensor_does() -> None:
     for spec, size in ((QUICKSTART, 128), (TINY, 64)):
         served = coverage(spec, ideal_camera(size, size), paper_density_subset(spec, size))
         np.testing.assert_allclose(served, paper, rtol=0.25)
+
+
+def test_the_512_reading_covers_the_rings_as_the_paper_sensor_does_at_512() -> None:
+    """The paper sensor projected at 512^2: its columns share pixels, so its pixels with a beam are 2.7 times fewer
+    than its beams' count would give (``shared_pixels``); the subset covers each ring as that image does."""
+
+    def coverage(spec: LidarSpec, camera: CameraModel, subset: BeamSubset | None) -> np.ndarray:
+        hit = beam_pixels(spec, camera, np.asarray(CAM_FROM_FLU), subset)
+        theta = torch.acos(camera.unproject(hit.double())[:, 2].clamp(-1, 1))
+        edges = np.radians(DEFAULT_RING_EDGES_DEG)
+        f = camera.width / np.radians(190.0)
+        return np.histogram(theta.numpy(), edges)[0] / (np.pi * f**2 * np.diff(edges**2))
+
+    at_512 = coverage(LidarSpec(), paper_camera(512), None)
+    at_1536 = coverage(LidarSpec(), paper_camera(), None)
+    assert 2.5 < shared_pixels(LidarSpec(), 512) < 3.0
+    assert np.all(at_512 > 2.5 * at_1536) and np.all(at_512 < 9 * at_1536)  # denser, not nine times
+    served = coverage(
+        QUICKSTART, ideal_camera(128, 128), paper_density_subset(QUICKSTART, 128, image_size=512)
+    )
+    np.testing.assert_allclose(served, at_512, rtol=0.25)

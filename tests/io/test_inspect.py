@@ -32,18 +32,24 @@ def test_a_clean_dataset_has_no_problems(tiny_dataset: Path, capsys) -> None:
 
 @pytest.mark.integration  # the datamodule, twice, and the paper sensor's beams over two frames: seconds
 def test_a_dataset_with_lidar_states_its_completion_coverage_per_ring(tiny_dataset: Path, capsys) -> None:
-    """Sparse pixels per ground-truth pixel by ring, served at size= with every return and at the paper's density,
-    beside the paper sensor at 1536^2; over the tiny preset's two test frames (a few frames by default)."""
+    """Sparse pixels per ground-truth pixel by ring, served at size= with every return and under each reading of the
+    paper's density, beside the paper sensor modelled on each reading's image; over the tiny preset's two test
+    frames (a few frames by default)."""
     assert inspect([f"root={tiny_dataset}", "size=64"]) == 0
     lines = capsys.readouterr().out.splitlines()
     head = next(i for i, line in enumerate(lines) if line.startswith("sparse LiDAR coverage"))
     assert lines[head].endswith("test split, 2 frames (every=1):")
-    assert lines[head + 1].split() == ["ring", "native", "64^2", "paper", "64^2", "paper", "sensor", "1536^2"]
+    assert lines[head + 1].split() == [
+        "ring", "native", "64^2", "paper_1536", "64^2", "paper_512", "64^2", "model", "1536^2", "model", "512^2"
+    ]  # fmt: skip
     rows = {line.split()[0]: [float(v) for v in line.split()[1:]] for line in lines[head + 2 : head + 6]}
     assert list(rows) == ["ring_0-30", "ring_30-60", "ring_60-80", "ring_80-95"]
-    for native, paper, sensor in rows.values():
-        assert 0 < paper < native <= 1 and 0 < sensor < 1  # the paper density keeps a subset of the returns
-    assert "data.lidar.density=paper" in lines[head + 6]
+    for native, paper_1536, paper_512, model_1536, model_512 in rows.values():
+        assert (
+            0 < paper_1536 < paper_512 <= native <= 1
+        )  # each reading keeps a subset, the 1536^2 one the smaller
+        assert 0 < model_1536 < model_512 < 1
+    assert "modelled, not measured" in " ".join(line.strip() for line in lines[head + 6 : head + 9])
 
 
 def test_coverage_options_are_checked_before_the_scan(tmp_path: Path, capsys) -> None:

@@ -303,23 +303,70 @@ def test_rings_table_averages_the_seeds_that_recorded_a_breakdown(record: dict) 
     seeds["0"]["breakdown"] = {"ring_0-30/mIoU": 0.1, "ring_30-95/mIoU": 0.3}
     seeds["1"]["breakdown"] = {"ring_0-30/mIoU": 0.2, "ring_30-95/mIoU": 0.5}
     record["tasks"]["depth"]["seeds"]["0"]["breakdown"] = {"ring_0-30/rmse": 12.0, "range_0-10/rmse": 2.5}
-    coverage = {
-        "command": "python scripts/sparse_coverage.py",
-        "commit": "0123456789",
-        "frames": 21,
-        "rings": [
-            {"theta_deg": [0, 30], "sparse_per_truth_pixel": 0.918},
-            {"theta_deg": [30, 95], "sparse_per_truth_pixel": 0.5},
-        ],
-    }
-    table = quickstart_report.rings_tables(record, coverage)
+    table = quickstart_report.rings_tables(record)
     assert "| incidence angle θ | 0-30° | 30-95° | seeds |" in table
     assert "| segmentation mIoU | 0.150 | 0.400 | 0, 1 |" in table
     assert "| monocular depth RMSE (m) | 12.00 | – | 0 |" in table
-    assert "| sparse LiDAR pixels per ground-truth pixel | 0.918 | 0.500 | (21 test frames) |" in table
     assert "| monocular depth RMSE (m) | 2.50 | 0 |" in table  # by range
+    assert "sparse LiDAR" not in table  # no completion seed: no coverage row
     del seeds["0"]["breakdown"], seeds["1"]["breakdown"], record["tasks"]["depth"]["seeds"]["0"]["breakdown"]
-    assert "no per-ring breakdown" in quickstart_report.rings_tables(record, coverage)
+    assert "no per-ring breakdown" in quickstart_report.rings_tables(record)
+
+
+def test_rings_coverage_row_is_what_the_completion_runs_were_served(record: dict) -> None:
+    record = json.loads(json.dumps(record))
+    record["tasks"]["seg"]["seeds"]["0"]["breakdown"] = {"ring_0-30/mIoU": 0.1, "ring_30-95/mIoU": 0.3}
+    served = {"ring_0-30": 0.11, "ring_30-95": 0.05}
+    record["tasks"]["completion"] = {
+        "seeds": {
+            "0": {"metrics": {}, "lidar_density": "paper", "sparse_coverage": served},
+            "1": {"metrics": {}, "lidar_density": "paper", "sparse_coverage": {**served, "ring_0-30": 0.13}},
+        }
+    }
+    row = (
+        "| sparse LiDAR pixels per ground-truth pixel (completion input as trained, `data.lidar.density=paper`) "
+        "| 0.120 | 0.050 | 0, 1 |"
+    )
+    assert row in quickstart_report.rings_tables(record)
+
+
+def test_ring_spread_reads_the_largest_seed_spread_the_rise_to_the_rim_and_the_gap_by_range() -> None:
+    def seeds(*breakdowns: dict) -> dict:
+        return {"seeds": {str(i): {"metrics": {}, "breakdown": b} for i, b in enumerate(breakdowns)}}
+
+    record = {
+        "tasks": {
+            "seg": seeds(
+                {"ring_0-30/mIoU": 0.1, "ring_30-95/mIoU": 0.2},
+                {"ring_0-30/mIoU": 0.1, "ring_30-95/mIoU": 0.3},
+            ),
+            "depth": seeds(
+                {
+                    "ring_0-30/abs_rel": 0.2,
+                    "ring_30-95/abs_rel": 0.3,
+                    "ring_0-30/rmse": 10.0,
+                    "range_0-10/rmse": 4.0,
+                },
+                {
+                    "ring_0-30/abs_rel": 0.2,
+                    "ring_30-95/abs_rel": 0.5,
+                    "ring_0-30/rmse": 14.0,
+                    "range_0-10/rmse": 4.0,
+                },
+            ),
+            "completion": seeds(
+                {"ring_0-30/abs_rel": 0.1, "ring_30-95/abs_rel": 0.2, "range_0-10/rmse": 5.0},
+                {"ring_0-30/abs_rel": 0.1, "ring_30-95/abs_rel": 0.2, "range_0-10/rmse": 5.0},
+            ),
+        }
+    }
+    text = quickstart_report.ring_spread(record)
+    assert "AbsRel by ring at most 0.141 (monocular depth, 30-95°)" in text  # std of 0.3, 0.5
+    assert "mIoU by ring at most 0.071 (segmentation, 30-95°)" in text
+    assert "RMSE (by ring and by range) at most 2.83 m (monocular depth, 0-30°)" in text
+    assert "completion 0.100 → 0.200, monocular depth 0.200 → 0.400" in text
+    assert "0-10 m -1.00" in text  # completion worse than depth close by
+    assert quickstart_report.ring_spread({"tasks": {}}) == ""
 
 
 def test_the_ratio_to_monocular_compares_with_the_papers_only_at_its_density_and_quality() -> None:
