@@ -40,7 +40,8 @@ from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.evaluation.cross_lens import cross_lens_gap
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.studies.clustered import cluster_difference
-from airfisheye_bench.studies.provenance import REPO, git_commit, machine
+from airfisheye_bench.studies.generated_blocks import replace_block
+from airfisheye_bench.studies.provenance import REPO, git_commit, machine, provenance
 
 __all__ = [
     "ARMS",
@@ -447,10 +448,27 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     records = Path(args.record)
     if args.summary:
-        summary = summarise(load_records(records))
-        atomic_write_text(
-            Path(args.summary), json.dumps(summary, indent=1, allow_nan=False, default=str) + "\n"
-        )
+        runs = load_records(records)
+        summary = summarise(runs)
+        datasets = {json.dumps(r["dataset"], sort_keys=True) for r in runs}
+        if len(datasets) > 1:
+            raise SystemExit(
+                f"lens study: the records in {records} come from different datasets: {sorted(datasets)}"
+            )
+        record = {
+            "format": "airfisheye-bench/lens-study-summary/v1",
+            "provenance": provenance("scripts/lens_study.py", argv if argv is not None else sys.argv[1:]),
+            "dataset": runs[0]["dataset"] if runs else None,
+            "records": [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in runs],
+            "tasks": _finite(summary),
+        }
+        atomic_write_text(Path(args.summary), json.dumps(record, indent=1, allow_nan=False) + "\n")
+        if args.report:
+            report = Path(args.report)
+            text = replace_block(
+                report.read_text(encoding="utf-8"), report_block(summary), REPORT_BEGIN, REPORT_END
+            )
+            atomic_write_text(report, text)
         return
     _clean_checkout()
     records.mkdir(parents=True, exist_ok=True)
