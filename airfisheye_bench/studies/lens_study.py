@@ -193,14 +193,16 @@ def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
     evaluated = json.loads((run.run_dir / "lenses" / "results.json").read_text(encoding="utf-8"))
     own = json.loads((run.run_dir / "results.json").read_text(encoding="utf-8"))
     trained = json.loads(run.trained.read_text(encoding="utf-8"))
+    commit = git_commit(REPO)
     record = {
         "format": RECORD_FORMAT,
+        "provenance": _provenance(commit, run, machine()),
         "arm": run.arm,
         "task": run.task,
         "seed": run.seed,
         "training": trained,
         "evaluation": {
-            "commit": git_commit(REPO),
+            "commit": commit,
             "command": ["python", *argv[1:-1], "out=<run>/lenses"],
             "wall_s": time.time() - start,
             "omp_num_threads": threads,
@@ -213,6 +215,26 @@ def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
     path = records / f"{run.name}.json"
     atomic_write_text(path, json.dumps(record, indent=1) + "\n")
     return path
+
+
+def _provenance(commit: str, run: StudyRun, machine_name: str) -> dict[str, str]:
+    """The record's provenance block: the commit that scored it, the study command that made it, the machine."""
+    command = f"python scripts/lens_study.py --arms {run.arm} --tasks {run.task} --seeds {run.seed}"
+    return {"commit": commit, "command": command, "machine": machine_name}
+
+
+def upgrade_record(path: Path) -> bool:
+    """Give a record written before its ``provenance`` block one, from its own fields (the evaluation's commit and
+    machine); ``True`` when the file was rewritten. Nothing else changes."""
+    record = json.loads(path.read_text(encoding="utf-8"))
+    if record.get("format") != RECORD_FORMAT or "provenance" in record:
+        return False
+    run = StudyRun(record["arm"], record["task"], int(record["seed"]), Path("."))
+    block = _provenance(record["evaluation"]["commit"], run, record["machine"])
+    atomic_write_text(
+        path, json.dumps({"format": RECORD_FORMAT, "provenance": block, **record}, indent=1) + "\n"
+    )
+    return True
 
 
 # ------------------------------------------------------------------------------------------------- summary
@@ -269,6 +291,9 @@ def _arm_summary(spec: Any, seeds: list[int], runs: list[Mapping[str, Any]], lev
         for metric in metrics:
             cell[metric] = _mean_std([row["metrics"].get(metric) for row in rows])
         if name != own_name:
+            cell["pooled_gap"] = {
+                metric: _mean_std([(row.get("gap") or {}).get(metric) for row in rows]) for metric in metrics
+            }
             cell["gap"] = {
                 metric: _flight_gap(spec, runs, own_name, name, metric, family, level) for metric in metrics
             }
@@ -340,23 +365,24 @@ def report_block(summary: Mapping[str, Any], source: str = "figures/lens_study/s
         for metric in CELL_METRICS[task]:
             lines += [
                 "",
-                f"**{task}, {_LABELS[metric]}** (mean ± std over the seeds; ★ a lens the arm trained on)",
+                f"**{task}, {_LABELS[metric]}** (mean ± std over the seeds; ★ a lens the arm trained on; `{source}`)",
                 "",
             ]
             lines += _table(arms, metric, _cell_value)
         metric = CELL_METRICS[task][0]
         lines += [
             "",
-            f"**{task}, cross-lens gap of {_LABELS[metric]}** (1 − lens / own for δ1 and mIoU: the "
-            "fraction lost off the training lens(es); mean over the test flights of the seeds' mean, [95 % interval, "
-            "Bonferroni over the arm's test lenses], flights)",
+            f"**{task}, cross-lens gap of {_LABELS[metric]}** (1 − lens / own for δ1 and mIoU: the fraction lost "
+            "off the training lens(es). First the gap of the whole test split's score, mean over the seeds; in "
+            "parentheses the mean of the per-flight gaps of the seeds' mean scores, its 95 % interval over the "
+            f"flights Bonferroni-corrected over the arm's test lenses, and the flights; `{source}`)",
             "",
         ]
         lines += _table(arms, metric, _cell_gap, skip_own=True)
         lines += [
             "",
             f"**{task}, robustness row**: largest change of {_LABELS[metric]} under focal ±2 %, principal "
-            "point ±1 % of the width (x, y), first distortion term ±5 % (mean ± std over the seeds)",
+            f"point ±1 % of the width (x, y), first distortion term ±5 % (mean ± std over the seeds; `{source}`)",
             "",
         ]
         lines += ["| arm | seeds | largest change |", "|---|---:|---:|"]
@@ -392,12 +418,16 @@ def _cell_value(lens: Mapping[str, Any] | None, metric: str) -> str:
 
 
 def _cell_gap(lens: Mapping[str, Any] | None, metric: str) -> str:
+    pooled = (lens or {}).get("pooled_gap", {}).get(metric)
     gap = (lens or {}).get("gap", {}).get(metric)
-    if not gap or not gap.get("n"):
+    if not pooled or not pooled.get("n"):
         return "–"
-    low, high = gap.get("ci_family", [math.nan, math.nan])
-    interval = f" [{low:+.3f}, {high:+.3f}]" if math.isfinite(low) and math.isfinite(high) else ""
-    return f"{gap['mean']:+.3f}{interval}, {gap['n']}"
+    text = _pm(pooled).replace(" ± ", " ± ", 1)
+    if gap and gap.get("n"):
+        low, high = (x if x is not None else math.nan for x in gap.get("ci_family", [math.nan, math.nan]))
+        interval = f" [{low:+.3f}, {high:+.3f}]" if math.isfinite(low) and math.isfinite(high) else ""
+        text += f" ({gap['mean']:+.3f}{interval}, {gap['n']})"
+    return text
 
 
 # ------------------------------------------------------------------------------------------------- command
@@ -448,6 +478,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     records = Path(args.record)
     if args.summary:
+        for path in sorted(records.glob("*.json")):
+            upgrade_record(path)
         runs = load_records(records)
         summary = summarise(runs)
         datasets = {json.dumps(r["dataset"], sort_keys=True) for r in runs}

@@ -65,6 +65,7 @@ def _record(arm: str, seed: int, own: dict[str, float], other: dict[str, float])
             "name": name,
             "seen": seen,
             "metrics": {"delta1": mean, "abs_rel": 0.3},
+            "gap": {"delta1": 0.0 if seen else 0.2 + 0.1 * seed, "abs_rel": 0.0},
             "flights": {f: {"delta1": v, "abs_rel": 0.3} for f, v in flights.items()},
         }
 
@@ -112,7 +113,13 @@ def test_the_report_tables_come_from_the_summary() -> None:
     row = f"| a: one lens (equidistant 190°) | 2 | {delta1['trained']['delta1']['mean']:.3f} ± "
     assert any(line.startswith(row) and line.endswith(" ★ | 0.300 ± 0.094 |") for line in lines), lines
     gap = delta1["pinhole_90"]["gap"]["delta1"]
-    assert f"| a: one lens (equidistant 190°) | 2 | {gap['mean']:+.3f} [{gap['ci_family'][0]:+.3f}, " in text
+    pooled = delta1["pinhole_90"]["pooled_gap"]["delta1"]
+    assert pooled["n"] == 2 and pooled["mean"] == pytest.approx(
+        0.25
+    )  # each run's whole-split gap, over the seeds
+    low, high = gap["ci_family"]
+    cell = f"{pooled['mean']:.3f} ± {pooled['std']:.3f} ({gap['mean']:+.3f} [{low:+.3f}, {high:+.3f}], 3)"
+    assert f"| a: one lens (equidistant 190°) | 2 | {cell} |" in lines
     assert "| a: one lens (equidistant 190°) | 2 | 0.015 ± 0.007 |" in lines
     document = f"x\n{REPORT_BEGIN}\nold\n{REPORT_END}\ny"
     assert block_in(replace_block(document, text, REPORT_BEGIN, REPORT_END), REPORT_BEGIN, REPORT_END) == text
