@@ -82,6 +82,19 @@ def tiny_runs(tiny_dataset: Path, shared_dir: Path):
 
 
 @pytest.fixture(scope="session")
+def tiny_rays_runs(tiny_dataset: Path, shared_dir: Path):
+    """``tiny_rays_runs(task)``: as :func:`tiny_runs`, of a camera-aware model (``model.camera_input=rays``: the ray
+    map of each sample's lens beside the image). Read-only."""
+
+    def run(task: str) -> Path:
+        return shared_run(
+            task, tiny_dataset, shared_dir / "runs" / f"{task}-rays", ["model.camera_input=rays"]
+        )
+
+    return run
+
+
+@pytest.fixture(scope="session")
 def tiny_exports(tiny_runs, shared_dir: Path):
     """``tiny_exports(task)``: ``(onnx_path, exit status, printed report)`` of ``airfisheye-export`` on the session's
     tiny run of ``task`` (``tests.helpers.runs.shared_export``), exported on first use. Read-only."""

@@ -13,6 +13,7 @@ import contextlib
 import io
 import json
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
 from omegaconf import open_dict
@@ -50,8 +51,9 @@ def shared_run_overrides(task: str, root: Path) -> list[str]:
     return [*tiny_run_overrides(task, root), "logger=csv"]
 
 
-def shared_run(task: str, dataset: Path, folder: Path) -> Path:
-    """The run of :func:`shared_run_overrides` in ``folder``, trained by the first caller of the session.
+def shared_run(task: str, dataset: Path, folder: Path, extra: Sequence[str] = ()) -> Path:
+    """The run of :func:`shared_run_overrides` (and the ``extra`` overrides) in ``folder``, trained by the first
+    caller of the session.
 
     ``folder/returned.json`` holds what ``train(cfg)`` returned. Read-only: :func:`copy_run` before changing it.
     """
@@ -60,7 +62,7 @@ def shared_run(task: str, dataset: Path, folder: Path) -> Path:
     with exclusive_lock(folder.with_name(folder.name + ".lock")):
         if not (folder / DONE).is_file():
             shutil.rmtree(folder, ignore_errors=True)  # an interrupted attempt
-            cfg = compose_train(shared_run_overrides(task, dataset))
+            cfg = compose_train([*shared_run_overrides(task, dataset), *extra])
             with open_dict(cfg):
                 cfg.paths.output_dir = str(folder)
             returned = train(cfg)
