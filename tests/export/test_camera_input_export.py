@@ -32,28 +32,23 @@ pytestmark = pytest.mark.integration  # trains and exports: seconds per test
 SIZE = 64  # the shared runs' size
 
 
-def _export(run: Path, out: Path, *extra: str) -> tuple[int, dict]:
-    report = out.with_suffix(".json")
-    code = exit_status(
-        export_command, [f"ckpt_path={run}", f"out={out}", "repeats=1", f"report_json={report}", *extra]
-    )
-    return code, json.loads(report.read_text()) if report.is_file() else {}
-
-
 @pytest.fixture(scope="module")
 def depth_rays(tiny_rays_runs) -> Path:
     return tiny_rays_runs("depth")
 
 
 @pytest.fixture(scope="module")
-def exports(depth_rays: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    folder = tmp_path_factory.mktemp("rays_export")
-    paths = {"input": folder / "depth.onnx", "baked": folder / "depth-baked.onnx"}
-    code, record = _export(depth_rays, paths["input"], "quantize=dynamic")
-    assert code == 0 and record["inputs"] == ["image", "rays"] and record["rays_baked"] is False
-    assert record["int8"]["ok"], record["int8"]  # the int8 comparison feeds the rays too
-    code, record = _export(depth_rays, paths["baked"], "bake_camera=true")
-    assert code == 0 and record["inputs"] == ["image"] and record["rays_baked"] is True
+def exports(tiny_rays_exports) -> dict[str, Path]:
+    """The session's exports of the camera-aware depth run: ``input`` (rays an input, int8 too) and ``baked``."""
+    paths = {}
+    for kind, baked in (("input", False), ("baked", True)):
+        path, code, printed = tiny_rays_exports("depth", baked)
+        assert code == 0, printed
+        assert ": OK" in printed  # the parity verdict
+        paths[kind] = path
+    inputs_line = "inputs ['image', 'rays'] -> depth"
+    assert inputs_line in tiny_rays_exports("depth")[2] and "int8 (dynamic)" in tiny_rays_exports("depth")[2]
+    assert "inputs ['image'] (ray map baked in) -> depth" in tiny_rays_exports("depth", True)[2]
     return paths
 
 

@@ -76,9 +76,9 @@ def copy_run(run: Path, to: Path) -> Path:
     return to
 
 
-def shared_export(task: str, run: Path, folder: Path) -> tuple[Path, int, str]:
-    """``airfisheye-export ckpt_path=<run>/checkpoints/last.ckpt out=<folder>/<task>.onnx repeats=1`` through the
-    command's main, once per session: ``(the ONNX file, the exit status, what it printed)``. Read-only."""
+def shared_export(task: str, run: Path, folder: Path, extra: Sequence[str] = ()) -> tuple[Path, int, str]:
+    """``airfisheye-export ckpt_path=<run>/checkpoints/last.ckpt out=<folder>/<task>.onnx repeats=1 [extra]``
+    through the command's main, once per session: ``(the ONNX file, the exit status, what it printed)``. Read-only."""
     from airfisheye_bench.cli import export
 
     out = folder / f"{task}.onnx"
@@ -91,7 +91,7 @@ def shared_export(task: str, run: Path, folder: Path) -> tuple[Path, int, str]:
             with contextlib.redirect_stdout(printed):
                 try:
                     code = export(
-                        [f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1"]
+                        [f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1", *extra]
                     )
                 except SystemExit as stop:
                     code = int(stop.code or 0)
