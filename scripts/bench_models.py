@@ -85,8 +85,10 @@ def make_loss(task: str, outputs: dict[str, Tensor]) -> Callable[[dict[str, Tens
     return lambda out, target: silog(out["depth"], target)
 
 
-def medians_ms(fns: dict[str, Callable[[], object]], repeats: int, device: torch.device) -> dict[str, float]:
-    """The median wall time of each of ``fns`` over ``repeats`` rounds, each round calling every one once, in turn
+def rounds_ms(
+    fns: dict[str, Callable[[], object]], repeats: int, device: torch.device
+) -> dict[str, list[float]]:
+    """The wall time of each of ``fns`` in each of ``repeats`` rounds, a round calling every one once, in turn
     (after a warm-up call of each): variants timed side by side see the same drift of the machine's load."""
 
     def sync() -> None:
@@ -103,7 +105,18 @@ def medians_ms(fns: dict[str, Callable[[], object]], repeats: int, device: torch
             fn()
             sync()
             times[key].append((time.perf_counter() - start) * 1e3)
-    return {key: statistics.median(t) for key, t in times.items()}
+    return times
+
+
+def paired_ratios(times: dict[str, list[float]]) -> dict[str, dict[str, float]]:
+    """Each variant's time over the first's, round by round: quartiles ``{q1, median, q3}`` (the first aside)."""
+    first, *others = times
+    out = {}
+    for key in others:
+        ratios = [t / f for t, f in zip(times[key], times[first], strict=True)]
+        q1, median, q3 = statistics.quantiles(ratios, n=4) if len(ratios) > 1 else ratios * 3
+        out[key] = {"q1": q1, "median": median, "q3": q3}
+    return out
 
 
 def bench_device(
@@ -112,16 +125,17 @@ def bench_device(
     args: argparse.Namespace,
     device: torch.device,
     train: bool = True,
-) -> dict[str, tuple[float, float]]:
-    """``{camera_input: (forward ms, train-step ms or nan)}`` of a model's variants on ``device``."""
+) -> tuple[dict[str, tuple[float, float]], dict[str, dict[str, float]]]:
+    """``{camera_input: (forward ms, train-step ms or nan)}`` of a model's variants on ``device``, and each variant's
+    train step over the first's, round by round (:func:`paired_ratios`)."""
     forward, steps = {}, {}
     for camera_input, model in variants.items():
         model.to(device).eval()
         inputs = make_inputs(task, args.batch, args.size, device, camera_input)
         forward[camera_input] = torch.no_grad()(lambda model=model, inputs=inputs: model(**inputs))
-    forward_ms = medians_ms(forward, args.repeats, device)
+    forward_ms = {key: statistics.median(t) for key, t in rounds_ms(forward, args.repeats, device).items()}
     if not train:
-        return {key: (forward_ms[key], float("nan")) for key in variants}
+        return {key: (forward_ms[key], float("nan")) for key in variants}, {}
     for camera_input, model in variants.items():
         model.train()
         train_inputs = make_inputs(task, args.train_batch, args.size, device, camera_input)
@@ -137,10 +151,11 @@ def bench_device(
             optimizer.step()
 
         steps[camera_input] = step
-    train_ms = medians_ms(steps, args.repeats, device)
+    train_times = rounds_ms(steps, args.repeats, device)
+    train_ms = {key: statistics.median(t) for key, t in train_times.items()}
     for model in variants.values():
         model.to("cpu")
-    return {key: (forward_ms[key], train_ms[key]) for key in variants}
+    return {key: (forward_ms[key], train_ms[key]) for key in variants}, paired_ratios(train_times)
 
 
 def bench_onnx(
@@ -206,7 +221,7 @@ def main() -> None:
 
     overrides = dict(_setting(item, parser) for item in args.set)
     nan = float("nan")
-    rows = []
+    rows, paired = [], {}
     for name in args.models:
         if name.lower() not in models.list_models():
             print(f"skipping {name!r}: not registered")
@@ -216,13 +231,17 @@ def main() -> None:
         for camera_input in dict.fromkeys(args.camera_input):
             torch.manual_seed(0)
             variants[camera_input] = models.create_model(name, **overrides, camera_input=camera_input)
-        cpu = bench_device(variants, task, args, torch.device("cpu"), train=not args.no_cpu_train)
-        gpu = bench_device(variants, task, args, cuda) if cuda else {key: (nan, nan) for key in variants}
+        cpu, cpu_paired = bench_device(variants, task, args, torch.device("cpu"), train=not args.no_cpu_train)
+        gpu, gpu_paired = (
+            bench_device(variants, task, args, cuda) if cuda else ({k: (nan, nan) for k in variants}, {})
+        )
         for camera_input, model in variants.items():
             params = sum(p.numel() for p in model.parameters()) / 1e6
             onnx = (nan, nan) if args.no_onnx else bench_onnx(model, name, task, args, camera_input)
             label = name if camera_input == "none" else f"{name} (camera_input={camera_input})"
             rows.append((label, params, *cpu[camera_input], *gpu[camera_input], *onnx))
+            if camera_input in cpu_paired or camera_input in gpu_paired:
+                paired[label] = {"cpu": cpu_paired.get(camera_input), "gpu": gpu_paired.get(camera_input)}
         print(f"done {name}", flush=True)
 
     gpu_name = torch.cuda.get_device_name(0) if cuda else "no GPU"
@@ -243,15 +262,16 @@ def main() -> None:
         )
 
     if args.out is not None:
-        _write(args, rows, settings, overrides)
+        _write(args, rows, paired, settings, overrides)
 
 
 _COLUMNS = ("model", "params_m", "cpu_fwd_ms", "cpu_train_step_ms", "gpu_fwd_ms", "gpu_train_step_ms")
 
 
-def _write(args: argparse.Namespace, rows: list[tuple], settings: str, overrides: dict) -> None:
-    """The table as JSON (``nan`` as null), with the commit, command and machine it comes from, and the load
-    averages of the machine at the end (a shared machine's timings mean little without them)."""
+def _write(args: argparse.Namespace, rows: list[tuple], paired: dict, settings: str, overrides: dict) -> None:
+    """The table as JSON (``nan`` as null), with the commit, command and machine it comes from, the load averages
+    of the machine at the end (a shared machine's timings mean little without them) and, for each variant beyond a
+    model's first, its train step over the first's in the same round (quartiles over the rounds)."""
     columns = (*_COLUMNS, "ort_over_eager", "onnx_max_abs_diff")
     record = {
         **provenance("scripts/bench_models.py"),
@@ -260,6 +280,7 @@ def _write(args: argparse.Namespace, rows: list[tuple], settings: str, overrides
         "camera_inputs": list(dict.fromkeys(args.camera_input)),
         "load_average_at_end": list(os.getloadavg()),
         "rows": [{c: (None if v != v else v) for c, v in zip(columns, row, strict=True)} for row in rows],
+        "train_step_over_first_variant": paired,
     }
     atomic_write_text(args.out, json.dumps(record, indent=2) + "\n")
     print(f"wrote {args.out}")
