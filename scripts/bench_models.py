@@ -17,7 +17,8 @@ Prints a markdown table. Weights are random (never downloaded); timings do not d
 equidistant lens beside the image; the same seed) and times them side by side: each round of the forward and the
 train-step timing runs every variant once, in turn, so a machine's load drifting over the run reaches both alike.
 ``--set key=value`` overrides a constructor argument of the models (e.g. ``encoder_name=resnet18``); ``--out``
-writes the table as JSON with its provenance (commit, command, machine).
+writes the table as JSON with its provenance (commit, command, machine), each variant's train step over the first's
+round by round, and each model's forward operations (torch's FLOP count: what a variant costs whatever the load).
 
     python scripts/bench_models.py                             # 512x512, 2 threads, 3 repeats
     python scripts/bench_models.py --models adabins --size 256 --no-onnx
@@ -39,6 +40,7 @@ from pathlib import Path
 import torch
 import yaml
 from torch import Tensor, nn
+from torch.utils.flop_counter import FlopCounterMode
 
 import models
 from airfisheye_bench.atomic import atomic_write_text
@@ -158,6 +160,17 @@ def bench_device(
     return {key: (forward_ms[key], train_ms[key]) for key in variants}, paired_ratios(train_times)
 
 
+def forward_gflop(model: nn.Module, task: str, args: argparse.Namespace, camera_input: str) -> float:
+    """Floating-point operations of one forward pass at the forward batch, in GFLOP (torch's count: a multiply-add
+    is two), on CPU: what a variant costs whatever the machine's load."""
+    model = model.cpu().eval()
+    inputs = make_inputs(task, args.batch, args.size, torch.device("cpu"), camera_input)
+    counter = FlopCounterMode(display=False)
+    with torch.no_grad(), counter:
+        model(**inputs)
+    return counter.get_total_flops() / 1e9
+
+
 def bench_onnx(
     model: nn.Module, name: str, task: str, args: argparse.Namespace, camera_input: str = "none"
 ) -> tuple[float, float]:
@@ -221,7 +234,7 @@ def main() -> None:
 
     overrides = dict(_setting(item, parser) for item in args.set)
     nan = float("nan")
-    rows, paired = [], {}
+    rows, paired, flops = [], {}, {}
     for name in args.models:
         if name.lower() not in models.list_models():
             print(f"skipping {name!r}: not registered")
@@ -240,6 +253,7 @@ def main() -> None:
             onnx = (nan, nan) if args.no_onnx else bench_onnx(model, name, task, args, camera_input)
             label = name if camera_input == "none" else f"{name} (camera_input={camera_input})"
             rows.append((label, params, *cpu[camera_input], *gpu[camera_input], *onnx))
+            flops[label] = forward_gflop(model, task, args, camera_input)
             if camera_input in cpu_paired or camera_input in gpu_paired:
                 paired[label] = {"cpu": cpu_paired.get(camera_input), "gpu": gpu_paired.get(camera_input)}
         print(f"done {name}", flush=True)
@@ -262,13 +276,15 @@ def main() -> None:
         )
 
     if args.out is not None:
-        _write(args, rows, paired, settings, overrides)
+        _write(args, rows, paired, flops, settings, overrides)
 
 
 _COLUMNS = ("model", "params_m", "cpu_fwd_ms", "cpu_train_step_ms", "gpu_fwd_ms", "gpu_train_step_ms")
 
 
-def _write(args: argparse.Namespace, rows: list[tuple], paired: dict, settings: str, overrides: dict) -> None:
+def _write(
+    args: argparse.Namespace, rows: list[tuple], paired: dict, flops: dict, settings: str, overrides: dict
+) -> None:
     """The table as JSON (``nan`` as null), with the commit, command and machine it comes from, the load averages
     of the machine at the end (a shared machine's timings mean little without them) and, for each variant beyond a
     model's first, its train step over the first's in the same round (quartiles over the rounds)."""
@@ -281,6 +297,7 @@ def _write(args: argparse.Namespace, rows: list[tuple], paired: dict, settings: 
         "load_average_at_end": list(os.getloadavg()),
         "rows": [{c: (None if v != v else v) for c, v in zip(columns, row, strict=True)} for row in rows],
         "train_step_over_first_variant": paired,
+        "forward_gflop": flops,
     }
     atomic_write_text(args.out, json.dumps(record, indent=2) + "\n")
     print(f"wrote {args.out}")

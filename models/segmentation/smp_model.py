@@ -130,7 +130,10 @@ class SmpSegmentationModel(nn.Module):
         context = decoder.up(decoder.aspp(features[-1]))
         high_res = decoder.block1(features[2])
         fused = decoder.block2(torch.cat([context, high_res, resize_rays(rays, high_res.shape[-2:])], dim=1))
-        return self.net.segmentation_head(fused)
+        masks = self.net.segmentation_head(fused)
+        if self.net.classification_head is not None:  # smp's aux_params: what smp's forward returns then
+            return masks, self.net.classification_head(features[-1])
+        return masks
 
     def forward_with_aux(self, image: Tensor, rays: Tensor | None = None) -> dict[str, Tensor]:
         """``{"logits": forward(image, rays)}`` (segmentation needs no auxiliary output)."""
