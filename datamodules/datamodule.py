@@ -106,6 +106,8 @@ class AirFisheyeDataModule(L.LightningDataModule):
             normalisation run on the model's device after the transfer, in :meth:`on_after_batch_transfer`, with
             the same tables and the same results: :mod:`datamodules.device_remap`). ``device`` needs
             ``source=cubemap`` and one dataset.
+        camera_input: What the model takes of the camera besides the image (``model.camera_input``): ``none``, or
+            ``rays``, each sample's ray map as the key ``rays`` (:mod:`airfisheye_bench.geometry.ray_maps`).
 
     Example:
         >>> dm = AirFisheyeDataModule("seg", preset="tiny", camera={"size": 64}, batch_size=2)  # doctest: +SKIP
@@ -144,9 +146,11 @@ class AirFisheyeDataModule(L.LightningDataModule):
         source_options: dict[str, dict[str, Any]] | None = default("source_options"),
         gimbal: Any = default("gimbal"),
         remap_on: str = default("remap_on"),
+        camera_input: str = default("camera_input"),
     ) -> None:
         super().__init__()
         check("batch_size", batch_size)
+        check("camera_input", camera_input)
         problem = remap_site_problem(remap_on, source, sources, gimbal)
         if problem is not None:
             raise ConfigError(f"data.remap_on={remap_on!r}: {problem}")
@@ -186,6 +190,7 @@ class AirFisheyeDataModule(L.LightningDataModule):
             skip_bad_frames=skip_bad_frames,
             lidar_min_range=float(min_range),
             lidar_density=density,
+            camera_input=camera_input,
         )
         try:
             self.gimbal = Gimbal.parse(gimbal)
@@ -380,6 +385,11 @@ class AirFisheyeDataModule(L.LightningDataModule):
     def camera(self) -> CameraModel:
         """The served fisheye camera (after ``setup``)."""
         return self._any_dataset().camera
+
+    def ray_map(self) -> torch.Tensor:
+        """``[4, H, W]`` the ray map of :attr:`camera` over its pixels with data, as its samples carry it in
+        ``rays`` (docs/design.md, "Ray map"); what an ONNX export with ``bake_camera=true`` holds as a constant."""
+        return self._any_dataset().ray_map
 
     @property
     def num_classes(self) -> int:

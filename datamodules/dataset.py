@@ -15,10 +15,15 @@ key                shape, dtype                  meaning
 ``lens_params``    ``[3 + D]`` float32           its jitter: focal factor, principal-point shift x, y (pixels),
                                                  the factors of its model's ``distortion_params`` (1 beyond
                                                  them); ``lens_camera(lens, lens_params)`` rebuilds the camera
+``rays``           ``[4, H, W]`` float32         the sample's lens as a ray map: each pixel's unit ray in the
+                                                 camera frame and 1 where it carries data (0 elsewhere, rays too)
 =================  ============================  ==========================================================
 
 ``lens`` and ``lens_params`` are served with ``data.camera.lenses`` or ``data.camera.jitter`` only
 (docs/design.md, "Lenses drawn per sample"): each sample's image, masks, maps and LiDAR go through that lens.
+
+``rays`` is served with ``camera_input="rays"`` only (``data.camera_input``, following ``model.camera_input``):
+:meth:`~datamodules.serving_remaps.RemapServing.sample_rays` (docs/design.md, "Ray map").
 
 A source that has no dense depth images but gives its depth target as LiDAR points (``depth_from_points``,
 ``depth_points``: KITTI-360) gets ``depth`` by projecting them at the served camera with the sample's augmentation,
@@ -94,9 +99,6 @@ log = logging.getLogger(__name__)
 
 #: The task-dependent keys a sample can hold, in the order they are loaded.
 SAMPLE_KEYS = ("label", "depth", "sparse_depth")
-#: Memory the lookup tables of a virtual gimbal's views and of drawn lenses may take per process; those beyond it are
-#: rebuilt in turn.
-GIMBAL_TABLE_BUDGET_BYTES = 1 << 30
 #: The paper's occlusion correction (III-C) with its default options.
 PAPER_OCCLUSION = Occlusion("ordering")
 
@@ -143,6 +145,7 @@ class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
         training: Whether this is the training split: its samples draw their lens (``camera.lenses``, jitter) per
             epoch; an evaluation split serves sample ``i`` through lens ``i mod n``, unjittered. ``None``: ``split
             == "train"``.
+        camera_input: ``rays``: serve each sample's ray map as ``rays``; ``none``: do not.
 
     Example:
         >>> ds = AirFisheyeDataset("/data/airfisheye", "train", "completion")  # doctest: +SKIP
@@ -171,6 +174,7 @@ class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
         gimbal: Gimbal | None = None,
         source_fallback: bool = False,
         training: bool | None = None,
+        camera_input: str = default("camera_input"),
     ) -> None:
         task_spec = get_task(task)
         if gimbal is not None and source not in REMAP_SOURCES:
@@ -228,6 +232,7 @@ class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
                 f"(it serves image, {', '.join(SAMPLE_KEYS)})"
             )
         self.sample_keys = tuple(k for k in SAMPLE_KEYS if k in needed)
+        self.serves_rays = camera_input == "rays"
         # A LiDAR at the camera's centre (cast from its depth) returns only points the camera sees.
         self.parallax_free = self.reader.parallax_free
         if self.parallax_free and "sparse_depth" in self.sample_keys:
@@ -346,7 +351,7 @@ class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
         # The sample's lens: its image, masks, maps and LiDAR are all served through it.
         camera = self.camera if remap is None else remap.camera
         outside = self._outside_frame if lens is None else self._outside_frames[lens.lens]
-        valid = self.valid_mask if remap is self._remap else self._valid(remap, outside)
+        valid = served_valid = self.valid_mask if remap is self._remap else self._valid(remap, outside)
         turn = None if view is None else Gimbal.rotation(view)  # R_src_cam: the LiDAR turns with the camera
         rgb = self._dense(sample_id, "rgb", remap)  # uint8 [3, H, W]
         out: dict = {"sample_id": sample_id}
@@ -380,6 +385,8 @@ class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
         out["image"] = rgb.sub_(self._mean).div_(self._std)  # rgb is this sample's own buffer: in place
         out["valid_mask"] = valid
         self._add_lens(out, lens)
+        if self.serves_rays:  # the lens's map, before the augmentation moved the mask (it keeps the rays)
+            out["rays"] = self.sample_rays(remap, served_valid)
         return out
 
     def _add_lens(self, out: dict, lens: LensDraw | None) -> None:
@@ -416,6 +423,8 @@ class AirFisheyeDataset(RemapServing, LidarServing, Dataset):
             out[AUGMENT_KEY] = pack_params(params)
         # The split's one lens (device_remap refuses lenses that vary).
         self._add_lens(out, self.sample_lens(index))
+        if self.serves_rays:
+            out["rays"] = self.ray_map
         return out
 
     @cached_property

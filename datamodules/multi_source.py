@@ -106,6 +106,14 @@ class MultiSourceDataset(Dataset):
         """The camera a source's frames are served with here (padded to the common size where needed)."""
         return self.served[name][0]
 
+    @property
+    def ray_map(self) -> torch.Tensor:
+        """The first source's ray map as its frames carry it here (padded as they are): the run's camera's."""
+        name = self.names[0]
+        top = self.served[name][1]
+        rays = self.datasets[name].ray_map
+        return F.pad(rays, (0, 0, top, top), value=0.0) if top else rays
+
 
 def _pad_rows(sample: dict, rows: int, ignore_index: int) -> None:
     """Pad every map of a sample with ``rows`` rows above and below: no data there (invalid, ignored, no depth);
@@ -116,7 +124,7 @@ def _pad_rows(sample: dict, rows: int, ignore_index: int) -> None:
     sample["valid_mask"] = F.pad(sample["valid_mask"], (0, 0, rows, rows), value=False)
     if "label" in sample:
         sample["label"] = F.pad(sample["label"], (0, 0, rows, rows), value=ignore_index)
-    for key in ("depth", "sparse_depth"):
+    for key in ("depth", "sparse_depth", "rays"):  # no data in the bands: no depth, no ray (invalid)
         if key in sample:
             sample[key] = F.pad(sample[key], (0, 0, rows, rows), value=0.0)
 

@@ -17,6 +17,7 @@ from airfisheye_bench.geometry import CubemapToFisheye, EquirectToFisheye
 from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.gimbal import Gimbal, View
 from airfisheye_bench.geometry.lens_draws import LensDraw
+from airfisheye_bench.geometry.ray_maps import ray_map
 from airfisheye_bench.geometry.remap_table import TableCache, reserve_tables
 from datamodules.device_remap import DeviceRemap
 from datamodules.sampling import draw_seed
@@ -35,6 +36,24 @@ class RemapServing:
         """``[H, W]`` pixels that carry data (inside the image circle, on a cube face, on the calibrated sensor), at
         the split's one orientation (a sample of a varying gimbal serves its own view's in ``valid_mask``)."""
         return self._valid(self._remap, self._outside_frame)
+
+    @cached_property
+    def ray_map(self) -> torch.Tensor:
+        """``[4, H, W]`` the ray map of the split's camera over its pixels with data (:attr:`valid_mask`): the
+        ``rays`` of every sample of a fixed lens, one tensor for all (docs/design.md, "Ray map")."""
+        return ray_map(self.camera, self.valid_mask)
+
+    def sample_rays(
+        self, remap: CubemapToFisheye | EquirectToFisheye | None, valid: torch.Tensor
+    ) -> torch.Tensor:
+        """A sample's ``rays``: the ray map of its remap's camera (its lens) over ``valid``, its pixels with data
+        before the augmentation. The split's lens gives :attr:`ray_map`; a lens drawn per sample (or a gimbal view)
+        gives its cached remap's, whose camera's rays are cached with it. The augmentation leaves the map as it is:
+        its flips and rotations turn the image about the principal point, which keeps every pixel's ray of a lens
+        symmetric about its axis."""
+        if remap is self._remap:
+            return self.ray_map
+        return ray_map(remap.camera, valid)
 
     def _valid(
         self, remap: CubemapToFisheye | EquirectToFisheye | None, outside: torch.Tensor | None
@@ -146,7 +165,9 @@ class RemapServing:
             return self.lens_draws.draw(index, None)
         epoch = self._epoch.get()
         seed = draw_seed(self.seed, epoch, index)
-        if self.lens_draws.pool is not None:  # one of the epoch's lenses: the slot's own draw, whoever serves it
+        if (
+            self.lens_draws.pool is not None
+        ):  # one of the epoch's lenses: the slot's own draw, whoever serves it
             slot = seed % self.lens_draws.pool
             seed = draw_seed(self.seed, epoch, -1 - slot)
         return self.lens_draws.draw(index, seed)

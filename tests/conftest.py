@@ -82,6 +82,34 @@ def tiny_runs(tiny_dataset: Path, shared_dir: Path):
 
 
 @pytest.fixture(scope="session")
+def tiny_rays_runs(tiny_dataset: Path, shared_dir: Path):
+    """``tiny_rays_runs(task)``: as :func:`tiny_runs`, of a camera-aware model (``model.camera_input=rays``: the ray
+    map of each sample's lens beside the image). Read-only."""
+
+    def run(task: str) -> Path:
+        return shared_run(
+            task, tiny_dataset, shared_dir / "runs" / f"{task}-rays", ["model.camera_input=rays"]
+        )
+
+    return run
+
+
+@pytest.fixture(scope="session")
+def tiny_rays_exports(tiny_rays_runs, shared_dir: Path):
+    """``tiny_rays_exports(task, baked=False)``: as :func:`tiny_exports`, of the session's camera-aware run of
+    ``task``: the ray map a second input ``rays`` (with an int8 copy: ``quantize=dynamic``), or with ``baked`` held
+    in the file (``bake_camera=true``). Read-only."""
+
+    def exported(task: str, baked: bool = False) -> tuple[Path, int, str]:
+        name, extra = (
+            (f"{task}-rays-baked", "bake_camera=true") if baked else (f"{task}-rays", "quantize=dynamic")
+        )
+        return shared_export(task, tiny_rays_runs(task), shared_dir / "exports" / name, [extra])
+
+    return exported
+
+
+@pytest.fixture(scope="session")
 def tiny_exports(tiny_runs, shared_dir: Path):
     """``tiny_exports(task)``: ``(onnx_path, exit status, printed report)`` of ``airfisheye-export`` on the session's
     tiny run of ``task`` (``tests.helpers.runs.shared_export``), exported on first use. Read-only."""

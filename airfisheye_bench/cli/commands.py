@@ -296,6 +296,10 @@ class ExportOptions:
     calib_samples: int = option("validation frames calibrating static quantisation")
     eval_samples: int = option("validation frames scoring the int8 model (0: the whole split)")
     repeats: int = option("timed runs of the latency comparison")
+    bake_camera: bool = option(
+        "a camera-aware model (model.camera_input=rays): store the data's camera's ray map in the file, which then "
+        "takes the image alone (else rays is a second input)"
+    )
     report_json: str | None = option(
         "also write the report (parity, latency, int8 metrics) as JSON to this file"
     )

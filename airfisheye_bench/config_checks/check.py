@@ -165,6 +165,12 @@ def check_train_config(cfg: DictConfig) -> None:
             f"model={name} solves task={model_task(name)}, not task={task}; use one of "
             f"{', '.join('model=' + m for m in fitting)} or task={model_task(name)}"
         )
+    wanted, served = cfg.model.get("camera_input", "none"), cfg.data.get("camera_input", "none")
+    if wanted != served:
+        raise ConfigError(
+            f"model.camera_input={wanted} but data.camera_input={served}: the data must serve what the model takes; "
+            "drop data.camera_input (it follows model.camera_input)"
+        )
     loss = OmegaConf.select(cfg, "task.module.loss", default=None)
     if loss is not None:
         check_loss_arguments(OmegaConf.to_container(loss))

@@ -77,6 +77,15 @@ DATA_OPTIONS: tuple[DataOption, ...] = (
         cost=2,
         yaml="${task.name}",
     ),
+    _o(
+        "camera_input",
+        "none",
+        "what the model takes of the camera besides the image: none, or rays (each sample's ray map, the key "
+        'rays; docs/design.md, "Ray map"); bound to model.camera_input',
+        ValueRule("choice", choices=r.camera_inputs, hint="bound to model.camera_input"),
+        cost=1,
+        yaml="${oc.select:model.camera_input,none}",
+    ),
     # Where the data come from.
     _o(
         "root",

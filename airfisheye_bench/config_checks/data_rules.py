@@ -166,6 +166,12 @@ def remap_site_problem(value: Any, source: Any, sources: Any, gimbal: Any) -> st
     return remap_site_problem(value, source or "cubemap", sources, gimbal)
 
 
+def camera_inputs() -> tuple[str, ...]:
+    from airfisheye_bench.geometry.ray_maps import CAMERA_INPUTS  # imports torch: only when checked
+
+    return CAMERA_INPUTS
+
+
 def tasks() -> tuple[str, ...]:
     from airfisheye_bench.specs import task_names  # imports torchmetrics: only when checked
 

@@ -12,7 +12,7 @@ from typing import Any
 from omegaconf import DictConfig
 
 from airfisheye_bench.config_checks.data_options import data_rules
-from airfisheye_bench.config_checks.data_rules import tasks
+from airfisheye_bench.config_checks.data_rules import camera_inputs, tasks
 from airfisheye_bench.config_checks.value_rule import ValueRule
 
 
@@ -133,6 +133,10 @@ RULES: dict[str, ValueRule] = {
         "custom", check=_loss_problem, nullable=True, hint="the training loss; null: the task's default"
     ),
     # Costly choices last: they import torch, then the task specs, the model zoo and Lightning.
+    # Before data.camera_input, which follows it: a wrong value is named where it was written.
+    "model.camera_input": ValueRule(
+        "choice", choices=camera_inputs, hint="what the model takes of its camera besides the image"
+    ),
     **data_rules(cost=1),
     "task.name": ValueRule("choice", choices=tasks),
     **data_rules(cost=2),

@@ -131,6 +131,7 @@ def evaluate(
     tests = _test_lenses(cfg, source)
 
     module, checkpoint, source_data = None, None, None
+    camera_input = None  # what the evaluated model takes of the camera (None: no model, prediction files)
     task = cfg.task.name if cfg.get("task") else None
     if source == "ckpt_path":
         checkpoint = resolve_checkpoint(cfg.ckpt_path)
@@ -138,10 +139,12 @@ def evaluate(
         run = run_config(checkpoint)
         source_data = run.data if run is not None else None
         task = _agree(task, module.task, f"checkpoint {checkpoint}")
+        camera_input = module.camera_input
     elif source == "onnx_path":
         metadata = read_deployment_metadata(cfg.onnx_path)
         source_data = OmegaConf.create(metadata["data_config"]) if metadata.get("data_config") else None
         task = _agree(task, metadata["task"], f"ONNX model {cfg.onnx_path}")
+        camera_input = "rays" if "rays" in metadata["inputs"] else "none"  # a baked ray map needs none
     elif task is None:
         raise ConfigError(f"predictions=DIR needs task={'|'.join(task_names())}")
     try:
@@ -165,7 +168,7 @@ def evaluate(
             else _checkpoint_camera(checkpoint, source_data, task)
         )
         source_data = fisheye_data(source_data)
-    datamodule, data_config = _datamodule(cfg, task, source_data, data_overrides or [])
+    datamodule, data_config = _datamodule(cfg, task, source_data, data_overrides or [], camera_input)
     camera = datamodule.camera
     inner = _predictor(
         cfg, source, task, module, checkpoint, datamodule.split_dataset(cfg.split), model_camera or camera
@@ -252,13 +255,20 @@ def _agree(requested: str | None, found: str, what: str) -> str:
 
 
 def _datamodule(
-    cfg: DictConfig, task: str, source_data: DictConfig | None, overrides: list[str]
+    cfg: DictConfig,
+    task: str,
+    source_data: DictConfig | None,
+    overrides: list[str],
+    camera_input: str | None = None,
 ) -> tuple[Any, dict[str, Any]]:
-    """The datamodule to evaluate on, and its configuration (recorded in ``results.json``)."""
+    """The datamodule to evaluate on, and its configuration (recorded in ``results.json``); it serves the ray map
+    of each frame's lens when the model takes it (``camera_input``, the model's: not a data config's)."""
     if source_data is not None:  # the model's own data config, command-line data.* on top
         data = apply_data_overrides(source_data, parse_data_overrides(overrides), task=task)
     else:  # configs/evaluate.yaml's data group, overrides already composed in by Hydra
         data = apply_data_overrides(cfg.data, task=task)
+    if camera_input is not None:
+        data.camera_input = camera_input
     datamodule = run_datamodule(data)
     return datamodule, OmegaConf.to_container(data)
 

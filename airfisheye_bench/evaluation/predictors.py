@@ -74,25 +74,30 @@ def check_tta(tta: str | None) -> str | None:
     return tta
 
 
-def flip_tta(run: Callable[[list[Tensor]], Tensor], inputs: Sequence[Tensor]) -> Tensor:
+def flip_tta(
+    run: Callable[[list[Tensor]], Tensor], inputs: Sequence[Tensor], fixed: Sequence[Tensor] = ()
+) -> Tensor:
     """Horizontal-flip test-time augmentation: the mean of the model output and the mirrored output of the
     mirrored inputs, as AdaBins' evaluation (logits for segmentation, depth otherwise).
 
     Every input (image and, for completion, sparse depth) is mirrored along its width: the served fisheye image is
-    symmetric about its vertical centre line, the assumption training's horizontal-flip augmentation makes too.
+    symmetric about its vertical centre line, the assumption training's horizontal-flip augmentation makes too. The
+    ``fixed`` inputs are passed as they are: a camera-aware model's ray map describes the lens, which a mirrored
+    image keeps (training's flip keeps the map too).
 
     Args:
         run: the model, called with the list of input tensors ``[B, C, H, W]``, returning ``[B, C', H, W]``.
-        inputs: the model inputs.
+        inputs: the model inputs that are mirrored.
+        fixed: inputs after them that are not (the ray map).
 
     Example:
         >>> x = torch.arange(4.0).view(1, 1, 1, 4)
         >>> flip_tta(lambda xs: xs[0] * torch.tensor([1.0, 0.0, 0.0, 0.0]), [x]).tolist()
         [[[[0.0, 0.0, 0.0, 1.5]]]]
     """
-    inputs = list(inputs)
-    mirrored = run([t.flip(-1) for t in inputs]).flip(-1)
-    return 0.5 * (run(inputs) + mirrored)
+    inputs, fixed = list(inputs), list(fixed)
+    mirrored = run([*(t.flip(-1) for t in inputs), *fixed]).flip(-1)
+    return 0.5 * (run([*inputs, *fixed]) + mirrored)
 
 
 class CheckpointPredictor:
@@ -124,10 +129,22 @@ class CheckpointPredictor:
     @torch.no_grad()
     def output(self, batch: dict) -> Tensor:
         """The model's primary output (logits or depth, with the TTA) on the CPU: what ``__call__`` turns into the
-        prediction, and what a wrapper that blends outputs (:mod:`~airfisheye_bench.evaluation.perspective`) takes."""
-        inputs = [t.to(self.device, non_blocking=True) for t in self.module.model_inputs(batch)]
-        output = flip_tta(self._run, inputs) if self.tta == "flip" else self._run(inputs)
+        prediction, and what a wrapper that blends outputs (:mod:`~airfisheye_bench.evaluation.perspective`) takes.
+        The ray map is fed as it is under flip TTA: a lens symmetric about its principal point mirrors onto itself."""
+        inputs = [batch[key].to(self.device, non_blocking=True) for key in get_task(self.task).inputs]
+        fixed = [self._rays(batch)] if self.takes_rays else []
+        output = flip_tta(self._run, inputs, fixed) if self.tta == "flip" else self._run([*inputs, *fixed])
         return output.cpu()
+
+    @property
+    def takes_rays(self) -> bool:
+        """Whether the model takes the batch's ray map (``model.camera_input=rays``)."""
+        return self.module.camera_input == "rays"
+
+    def _rays(self, batch: dict) -> Tensor | None:
+        """The batch's ray map on the device (``None``, which the model refuses in one line, when it has none)."""
+        rays = batch.get("rays")
+        return None if rays is None else rays.to(self.device, non_blocking=True)
 
     def _run(self, inputs: list[Tensor]) -> Tensor:
         return self.module(*inputs)
@@ -172,7 +189,9 @@ class OnnxPredictor:
         self.session = ort.InferenceSession(
             str(self.path), sess_options=options, providers=providers or ["CPUExecutionProvider"]
         )
-        self.input_names = [i.name for i in self.session.get_inputs()]
+        names = [i.name for i in self.session.get_inputs()]
+        # The ray map (a camera-aware model's input) is fed as it is; the other inputs are mirrored by flip TTA.
+        self.input_names = [*(n for n in names if n != "rays"), *(n for n in names if n == "rays")]
         self.output_name = self.session.get_outputs()[0].name
         # ``(H, W)`` when the graph fixes the image size, ``None`` when exported with dynamic spatial dims.
         spatial = self.session.get_inputs()[0].shape[-2:]
@@ -186,8 +205,14 @@ class OnnxPredictor:
         missing = [n for n in self.input_names if n not in batch]
         if missing:
             raise ValueError(f"{self.path}: the batch lacks the model inputs {missing} (has {sorted(batch)})")
-        inputs = [batch[n].detach().cpu().float() for n in self.input_names]
-        return flip_tta(self._run, inputs) if self.tta == "flip" else self._run(inputs)
+        inputs = [batch[n].detach().cpu().float() for n in self.input_names if n != "rays"]
+        fixed = [batch[n].detach().cpu().float() for n in self.input_names if n == "rays"]
+        return flip_tta(self._run, inputs, fixed) if self.tta == "flip" else self._run([*inputs, *fixed])
+
+    @property
+    def takes_rays(self) -> bool:
+        """Whether the file takes the ray map as an input (a camera-aware model whose map is not baked in)."""
+        return "rays" in self.input_names
 
     def _run(self, inputs: list[Tensor]) -> Tensor:
         feed = {n: np.ascontiguousarray(t.numpy()) for n, t in zip(self.input_names, inputs, strict=True)}

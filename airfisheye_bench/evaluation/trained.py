@@ -40,7 +40,8 @@ class TrainedModel:
     """A model ready to predict frames of its camera.
 
     Attributes:
-        predictor: Called with a batch (``image`` normalised ``[B, 3, H, W]``, ``sparse_depth`` for completion).
+        predictor: Called with a batch (``image`` normalised ``[B, 3, H, W]``, ``sparse_depth`` for completion,
+            ``rays`` ``[B, 4, H, W]`` for a camera-aware model: :attr:`takes_rays`).
         task: ``seg``, ``depth`` or ``completion``.
         camera: The camera the model was trained for (its input size is the camera's).
         mean: Normalisation mean of ``rgb / 255``, RGB.
@@ -63,8 +64,14 @@ class TrainedModel:
 
     @property
     def inputs(self) -> tuple[str, ...]:
-        """The model's inputs by name (``image``, then e.g. ``sparse_depth``)."""
+        """The model's inputs by name (``image``, then e.g. ``sparse_depth``; the ray map apart: :attr:`takes_rays`)."""
         return tuple(get_task(self.task).inputs)
+
+    @property
+    def takes_rays(self) -> bool:
+        """Whether the predictor takes the ray map of :attr:`camera` as the batch's ``rays`` (a camera-aware model
+        whose map is not baked into its file)."""
+        return bool(getattr(self.predictor, "takes_rays", False))
 
 
 def load_trained(

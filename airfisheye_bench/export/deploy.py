@@ -37,6 +37,7 @@ from torch import Tensor
 
 from airfisheye_bench.atomic import check_writable
 from airfisheye_bench.config_checks import check_common_values
+from airfisheye_bench.export.camera import BakedRays, bake_problem
 from airfisheye_bench.export.onnx import ParityReport, export_onnx, first_line, size_mb, verify_onnx
 from airfisheye_bench.export.quantize import (
     QUANTIZE_MODES,
@@ -47,7 +48,7 @@ from airfisheye_bench.export.quantize import (
 from airfisheye_bench.export.validation import validation_frames
 from airfisheye_bench.io.manifest import sha256_file
 from airfisheye_bench.runs import resolve_checkpoint, run_config, run_directory
-from airfisheye_bench.runs.deployment import deployment_metadata
+from airfisheye_bench.runs.deployment import deployment_metadata, graph_inputs
 from airfisheye_bench.runs.results import dataset_identity
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.tasks.checkpoint import load_task
@@ -114,6 +115,8 @@ class DeploymentReport:
         quantization: the int8 report, or ``None`` with ``quantize=none``.
         dataset: the identity of the data its frames came from
             (:func:`~airfisheye_bench.runs.results.dataset_identity`; one per source for a run of several sources).
+        inputs: the graph's input names (the task's, and ``rays`` for a camera-aware model's map as an input).
+        rays_baked: a camera-aware model's ray map is a constant of the graph (``bake_camera=true``).
     """
 
     path: Path
@@ -128,6 +131,8 @@ class DeploymentReport:
     dynamic_spatial: bool
     quantization: QuantizationReport | None = None
     dataset: dict[str, Any] | None = None
+    inputs: tuple[str, ...] = ()
+    rays_baked: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """The report as plain JSON values (paths as written, ``nan`` as ``None``), for a committed record."""
@@ -178,6 +183,8 @@ class DeploymentReport:
             }
         if self.dataset is not None:
             record["dataset"] = self.dataset
+        if self.rays_baked or "rays" in self.inputs:  # a camera-aware model: how its ray map is given
+            record |= {"inputs": list(self.inputs), "rays_baked": self.rays_baked}
         return record
 
     def summary(self) -> str:
@@ -190,7 +197,8 @@ class DeploymentReport:
             f"parity on {self.parity_frames} validation frame(s), onnxruntime CPU vs PyTorch: "
             f"{p.verdict(self.atol, self.rtol)}",
             f"wrote {self.path} ({size_mb(self.path)}): task={self.task} model={self.model}, "
-            f"inputs {list(get_task(self.task).inputs)} -> {get_task(self.task).output}, dynamic batch, {spatial}",
+            f"inputs {list(self.inputs or get_task(self.task).inputs)}{' (ray map baked in)' if self.rays_baked else ''}"
+            f" -> {get_task(self.task).output}, dynamic batch, {spatial}",
             f"latency (batch {self.parity_frames}, {torch.get_num_threads()} threads): onnxruntime "
             f"{p.ort_ms:.1f} ms, PyTorch {p.torch_ms:.1f} ms, ratio ort/torch {p.latency_ratio:.2f}",
         ]
@@ -212,6 +220,7 @@ def export_deployment(
     calib_samples: int = 16,
     eval_samples: int = 0,
     repeats: int = 10,
+    bake_camera: bool = False,
 ) -> DeploymentReport:
     """Export a trained checkpoint (or run directory) to a verified ONNX file with deployment metadata.
 
@@ -228,6 +237,8 @@ def export_deployment(
         calib_samples: validation frames fed to static calibration.
         eval_samples: validation frames of the int8 accuracy comparison (0: the whole split).
         repeats: timed calls of each latency median (ORT vs PyTorch, fp32 vs int8).
+        bake_camera: a camera-aware model (``camera_input=rays``): store the data's camera's ray map in the graph
+            as a constant, so the file takes the image alone (else it takes ``rays`` as a second input).
 
     Returns:
         A :class:`DeploymentReport` (``.summary()`` prints it). A failed quantisation does not raise: it is
@@ -235,7 +246,8 @@ def export_deployment(
 
     Raises:
         FileNotFoundError: no checkpoint at ``ckpt_path``.
-        ValueError: unreadable checkpoint, no run config, bad overrides or arguments.
+        ValueError: unreadable checkpoint, no run config, bad overrides or arguments (``bake_camera`` for a model
+            without a camera input, or with ``dynamic_spatial``).
         ExportError: ``torch.onnx.export`` failed.
         OnnxParityError: ONNX Runtime differs from PyTorch beyond the tolerance (``out`` is not written).
 
@@ -249,12 +261,21 @@ def export_deployment(
 
     checkpoint = resolve_checkpoint(ckpt_path)
     task = load_task(checkpoint)
+    problem = bake_problem(bake_camera, task.camera_input, dynamic_spatial)
+    if problem is not None:
+        raise ValueError(problem)
 
     data_cfg = apply_data_overrides(_run_data(checkpoint), data_overrides, task=task.task)
+    if (
+        task.camera_input != "none"
+    ):  # the frames carry what the model takes (the data config follows the model)
+        data_cfg.camera_input = task.camera_input
     check_common_values(OmegaConf.create({"data": data_cfg}))
     datamodule = instantiate_datamodule(data_cfg, "validate")  # a few frames: main-process loading
-    metadata = _metadata(task, datamodule, data_cfg, checkpoint)
-    names = task.spec.inputs
+    metadata = _metadata(task, datamodule, data_cfg, checkpoint, bake_camera)
+    names = graph_inputs(task.spec.inputs, task.camera_input, bake_camera)
+    # The exported module: the model, or the model with the camera's ray map held as a constant.
+    model = BakedRays(task.net, datamodule.ray_map()) if bake_camera else task.net
     frames = validation_frames(datamodule, max(parity_samples, batch), names)
     available = int(frames["image"].shape[0])
     if available < parity_samples:
@@ -269,9 +290,9 @@ def export_deployment(
     workdir = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         candidate = workdir / out.name
-        _export(task, example, candidate, opset, dynamic_spatial, metadata)
+        _export(task, example, candidate, opset, dynamic_spatial, metadata, model)
         log.info("verifying against PyTorch on %d validation frame(s)", min(parity_samples, available))
-        parity = verify_onnx(candidate, task.net, parity_inputs, atol=atol, rtol=rtol, repeats=repeats)
+        parity = verify_onnx(candidate, model, parity_inputs, atol=atol, rtol=rtol, repeats=repeats)
         os.replace(candidate, out)  # the report says "wrote", after the parity verdict
         quantization = None
         if quantize != "none":
@@ -293,6 +314,8 @@ def export_deployment(
         dynamic_spatial=dynamic_spatial,
         quantization=quantization,
         dataset=_dataset(datamodule),
+        inputs=tuple(names),
+        rays_baked=bake_camera,
     )
 
 
@@ -341,8 +364,11 @@ def _repeat_to(x: Tensor, n: int) -> Tensor:
     return x.repeat(reps, *([1] * (x.ndim - 1)))[:n]
 
 
-def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[str, str]:
-    """The deployment metadata of a task module: the common keys plus the keys its spec lists.
+def _metadata(
+    task, datamodule, data_cfg: DictConfig, checkpoint: Path, rays_baked: bool = False
+) -> dict[str, str]:
+    """The deployment metadata of a task module: the common keys plus the keys its spec lists, and how a
+    camera-aware model takes its ray map.
 
     The task's own values come from the module's metric options (class names, ignore index, depth bounds), its
     palette and the data config (occlusion); the spec says which of them the task carries.
@@ -372,6 +398,8 @@ def _metadata(task, datamodule, data_cfg: DictConfig, checkpoint: Path) -> dict[
         checkpoint_sha256=sha256_file(checkpoint),
         source_checkpoint=str(checkpoint.resolve()),
         weights=task.hparams.get("weights"),
+        camera_input=task.camera_input,
+        rays_baked=rays_baked,
         **{k: available[k] for k in spec.export.metadata},
     )
 
@@ -392,8 +420,15 @@ def _portable_data_config(data_cfg: DictConfig, datamodule) -> dict:
 
 # ------------------------------------------------------------------------------------------------ export
 def _export(
-    task, example: dict[str, Tensor], path: Path, opset: int, dynamic_spatial: bool, metadata: dict[str, str]
+    task,
+    example: dict[str, Tensor],
+    path: Path,
+    opset: int,
+    dynamic_spatial: bool,
+    metadata: dict[str, str],
+    model: torch.nn.Module | None = None,
 ) -> None:
+    """Export ``model`` (default: the task's network) with ``example``'s names as the graph's inputs."""
     log.info(
         "exporting %s (%s) at %s, dynamic_spatial=%s",
         task.hparams["model"]["name"],
@@ -403,7 +438,7 @@ def _export(
     )
     try:
         export_onnx(
-            task.net,
+            task.net if model is None else model,
             example,
             path,
             output_name=task.spec.output,

@@ -187,7 +187,11 @@ def _run_quantizer(
         if mode == "dynamic":
             quantize_dynamic(str(source), str(target), weight_type=QuantType.QInt8)
             return
-        reader = _calibration_reader(datamodule, get_task(task).inputs, calib_samples)
+        # The graph's own inputs: the task's, and a camera-aware model's ray map unless it is baked in.
+        graph = onnx.load(str(source), load_external_data=False).graph
+        constants = {t.name for t in graph.initializer}
+        names = [i.name for i in graph.input if i.name not in constants]
+        reader = _calibration_reader(datamodule, names, calib_samples)
         quantize_static(str(source), str(target), reader)
         notes.append(
             f"static calibration on {reader.frames} validation frame(s), the split the accuracy is measured on"
@@ -228,7 +232,7 @@ def _session(path: Path):
 
 def _compare_metrics(task, datamodule, fp32_session, int8_session, limit: int):
     """The task's metrics of both ONNX models against ground truth on the validation split."""
-    names = task.spec.inputs
+    names = [i.name for i in fp32_session.get_inputs()]
     metric_fp32, metric_int8 = task.make_metric(), task.make_metric()
     frames = 0
     for batch in validation_batches(datamodule, limit):

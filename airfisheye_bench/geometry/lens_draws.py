@@ -88,8 +88,12 @@ class LensJitter:
             )
         out: dict[str, Any] = {}
         pool = value.get("pool")
-        if pool is not None and not (isinstance(pool, (int, np.integer)) and not isinstance(pool, bool) and pool >= 1):
-            raise ValueError(f"data.camera.jitter.pool={pool!r}: expected null or a whole number of lenses >= 1")
+        if pool is not None and not (
+            isinstance(pool, (int, np.integer)) and not isinstance(pool, bool) and pool >= 1
+        ):
+            raise ValueError(
+                f"data.camera.jitter.pool={pool!r}: expected null or a whole number of lenses >= 1"
+            )
         out["pool"] = None if pool is None else int(pool)
         for key in _RANGE_KEYS:
             x = value.get(key, 0.0)

@@ -33,6 +33,10 @@ views.
 **Completion** needs the LiDAR: ``sparse=<folder>`` of one range map per frame, named as the frame, in the model's
 camera and size (``<name>.npy`` in metres or 16-bit ``<name>.png`` of range * 256); without it a completion model is
 refused: images alone do not give its input.
+
+**Camera-aware models** (``model.camera_input=rays``) get the ray map of the model's camera with every frame
+(:func:`~airfisheye_bench.geometry.ray_maps.ray_map`: the lens the frames are prepared for); an ONNX file whose map
+is baked in needs nothing beside the image.
 """
 
 from __future__ import annotations
@@ -58,6 +62,7 @@ from airfisheye_bench.evaluation.submission import write_prediction
 from airfisheye_bench.evaluation.trained import TrainedModel, load_trained, through_views
 from airfisheye_bench.geometry.cameras import CameraModel
 from airfisheye_bench.geometry.perspective_views import DEPTH_CONVENTIONS, views_problem
+from airfisheye_bench.geometry.ray_maps import ray_map
 from airfisheye_bench.io.calibration_files import load_camera
 from airfisheye_bench.io.layout import calibration_beside
 from airfisheye_bench.io.progress_report import ProgressReport
@@ -193,6 +198,7 @@ def predict_footage(
     )
 
     started = time.monotonic()
+    rays = ray_map(model.camera)[None] if model.takes_rays else None
     writer = _Writer(model, out, DEPTH_FORMATS[depth_format])
     names: list[str] = []
     with writer, ProgressReport(footage.count, "predict", "frame", progress, logger=log) as bar:
@@ -205,6 +211,10 @@ def predict_footage(
                 sparse_maps = torch.stack([read_sparse(sparse_dir, name, shape) for name, _ in chunk])
                 # As served in training: no LiDAR point outside the lens.
                 batch["sparse_depth"] = sparse_maps.masked_fill(~model.camera.valid_mask(), 0.0)
+            if (
+                model.takes_rays
+            ):  # a camera-aware model: the ray map of the camera the frames are prepared for
+                batch["rays"] = rays.expand(len(chunk), -1, -1, -1)
             predictions = model.predictor(batch).cpu()
             for i, (name, _) in enumerate(chunk):
                 sparse_map = batch["sparse_depth"][i, 0] if "sparse_depth" in batch else None

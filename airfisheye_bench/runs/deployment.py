@@ -10,7 +10,8 @@ Every task:
 - ``airfisheye.task``: the task name (``seg`` | ``depth`` | ``completion``, or another registered task).
 - ``airfisheye.model``: registry name of the zoo model (``deeplabv3plus``, ``adabins``, ``nlspn``, ...).
 - ``airfisheye.model_config``: JSON of the checkpoint's ``hyper_parameters.model`` dict.
-- ``airfisheye.inputs``: JSON list of graph input names, ``["image"]`` or ``["image", "sparse_depth"]``.
+- ``airfisheye.inputs``: JSON list of graph input names, ``["image"]`` or ``["image", "sparse_depth"]`` (a
+  camera-aware model whose ray map is not baked in: ``"rays"`` last).
 - ``airfisheye.output``: graph output name, ``logits`` (seg) or ``depth``.
 - ``airfisheye.normalization``: JSON ``{"mean": [r, g, b], "std": [r, g, b]}``, meaning
   ``image = (rgb / 255 - mean) / std``, RGB order, NCHW float32.
@@ -29,6 +30,10 @@ Optional, every task (read when present; models exported before it lack it):
 
 - ``airfisheye.weights``: JSON of the weights the model started from before training
   (``models.weights.weights_identity``: ``encoder_weights`` such as ``imagenet`` with source, file and SHA-256).
+- ``airfisheye.camera_input``: ``rays`` for a camera-aware model (``model.camera_input=rays``; absent: ``none``,
+  the image alone), which takes the ray map of its camera (docs/design.md, "Ray map").
+- ``airfisheye.rays_baked``: JSON bool, with ``camera_input``: the camera's ray map is a constant of the graph
+  (``bake_camera=true``: the graph takes the image alone), else the graph's input ``rays`` ``[B, 4, H, W]``.
 
 Segmentation (``seg``) only:
 
@@ -69,6 +74,7 @@ __all__ = [
     "COMMON_KEYS",
     "FORMAT_VERSION",
     "KEY_CAMERA",
+    "KEY_CAMERA_INPUT",
     "KEY_CHECKPOINT_SHA256",
     "KEY_CLASS_NAMES",
     "KEY_DATA_CONFIG",
@@ -84,12 +90,14 @@ __all__ = [
     "KEY_OCCLUSION",
     "KEY_OUTPUT",
     "KEY_PALETTE",
+    "KEY_RAYS_BAKED",
     "KEY_SOURCE_CHECKPOINT",
     "KEY_TASK",
     "KEY_WEIGHTS",
     "OPTIONAL_KEYS",
     "PREFIX",
     "deployment_metadata",
+    "graph_inputs",
     "parse_deployment_metadata",
     "read_deployment_metadata",
     "read_onnx_metadata",
@@ -117,6 +125,8 @@ KEY_MIN_DEPTH = "airfisheye.min_depth"
 KEY_MAX_DEPTH = "airfisheye.max_depth"
 KEY_OCCLUSION = "airfisheye.occlusion"
 KEY_WEIGHTS = "airfisheye.weights"
+KEY_CAMERA_INPUT = "airfisheye.camera_input"
+KEY_RAYS_BAKED = "airfisheye.rays_baked"
 
 COMMON_KEYS: tuple[str, ...] = (
     KEY_FORMAT_VERSION,
@@ -133,7 +143,7 @@ COMMON_KEYS: tuple[str, ...] = (
     KEY_SOURCE_CHECKPOINT,
 )
 #: Keys written when their value is known, decoded when present.
-OPTIONAL_KEYS: tuple[str, ...] = (KEY_WEIGHTS,)
+OPTIONAL_KEYS: tuple[str, ...] = (KEY_WEIGHTS, KEY_CAMERA_INPUT, KEY_RAYS_BAKED)
 
 # Values stored as plain strings; every other key holds JSON.
 _STRING_KEYS = frozenset(
@@ -145,8 +155,21 @@ _STRING_KEYS = frozenset(
         KEY_CHECKPOINT_SHA256,
         KEY_SOURCE_CHECKPOINT,
         KEY_OCCLUSION,
+        KEY_CAMERA_INPUT,
     }
 )
+
+
+def graph_inputs(
+    task_inputs: Sequence[str], camera_input: str = "none", baked: bool = False
+) -> tuple[str, ...]:
+    """The graph input names of a model: its task's, then ``rays`` for a camera-aware one whose map is not baked.
+
+    Example:
+        >>> graph_inputs(("image",), "rays"), graph_inputs(("image",), "rays", baked=True)
+        (('image', 'rays'), ('image',))
+    """
+    return (*task_inputs, "rays") if camera_input == "rays" and not baked else tuple(task_inputs)
 
 
 def deployment_metadata(
@@ -160,6 +183,8 @@ def deployment_metadata(
     checkpoint_sha256: str,
     source_checkpoint: str | os.PathLike,
     weights: Mapping[str, Any] | None = None,
+    camera_input: str = "none",
+    rays_baked: bool = False,
     **task_values: Any,
 ) -> dict[str, str]:
     """Encode the deployment metadata of one model as ``metadata_props`` strings (see the module docstring).
@@ -178,12 +203,16 @@ def deployment_metadata(
         checkpoint_sha256: hex digest of the checkpoint file.
         source_checkpoint: path of the checkpoint file.
         weights: optional record of the weights the model started from (``airfisheye.weights``).
+        camera_input: ``rays`` for a camera-aware model (``airfisheye.camera_input`` and ``airfisheye.rays_baked``
+            are written for it only: the metadata of a model without a camera input is what it was before).
+        rays_baked: its ray map is a constant of the graph, not the input ``rays``.
         **task_values: the task's own values by short name, e.g. seg: ``class_names`` (in logits channel
             order), ``palette`` (``[r, g, b]`` per class), ``ignore_index``; depth and completion: ``min_depth``,
             ``max_depth`` (metres); completion: ``occlusion`` (the sparse input's occlusion correction).
 
     Returns:
-        ``{key: str}`` with exactly the common and the task's keys, plus ``airfisheye.weights`` when given.
+        ``{key: str}`` with exactly the common and the task's keys, plus ``airfisheye.weights`` when given and the
+        camera input's keys for a camera-aware model.
 
     Raises:
         ValueError: an unknown task, a missing or superfluous task-specific value, or a malformed value.
@@ -218,7 +247,7 @@ def deployment_metadata(
         KEY_TASK: task,
         KEY_MODEL: model,
         KEY_MODEL_CONFIG: dict(model_config),
-        KEY_INPUTS: list(spec.inputs),
+        KEY_INPUTS: list(graph_inputs(spec.inputs, camera_input, rays_baked)),
         KEY_OUTPUT: spec.output,
         KEY_NORMALIZATION: {
             "mean": [float(v) for v in normalization["mean"]],
@@ -234,6 +263,9 @@ def deployment_metadata(
     out = {key: _encode(key, values[key]) for key in (*COMMON_KEYS, *wanted)}
     if weights is not None:
         out[KEY_WEIGHTS] = _encode(KEY_WEIGHTS, dict(weights))
+    if camera_input != "none":
+        out[KEY_CAMERA_INPUT] = _encode(KEY_CAMERA_INPUT, camera_input)
+        out[KEY_RAYS_BAKED] = _encode(KEY_RAYS_BAKED, bool(rays_baked))
     # The writer never produces what the reader would reject.
     parse_deployment_metadata(out)
     return out

@@ -8,6 +8,8 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from models.camera_input import resize_rays, widen_conv
+
 
 class UpSampleBN(nn.Module):
     """Upsample to the skip's size (bilinear, ``align_corners=True``), concatenate, two conv3x3-BN-LeakyReLU.
@@ -27,9 +29,16 @@ class UpSampleBN(nn.Module):
             nn.LeakyReLU(),
         )
 
-    def forward(self, x: Tensor, concat_with: Tensor) -> Tensor:
+    def forward(self, x: Tensor, concat_with: Tensor, rays: Tensor | None = None) -> Tensor:
         up_x = F.interpolate(x, size=concat_with.shape[-2:], mode="bilinear", align_corners=True)
-        return self._net(torch.cat([up_x, concat_with], dim=1))
+        parts = (
+            [up_x, concat_with] if rays is None else [up_x, concat_with, resize_rays(rays, up_x.shape[-2:])]
+        )
+        return self._net(torch.cat(parts, dim=1))
+
+    def read_rays(self, channels: int) -> None:
+        """Take ``channels`` more inputs after the skip (the ray map, CAM-Convs style), their weights zero."""
+        self._net[0] = widen_conv(self._net[0], channels)
 
 
 class DecoderBN(nn.Module):
@@ -41,9 +50,11 @@ class DecoderBN(nn.Module):
         num_features: width after the bottleneck conv; halves at each of the four up blocks
             (official: 2048 -> 1024 -> 512 -> 256 -> 128).
         out_channels: channels of the output (128, the mini-ViT input).
+        ray_channels: channels of a ray map concatenated to every up block's input, resized to its resolution
+            (``camera_input="rays"``: 4; 0: none, the decoder of the official code).
 
     Returns (forward):
-        Features ``[B, out_channels, H/2, W/2]``.
+        Features ``[B, out_channels, H/2, W/2]``; ``forward(features, rays)`` with ``ray_channels``.
 
     Example:
         >>> dec = DecoderBN([3, 8, 8, 16, 32, 64], num_features=64, out_channels=16)
@@ -53,7 +64,11 @@ class DecoderBN(nn.Module):
     """
 
     def __init__(
-        self, encoder_channels: Sequence[int], num_features: int = 2048, out_channels: int = 128
+        self,
+        encoder_channels: Sequence[int],
+        num_features: int = 2048,
+        out_channels: int = 128,
+        ray_channels: int = 0,
     ) -> None:
         super().__init__()
         if len(encoder_channels) != 6:
@@ -72,12 +87,15 @@ class DecoderBN(nn.Module):
         self.up3 = UpSampleBN(f // 4 + c4, f // 8)
         self.up4 = UpSampleBN(f // 8 + c2, f // 16)
         self.conv3 = nn.Conv2d(f // 16, out_channels, kernel_size=3, stride=1, padding=1)
+        if ray_channels:
+            for up in (self.up1, self.up2, self.up3, self.up4):
+                up.read_rays(ray_channels)
 
-    def forward(self, features: Sequence[Tensor]) -> Tensor:
+    def forward(self, features: Sequence[Tensor], rays: Tensor | None = None) -> Tensor:
         _, x2, x4, x8, x16, x32 = features
         x = self.conv2(x32)
-        x = self.up1(x, x16)
-        x = self.up2(x, x8)
-        x = self.up3(x, x4)
-        x = self.up4(x, x2)
+        x = self.up1(x, x16, rays)
+        x = self.up2(x, x8, rays)
+        x = self.up3(x, x4, rays)
+        x = self.up4(x, x2, rays)
         return self.conv3(x)

@@ -13,6 +13,7 @@ from torch import Tensor, nn
 
 from models.adabins.decoder import DecoderBN
 from models.adabins.mini_vit import BIN_NORMS, MiniViT
+from models.camera_input import RAY_MAP_CHANNELS, check_camera_input, check_rays, widen_first_conv
 from models.input_checks import check_image
 from models.weights import (
     build_smp_with_encoder_weights,
@@ -52,6 +53,9 @@ class UnetAdaptiveBins(nn.Module):
         dim_feedforward: transformer MLP width (1024).
         n_query_channels: number of range-attention maps (128); needs ``(H/2/patch) * (W/2/patch) > n_query``.
         pos_grid_size: side of the learned positional grid, resized to the patch grid (16 = 512x512 input).
+        camera_input: ``"none"`` or ``"rays"``: the ray map ``rays`` ``[B, 4, H, W]`` enters the encoder's first
+            convolution (4 more input channels, their weights zero) and is concatenated, resized, to the input of
+            each of the decoder's four up blocks (CAM-Convs style; :mod:`models.camera_input`).
 
     Attributes:
         weights_identity: what the weights started from (:func:`models.weights.weights_identity`).
@@ -84,6 +88,7 @@ class UnetAdaptiveBins(nn.Module):
         dim_feedforward: int = 1024,
         n_query_channels: int = 128,
         pos_grid_size: int = 16,
+        camera_input: str = "none",
     ) -> None:
         super().__init__()
         if not 0 < min_depth < max_depth:
@@ -100,6 +105,8 @@ class UnetAdaptiveBins(nn.Module):
         self.min_depth = float(min_depth)
         self.max_depth = float(max_depth)
         self.in_channels = in_channels
+        self.camera_input = check_camera_input(camera_input)
+        ray_channels = RAY_MAP_CHANNELS if self.camera_input == "rays" else 0
 
         def build_encoder(weights: str | bool | None) -> nn.Module:
             return get_encoder(encoder_name, in_channels=in_channels, depth=5, weights=weights)
@@ -107,8 +114,12 @@ class UnetAdaptiveBins(nn.Module):
         self.encoder, encoder_record = build_smp_with_encoder_weights(
             build_encoder, encoder_name, encoder_weights
         )
+        if ray_channels:
+            widen_first_conv(self.encoder, ray_channels, in_channels)
         channels = list(self.encoder.out_channels)
-        self.decoder = DecoderBN(channels, decoder_features or channels[-1], decoder_out_channels)
+        self.decoder = DecoderBN(
+            channels, decoder_features or channels[-1], decoder_out_channels, ray_channels
+        )
         self.adaptive_bins_layer = MiniViT(
             decoder_out_channels,
             n_query_channels=n_query_channels,
@@ -130,11 +141,12 @@ class UnetAdaptiveBins(nn.Module):
             load_weights(self, weights_path, what="weights_path")
         self.weights_identity = weights_identity(encoder_record, weights_path)
 
-    def forward(self, image: Tensor) -> Tensor:
-        """Depth ``[B, 1, H, W]`` in metres, within ``[min_depth, max_depth]``."""
-        return self.forward_with_aux(image)["depth"]
+    def forward(self, image: Tensor, rays: Tensor | None = None) -> Tensor:
+        """Depth ``[B, 1, H, W]`` in metres, within ``[min_depth, max_depth]`` (``rays``: the ray map
+        ``[B, 4, H, W]`` of a model built with ``camera_input="rays"``)."""
+        return self.forward_with_aux(image, rays)["depth"]
 
-    def forward_with_aux(self, image: Tensor) -> dict[str, Tensor]:
+    def forward_with_aux(self, image: Tensor, rays: Tensor | None = None) -> dict[str, Tensor]:
         """Depth plus what the AdaBins loss needs.
 
         Returns:
@@ -142,7 +154,11 @@ class UnetAdaptiveBins(nn.Module):
             ``"bin_edges"`` ``[B, n_bins + 1]``, increasing from ``min_depth`` to ``max_depth``.
         """
         check_image(image, self.in_channels, self.output_stride)
-        features = self.decoder(self.encoder(image))
+        check_rays(rays, image, self.camera_input)
+        if rays is None:
+            features = self.decoder(self.encoder(image))
+        else:
+            features = self.decoder(self.encoder(torch.cat([image, rays], dim=1)), rays)
         widths_normed, range_attention_maps = self.adaptive_bins_layer(features)
         # conv_out (1x1) + softmax over bins, computed pixels-first ([B, h*w, n_bins]) so the softmax runs over
         # the contiguous last axis: the same maths as the official Conv2d + Softmax(dim=1), and ONNX Runtime

@@ -24,6 +24,7 @@ import os
 import torch
 from torch import Tensor, nn
 
+from models.camera_input import RAY_MAP_CHANNELS, check_camera_input, check_rays, widen_conv, widen_first_conv
 from models.input_checks import check_image, check_sparse_depth
 from models.nlspn.blocks import conv_bn_relu, convt_bn_relu, resnet_stages
 from models.nlspn.propagation import NonLocalPropagation
@@ -35,8 +36,8 @@ __all__ = ["NLSPN"]
 class NLSPN(nn.Module):
     """NLSPN: encoder-decoder predicting initial depth, guidance and confidence, refined by non-local propagation.
 
-    Follows the zoo calling convention (``models/__init__.py``): ``forward(image, sparse_depth)`` returns the
-    completed depth ``[B, 1, H, W]`` in metres (exported to ONNX); ``forward_with_aux`` also returns the
+    Follows the zoo calling convention (``models/__init__.py``): ``forward(image, sparse_depth, rays=None)`` returns
+    the completed depth ``[B, 1, H, W]`` in metres (exported to ONNX); ``forward_with_aux`` also returns the
     intermediate outputs.
 
     Args:
@@ -55,6 +56,10 @@ class NLSPN(nn.Module):
         confidence_sampling: ``"offset"`` (default, upstream non-legacy), ``"neighbour"`` (the paper's text,
             upstream issue #46) or ``"legacy"``; see :mod:`models.nlspn.propagation`.
         propagation_impl: ``"grid_sample"`` (default) or ``"deform_conv"`` (torchvision DCN, ONNX opset >= 19).
+        camera_input: ``"none"`` or ``"rays"``: the ray map ``rays`` ``[B, 4, H, W]`` enters the RGB stem (4 more
+            input channels) and, at full resolution, the first layer of each head (initial depth, guidance,
+            confidence) beside the decoder's features; the weights reading it start at zero
+            (:mod:`models.camera_input`).
 
     Example:
         >>> model = NLSPN(encoder_name="resnet18", prop_steps=2).eval()
@@ -82,8 +87,10 @@ class NLSPN(nn.Module):
         preserve_input: bool = False,
         confidence_sampling: str = "offset",
         propagation_impl: str = "grid_sample",
+        camera_input: str = "none",
     ) -> None:
         super().__init__()
+        self.camera_input = check_camera_input(camera_input)
         num_neighbours = prop_kernel * prop_kernel - 1
         self.conf_prop = conf_prop
 
@@ -120,22 +127,31 @@ class NLSPN(nn.Module):
             confidence_sampling=confidence_sampling,
             impl=propagation_impl,
         )
+        if self.camera_input == "rays":
+            widen_first_conv(self.conv1_rgb, RAY_MAP_CHANNELS)
+            for head in (self.id_dec1, self.gd_dec1, *((self.cf_dec1,) if conf_prop else ())):
+                head[0] = widen_conv(head[0], RAY_MAP_CHANNELS)
         weights_path = resolve_weights_path(weights_path)
         if weights_path is not None:
             load_weights(self, weights_path, what="weights_path")
         self.weights_identity = weights_identity(encoder_record, weights_path)
 
-    def forward(self, image: Tensor, sparse_depth: Tensor) -> Tensor:
+    def forward(self, image: Tensor, sparse_depth: Tensor, rays: Tensor | None = None) -> Tensor:
         """Completed depth ``[B, 1, H, W]`` (metres, >= 0) from ``image`` ``[B, 3, H, W]`` (ImageNet-normalised)
-        and ``sparse_depth`` ``[B, 1, H, W]`` (metres, 0 = no return)."""
-        return self.forward_with_aux(image, sparse_depth)["depth"]
+        and ``sparse_depth`` ``[B, 1, H, W]`` (metres, 0 = no return); ``rays`` ``[B, 4, H, W]`` with
+        ``camera_input="rays"``."""
+        return self.forward_with_aux(image, sparse_depth, rays)["depth"]
 
-    def forward_with_aux(self, image: Tensor, sparse_depth: Tensor) -> dict[str, Tensor]:
+    def forward_with_aux(
+        self, image: Tensor, sparse_depth: Tensor, rays: Tensor | None = None
+    ) -> dict[str, Tensor]:
         """All outputs: ``depth`` (final, clamped >= 0), ``initial_depth`` (before propagation), ``guidance``
         ``[B, n, H, W]``, ``offset`` ``[B, n, 2, H, W]``, ``affinity`` ``[B, n + 1, H, W]`` (normalised, centre at
         ``n // 2``) and, with ``conf_prop``, ``confidence`` ``[B, 1, H, W]``."""
         self._check_inputs(image, sparse_depth)
-        fe1 = torch.cat((self.conv1_rgb(image), self.conv1_dep(sparse_depth)), dim=1)
+        check_rays(rays, image, self.camera_input)
+        rgb = image if rays is None else torch.cat((image, rays), dim=1)
+        fe1 = torch.cat((self.conv1_rgb(rgb), self.conv1_dep(sparse_depth)), dim=1)
         fe2 = self.conv2(fe1)
         fe3 = self.conv3(fe2)
         fe4 = self.conv4(fe3)
@@ -147,6 +163,8 @@ class NLSPN(nn.Module):
         fd3 = self.dec3(_crop_cat(fd4, fe4))
         fd2 = self.dec2(_crop_cat(fd3, fe3))
         fd2_skip = _crop_cat(fd2, fe2)
+        if rays is not None:  # the heads see each pixel's ray beside the decoder's features
+            fd2_skip = torch.cat((fd2_skip, rays), dim=1)
 
         init_depth = self.id_dec0(torch.cat((self.id_dec1(fd2_skip), fe1), dim=1))
         guidance = self.gd_dec0(torch.cat((self.gd_dec1(fd2_skip), fe1), dim=1))

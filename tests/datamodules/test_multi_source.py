@@ -231,7 +231,7 @@ def test_a_4x3_fisheye_source_is_padded_to_the_common_square(tiny_dataset: Path,
     with pytest.raises(ConfigError, match=r"data\.source_options\.woodscape\.class_map is needed"):
         _datamodule(["a", "woodscape"], options).setup("test")  # its own 10 classes
     woodscape["format_options"] = {"classes": "benchmark"}  # the source maps them onto the benchmark's
-    dm = _datamodule(["a", "woodscape"], options)
+    dm = _datamodule(["a", "woodscape"], options, camera_input="rays")
     alone = AirFisheyeDataModule(
         "seg",
         root=ws,
@@ -239,6 +239,7 @@ def test_a_4x3_fisheye_source_is_padded_to_the_common_square(tiny_dataset: Path,
         source="fisheye",
         camera={"size": 32},
         format_options={"classes": "benchmark"},
+        camera_input="rays",
     ).split_dataset("val")
     assert (alone.camera.width, alone.camera.height) == (32, 24)
     test = dm.split_dataset("test")
@@ -249,6 +250,9 @@ def test_a_4x3_fisheye_source_is_padded_to_the_common_square(tiny_dataset: Path,
     )
     assert torch.equal(mixed["valid_mask"][4:28], own["valid_mask"]) and not mixed["valid_mask"][:4].any()
     assert (mixed["label"][:4] == 255).all() and not mixed["valid_mask"][28:].any()
+    # Its lens's ray map, padded as the other maps: no ray in the bands.
+    assert torch.equal(mixed["rays"][:, 4:28], own["rays"]) and not mixed["rays"][:, :4].any()
+    assert torch.equal(test[0]["rays"], dm.ray_map())  # the run's camera: the first source's
     # The padded camera sees through row r + 4 what the source's own camera sees through row r.
     padded = dm.camera_of("woodscape")
     assert (padded.width, padded.height) == (32, 32) and padded.cy == pytest.approx(alone.camera.cy + 4)

@@ -12,6 +12,10 @@ Every test builds the model through ``models.create_model(model_name, **model_kw
 convention of ``models/__init__.py``: named inputs (``image`` and, for completion, ``sparse_depth``), ``forward``
 returning the primary output, ``forward_with_aux`` returning a dict, clear ``ValueError`` on bad input, and an
 ONNX export (dynamic batch) that ONNX Runtime reproduces. ``paper_kwargs`` enables the full-size ``slow`` tests.
+
+A tester whose ``model_kwargs`` hold ``camera_input="rays"`` feeds the ray map (``rays``, of a fisheye lens at the
+input's size) and checks the camera input's contract too: a missing or misshapen ray map is refused, and the ray path
+starts at zero (a rays model holding a plain model's weights gives its output, whatever the rays).
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ from torch import Tensor, nn
 import models
 from airfisheye_bench.export import export_onnx, verify_onnx
 from airfisheye_bench.export.deploy import parity_tolerance
+from airfisheye_bench.geometry.cameras import ideal_camera
+from airfisheye_bench.geometry.ray_maps import ray_map
 from airfisheye_bench.runs.deployment import read_onnx_metadata
 
 _PRIMARY_KEY = {"seg": "logits", "depth": "depth", "completion": "depth"}
@@ -76,6 +82,15 @@ class BaseModelTester:
         return _PRIMARY_KEY[self.task]
 
     @property
+    def takes_rays(self) -> bool:
+        return self.model_kwargs.get("camera_input", "none") == "rays"
+
+    @property
+    def input_names(self) -> list[str]:
+        names = ["image", "sparse_depth"] if self.task == "completion" else ["image"]
+        return [*names, "rays"] if self.takes_rays else names
+
+    @property
     def out_channels(self) -> int:
         return self.model_kwargs.get("num_classes", 13) if self.task == "seg" else 1
 
@@ -91,6 +106,8 @@ class BaseModelTester:
         if self.task == "completion":
             depth = 1.0 + 99.0 * torch.rand(batch, 1, h, w, generator=g)
             inputs["sparse_depth"] = depth * (torch.rand(batch, 1, h, w, generator=g) < 0.05)
+        if self.takes_rays:
+            inputs["rays"] = fisheye_rays(batch, size)
         return inputs
 
     def tolerances(self) -> tuple[float, float]:
@@ -192,6 +209,35 @@ class BaseModelTester:
             f"message should say to pad to {pad}: {message}"
         )
 
+    def test_a_missing_or_misshapen_ray_map_is_refused(self):
+        model = self.make_model().eval()
+        inputs = self.make_inputs(2, self.input_sizes[0])
+        h, w = self.input_sizes[0]
+        if not self.takes_rays:
+            with pytest.raises(ValueError, match="camera_input=none and takes no rays"):
+                model(**inputs, rays=fisheye_rays(2, (h, w)))
+            return
+        with pytest.raises(ValueError, match="camera_input=rays and needs rays"):
+            model(**{k: v for k, v in inputs.items() if k != "rays"})
+        for bad in (inputs["rays"][:, :3], inputs["rays"][:1], fisheye_rays(2, (h // 2, w))):
+            with pytest.raises(ValueError, match=r"rays must have shape"):
+                model(**{**inputs, "rays": bad})
+
+    def test_the_ray_path_starts_at_zero(self):
+        """A rays model holding a plain model's weights, its ray weights as built, gives the plain model's output
+        whatever the ray map: the camera input is added to the model, nothing of it replaced."""
+        if not self.takes_rays:
+            pytest.skip("the model takes no rays")
+        plain = self.make_model(camera_input="none").eval()
+        model = self.make_model(seed=1).eval()
+        load_overlapping(model, plain.state_dict())
+        inputs = self.make_inputs(2, self.input_sizes[0])
+        noise = torch.randn(inputs["rays"].shape, generator=torch.Generator().manual_seed(2))
+        with torch.no_grad():
+            expected = plain(**{k: v for k, v in inputs.items() if k != "rays"})
+            torch.testing.assert_close(model(**inputs), expected, atol=1e-5, rtol=1e-5)
+            torch.testing.assert_close(model(**{**inputs, "rays": noise}), expected, atol=1e-5, rtol=1e-5)
+
     def test_wrong_sparse_depth_shape_raises(self):
         if self.task != "completion":
             pytest.skip("only completion models take sparse_depth")
@@ -205,7 +251,7 @@ class BaseModelTester:
             torch.zeros(1, 1, h, w),
         ):
             with pytest.raises(ValueError, match="sparse_depth"):
-                model(image=inputs["image"], sparse_depth=bad)
+                model(**{**inputs, "sparse_depth": bad})
 
     # ------------------------------------------------------------------ ONNX
 
@@ -246,8 +292,7 @@ class BaseModelTester:
 
         _, path = exported
         graph = onnx.load(path).graph
-        expected_inputs = ["image", "sparse_depth"] if self.task == "completion" else ["image"]
-        assert sorted(i.name for i in graph.input) == sorted(expected_inputs)
+        assert sorted(i.name for i in graph.input) == sorted(self.input_names)
         assert [o.name for o in graph.output] == [self.primary_key]
         assert read_onnx_metadata(path) == {"task": self.task, "model": self.model_name}
 
@@ -310,3 +355,20 @@ class BaseModelTester:
             measure_latency=False,
         )
         assert report.output_shape[0] == 1
+
+
+def fisheye_rays(batch: int, size: tuple[int, int]) -> Tensor:
+    """The ray map ``[batch, 4, H, W]`` of a 190 deg equidistant lens filling an ``H x W`` image."""
+    h, w = size
+    return ray_map(ideal_camera(w, h, fov_deg=190.0))[None].expand(batch, -1, -1, -1).contiguous()
+
+
+def load_overlapping(model: nn.Module, state: dict[str, Tensor]) -> None:
+    """Copy ``state`` into ``model``: a tensor of the same shape whole, a widened one (more input channels, or a
+    depthwise convolution's more groups) into its leading part, leaving the rest as built."""
+    own = model.state_dict()
+    assert set(own) == set(state), sorted(set(own) ^ set(state))
+    with torch.no_grad():
+        for key, value in state.items():
+            target = own[key]
+            target[tuple(slice(0, n) for n in value.shape)].copy_(value)

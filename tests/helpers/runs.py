@@ -13,6 +13,7 @@ import contextlib
 import io
 import json
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
 from omegaconf import open_dict
@@ -50,8 +51,9 @@ def shared_run_overrides(task: str, root: Path) -> list[str]:
     return [*tiny_run_overrides(task, root), "logger=csv"]
 
 
-def shared_run(task: str, dataset: Path, folder: Path) -> Path:
-    """The run of :func:`shared_run_overrides` in ``folder``, trained by the first caller of the session.
+def shared_run(task: str, dataset: Path, folder: Path, extra: Sequence[str] = ()) -> Path:
+    """The run of :func:`shared_run_overrides` (and the ``extra`` overrides) in ``folder``, trained by the first
+    caller of the session.
 
     ``folder/returned.json`` holds what ``train(cfg)`` returned. Read-only: :func:`copy_run` before changing it.
     """
@@ -60,7 +62,7 @@ def shared_run(task: str, dataset: Path, folder: Path) -> Path:
     with exclusive_lock(folder.with_name(folder.name + ".lock")):
         if not (folder / DONE).is_file():
             shutil.rmtree(folder, ignore_errors=True)  # an interrupted attempt
-            cfg = compose_train(shared_run_overrides(task, dataset))
+            cfg = compose_train([*shared_run_overrides(task, dataset), *extra])
             with open_dict(cfg):
                 cfg.paths.output_dir = str(folder)
             returned = train(cfg)
@@ -74,9 +76,9 @@ def copy_run(run: Path, to: Path) -> Path:
     return to
 
 
-def shared_export(task: str, run: Path, folder: Path) -> tuple[Path, int, str]:
-    """``airfisheye-export ckpt_path=<run>/checkpoints/last.ckpt out=<folder>/<task>.onnx repeats=1`` through the
-    command's main, once per session: ``(the ONNX file, the exit status, what it printed)``. Read-only."""
+def shared_export(task: str, run: Path, folder: Path, extra: Sequence[str] = ()) -> tuple[Path, int, str]:
+    """``airfisheye-export ckpt_path=<run>/checkpoints/last.ckpt out=<folder>/<task>.onnx repeats=1 [extra]``
+    through the command's main, once per session: ``(the ONNX file, the exit status, what it printed)``. Read-only."""
     from airfisheye_bench.cli import export
 
     out = folder / f"{task}.onnx"
@@ -89,7 +91,7 @@ def shared_export(task: str, run: Path, folder: Path) -> tuple[Path, int, str]:
             with contextlib.redirect_stdout(printed):
                 try:
                     code = export(
-                        [f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1"]
+                        [f"ckpt_path={run / 'checkpoints' / 'last.ckpt'}", f"out={out}", "repeats=1", *extra]
                     )
                 except SystemExit as stop:
                     code = int(stop.code or 0)

@@ -36,6 +36,13 @@ class TestAdaBins(BaseModelTester):
     paper_kwargs: ClassVar[dict] = {}  # the registered defaults are the paper configuration
 
 
+class TestAdaBinsRays(TestAdaBins):
+    """The ray map at the encoder's input and at each up block of the decoder."""
+
+    model_kwargs: ClassVar[dict] = {**TINY, "camera_input": "rays"}
+    paper_kwargs = None
+
+
 def _tiny(**overrides):
     torch.manual_seed(0)
     return models.create_model("adabins", **{**TINY, **overrides})

@@ -81,6 +81,13 @@ class TestNLSPN(BaseModelTester):
         assert ((out["confidence"] >= 0) & (out["confidence"] <= 1)).all()
 
 
+class TestNLSPNRays(TestNLSPN):
+    """The ray map at the RGB stem and at the first layer of each full-resolution head."""
+
+    model_kwargs: ClassVar[dict] = {**TestNLSPN.model_kwargs, "camera_input": "rays"}
+    paper_kwargs = None
+
+
 def test_paper_architecture_matches_upstream_layer_by_layer():
     """Parameter count derived from upstream's layer list (nlspnmodel.py) and torchvision's ResNet34 stages."""
 

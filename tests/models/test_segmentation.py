@@ -34,6 +34,19 @@ class TestSmpGeneric(BaseModelTester):
     output_stride = 32
 
 
+class TestDeepLabV3PlusRays(TestDeepLabV3Plus):
+    """The ray map at the encoder's input and at the decoder's fusion of the ASPP and stride-4 features."""
+
+    model_kwargs: ClassVar[dict] = {**TestDeepLabV3Plus.model_kwargs, "camera_input": "rays"}
+    paper_kwargs = None
+
+
+class TestSmpGenericRays(TestSmpGeneric):
+    """Any other smp architecture: the ray map at the encoder's input."""
+
+    model_kwargs: ClassVar[dict] = {**TestSmpGeneric.model_kwargs, "camera_input": "rays"}
+
+
 def test_deeplabv3plus_paper_defaults():
     net = models.create_model("deeplabv3plus")
     assert net.arch == "deeplabv3plus"

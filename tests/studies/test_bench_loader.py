@@ -74,8 +74,21 @@ def test_per_core_json(tiny_dataset: Path, tmp_path: Path) -> None:
 def test_fixed_and_drawn_lenses_side_by_side(tiny_dataset: Path) -> None:
     """``--lenses fixed drawn``: the same configuration timed with one lens and with a lens drawn per sample."""
     results = loader_speed.main(
-        ["--root", str(tiny_dataset), "--size", "32", "--samples", "2", "--repeats", "2", "--tasks", "depth"]
-        + ["--sources", "cubemap", "fisheye", "--lenses", "fixed", "drawn", "pooled"]
+        [
+            *[
+                "--root",
+                str(tiny_dataset),
+                "--size",
+                "32",
+                "--samples",
+                "2",
+                "--repeats",
+                "2",
+                "--tasks",
+                "depth",
+            ],
+            *["--sources", "cubemap", "fisheye", "--lenses", "fixed", "drawn", "pooled"],
+        ]
     )
     # A pre-rendered fisheye has one lens: it is timed fixed only.
     assert [(r["source"], r["lenses"]) for r in results] == [

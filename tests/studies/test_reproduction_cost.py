@@ -33,7 +33,9 @@ def test_hours_are_the_images_of_the_epochs_over_the_measured_rate() -> None:
 
 def test_generation_cost_is_cpu_seconds_per_frame_times_frames() -> None:
     row = {"preset": "paper", "frame_cpu_s": 6.0, "frame_s": 15.0, "load_average_before": [1.0] * 3}
-    cost = reproduction_cost.generation_cost({"presets": [{"preset": "tiny"}, {**row, "load_average_after": [2.0] * 3}]}, 26000)
+    cost = reproduction_cost.generation_cost(
+        {"presets": [{"preset": "tiny"}, {**row, "load_average_after": [2.0] * 3}]}, 26000
+    )
     assert cost["core_hours"] == pytest.approx(26000 * 6.0 / 3600) and cost["wall_s_per_frame"] == 15.0
 
 
