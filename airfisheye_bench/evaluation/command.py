@@ -201,7 +201,9 @@ def evaluate(
     with writer or contextlib.nullcontext():
         result = score(datamodule, num_panels=cfg.num_panels, on_batch=writer.add_batch if writer else None)
     cross_lens = (
-        _cross_lens(cfg, tests, task, spec, score, data_config, datamodule, result) if tests else None
+        _cross_lens(cfg, tests, task, spec, score, data_config, datamodule, result, model_camera)
+        if tests
+        else None
     )
     if before_writing is not None:
         before_writing()
@@ -478,11 +480,17 @@ def _cross_lens(
     data_config: dict[str, Any],
     datamodule: Any,
     own: EvaluationResult,
+    model_camera: CameraModel | None = None,
 ) -> dict[str, Any]:
     """Score the model on each test lens (the trained one is ``own``) and, with ``robustness=true``, on the trained
-    lens perturbed: the ``cross_lens`` block of ``results.json``."""
+    lens perturbed: the ``cross_lens`` block of ``results.json``. A perspective model (``views=``, ``model_camera``)
+    was trained on its own camera alone: ``trained`` is then the data's lens through its views, not one it saw."""
     base = OmegaConf.create(data_config)
-    trained = [lens.camera for lens in datamodule.split_dataset(cfg.split).served_lenses]
+    trained = (
+        [model_camera]
+        if model_camera is not None
+        else [lens.camera for lens in datamodule.split_dataset(cfg.split).served_lenses]
+    )
 
     def served(data: DictConfig) -> Any:
         return run_datamodule(apply_data_overrides(data, task=task))
@@ -495,7 +503,7 @@ def _cross_lens(
             "name": lens.name,
             "lens": lens.spec(),
             "camera": camera.to_dict(),
-            "seen": lens.trained or any(_same_camera(camera, t) for t in trained),
+            "seen": (lens.trained and model_camera is None) or any(_same_camera(camera, t) for t in trained),
             "metrics": result.metrics,
             "gap": _gaps(spec, own.metrics, result.metrics),
             "flights": result.groups,
@@ -514,6 +522,9 @@ def _cross_lens(
         rows.append(row(lens, score(module), module.camera))
     out: dict[str, Any] = {
         "trained_lenses": [camera.to_dict() for camera in trained],
+        "views": OmegaConf.to_container(cfg.views)
+        if isinstance(cfg.get("views"), ListConfig)
+        else cfg.get("views"),
         "primary_metric": spec.primary_metric,
         "lenses": rows,
     }
