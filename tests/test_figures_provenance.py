@@ -22,6 +22,7 @@ READS_NO_DATA = {
     "test_suite.json": "the test suites' wall times",
     "test_suite_coverage.json": "the test suites' wall times and coverage",
     "occlusion_memory.json": "occlusion methods' memory on a scene built in memory from its name and seed",
+    "camera_input_steps.json": "model steps on random tensors and a lens's ray map computed from its model",
 }
 
 #: Records of data generated inside the run on a lent GPU machine before the run hashed what it generated; each names
