@@ -32,6 +32,7 @@ READS_NO_DATA = {
     "metrics.json": "the metrics' update time on random tensors",
     "tartanair.json": "the loader's time per sample on the miniature TartanAir root and tiny preset it writes",
     "kitti360.json": "the loader's time per sample on the miniature KITTI-360 root it writes",
+    "camera_input_steps.json": "model steps on random tensors and a lens's ray map computed from its model",
 }
 
 #: Records of data generated inside the run on a lent GPU machine before the run hashed what it generated; each names

@@ -46,15 +46,17 @@ __all__ = [
 RESULTS_VERSION = 1
 
 
-def _clean(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
+    """``value`` as JSON holds it: tensors and numpy scalars as numbers, NaN and infinities as ``null``, tuples as
+    lists, keys as strings."""
     if hasattr(value, "item"):
         value = value.item()
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
+        return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
+        return [json_safe(v) for v in value]
     return value
 
 
@@ -89,19 +91,19 @@ def write_results(
         "task": task,
         "split": split,
         "primary_metric": primary,
-        "metrics": _clean(metrics),
-        "breakdown": _clean(breakdown or {}),
-        "dataset": _clean(dataset or {}),
-        "model": _clean(model or {}),
-        "config": _clean(config or {}),
+        "metrics": json_safe(metrics),
+        "breakdown": json_safe(breakdown or {}),
+        "dataset": json_safe(dataset or {}),
+        "model": json_safe(model or {}),
+        "config": json_safe(config or {}),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     }
     if sparse_coverage is not None:
-        record["sparse_coverage"] = _clean(sparse_coverage)
+        record["sparse_coverage"] = json_safe(sparse_coverage)
     if sources:
-        record["sources"] = _clean(sources)
+        record["sources"] = json_safe(sources)
     if cross_lens:
-        record["cross_lens"] = _clean(cross_lens)
+        record["cross_lens"] = json_safe(cross_lens)
     path = Path(path)
     atomic_write_text(path, json.dumps(record, indent=2, sort_keys=False) + "\n")
     return path

@@ -38,6 +38,7 @@ from typing import Any
 
 from airfisheye_bench.atomic import atomic_write_text
 from airfisheye_bench.evaluation.cross_lens import cross_lens_gap
+from airfisheye_bench.runs.results import json_safe
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.studies.clustered import cluster_difference
 from airfisheye_bench.studies.generated_blocks import replace_block
@@ -433,17 +434,6 @@ def _cell_gap(lens: Mapping[str, Any] | None, metric: str) -> str:
 # ------------------------------------------------------------------------------------------------- command
 
 
-def _finite(value: Any) -> Any:
-    """``value`` with NaN and infinities as ``null`` (JSON has neither)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, Mapping):
-        return {str(k): _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    return value
-
-
 def _clean_checkout() -> None:
     """Refuse to train or score from code that no commit holds (a result names the commit that made it)."""
     dirty = subprocess.run(
@@ -492,7 +482,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             "provenance": provenance("scripts/lens_study.py", argv if argv is not None else sys.argv[1:]),
             "dataset": runs[0]["dataset"] if runs else None,
             "records": [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in runs],
-            "tasks": _finite(summary),
+            "tasks": json_safe(summary),
         }
         atomic_write_text(Path(args.summary), json.dumps(record, indent=1, allow_nan=False) + "\n")
         if args.report:
