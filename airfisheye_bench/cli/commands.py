@@ -495,9 +495,6 @@ class BenchOptions:
     presets: list[str] = option("presets to time")
     frames: int = option("frames timed per preset (after one warm-up frame)")
     device: str = option("torch device of the renderer")
-    json: str | None = option(
-        "also write the timings with their provenance (commit, machine, load) to this file"
-    )
 
 
 def _synth_key(key: str) -> bool:
@@ -543,24 +540,6 @@ GENERATE_SUBCOMMANDS = {
 }
 
 
-def _write_bench_record(
-    path: Path, timings: dict[str, dict[str, float]], argv: Sequence[str], load_before: list[float] | None
-) -> None:
-    """The frame writer's timings as a record: the command, commit, machine and the load averages before and after
-    (a time per frame means little without what else the machine ran)."""
-    from airfisheye_bench.studies.provenance import load_average, provenance  # deferred: git and the machine
-
-    record = {
-        "provenance": provenance("scripts/generate_synthetic.py", list(argv)),
-        "load_average_before": load_before,
-        "load_average_after": load_average(),
-        "note": "frame_s: wall seconds per frame, one process with one torch thread; cpu_s: its CPU seconds",
-        "presets": timings,
-    }
-    atomic_write_text(path, json.dumps(record, indent=2) + "\n")
-    print(f"wrote {path}")
-
-
 @report_user_errors
 def generate(argv: Sequence[str] | None = None) -> int:
     """``airfisheye-generate [verify|contact_sheet|presets|bench] [key=value ...]``; 1 when verification fails.
@@ -600,12 +579,8 @@ def generate(argv: Sequence[str] | None = None) -> int:
     if name == "contact_sheet":
         return synth.write_sheet(Path(opts.root), opts.sample, opts.png)
     if name == "bench":
-        load_before = os.getloadavg() if hasattr(os, "getloadavg") else None
         timings = {p: synth.bench_frame_writer(p, opts.frames, opts.device) for p in opts.presets}
         print(synth.bench_markdown(timings))
-        if opts.json is not None:
-            before = None if load_before is None else [round(x, 2) for x in load_before]
-            _write_bench_record(Path(opts.json), timings, ["bench", *argv], before)
         return 0
     return synth.generate(
         opts.preset,
