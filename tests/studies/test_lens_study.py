@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -18,6 +19,7 @@ from airfisheye_bench.studies.lens_study import (
     plan,
     report_block,
     summarise,
+    upgrade_record,
 )
 from airfisheye_bench.studies.provenance import REPO
 
@@ -123,3 +125,18 @@ def test_the_report_tables_come_from_the_summary() -> None:
     assert "| a: one lens (equidistant 190°) | 2 | 0.015 ± 0.007 |" in lines
     document = f"x\n{REPORT_BEGIN}\nold\n{REPORT_END}\ny"
     assert block_in(replace_block(document, text, REPORT_BEGIN, REPORT_END), REPORT_BEGIN, REPORT_END) == text
+
+
+def test_a_record_without_provenance_gains_it_from_its_own_fields(tmp_path: Path) -> None:
+    record = {**_record("b", 2, {"f1": 0.5}, {"f1": 0.4}), "machine": "x86_64, 2 CPU cores"}
+    record["evaluation"] = {"commit": "a" * 40, "command": ["python", "scripts/evaluate.py"]}
+    path = tmp_path / "b_depth_seed2.json"
+    path.write_text(json.dumps(record))
+    assert upgrade_record(path) and not upgrade_record(path)  # once
+    upgraded = json.loads(path.read_text())
+    assert upgraded["provenance"] == {
+        "commit": "a" * 40,
+        "command": "python scripts/lens_study.py --arms b --tasks depth --seeds 2",
+        "machine": "x86_64, 2 CPU cores",
+    }
+    assert {k: v for k, v in upgraded.items() if k != "provenance"} == record
