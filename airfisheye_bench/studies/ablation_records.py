@@ -23,13 +23,13 @@ The summary (:func:`summarise`):
 from __future__ import annotations
 
 import csv
-import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from airfisheye_bench.studies.clustered import cluster_difference, flight_of, holm, sign_test_p
+from airfisheye_bench.studies.provenance import records_of_format
 
 __all__ = [
     "FAMILY_METRICS",
@@ -95,12 +95,7 @@ def build_record(
 
 def load_records(folder: str | Path) -> list[dict[str, Any]]:
     """Every run record under ``folder`` (sorted by method and seed)."""
-    records = []
-    for path in sorted(Path(folder).glob("*.json")):
-        record = json.loads(path.read_text(encoding="utf-8"))
-        if record.get("format") == RECORD_FORMAT:
-            records.append(record)
-    return sorted(records, key=lambda r: (r["method"], r["seed"]))
+    return sorted(records_of_format(folder, RECORD_FORMAT), key=lambda r: (r["method"], r["seed"]))
 
 
 def _frame_values(record: Mapping[str, Any], name: str) -> dict[str, float]:

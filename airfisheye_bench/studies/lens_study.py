@@ -42,7 +42,7 @@ from airfisheye_bench.runs.results import json_safe
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.studies.clustered import cluster_difference
 from airfisheye_bench.studies.generated_blocks import replace_block
-from airfisheye_bench.studies.provenance import REPO, git_commit, machine, provenance
+from airfisheye_bench.studies.provenance import REPO, git_commit, machine, provenance, records_of_format
 
 __all__ = [
     "ARMS",
@@ -243,12 +243,7 @@ def upgrade_record(path: Path) -> bool:
 
 def load_records(folder: str | Path) -> list[dict[str, Any]]:
     """The study's run records in ``folder`` (others ignored), by arm, task and seed."""
-    out = []
-    for path in sorted(Path(folder).glob("*.json")):
-        record = json.loads(path.read_text(encoding="utf-8"))
-        if record.get("format") == RECORD_FORMAT:
-            out.append(record)
-    return sorted(out, key=lambda r: (r["arm"], r["task"], r["seed"]))
+    return sorted(records_of_format(folder, RECORD_FORMAT), key=lambda r: (r["arm"], r["task"], r["seed"]))
 
 
 #: The metrics each task's cells show (the issue's mIoU / δ1 / AbsRel).

@@ -11,6 +11,7 @@ timing means little.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import platform
 import subprocess
@@ -93,3 +94,13 @@ def _cpu_model() -> str:
 
 def _cpu_count() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def records_of_format(folder: str | Path, record_format: str) -> list[dict[str, Any]]:
+    """The JSON records in ``folder`` whose ``format`` is ``record_format`` (other files ignored), by file name."""
+    records = []
+    for path in sorted(Path(folder).glob("*.json")):
+        record = json.loads(path.read_text(encoding="utf-8"))
+        if isinstance(record, dict) and record.get("format") == record_format:
+            records.append(record)
+    return records
