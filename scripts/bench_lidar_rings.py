@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import subprocess
 import sys
 import tempfile
@@ -35,30 +36,40 @@ from airfisheye_bench.studies.lidar_scene import camera_rig, ray_box_entry, scan
 
 ROOT = Path(__file__).resolve().parents[1]
 
-OLD_FILES = ("_arrays.py", "_kernels.py", "lidar.py", "occlusion.py")
+#: The earlier commit's files the old ``lidar`` and ``occlusion`` need, under ``airfisheye_bench/``: its camera and
+#: transforms too (``occlusion`` checks for its own camera class), and the constants its camera reads.
+OLD_FILES = (
+    "constants.py",
+    "geometry/_arrays.py",
+    "geometry/_kernels.py",
+    "geometry/camera.py",
+    "geometry/lidar.py",
+    "geometry/occlusion.py",
+    "geometry/transforms.py",
+)
+_OLD_IMPORT = re.compile(r"airfisheye_bench\.(?:geometry\.)?(\w+)")
 
 
 def import_old(commit: str, folder: Path):
-    """The commit's ``lidar`` and ``occlusion`` modules, imported as a package of their own."""
+    """The commit's ``lidar``, ``occlusion`` and ``camera`` modules, imported as a package of their own."""
     package = folder / "old_geometry"
     package.mkdir()
     (package / "__init__.py").write_text("")
     for name in OLD_FILES:
         text = subprocess.run(
-            ["git", "show", f"{commit}:airfisheye_bench/geometry/{name}"],
+            ["git", "show", f"{commit}:airfisheye_bench/{name}"],
             cwd=ROOT,
             capture_output=True,
             text=True,
             check=True,
         ).stdout
-        for module in ("_arrays", "_kernels", "lidar"):
-            text = text.replace(f"airfisheye_bench.geometry.{module}", f"old_geometry.{module}")
         text = text.replace(
             "from airfisheye_bench.geometry import _kernels", "from old_geometry import _kernels"
         )
-        (package / name).write_text(text)
+        text = _OLD_IMPORT.sub(lambda m: f"old_geometry.{m.group(1)}", text)
+        (package / Path(name).name).write_text(text)
     sys.path.insert(0, str(folder))
-    return importlib.import_module("old_geometry.lidar"), importlib.import_module("old_geometry.occlusion")
+    return tuple(importlib.import_module(f"old_geometry.{m}") for m in ("lidar", "occlusion", "camera"))
 
 
 def times_ms(fns: dict, repeats: int) -> dict[str, tuple[float, float, float]]:
@@ -102,13 +113,14 @@ def main() -> None:
     agree = (rings_from_elevation(r, el, table) == rings).mean()
 
     with tempfile.TemporaryDirectory() as tmp:
-        old_lidar, old_occlusion = import_old(args.commit, Path(tmp))
+        old_lidar, old_occlusion, old_camera = import_old(args.commit, Path(tmp))
         old_spec = old_lidar.LidarSpec()
+        camera_then = old_camera.FisheyeCamera(args.size, args.size, fov_deg=190.0)
         fns = {
             f"organize_scan, uniform ({args.commit})": lambda: old_lidar.organize_scan(points, old_spec),
             "organize_scan, uniform (today)": lambda: organize_scan(points, spec),
             f"ordering, uniform ({args.commit})": lambda: old_occlusion.occlusion_mask(
-                points, T, camera, old_spec
+                points, T, camera_then, old_spec
             ),
             "ordering, uniform (today)": lambda: occlusion_mask(points, T, camera, spec),
             "organize_scan, channel table + origins, rings estimated (today)": lambda: organize_scan(
