@@ -2,6 +2,8 @@
 averages before and after, wall and CPU time), for the tables of ``docs/benchmarks.md`` to cite.
 
     python scripts/bench_record.py --json docs/figures/bench/metrics.json -- scripts/bench_metrics.py [args]
+    python scripts/bench_record.py --json docs/figures/bench/decode.json --data /tmp/afb_bench512 \
+        -- scripts/bench_decode.py --root /tmp/afb_bench512
 
 The logic is ``airfisheye_bench.studies.bench_record``.
 """
@@ -22,6 +24,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--json", type=Path, required=True, help="the record to write")
     parser.add_argument(
+        "--data",
+        nargs="+",
+        default=[],
+        help="dataset folders the benchmark reads: the record keeps their content identity",
+    )
+    parser.add_argument(
         "benchmark", nargs=argparse.REMAINDER, help="-- scripts/<benchmark>.py [its arguments]"
     )
     args = parser.parse_args(argv)
@@ -29,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     if not benchmark or not benchmark[0].endswith(".py"):
         parser.error("give the benchmark after --: -- scripts/<benchmark>.py [its arguments]")
     try:
-        record = run_recorded(benchmark[0], benchmark[1:], argv)
+        record = run_recorded(benchmark[0], benchmark[1:], argv, data=args.data)
     except RuntimeError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1

@@ -24,16 +24,24 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from airfisheye_bench.runs.results import dataset_identity
 from airfisheye_bench.studies.provenance import REPO, load_average, provenance
 
 __all__ = ["run_recorded", "tables"]
 
 
 def run_recorded(
-    script: str, args: Sequence[str], recorder_argv: Sequence[str], repo: Path = REPO
+    script: str,
+    args: Sequence[str],
+    recorder_argv: Sequence[str],
+    repo: Path = REPO,
+    data: Sequence[str | Path] = (),
 ) -> dict[str, Any]:
     """Run ``python <script> <args>`` in ``repo`` (its output passed through) and return its record; a
-    ``RuntimeError`` naming the script when it fails, so no record of a failed run is written."""
+    ``RuntimeError`` naming the script when it fails, so no record of a failed run is written.
+
+    ``data``: the dataset folders the benchmark reads; the record keeps each one's content identity
+    (``datasets``), so a number names the data it was measured on."""
     env = {
         **os.environ,
         "PYTHONPATH": os.pathsep.join(filter(None, [str(repo), os.environ.get("PYTHONPATH")])),
@@ -58,6 +66,7 @@ def run_recorded(
         "cpu_s": round(
             (cpu_after.ru_utime - cpu_before.ru_utime) + (cpu_after.ru_stime - cpu_before.ru_stime), 2
         ),
+        **({"datasets": [dataset_identity(root, Path(root).name) for root in data]} if data else {}),
         "output": done.stdout,
     }
 

@@ -31,3 +31,21 @@ def test_a_failed_benchmark_writes_no_record(tmp_path: Path) -> None:
     script.write_text("import sys\nsys.exit(3)\n")
     with pytest.raises(RuntimeError, match="exited with 3: no record written"):
         bench_record.run_recorded(str(script), [], [sys.executable])
+
+
+def test_a_benchmark_reading_a_dataset_records_its_content_identity(tmp_path: Path) -> None:
+    root = tmp_path / "data"
+    (root / "a").mkdir(parents=True)
+    (root / "a" / "x.bin").write_bytes(b"frame")
+    (root / "manifest.json").write_text("{}")
+    script = tmp_path / "bench_x.py"
+    script.write_text("print('ok')\n")
+    record = bench_record.run_recorded(str(script), [], [str(script)], data=[root])
+    (identity,) = record["datasets"]
+    assert identity["name"] == "data" and len(identity["content_sha256"]) == 64
+    changed = tmp_path / "data2"
+    (changed / "a").mkdir(parents=True)
+    (changed / "a" / "x.bin").write_bytes(b"other")
+    (changed / "manifest.json").write_text("{}")
+    other = bench_record.run_recorded(str(script), [], [str(script)], data=[changed])
+    assert other["datasets"][0]["content_sha256"] != identity["content_sha256"]
