@@ -3,11 +3,16 @@
     python scripts/quickstart_benchmark.py --out logs/quickstart --seeds 0 1 2
     python scripts/quickstart_benchmark.py --out logs/quickstart --collect-only    # summarise what has finished
     python scripts/quickstart_benchmark.py --readme      # README's and docs/results.md's tables from the JSON
+    python scripts/quickstart_benchmark.py --tasks completion --out logs/qs_paper_512 \
+        --json docs/quickstart_results_paper_512.json -- data.lidar.density=paper_512   # a variant of its own
+    python scripts/quickstart_benchmark.py --readme --variant docs/quickstart_results_paper_512.json
 
 Each run is ``python train.py task=<task> seed=<seed> hydra.run.dir=<out>/<task>/seed<seed>`` (the README's
 command); finished runs are skipped, so an interrupted benchmark resumes, and the seeds of the existing record
 whose runs are not in ``--out`` are kept (``--fresh`` drops them). ``--tasks`` picks some of
-``seg depth completion``; everything after ``--`` goes to ``train.py`` (then the results are not the quick start's).
+``seg depth completion``; everything after ``--`` goes to ``train.py`` (then the results are not the quick start's:
+give them a ``--json`` of their own, and ``--readme --variant <that file>`` shows them beside the quick start's rows,
+with the paired difference; :mod:`airfisheye_bench.studies.quickstart_variant`).
 The logic is :mod:`airfisheye_bench.studies.quickstart`.
 """
 
@@ -20,7 +25,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from airfisheye_bench.atomic import atomic_write_text
-from airfisheye_bench.studies import quickstart, quickstart_report
+from airfisheye_bench.studies import quickstart, quickstart_report, quickstart_variant
 from airfisheye_bench.studies.provenance import git_commit
 
 REPO = Path(__file__).resolve().parents[1]
@@ -51,6 +56,11 @@ def parse_args(argv: Sequence[str]) -> tuple[argparse.Namespace, list[str]]:
         help="drop --json's seeds whose runs are not in --out (default: keep them)",
     )
     parser.add_argument("--readme", action="store_true", help="only regenerate README.md's table from --json")
+    parser.add_argument(
+        "--variant",
+        type=Path,
+        help="with --readme: also the README's block putting this record's rows beside the quick start's",
+    )
     return parser.parse_args(argv), overrides
 
 
@@ -88,7 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.json.is_file() and not args.fresh:
             previous = json.loads(args.json.read_text(encoding="utf-8"))
         try:
-            record = quickstart.summarize(runs, baselines, command, git_commit(REPO), previous)
+            record = quickstart.summarize(runs, baselines, command, git_commit(REPO), previous, overrides)
         except ValueError as err:
             print(f"error: {err} (or pass --fresh to drop {args.json}'s seeds)", file=sys.stderr)
             return 2
@@ -105,6 +115,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         text = quickstart_report.regenerate(report.read_text(encoding="utf-8"), record, REPO / "docs")
         atomic_write_text(report, text)
     print(table)
+    if args.variant is not None:
+        variant = json.loads(args.variant.read_text(encoding="utf-8"))
+        block = quickstart_variant.variant_table(
+            record,
+            variant,
+            args.json.resolve().relative_to(REPO).as_posix(),
+            args.variant.resolve().relative_to(REPO).as_posix(),
+        )
+        text = quickstart.replace_table(
+            readme.read_text(encoding="utf-8"),
+            block,
+            quickstart_variant.VARIANT_BEGIN,
+            quickstart_variant.VARIANT_END,
+        )
+        atomic_write_text(readme, text)
+        print(block)
     return 0
 
 

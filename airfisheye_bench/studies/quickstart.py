@@ -287,6 +287,7 @@ def summarize(
     command: str,
     commit: str,
     previous: dict[str, Any] | None = None,
+    overrides: Sequence[str] = (),
 ) -> dict[str, Any]:
     """The committed record: per task its seeds' metrics, mean ± std, the baseline; the dataset's identity.
 
@@ -298,6 +299,8 @@ def summarize(
         previous: An earlier record (the committed file): a planned seed that has no finished run here but has
             one there is kept, with its own commit and command, so seeds trained on different machines or days
             add up. Only when both were measured on the same data (content identity); otherwise ``ValueError``.
+        overrides: The ``train.py`` overrides every run had beyond the quick start's (a variant of it): they are
+            part of each task's command.
     """
     tasks: dict[str, Any] = {}
     identities: dict[str, dict[str, Any]] = {}
@@ -305,7 +308,7 @@ def summarize(
         entry = tasks.setdefault(
             run.task,
             {
-                "command": f"python train.py task={run.task}",
+                "command": " ".join(["python train.py", f"task={run.task}", *overrides]),
                 "model": MODELS[run.task],
                 "primary_metric": get_task(run.task).primary_metric,
                 "higher_is_better": get_task(run.task).higher_is_better,

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from airfisheye_bench.studies import quickstart, quickstart_report
+from airfisheye_bench.studies import quickstart, quickstart_report, quickstart_variant
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMITTED = ROOT / "docs" / "quickstart_results.json"
@@ -379,3 +379,45 @@ def test_the_ratio_to_monocular_compares_with_the_papers_only_at_its_density_and
     completion["seeds"]["1"] = {"metrics": {}}  # trained before the key existed: every return
     (reason,) = quickstart_report.ratio_not_comparable(depth, completion, paper_delta1=0.865)
     assert "density native, paper" in reason
+
+
+# ------------------------------------------------------------------------------------------------- a variant
+
+
+def _variant(tmp_path: Path, values: dict[int, float], overrides: list[str]) -> dict:
+    data = tmp_path / "data"
+    data.mkdir(exist_ok=True)
+    (data / "x.txt").write_text("x")
+    runs = quickstart.plan(tmp_path / "_".join(["runs", *overrides]), ["seg"], sorted(values))
+    for run in runs:
+        _fake_run(run, {"mIoU": values[run.seed], "pixel_acc": 0.5}, data)
+    return quickstart.summarize(runs, {}, "python scripts/quickstart_benchmark.py", "0" * 40, None, overrides)
+
+
+def test_a_variant_names_its_overrides_and_is_shown_beside_the_default_with_the_paired_difference(
+    tmp_path: Path,
+) -> None:
+    default = _variant(tmp_path, {0: 0.20, 1: 0.30, 2: 0.25}, [])
+    variant = _variant(tmp_path, {0: 0.25, 1: 0.33, 2: 0.32}, ["data.x=1"])
+    assert variant["tasks"]["seg"]["command"] == "python train.py task=seg data.x=1"
+    paired = quickstart_variant.paired_rows(default, variant, "seg")
+    assert paired["mIoU"]["n"] == 3 and paired["mIoU"]["mean"] == pytest.approx(0.05)
+    low, high = paired["mIoU"]["ci"]
+    assert low < 0.05 < high
+    table = quickstart_variant.variant_table(default, variant, "docs/a.json", "docs/b.json")
+    rows = table.splitlines()
+    assert rows[2].startswith("| `python train.py task=seg` ([record](docs/a.json)) | 0, 1, 2 |")
+    assert rows[3].startswith("| `python train.py task=seg data.x=1` ([record](docs/b.json)) | 0, 1, 2 |")
+    assert "+0.050 [" in rows[4] and "3 paired seeds" in rows[4]
+
+
+def test_the_readme_variant_block_is_the_one_generated_from_the_committed_records() -> None:
+    text = README.read_text(encoding="utf-8")
+    if quickstart_variant.VARIANT_BEGIN not in text:
+        pytest.skip("the README shows no variant of the quick start")
+    shown = quickstart.table_in(text, quickstart_variant.VARIANT_BEGIN, quickstart_variant.VARIANT_END)
+    sources = re.findall(r"\(\[record\]\(([^)]+)\)\)", shown)
+    default, variant = (json.loads((ROOT / s).read_text(encoding="utf-8")) for s in dict.fromkeys(sources))
+    assert shown == quickstart_variant.variant_table(default, variant, *dict.fromkeys(sources)), (
+        "regenerate: python scripts/quickstart_benchmark.py --readme --variant <record>"
+    )
