@@ -14,7 +14,10 @@ Every run is then scored on each test lens of :data:`TEST_LENSES` and the robust
 command, the dataset's content identity, the run's own test metrics and the whole ``cross_lens`` block, flights
 included -- is written to ``docs/figures/lens_study/runs/<arm>_<task>_seed<seed>.json`` as soon as it exists. The
 test lenses are none of the training lenses except arm ``a``'s and ``b``'s equidistant 190°; the calibration files
-are under ``docs/lenses/`` (their sources in its README).
+are under ``docs/lenses/`` (their sources in its README). Each run is also scored on the same lenses over
+:data:`HELD_OUT`, 32 test flights of the quick start's data from areas no run trained on (the quick start's own test
+split has 3 flights, too few for an interval over them to bound anything but large gaps): the record's
+``held_out`` block.
 
 :func:`summarise` reads the records alone: per arm, task and test lens the mean and sample standard deviation over
 the seeds, and the cross-lens gap ``1 - other / own`` (``other / own - 1`` for errors) with a t-interval over the
@@ -46,6 +49,7 @@ from airfisheye_bench.studies.provenance import REPO, git_commit, machine, prove
 
 __all__ = [
     "ARMS",
+    "HELD_OUT",
     "JITTER",
     "RECORD_FORMAT",
     "SEEDS",
@@ -82,6 +86,10 @@ TEST_LENSES = (
     "{model:equidistant,fov_deg:120}",
     f"{{name:pinhole_90,calibration:'{LENS_FILES}/pinhole_90.yaml'}}",
 )
+
+#: The evaluation set of many flights (``synth/presets.py``, ``quickstart_flights``): the quick start's data as 32
+#: test flights of 6 frames, at another dataset seed (none of its areas is one the runs trained on).
+HELD_OUT = ("data.preset=quickstart_flights", "data.dataset_seed=1")
 
 
 @dataclass(frozen=True)
@@ -144,17 +152,23 @@ class StudyRun:
             f"hydra.run.dir={self.run_dir}",
         ]
 
-    def evaluate_argv(self) -> list[str]:
+    def evaluate_argv(self, held_out: bool = False) -> list[str]:
+        """The scoring command: the run's own test split with the robustness row, or (``held_out``) the lenses
+        over :data:`HELD_OUT`'s flights."""
         return [
             sys.executable,
             "scripts/evaluate.py",
             f"ckpt_path={self.run_dir}",
             f"lenses=[{','.join(TEST_LENSES)}]",
-            "robustness=true",
+            *(HELD_OUT if held_out else ("robustness=true",)),
             "num_panels=0",
             *ARMS[self.arm].evaluate,
-            f"out={self.run_dir / 'lenses'}",
+            f"out={self.evaluated(held_out)}",
         ]
+
+    def evaluated(self, held_out: bool = False) -> Path:
+        """Where a scoring writes its ``results.json``."""
+        return self.run_dir / ("lenses_flights" if held_out else "lenses")
 
 
 def plan(out: str | Path, arms: Sequence[str], tasks: Sequence[str], seeds: Sequence[int]) -> list[StudyRun]:
@@ -187,11 +201,10 @@ def train(run: StudyRun, threads: int = 1) -> None:
 
 def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
     """Score a trained run on every test lens and the robustness row; write its record into ``records``."""
-    env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
     argv = run.evaluate_argv()
     start = time.time()
-    subprocess.run(argv, cwd=REPO, env=env, check=True, stdout=subprocess.DEVNULL)
-    evaluated = json.loads((run.run_dir / "lenses" / "results.json").read_text(encoding="utf-8"))
+    _evaluate(argv, threads)
+    evaluated = json.loads((run.evaluated() / "results.json").read_text(encoding="utf-8"))
     own = json.loads((run.run_dir / "results.json").read_text(encoding="utf-8"))
     trained = json.loads(run.trained.read_text(encoding="utf-8"))
     commit = git_commit(REPO)
@@ -215,7 +228,36 @@ def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
     }
     path = records / f"{run.name}.json"
     atomic_write_text(path, json.dumps(record, indent=1) + "\n")
+    score_held_out(run, path, threads)
     return path
+
+
+def score_held_out(run: StudyRun, path: Path, threads: int = 1) -> None:
+    """Score the trained ``run`` on every test lens over :data:`HELD_OUT` and add that to its record at ``path``
+    (``held_out``: the overrides, the evaluation's commit and command, the data's identity, ``cross_lens``)."""
+    argv = run.evaluate_argv(held_out=True)
+    start = time.time()
+    _evaluate(argv, threads)
+    evaluated = json.loads((run.evaluated(held_out=True) / "results.json").read_text(encoding="utf-8"))
+    record = json.loads(path.read_text(encoding="utf-8"))
+    record["held_out"] = {
+        "overrides": list(HELD_OUT),
+        "evaluation": {
+            "commit": git_commit(REPO),
+            "command": ["python", *argv[1:-1], "out=<run>/lenses_flights"],
+            "wall_s": time.time() - start,
+            "omp_num_threads": threads,
+            "machine": machine(),
+        },
+        "dataset": evaluated["dataset"],
+        "cross_lens": evaluated["cross_lens"],
+    }
+    atomic_write_text(path, json.dumps(record, indent=1) + "\n")
+
+
+def _evaluate(argv: Sequence[str], threads: int) -> None:
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
+    subprocess.run(argv, cwd=REPO, env=env, check=True, stdout=subprocess.DEVNULL)
 
 
 def _provenance(commit: str, run: StudyRun, machine_name: str) -> dict[str, str]:
@@ -244,6 +286,19 @@ def upgrade_record(path: Path) -> bool:
 def load_records(folder: str | Path) -> list[dict[str, Any]]:
     """The study's run records in ``folder`` (others ignored), by arm, task and seed."""
     return sorted(records_of_format(folder, RECORD_FORMAT), key=lambda r: (r["arm"], r["task"], r["seed"]))
+
+
+def held_out_records(records: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """The records scored over :data:`HELD_OUT`, each with that scoring as its ``cross_lens`` and ``dataset`` (what
+    :func:`summarise` reads); ``ValueError`` when they were scored on different data."""
+    held = [
+        {**r, "cross_lens": r["held_out"]["cross_lens"], "dataset": r["held_out"]["dataset"]}
+        for r in records
+        if "held_out" in r
+    ]
+    if len({json.dumps(r["dataset"], sort_keys=True) for r in held}) > 1:
+        raise ValueError("the records' held-out scorings come from different datasets")
+    return held
 
 
 #: The metrics each task's cells show (the issue's mIoU / δ1 / AbsRel).
@@ -352,11 +407,28 @@ REPORT_END = "<!-- lens-study:end -->"
 _LABELS = {"mIoU": "mIoU", "delta1": "δ1", "abs_rel": "AbsRel"}
 
 
-def report_block(summary: Mapping[str, Any], source: str = "figures/lens_study/summary.json") -> str:
-    """The study's tables as markdown: per task and metric, arms by test lens (mean ± std over the seeds, ``★`` a
-    training lens), then the cross-lens gap with its family interval over the test flights, then the robustness
-    row."""
+def report_block(
+    summary: Mapping[str, Any],
+    source: str = "figures/lens_study/summary.json",
+    held: Mapping[str, Any] | None = None,
+) -> str:
+    """The study's tables as markdown: first, where there are any, the scores over :data:`HELD_OUT`'s flights
+    (``held``: per task and metric the arms by test lens, then the cross-lens gap with its family interval over the
+    flights), then the same on the quick start's own test split with the robustness row."""
     lines = [f"Generated from [`{source}`]({source}) (each run's record: `figures/lens_study/runs/`)."]
+    if held:
+        lines += [
+            "",
+            f"##### Over 32 held-out test flights (`{' '.join(HELD_OUT)}`; `held_out` in `{source}`)",
+        ]
+        lines += _task_tables(held, f"{source}, held_out", robustness=False)
+        lines += ["", "##### On the quick start's own test split (3 flights), with the robustness row"]
+    lines += _task_tables(summary, source, robustness=True)
+    return "\n".join(lines)
+
+
+def _task_tables(summary: Mapping[str, Any], source: str, robustness: bool) -> list[str]:
+    lines: list[str] = []
     for task, arms in summary.items():
         for metric in CELL_METRICS[task]:
             lines += [
@@ -375,6 +447,8 @@ def report_block(summary: Mapping[str, Any], source: str = "figures/lens_study/s
             "",
         ]
         lines += _table(arms, metric, _cell_gap, skip_own=True)
+        if not robustness:
+            continue
         lines += [
             "",
             f"**{task}, robustness row**: largest change of {_LABELS[metric]} under focal ±2 %, principal "
@@ -386,7 +460,7 @@ def report_block(summary: Mapping[str, Any], source: str = "figures/lens_study/s
             lines.append(
                 f"| {name}: {ARMS[name].title} | {len(arm['seeds'])} | {_pm(arm['robustness'][metric])} |"
             )
-    return "\n".join(lines)
+    return lines
 
 
 def _table(arms: Mapping[str, Any], metric: str, cell, skip_own: bool = False) -> list[str]:
@@ -472,19 +546,25 @@ def main(argv: Sequence[str] | None = None) -> None:
             raise SystemExit(
                 f"lens study: the records in {records} come from different datasets: {sorted(datasets)}"
             )
+        held = held_out_records(runs)
         record = {
             "format": "airfisheye-bench/lens-study-summary/v1",
             "provenance": provenance("scripts/lens_study.py", argv if argv is not None else sys.argv[1:]),
             "dataset": runs[0]["dataset"] if runs else None,
             "records": [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in runs],
             "tasks": json_safe(summary),
+            "held_out": {
+                "overrides": list(HELD_OUT),
+                "dataset": held[0]["dataset"] if held else None,
+                "records": [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in held],
+                "tasks": json_safe(summarise(held)),
+            },
         }
         atomic_write_text(Path(args.summary), json.dumps(record, indent=1, allow_nan=False) + "\n")
         if args.report:
             report = Path(args.report)
-            text = replace_block(
-                report.read_text(encoding="utf-8"), report_block(summary), REPORT_BEGIN, REPORT_END
-            )
+            block = report_block(summary, held=summarise(held))
+            text = replace_block(report.read_text(encoding="utf-8"), block, REPORT_BEGIN, REPORT_END)
             atomic_write_text(report, text)
         return
     _clean_checkout()
@@ -493,7 +573,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         args.out, args.arms.split(","), args.tasks.split(","), [int(s) for s in args.seeds.split(",")]
     )
     for run in runs:
-        if (records / f"{run.name}.json").is_file():
+        path = records / f"{run.name}.json"
+        if path.is_file():
+            if "held_out" not in json.loads(path.read_text(encoding="utf-8")) and run.run_dir.is_dir():
+                print(f"score {run.name} over the held-out flights", file=sys.stderr, flush=True)
+                score_held_out(run, path, args.threads)
+                if args.commit:
+                    _commit_record(path)
             continue
         if not (run.trained.is_file() and json.loads(run.trained.read_text())["rc"] == 0):
             print(f"train {run.name}", file=sys.stderr, flush=True)

@@ -140,3 +140,29 @@ def test_a_record_without_provenance_gains_it_from_its_own_fields(tmp_path: Path
         "machine": "x86_64, 2 CPU cores",
     }
     assert {k: v for k, v in upgraded.items() if k != "provenance"} == record
+
+
+def test_a_run_is_also_scored_over_the_held_out_flights_and_reported_first() -> None:
+    from airfisheye_bench.studies.lens_study import HELD_OUT, held_out_records
+
+    run = plan(Path("runs"), ["b"], ["seg"], [1])[0]
+    argv = run.evaluate_argv(held_out=True)
+    assert set(HELD_OUT) <= set(argv) and "robustness=true" not in argv
+    assert argv[-1] == f"out={run.run_dir / 'lenses_flights'}"
+    many = {f"f{i}": 0.5 + 0.01 * i for i in range(8)}
+    records = [
+        _record("a", s, {"f1": 0.5, "f2": 0.6, "f3": 0.4}, {"f1": 0.4, "f2": 0.3, "f3": 0.4}) for s in (0, 1)
+    ]
+    records[0]["held_out"] = {
+        "dataset": {"name": "held"},
+        "cross_lens": _record("a", 0, many, many)["cross_lens"],
+    }
+    held = held_out_records(records)
+    assert [r["seed"] for r in held] == [0] and held[0]["dataset"] == {"name": "held"}
+    assert summarise(held)["depth"]["a"]["lenses"]["pinhole_90"]["gap"]["delta1"]["n"] == 8  # flights
+    text = report_block(summarise(records), held=summarise(held))
+    first, second = text.index("32 held-out test flights"), text.index("own test split (3 flights)")
+    assert first < second and "robustness row" not in text[:second] and "robustness row" in text[second:]
+    records[1]["held_out"] = {"dataset": {"name": "other"}, "cross_lens": records[1]["cross_lens"]}
+    with pytest.raises(ValueError, match="different datasets"):
+        held_out_records(records)
