@@ -33,6 +33,13 @@ READS_NO_DATA = {
     "tartanair.json": "the loader's time per sample on the miniature TartanAir root and tiny preset it writes",
     "kitti360.json": "the loader's time per sample on the miniature KITTI-360 root it writes",
     "camera_input_steps.json": "model steps on random tensors and a lens's ray map computed from its model",
+    "remap.json": "the cube-to-fisheye tables and remaps, ours and cv2's, on random faces of a seeded generator",
+    "remap_erp.json": "the panorama's and the cube's tables and remaps on random images of a seeded generator",
+    "remap_models.json": "each camera model's ray grid, table and remap: committed calibrations, random faces",
+    "lidar.json": "the occlusion methods' time and accuracy on a LiDAR scan of a scene built from its seed",
+    "lidar_scans.json": "the occlusion methods on scan variants (seeded) of the structured scene built in memory",
+    "lidar_scans_boxes.json": "the occlusion methods on scan variants (seeded) of the analytic boxes scene",
+    "lidar_rings.json": "scan organisation and ordering, today's and an earlier commit's, on a scene built in memory",
 }
 
 #: Records of data generated inside the run on a lent GPU machine before the run hashed what it generated; each names
@@ -217,15 +224,6 @@ DEFINITIONS = {
 #: list. Their scripts were not run for the change that added this list: over ~2 minutes on the shared 2-core
 #: machine, or broken, as each says.
 NOT_YET_REMEASURED = {
-    "benchmarks.md: | faces | output | LUT build bilinear / nearest (ms) |": "bench_remap.py: not run (minutes)",
-    "benchmarks.md: | source | output | table build bilinear / nearest (ms) |": "bench_remap.py: not run",
-    "benchmarks.md: | model (calibration) | ray grid + valid mask (ms) | bilinear table from scratch (ms) |": (
-        "bench_remap.py: not run"
-    ),
-    "benchmarks.md: | image | method | ms (CPU) |": "bench_lidar.py: not run (minutes)",
-    "benchmarks.md: | scan | hidden / projected | ordering |": "bench_lidar.py --scans: not run",
-    "benchmarks.md: | code | ms (CPU, min) | ms (CPU, median) |": "bench_lidar_rings.py is broken: the old code "
-    "it compares with (fe33d38) imports airfisheye_bench.geometry.camera, since moved",
     "benchmarks.md: | task | source | files |": "bench_loader.py: not run (minutes)",
     "benchmarks.md: | file | KB | PIL (before) |": "bench_decode.py: needs a 512^2 release generated first; not run",
     "benchmarks.md: | step | one source | two sources |": "bench_multi_source.py: not run",
