@@ -232,8 +232,6 @@ NOT_YET_REMEASURED = {
     "benchmarks.md: | task | prediction files | frames (distinct GT) |": "bench_evaluate.py: not run",
     "benchmarks.md: | task | model | input |": "bench_lightning.py: not run (minutes)",
     "benchmarks.md: | model | params (M) | CPU fwd (ms) |": "bench_models.py --repeats 2: over 3 min here",
-    "evaluation.md: | rank | model | evaluated |": "an example of the leaderboard's output from a one-epoch run "
-    "whose results.json files are not committed; remaking it trains and exports (minutes)",
 }
 
 
