@@ -230,10 +230,6 @@ NOT_YET_REMEASURED = {
     "benchmarks.md: | task | prediction files | frames (distinct GT) |": "bench_evaluate.py: not run",
     "benchmarks.md: | task | model | input |": "bench_lightning.py: not run (minutes)",
     "benchmarks.md: | model | params (M) | CPU fwd (ms) |": "bench_models.py --repeats 2: over 3 min here",
-    "benchmarks.md: | recipe | forward GFLOP at 512^2 | A100 estimate (images/s) |": "an estimate from a published "
-    "ResNet-50 rate and the loader's per-core rates; its inputs are in no one record",
-    "evaluation.md: | rank | model | evaluated |": "an example of the leaderboard's output from a one-epoch run "
-    "whose results.json files are not committed; remaking it trains and exports (minutes)",
 }
 
 
