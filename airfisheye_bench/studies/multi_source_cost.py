@@ -6,7 +6,7 @@ lookup runs), measured alternately in one process, ``--repeats`` times each (min
 
 Scoring: ms per batch of ``TaskScorer.update`` on the whole batch (one source), and split by source into two
 updates of the sources' scorers, as ``BenchmarkTask._score`` does for a mixture (the pooled scores are the sources'
-added up once per epoch, ``TaskScorer.add``; its cost is printed too).
+added up once per epoch, ``TaskScorer.add``; its cost is printed too). The rows are one markdown table.
 
 Usage:
     python scripts/bench_multi_source.py --root DIR [--size 128] [--samples 40] [--repeats 5] [--batch 8]
@@ -101,7 +101,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--batch", type=int, default=8)
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    print(f"seg, {args.size}^2, one thread; min / median of {args.repeats} repeats, CPU ms")
+    print(f"seg, {args.size}^2, one thread; min / median of {args.repeats} repeats, CPU ms\n")
+    # A markdown table, so that a record of this output (scripts/bench_record.py) holds the table the docs show.
+    print("| step | sources | ms (CPU, min) | ms (CPU, median) |")
+    print("|---|---|---|---|")
     for what, times in (
         (
             f"load a training sample ({args.samples} samples)",
@@ -110,7 +113,7 @@ def main(argv: list[str] | None = None) -> None:
         (f"score a batch of {args.batch} (10 batches)", scoring(args.size, args.batch, args.repeats)),
     ):
         for label, values in times.items():
-            print(f"{what:<45} {label:<12} {min(values):7.2f} / {statistics.median(values):7.2f}")
+            print(f"| {what} | {label} | {min(values):.2f} | {statistics.median(values):.2f} |")
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ import yaml
 from airfisheye_bench.errors import ConfigError
 from airfisheye_bench.io import EmptySplitError
 from airfisheye_bench.studies import multi_source_cost
+from airfisheye_bench.studies.bench_record import tables as bench_tables
 from airfisheye_bench.synth.cache import cached_dataset_path
 from datamodules import AirFisheyeDataModule
 from datamodules.multi_source import SourceMixtureSampler
@@ -206,8 +207,10 @@ def test_the_benchmark_script_compares_one_source_with_two(tiny_dataset: Path, c
     multi_source_cost.main(
         ["--root", str(tiny_dataset), "--size", "32", "--samples", "2", "--repeats", "1", "--batch", "2"]
     )
-    rows = capsys.readouterr().out.splitlines()[1:]
-    assert len(rows) == 5 and sum("two sources" in r for r in rows) == 2 and "pool: add" in rows[-1]
+    (table,) = bench_tables(capsys.readouterr().out)  # one markdown table: header, separator, rows
+    rows = table[2:]
+    assert table[0] == "| step | sources | ms (CPU, min) | ms (CPU, median) |"
+    assert len(rows) == 5 and sum("| two sources |" in r for r in rows) == 2 and "| pool: add |" in rows[-1]
 
 
 def test_an_empty_split_of_a_source_names_the_root_and_the_source(tiny_dataset: Path, tmp_path: Path) -> None:
