@@ -224,9 +224,6 @@ DEFINITIONS = {
 #: list. Their scripts were not run for the change that added this list: over ~2 minutes on the shared 2-core
 #: machine, or broken, as each says.
 NOT_YET_REMEASURED = {
-    "benchmarks.md: | task | source | files |": "bench_loader.py: not run (minutes)",
-    "benchmarks.md: | file | KB | PIL (before) |": "bench_decode.py: needs a 512^2 release generated first; not run",
-    "benchmarks.md: | step | one source | two sources |": "bench_multi_source.py: not run",
     "benchmarks.md: | task | prediction files | frames (distinct GT) |": "bench_evaluate.py: not run",
     "benchmarks.md: | task | model | input |": "bench_lightning.py: not run (minutes)",
     "benchmarks.md: | model | params (M) | CPU fwd (ms) |": "bench_models.py --repeats 2: over 3 min here",
