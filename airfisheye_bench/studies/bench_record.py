@@ -27,7 +27,19 @@ from typing import Any
 from airfisheye_bench.runs.results import dataset_identity
 from airfisheye_bench.studies.provenance import REPO, load_average, provenance
 
-__all__ = ["run_recorded", "tables"]
+__all__ = ["ENVIRONMENT", "run_recorded", "tables"]
+
+#: Environment variables that change what a benchmark measures (threads, the allocator, where data are cached): a
+#: record keeps those that were set, since its command line does not show them.
+ENVIRONMENT = (
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "MALLOC_MMAP_THRESHOLD_",
+    "MALLOC_TRIM_THRESHOLD_",
+    "AIRFISHEYE_DATA",
+    "ATEN_CPU_CAPABILITY",
+    "ONEDNN_MAX_CPU_ISA",
+)
 
 
 def run_recorded(
@@ -60,6 +72,7 @@ def run_recorded(
     return {
         "provenance": provenance("scripts/bench_record.py", list(recorder_argv)),
         "benchmark": " ".join(["python", script, *args]),
+        "environment": {name: os.environ[name] for name in ENVIRONMENT if name in os.environ},
         "load_average_before": before,
         "load_average_after": load_average(),
         "wall_s": round(wall, 2),
