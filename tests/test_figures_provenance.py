@@ -40,6 +40,8 @@ READS_NO_DATA = {
     "lidar_scans.json": "the occlusion methods on scan variants (seeded) of the structured scene built in memory",
     "lidar_scans_boxes.json": "the occlusion methods on scan variants (seeded) of the analytic boxes scene",
     "lidar_rings.json": "scan organisation and ordering, today's and an earlier commit's, on a scene built in memory",
+    "lightning.json": "train steps, Trainer against a plain loop, on a random batch served from memory",
+    "lightning_malloc.json": "the same train steps with glibc's malloc thresholds set, on a random batch from memory",
 }
 
 #: Records of data generated inside the run on a lent GPU machine before the run hashed what it generated; each names
@@ -225,7 +227,6 @@ DEFINITIONS = {
 #: machine, or broken, as each says.
 NOT_YET_REMEASURED = {
     "benchmarks.md: | task | prediction files | frames (distinct GT) |": "bench_evaluate.py: not run",
-    "benchmarks.md: | task | model | input |": "bench_lightning.py: not run (minutes)",
     "benchmarks.md: | model | params (M) | CPU fwd (ms) |": "bench_models.py --repeats 2: over 3 min here",
 }
 
