@@ -13,10 +13,11 @@ flight, and each reported as the mean over the flights with a t-interval over th
 pairwise, flight by flight (:func:`paired_f1`): the family is the pairs compared, for the Holm correction, the
 Bonferroni interval and the minimum detectable effects alike (:mod:`airfisheye_bench.studies.clustered`).
 
-A record written before that (``hidden_detection_1536.json``: Bonferroni over every pair of methods, Holm over the
-pairs compared) is restated from its per-flight scores without measuring again (:func:`restate`,
+A record's comparisons are restated from its per-flight scores without measuring again (:func:`restate`,
 ``scripts/hidden_detection.py``), into a record of its own whose table ``docs/results.md`` shows
-(:func:`paired_report`, between :data:`REPORT_BEGIN` and :data:`REPORT_END`).
+(:func:`paired_report`, between :data:`REPORT_BEGIN` and :data:`REPORT_END`): so a record written before the family
+was the pairs compared (the first ``hidden_detection_1536.json``: Bonferroni over every pair of methods, Holm over
+the pairs compared) could be corrected; that record has since been measured again with the pairs as the family.
 """
 
 from __future__ import annotations
