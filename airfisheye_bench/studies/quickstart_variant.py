@@ -61,10 +61,13 @@ def _cpu(record: Mapping[str, Any]) -> str:
 
 
 def _stat(key: str, values: list[float]) -> str:
+    """``"7.27 ± 0.30 m"``: the mean ± the sample standard deviation over the seeds, the unit once."""
     stat = mean_std(values)
     if stat["std"] is None:
         return format_value(key, stat["mean"])
-    return f"{format_value(key, stat['mean'])} ± {format_value(key, stat['std'])}"
+    unit = format_value(key, 0.0).split(" ", 1)[1:]  # " m" for distances, nothing for ratios
+    digits = 2 if unit else 3
+    return f"{stat['mean']:.{digits}f} ± {stat['std']:.{digits}f}" + (f" {unit[0]}" if unit else "")
 
 
 def _difference(key: str, diff: Mapping[str, Any]) -> str:
