@@ -201,26 +201,17 @@ def train(run: StudyRun, threads: int = 1) -> None:
 
 def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
     """Score a trained run on every test lens and the robustness row; write its record into ``records``."""
-    argv = run.evaluate_argv()
-    start = time.time()
-    _evaluate(argv, threads)
-    evaluated = json.loads((run.evaluated() / "results.json").read_text(encoding="utf-8"))
+    evaluated, evaluation = _evaluate(run, False, threads)
     own = json.loads((run.run_dir / "results.json").read_text(encoding="utf-8"))
     trained = json.loads(run.trained.read_text(encoding="utf-8"))
-    commit = git_commit(REPO)
     record = {
         "format": RECORD_FORMAT,
-        "provenance": _provenance(commit, run, machine()),
+        "provenance": _provenance(evaluation["commit"], run, machine()),
         "arm": run.arm,
         "task": run.task,
         "seed": run.seed,
         "training": trained,
-        "evaluation": {
-            "commit": commit,
-            "command": ["python", *argv[1:-1], "out=<run>/lenses"],
-            "wall_s": time.time() - start,
-            "omp_num_threads": threads,
-        },
+        "evaluation": evaluation,
         "machine": machine(),
         "dataset": evaluated["dataset"],
         "test_metrics": own["metrics"],
@@ -235,29 +226,33 @@ def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
 def score_held_out(run: StudyRun, path: Path, threads: int = 1) -> None:
     """Score the trained ``run`` on every test lens over :data:`HELD_OUT` and add that to its record at ``path``
     (``held_out``: the overrides, the evaluation's commit and command, the data's identity, ``cross_lens``)."""
-    argv = run.evaluate_argv(held_out=True)
-    start = time.time()
-    _evaluate(argv, threads)
-    evaluated = json.loads((run.evaluated(held_out=True) / "results.json").read_text(encoding="utf-8"))
+    evaluated, evaluation = _evaluate(run, True, threads)
     record = json.loads(path.read_text(encoding="utf-8"))
     record["held_out"] = {
         "overrides": list(HELD_OUT),
-        "evaluation": {
-            "commit": git_commit(REPO),
-            "command": ["python", *argv[1:-1], "out=<run>/lenses_flights"],
-            "wall_s": time.time() - start,
-            "omp_num_threads": threads,
-            "machine": machine(),
-        },
+        "evaluation": {**evaluation, "machine": machine()},
         "dataset": evaluated["dataset"],
         "cross_lens": evaluated["cross_lens"],
     }
     atomic_write_text(path, json.dumps(record, indent=1) + "\n")
 
 
-def _evaluate(argv: Sequence[str], threads: int) -> None:
+def _evaluate(run: StudyRun, held_out: bool, threads: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Run one scoring of ``run`` (one thread each) and return its ``results.json`` and how it was made: the commit,
+    the command (its output folder named relative to the run), the wall time and the threads."""
+    argv = run.evaluate_argv(held_out)
     env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
+    start = time.time()
     subprocess.run(argv, cwd=REPO, env=env, check=True, stdout=subprocess.DEVNULL)
+    evaluated = json.loads((run.evaluated(held_out) / "results.json").read_text(encoding="utf-8"))
+    out = f"out=<run>/{run.evaluated(held_out).name}"
+    evaluation = {
+        "commit": git_commit(REPO),
+        "command": ["python", *argv[1:-1], out],
+        "wall_s": time.time() - start,
+        "omp_num_threads": threads,
+    }
+    return evaluated, evaluation
 
 
 def _provenance(commit: str, run: StudyRun, machine_name: str) -> dict[str, str]:
