@@ -46,6 +46,7 @@ from airfisheye_bench.specs import get_task
 from airfisheye_bench.studies.clustered import cluster_difference
 from airfisheye_bench.studies.generated_blocks import replace_block
 from airfisheye_bench.studies.provenance import REPO, git_commit, machine, provenance, records_of_format
+from airfisheye_bench.studies.quickstart import METRIC_LABELS
 
 __all__ = [
     "ARMS",
@@ -399,7 +400,6 @@ def _flight_gap(
 #: The markers of the generated block in ``docs/results.md`` (rewritten by ``scripts/lens_study.py --report``).
 REPORT_BEGIN = "<!-- lens-study:begin (python scripts/lens_study.py --summary docs/figures/lens_study/summary.json --report docs/results.md) -->"
 REPORT_END = "<!-- lens-study:end -->"
-_LABELS = {"mIoU": "mIoU", "delta1": "δ1", "abs_rel": "AbsRel"}
 
 
 def report_block(
@@ -428,14 +428,14 @@ def _task_tables(summary: Mapping[str, Any], source: str, robustness: bool) -> l
         for metric in CELL_METRICS[task]:
             lines += [
                 "",
-                f"**{task}, {_LABELS[metric]}** (mean ± std over the seeds; ★ a lens the arm trained on; `{source}`)",
+                f"**{task}, {METRIC_LABELS[metric]}** (mean ± std over the seeds; ★ a lens the arm trained on; `{source}`)",
                 "",
             ]
             lines += _table(arms, metric, _cell_value)
         metric = CELL_METRICS[task][0]
         lines += [
             "",
-            f"**{task}, cross-lens gap of {_LABELS[metric]}** (1 − lens / own for δ1 and mIoU: the fraction lost "
+            f"**{task}, cross-lens gap of {METRIC_LABELS[metric]}** (1 − lens / own for δ1 and mIoU: the fraction lost "
             "off the training lens(es). First the gap of the whole test split's score, mean over the seeds; in "
             "parentheses the mean of the per-flight gaps of the seeds' mean scores, its 95 % interval over the "
             f"flights Bonferroni-corrected over the arm's test lenses, and the flights; `{source}`)",
@@ -446,7 +446,7 @@ def _task_tables(summary: Mapping[str, Any], source: str, robustness: bool) -> l
             continue
         lines += [
             "",
-            f"**{task}, robustness row**: largest change of {_LABELS[metric]} under focal ±2 %, principal "
+            f"**{task}, robustness row**: largest change of {METRIC_LABELS[metric]} under focal ±2 %, principal "
             f"point ±1 % of the width (x, y), first distortion term ±5 % (mean ± std over the seeds; `{source}`)",
             "",
         ]

@@ -26,7 +26,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from airfisheye_bench.studies.clustered import cluster_difference
-from airfisheye_bench.studies.quickstart import QUICKSTART_TASKS, format_value, mean_std
+from airfisheye_bench.studies.quickstart import METRIC_LABELS, QUICKSTART_TASKS, format_value, mean_std
 
 __all__ = ["VARIANT_BEGIN", "VARIANT_END", "paired_rows", "variant_table"]
 
@@ -35,8 +35,6 @@ VARIANT_BEGIN = (
     "do not edit) -->"
 )
 VARIANT_END = "<!-- quickstart-variant:end -->"
-_LABELS = {"mIoU": "mIoU", "pixel_acc": "pixel acc.", "rmse": "RMSE", "mae": "MAE", "abs_rel": "AbsRel"}
-_LABELS["delta1"] = "δ1"
 
 
 def paired_rows(
@@ -92,7 +90,7 @@ def variant_table(
             if all(k in s["metrics"] for e in (entry, default["tasks"][task]) for s in e["seeds"].values())
         ]
         lines += [
-            "| command | seeds | machine | " + " | ".join(_LABELS.get(k, k) for k in keys) + " |",
+            "| command | seeds | machine | " + " | ".join(METRIC_LABELS.get(k, k) for k in keys) + " |",
             "|---|---|---|" + "---:|" * len(keys),
         ]
         for record, source in ((default, default_source), (variant, variant_source)):
