@@ -149,6 +149,7 @@ def _summary(
     ds: AirFisheyeDataset, source: str, n: int, cpu: list[float], wall: list[float], rss0: float
 ) -> dict[str, float]:
     return {
+        "samples": n,  # --samples, or the split's frames where it has fewer
         "cpu_min": min(cpu),
         "cpu_median": statistics.median(cpu),
         "wall_min": min(wall),
@@ -207,13 +208,16 @@ def main(argv: list[str] | None = None) -> list[dict]:
     roots = args.root or [ensure_dataset(args.preset)]
     commit = git_commit(ROOT)  # the code this process runs (the tree may change while it measures)
     load_before = os.getloadavg()
-    print(f"one process, one thread; {args.samples} samples x {args.repeats} repeat(s); load {load_before}")
     print(
-        "| dataset | size | task | source | remap on | lenses | ms / sample (CPU, min) | ms / sample (CPU, median) "
+        f"one process, one thread; up to {args.samples} samples (a split with fewer serves each of its frames) "
+        f"x {args.repeats} repeat(s); load {load_before}"
+    )
+    print(
+        "| dataset | size | task | source | remap on | lenses | samples | ms / sample (CPU, min) | ms / sample (CPU, median) "
         "| ms / sample (wall, median) | of which file decode (CPU) | samples/s per core (CPU, median) "
         "| RSS growth (MB) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     results = []
     for root, size in pairs(roots, args.size):
         for task in args.tasks:
@@ -237,7 +241,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
                         row |= r | {"samples_per_s_per_core": 1e3 / r["cpu_median"]}
                         results.append(row)
                         print(
-                            f"| {Path(root).name} | {size} | {task} | {source} | {remap_on} | {name} "
+                            f"| {Path(root).name} | {size} | {task} | {source} | {remap_on} | {name} | {r['samples']} "
                             f"| {r['cpu_min']:.1f} | {r['cpu_median']:.1f} | {r['wall_median']:.1f} "
                             f"| {r['decode']:.1f} | {row['samples_per_s_per_core']:.1f} | {r['rss_growth']:.1f} |"
                         )

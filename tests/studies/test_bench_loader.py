@@ -26,6 +26,7 @@ def test_main_tiny(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> No
     for r in results:
         assert 0 < r["cpu_min"] <= r["cpu_median"] and math.isfinite(r["cpu_median"])
         assert r["decode"] >= 0 and math.isfinite(r["rss_growth"])
+        assert r["samples"] == 3
     rows = [
         line
         for line in capsys.readouterr().out.splitlines()
@@ -100,3 +101,11 @@ def test_fixed_and_drawn_lenses_side_by_side(tiny_dataset: Path) -> None:
     assert all(r["cpu_median"] > 0 for r in results)
     pooled = results[2]
     assert pooled["pool"] == loader_speed.POOL and pooled["cold_cpu_median"] > 0
+
+
+@pytest.mark.integration
+def test_rows_say_how_many_samples_a_short_split_served(tiny_dataset: Path) -> None:
+    """``--samples`` beyond the split's frames: each frame once, and the row says how many (not ``--samples``)."""
+    argv = ["--root", str(tiny_dataset), "--size", "32", "--samples", "1000", "--repeats", "1"]
+    (row,) = loader_speed.main([*argv, "--tasks", "seg", "--sources", "fisheye"])
+    assert 0 < row["samples"] < 1000
