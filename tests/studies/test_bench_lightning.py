@@ -37,10 +37,15 @@ def test_main_tiny(bench: ModuleType, capsys: pytest.CaptureFixture[str]) -> Non
     assert table.count("| seg |") == len(bench.CLOCKS)
 
 
-def test_update_docs_inserts_then_replaces(bench: ModuleType, tmp_path: Path) -> None:
+def test_update_docs_inserts_then_rewrites_only_its_block(bench: ModuleType, tmp_path: Path) -> None:
+    """The first write adds the section before ``## Models``; later ones rewrite the table's block alone, so the
+    record's citation and the judgement written under it stay."""
     doc = tmp_path / "benchmarks.md"
     doc.write_text("# Benchmarks\n\n## Metrics\n\nm\n\n## Models\n\nx\n")
-    bench.update_docs(f"{bench.SECTION}\n\nfirst\n", doc)
-    bench.update_docs(f"{bench.SECTION}\n\nsecond\n", doc)
-    text = doc.read_text()
-    assert text == f"# Benchmarks\n\n## Metrics\n\nm\n\n{bench.SECTION}\n\nsecond\n\n## Models\n\nx\n"
+    bench.update_docs("first", doc)
+    doc.write_text(doc.read_text().replace(f"{bench.END}\n", f"{bench.END}\n\nRecord: r. Judged: j.\n"))
+    bench.update_docs("second", doc)
+    assert doc.read_text() == (
+        f"# Benchmarks\n\n## Metrics\n\nm\n\n{bench.SECTION}\n\n{bench.BEGIN}\nsecond\n{bench.END}\n\n"
+        "Record: r. Judged: j.\n\n## Models\n\nx\n"
+    )
