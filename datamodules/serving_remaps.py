@@ -146,10 +146,7 @@ class RemapServing:
         """The camera of a lens draw: its lens of the list, perturbed by its jitter."""
         if draw is None:
             return self.camera
-        lens = self.served_lenses[draw.lens].camera
-        if draw == LensDraw(draw.lens):
-            return lens
-        return lens.perturbed(draw.focal, draw.shift, draw.distortion)
+        return draw.jitter.apply(self.served_lenses[draw.lens].camera)
 
     def lens_camera(self, lens: int, lens_params: torch.Tensor) -> CameraModel:
         """The camera a sample was served through, from its ``lens`` and ``lens_params`` (a ray map:

@@ -38,7 +38,7 @@ from typing import Any
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
-from airfisheye_bench.geometry.cameras import CameraModel
+from airfisheye_bench.geometry.cameras import CameraModel, Perturbation
 
 __all__ = [
     "LENS_SPEC_KEYS",
@@ -60,29 +60,6 @@ PERTURB_KEYS = ("focal", "principal_point_px", "distortion")
 ROBUSTNESS = {"focal": 0.02, "principal_point": 0.01, "distortion": 0.05}
 #: The served-lens keys of ``data.camera`` a test lens replaces (``size`` and ``fit`` stay the run's).
 _CAMERA_KEYS = ("model", "fov_deg", "k", "calibration", "camera", "lenses", "jitter")
-
-
-@dataclass(frozen=True)
-class Perturbation:
-    """A fixed change of a lens's intrinsics (:meth:`CameraModel.perturbed`)."""
-
-    focal: float = 1.0
-    shift: tuple[float, float] = (0.0, 0.0)
-    distortion: tuple[float, ...] = ()
-
-    def describe(self) -> str:
-        parts = []
-        if self.focal != 1.0:
-            parts.append(f"focal ×{self.focal:g}")
-        if self.shift != (0.0, 0.0):
-            parts.append(f"principal point {self.shift[0]:+g}, {self.shift[1]:+g} px")
-        for i, factor in enumerate(self.distortion):
-            if factor != 1.0:
-                parts.append(f"distortion[{i}] ×{factor:g}")
-        return ", ".join(parts) or "unchanged"
-
-    def apply(self, camera: CameraModel) -> CameraModel:
-        return camera.perturbed(self.focal, self.shift, self.distortion)
 
 
 @dataclass(frozen=True)

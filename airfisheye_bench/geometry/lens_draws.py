@@ -23,23 +23,24 @@ model's): :meth:`LensDraw.from_params` and the dataset's ``lens_camera`` rebuild
 Example:
     >>> draws = LensDraws(weights=(1.0, 3.0), jitter=LensJitter.parse({"focal": 0.05}), distortion_counts=(4, 0))
     >>> d = draws.draw(7, seed=123)
-    >>> d == draws.draw(7, seed=123), d.lens in (0, 1), 0.95 <= d.focal <= 1.05
+    >>> d == draws.draw(7, seed=123), d.lens in (0, 1), 0.95 <= d.jitter.focal <= 1.05
     (True, True, True)
     >>> draws.for_split(training=False).draw(5, seed=None)
-    LensDraw(lens=1, focal=1.0, shift=(0.0, 0.0), distortion=())
+    LensDraw(lens=1, jitter=Perturbation(focal=1.0, shift=(0.0, 0.0), distortion=()))
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import torch
 
 from airfisheye_bench.geometry.cameras.ideal import LENS_MODELS
+from airfisheye_bench.geometry.cameras.perturbation import Perturbation
 
 #: Focal factors are drawn on multiples of 0.25 %.
 FOCAL_STEP = 0.0025
@@ -112,21 +113,14 @@ class LensDraw:
     the sample's remap."""
 
     lens: int
-    focal: float = 1.0
-    shift: tuple[float, float] = (0.0, 0.0)
-    distortion: tuple[float, ...] = ()
+    jitter: Perturbation = field(default_factory=Perturbation)
 
     def params(self, width: int) -> torch.Tensor:
         """``lens_params``: float32 ``[3 + width]`` (focal factor, shift x, shift y, distortion factors padded
         with 1)."""
-        factors = list(self.distortion) + [1.0] * (width - len(self.distortion))
-        return torch.tensor([self.focal, *self.shift, *factors], dtype=torch.float32)
-
-    @classmethod
-    def of(cls, lens: int, focal: float, shift: tuple[float, float], distortion: Sequence[float]) -> LensDraw:
-        """A draw in its one spelling: no distortion factors when all are 1 (one lens, one remap key)."""
-        factors = tuple(distortion)
-        return cls(int(lens), focal, shift, () if all(f == 1.0 for f in factors) else factors)
+        j = self.jitter
+        factors = list(j.distortion) + [1.0] * (width - len(j.distortion))
+        return torch.tensor([j.focal, *j.shift, *factors], dtype=torch.float32)
 
     @classmethod
     def from_params(
@@ -135,7 +129,7 @@ class LensDraw:
         """The draw a sample's ``lens`` and ``lens_params`` describe (``distortion_count``: its model's)."""
         # float32 -> the grid's float64 values (every grid value has at most 4 decimals)
         v = [_on_grid(round(float(x), 6)) for x in params]
-        return cls.of(lens, v[0], (v[1], v[2]), v[3 : 3 + distortion_count])
+        return cls(int(lens), Perturbation.of(v[0], v[1:3], v[3 : 3 + distortion_count]))
 
 
 @dataclass(frozen=True)
@@ -189,11 +183,13 @@ class LensDraws:
         k = rng.integers(-focal_cells, focal_cells + 1)
         dx, dy = rng.integers(-shift_cells, shift_cells + 1, size=2)
         m = rng.integers(-distortion_cells, distortion_cells + 1, size=count)
-        return LensDraw.of(
+        return LensDraw(
             lens,
-            _on_grid(1.0 + k * FOCAL_STEP),
-            (_on_grid(dx * PRINCIPAL_POINT_STEP_PX), _on_grid(dy * PRINCIPAL_POINT_STEP_PX)),
-            tuple(_on_grid(1.0 + x * DISTORTION_STEP) for x in m),
+            Perturbation.of(
+                _on_grid(1.0 + k * FOCAL_STEP),
+                (_on_grid(dx * PRINCIPAL_POINT_STEP_PX), _on_grid(dy * PRINCIPAL_POINT_STEP_PX)),
+                [_on_grid(1.0 + x * DISTORTION_STEP) for x in m],
+            ),
         )
 
     def _grid(self) -> tuple[int, int, int]:

@@ -80,7 +80,8 @@ def test_weights_are_respected() -> None:
 
 def test_jitter_stays_in_range_and_on_the_grid() -> None:
     draws = LensDraws((1.0,), LensJitter.parse(JITTER), distortion_counts=(4,))
-    seen = [draws.draw(i, seed=1000 + i) for i in range(500)]
+    drawn = [draws.draw(i, seed=1000 + i) for i in range(500)]
+    seen = [d.jitter for d in drawn]
     for d in seen:
         assert 0.95 - 1e-12 <= d.focal <= 1.05 + 1e-12
         assert math.isclose((d.focal - 1) / FOCAL_STEP, round((d.focal - 1) / FOCAL_STEP), abs_tol=1e-6)
@@ -94,7 +95,7 @@ def test_jitter_stays_in_range_and_on_the_grid() -> None:
     # The whole range is used, ends included.
     assert min(d.focal for d in seen) == 0.95 and max(d.focal for d in seen) == 1.05
     # lens_params round-trips through float32 to the same grid point.
-    d = seen[0]
+    d = drawn[0]
     assert LensDraw.from_params(d.lens, d.params(6), 4) == d
     # A range under one step does not jitter.
     assert LensDraws((1.0,), LensJitter(focal=0.001), (0,)).draw(3, seed=5) == LensDraw(0)

@@ -13,6 +13,7 @@ from airfisheye_bench.geometry.cameras.fov import Fov
 from airfisheye_bench.geometry.cameras.ideal import LENS_MODELS, ideal_camera
 from airfisheye_bench.geometry.cameras.kannala_brandt import KannalaBrandt
 from airfisheye_bench.geometry.cameras.ocam import Ocam
+from airfisheye_bench.geometry.cameras.perturbation import Perturbation
 from airfisheye_bench.geometry.cameras.pinhole_radtan import PinholeRadtan
 from airfisheye_bench.geometry.cameras.radial import (
     Equidistant,
@@ -40,6 +41,7 @@ __all__ = [
     "KannalaBrandt",
     "Ocam",
     "Orthographic",
+    "Perturbation",
     "Pinhole",
     "PinholeRadtan",
     "RadTanThinPrismFisheye",
