@@ -55,30 +55,6 @@ def test_repeated_frames_ids(bench: ModuleType, tiny_dataset: Path) -> None:
     assert (sample["depth"] == dataset[1]["depth"]).all()  # frame 13 repeats frame 1
 
 
-def test_update_docs_inserts_then_rewrites_only_its_block(bench: ModuleType, tmp_path: Path) -> None:
-    """The first write adds the section before ``## Metrics``; later ones rewrite the table's block alone."""
-    doc = tmp_path / "benchmarks.md"
-    doc.write_text("# Benchmarks\n\n## Data loading\n\nd\n\n## Metrics\n\nm\n")
-    bench.update_docs("first", doc)
-    doc.write_text(doc.read_text().replace(f"{bench.END}\n", f"{bench.END}\n\nRecord: r.\n"))
-    bench.update_docs("second", doc)
-    assert doc.read_text() == (
-        f"# Benchmarks\n\n## Data loading\n\nd\n\n{bench.SECTION}\n\n{bench.BEGIN}\nsecond\n{bench.END}\n\n"
-        "Record: r.\n\n## Metrics\n\nm\n"
-    )
-
-
-def test_the_docs_hold_both_benchmarks_blocks() -> None:
-    """``--write-docs`` of either script finds its block in docs/benchmarks.md (else it would add a second
-    section)."""
-    from airfisheye_bench.studies import evaluation_speed, lightning_overhead
-
-    text = evaluation_speed.DOCS.read_text(encoding="utf-8")
-    for module in (evaluation_speed, lightning_overhead):
-        assert text.count(module.BEGIN) == 1 and text.count(module.END) == 1
-        assert text.index(module.SECTION) < text.index(module.BEGIN) < text.index(module.END)
-
-
 @pytest.mark.parametrize("task", ["seg", "depth"])
 def test_scoring_in_workers_matches_main_process(
     bench: ModuleType, tiny_dataset: Path, tmp_path: Path, task: str

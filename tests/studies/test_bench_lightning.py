@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from types import ModuleType
 
 import pytest
@@ -35,17 +34,3 @@ def test_main_tiny(bench: ModuleType, capsys: pytest.CaptureFixture[str]) -> Non
             assert lo <= hi
     table = capsys.readouterr().out
     assert table.count("| seg |") == len(bench.CLOCKS)
-
-
-def test_update_docs_inserts_then_rewrites_only_its_block(bench: ModuleType, tmp_path: Path) -> None:
-    """The first write adds the section before ``## Models``; later ones rewrite the table's block alone, so the
-    record's citation and the judgement written under it stay."""
-    doc = tmp_path / "benchmarks.md"
-    doc.write_text("# Benchmarks\n\n## Metrics\n\nm\n\n## Models\n\nx\n")
-    bench.update_docs("first", doc)
-    doc.write_text(doc.read_text().replace(f"{bench.END}\n", f"{bench.END}\n\nRecord: r. Judged: j.\n"))
-    bench.update_docs("second", doc)
-    assert doc.read_text() == (
-        f"# Benchmarks\n\n## Metrics\n\nm\n\n{bench.SECTION}\n\n{bench.BEGIN}\nsecond\n{bench.END}\n\n"
-        "Record: r. Judged: j.\n\n## Models\n\nx\n"
-    )
