@@ -22,7 +22,8 @@ split has 3 flights, too few for an interval over them to bound anything but lar
 :func:`summarise` reads the records alone: per arm, task and test lens the mean and sample standard deviation over
 the seeds, and the cross-lens gap ``1 - other / own`` (``other / own - 1`` for errors) with a t-interval over the
 test flights (the seeds' per-flight scores averaged first: frames of one flight are not independent), Bonferroni
-over the family of lenses.
+over the family of lenses. Over the held-out flights the arms are also compared with each other, lens by lens
+(:mod:`airfisheye_bench.studies.lens_contrasts`: b − a, c − b, d − a on paired seeds).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from airfisheye_bench.runs.results import json_safe
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.studies.clustered import cluster_difference
 from airfisheye_bench.studies.generated_blocks import replace_block
+from airfisheye_bench.studies.lens_contrasts import arm_contrasts, contrast_lines, flight_scores
 from airfisheye_bench.studies.provenance import REPO, git_commit, machine, provenance, records_of_format
 from airfisheye_bench.studies.quickstart import METRIC_LABELS
 
@@ -299,6 +301,8 @@ def held_out_records(records: Sequence[Mapping[str, Any]]) -> list[dict[str, Any
 
 #: The metrics each task's cells show (the issue's mIoU / δ1 / AbsRel).
 CELL_METRICS = {"seg": ("mIoU",), "depth": ("delta1", "abs_rel"), "completion": ("delta1", "abs_rel")}
+#: The metric the arms are compared on, per task: the first of its cells.
+COMPARED = {task: metrics[0] for task, metrics in CELL_METRICS.items()}
 
 
 def summarise(records: Sequence[Mapping[str, Any]], level: float = 0.95) -> dict[str, Any]:
@@ -377,17 +381,7 @@ def _flight_gap(
     each lens first), with its interval over the flights."""
     higher = spec.column(metric).higher_is_better if spec.column(metric) else False
 
-    def flights(name: str) -> dict[str, float]:
-        per: dict[str, list[float]] = {}
-        for record in runs:
-            row = _row(record, name)
-            for flight, values in ((row or {}).get("flights") or {}).items():
-                value = values.get(metric)
-                if value is not None and math.isfinite(value):
-                    per.setdefault(flight, []).append(float(value))
-        return {f: sum(v) / len(v) for f, v in per.items()}
-
-    mine, theirs = flights(own), flights(other)
+    mine, theirs = flight_scores(runs, own, metric), flight_scores(runs, other, metric)
     gaps = {f: cross_lens_gap(mine[f], theirs[f], higher) for f in sorted(mine.keys() & theirs.keys())}
     gaps = {f: g for f, g in gaps.items() if math.isfinite(g)}
     if not gaps:
@@ -406,10 +400,12 @@ def report_block(
     summary: Mapping[str, Any],
     source: str = "figures/lens_study/summary.json",
     held: Mapping[str, Any] | None = None,
+    contrasts: Mapping[str, Any] | None = None,
 ) -> str:
     """The study's tables as markdown: first, where there are any, the scores over :data:`HELD_OUT`'s flights
     (``held``: per task and metric the arms by test lens, then the cross-lens gap with its family interval over the
-    flights), then the same on the quick start's own test split with the robustness row."""
+    flights; ``contrasts``: :func:`~airfisheye_bench.studies.lens_contrasts.arm_contrasts` of the same records),
+    then the same on the quick start's own test split with the robustness row."""
     lines = [f"Generated from [`{source}`]({source}) (each run's record: `figures/lens_study/runs/`)."]
     if held:
         lines += [
@@ -417,6 +413,7 @@ def report_block(
             f"##### Over 32 held-out test flights (`{' '.join(HELD_OUT)}`; `held_out` in `{source}`)",
         ]
         lines += _task_tables(held, f"{source}, held_out", robustness=False)
+        lines += contrast_lines(contrasts or {}, METRIC_LABELS, f"{source}, held_out.contrasts")
         lines += ["", "##### On the quick start's own test split (3 flights), with the robustness row"]
     lines += _task_tables(summary, source, robustness=True)
     return "\n".join(lines)
@@ -553,12 +550,13 @@ def main(argv: Sequence[str] | None = None) -> None:
                 "dataset": held[0]["dataset"] if held else None,
                 "records": [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in held],
                 "tasks": json_safe(summarise(held)),
+                "contrasts": json_safe(arm_contrasts(held, COMPARED)),
             },
         }
         atomic_write_text(Path(args.summary), json.dumps(record, indent=1, allow_nan=False) + "\n")
         if args.report:
             report = Path(args.report)
-            block = report_block(summary, held=summarise(held))
+            block = report_block(summary, held=summarise(held), contrasts=arm_contrasts(held, COMPARED))
             text = replace_block(report.read_text(encoding="utf-8"), block, REPORT_BEGIN, REPORT_END)
             atomic_write_text(report, text)
         return

@@ -171,7 +171,8 @@ def test_a_run_is_also_scored_over_the_held_out_flights_and_reported_first() -> 
 def test_the_committed_report_is_the_one_the_committed_records_give() -> None:
     """docs/results.md's block and summary.json are what ``scripts/lens_study.py --summary ... --report ...`` makes
     of the committed records: regenerate them when a record lands."""
-    from airfisheye_bench.studies.lens_study import held_out_records, load_records
+    from airfisheye_bench.studies.lens_contrasts import arm_contrasts
+    from airfisheye_bench.studies.lens_study import COMPARED, held_out_records, load_records
 
     records = load_records(REPO / "docs" / "figures" / "lens_study" / "runs")
     summary = json.loads(
@@ -181,7 +182,7 @@ def test_the_committed_report_is_the_one_the_committed_records_give() -> None:
     held = held_out_records(records)
     assert summary["held_out"]["records"] == [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in held]
     text = (REPO / "docs" / "results.md").read_text(encoding="utf-8")
-    expected = report_block(summarise(records), held=summarise(held))
+    expected = report_block(summarise(records), held=summarise(held), contrasts=arm_contrasts(held, COMPARED))
     assert block_in(text, REPORT_BEGIN, REPORT_END) == expected, (
         "regenerate: python scripts/lens_study.py --summary docs/figures/lens_study/summary.json --report docs/results.md"
     )

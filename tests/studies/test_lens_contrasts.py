@@ -1,0 +1,66 @@
+"""The lens study's arm comparisons (:mod:`airfisheye_bench.studies.lens_contrasts`): paired seeds, flights as the
+unit, one family per task."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from airfisheye_bench.studies.lens_contrasts import arm_contrasts, contrast_lines
+
+FLIGHTS = ("f0", "f1", "f2", "f3")
+
+
+def _run(arm: str, seed: int, scores: dict[str, list[float]], task: str = "depth") -> dict:
+    """A record with one score per flight on each lens."""
+    lenses = [
+        {"name": name, "flights": {f: {"delta1": v} for f, v in zip(FLIGHTS, values, strict=True)}}
+        for name, values in scores.items()
+    ]
+    return {"arm": arm, "task": task, "seed": seed, "cross_lens": {"lenses": lenses}}
+
+
+def test_a_contrast_pairs_the_seeds_both_arms_have_and_averages_them_per_flight() -> None:
+    records = [
+        _run("a", 0, {"x": [0.5, 0.6, 0.4, 0.5]}),
+        _run("a", 1, {"x": [0.7, 0.6, 0.6, 0.5]}),
+        _run("b", 0, {"x": [0.7, 0.7, 0.6, 0.6]}),
+        _run("b", 1, {"x": [0.7, 0.8, 0.6, 0.6]}),
+        _run("b", 2, {"x": [0.0, 0.0, 0.0, 0.0]}),  # a has no seed 2: left out
+    ]
+    out = arm_contrasts(records, {"depth": "delta1"})["depth"]
+    contrast = out["contrasts"]["b − a"]
+    assert contrast["seeds"] == [0, 1] and out["family"] == 1
+    # per flight: b's seed mean − a's seed mean = 0.1, 0.15, 0.1, 0.1
+    cell = contrast["lenses"]["x"]
+    assert cell["n"] == 4 and cell["mean"] == pytest.approx(0.1125)
+    assert cell["clusters"] == list(FLIGHTS)
+
+
+def test_the_family_is_every_comparison_and_lens_of_a_task_and_trained_is_not_a_lens() -> None:
+    lenses = {"trained": [0.5] * 4, "x": [0.5, 0.6, 0.4, 0.5], "y": [0.3, 0.4, 0.2, 0.3]}
+    records = [_run(arm, 0, lenses) for arm in "abc"] + [_run("a", 0, {"x": [0.2] * 4}, task="seg")]
+    out = arm_contrasts(records, {"depth": "delta1", "seg": "mIoU"})
+    assert list(out) == ["depth"]  # seg has arm a alone: nothing to compare
+    assert list(out["depth"]["contrasts"]) == ["b − a", "c − b"]  # no arm d
+    assert out["depth"]["family"] == 4
+    assert set(out["depth"]["contrasts"]["b − a"]["lenses"]) == {"x", "y"}
+    assert out["depth"]["contrasts"]["b − a"]["lenses"]["x"]["mean"] == 0.0
+
+
+def test_the_table_states_an_interval_holding_zero_with_its_detectable_difference() -> None:
+    records = [
+        _run("a", 0, {"x": [0.5, 0.6, 0.4, 0.5], "y": [0.5, 0.5, 0.5, 0.5]}),
+        _run("b", 0, {"x": [0.6, 0.7, 0.5, 0.62], "y": [0.52, 0.47, 0.53, 0.49]}),
+    ]
+    contrasts = arm_contrasts(records, {"depth": "delta1"})
+    lines = contrast_lines(contrasts, {"delta1": "δ1"}, "summary.json")
+    assert lines[1].startswith("**depth, arms compared: difference of δ1**") and "2 comparisons" in lines[1]
+    (row,) = [line for line in lines if line.startswith("| b − a |")]
+    x, y = row.split(" | ")[2:4]
+    assert x.startswith("+0.105 [") and "mde" not in x  # detected
+    y_cell = contrasts["depth"]["contrasts"]["b − a"]["lenses"]["y"]
+    low, high = y_cell["ci_family"]
+    assert low < 0 < high and math.isfinite(y_cell["mde_family"])
+    assert y.rstrip(" |").endswith(f"· mde {y_cell['mde_family']:.3f}")
