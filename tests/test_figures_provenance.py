@@ -128,6 +128,7 @@ _NUMBER = re.compile(r"(?<![\w.])\d+\.\d+(?![\w.])|(?<![\w.,])\d{1,3}(?:,\d{3})+
 _RECORD = re.compile(r"[\w./*\[\]-]+\.json")
 _SEPARATOR = re.compile(r"^\|[\s:|-]+\|$")
 _GENERATED = re.compile(r"<!-- [\w-]+:begin \(generated .*?\) -->")
+_MARKER = re.compile(r"<!-- [\w-]+:(begin|end)\b.*-->")
 
 
 @dataclass(frozen=True)
@@ -159,9 +160,10 @@ class Table:
 
 
 def _paragraph(lines: list[str], start: int, step: int) -> list[str]:
-    """The text lines of the paragraph from ``start`` going ``step`` (blank lines first skipped; a heading ends it)."""
+    """The text lines of the paragraph from ``start`` going ``step`` (blank lines and a generated block's markers
+    first skipped; a heading ends it)."""
     i, out = start, []
-    while 0 <= i < len(lines) and not lines[i].strip():
+    while 0 <= i < len(lines) and (not lines[i].strip() or _MARKER.fullmatch(lines[i].strip())):
         i += step
     while 0 <= i < len(lines) and lines[i].strip() and not lines[i].startswith("#"):
         out.append(lines[i])
