@@ -539,6 +539,7 @@ def main(argv: Sequence[str] | None = None) -> None:
                 f"lens study: the records in {records} come from different datasets: {sorted(datasets)}"
             )
         held = held_out_records(runs)
+        held_summary, contrasts = summarise(held), arm_contrasts(held, COMPARED)
         record = {
             "format": "airfisheye-bench/lens-study-summary/v1",
             "provenance": provenance("scripts/lens_study.py", argv if argv is not None else sys.argv[1:]),
@@ -549,14 +550,14 @@ def main(argv: Sequence[str] | None = None) -> None:
                 "overrides": list(HELD_OUT),
                 "dataset": held[0]["dataset"] if held else None,
                 "records": [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in held],
-                "tasks": json_safe(summarise(held)),
-                "contrasts": json_safe(arm_contrasts(held, COMPARED)),
+                "tasks": json_safe(held_summary),
+                "contrasts": json_safe(contrasts),
             },
         }
         atomic_write_text(Path(args.summary), json.dumps(record, indent=1, allow_nan=False) + "\n")
         if args.report:
             report = Path(args.report)
-            block = report_block(summary, held=summarise(held), contrasts=arm_contrasts(held, COMPARED))
+            block = report_block(summary, held=held_summary, contrasts=contrasts)
             text = replace_block(report.read_text(encoding="utf-8"), block, REPORT_BEGIN, REPORT_END)
             atomic_write_text(report, text)
         return
