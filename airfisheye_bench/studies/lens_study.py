@@ -24,6 +24,10 @@ the seeds, and the cross-lens gap ``1 - other / own`` (``other / own - 1`` for e
 test flights (the seeds' per-flight scores averaged first: frames of one flight are not independent), Bonferroni
 over the family of lenses. Over the held-out flights the arms are also compared with each other, lens by lens
 (:mod:`airfisheye_bench.studies.lens_contrasts`: b − a, c − b, d − a on paired seeds).
+
+The study accumulates across sessions: a run whose record exists is not run again, and a training that a session's
+end cut is resumed exactly from its last checkpoint, its record keeping the segments it trained in
+(:mod:`airfisheye_bench.studies.segments`).
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ from airfisheye_bench.studies.generated_blocks import replace_block
 from airfisheye_bench.studies.lens_contrasts import arm_contrasts, contrast_lines, flight_scores
 from airfisheye_bench.studies.provenance import REPO, git_commit, machine, provenance, records_of_format
 from airfisheye_bench.studies.quickstart import METRIC_LABELS
+from airfisheye_bench.studies.segments import train_in_segments
 
 __all__ = [
     "ARMS",
@@ -183,23 +188,29 @@ def plan(out: str | Path, arms: Sequence[str], tasks: Sequence[str], seeds: Sequ
 
 
 def train(run: StudyRun, threads: int = 1) -> None:
-    """Train ``run`` from the checkout (one thread each: two runs share a 2-core machine) and record how."""
+    """Train ``run`` from the checkout (one thread each: two runs share a 2-core machine) and record how; a run
+    that a session's end cut is resumed exactly, and its record keeps the segments
+    (:mod:`airfisheye_bench.studies.segments`)."""
     env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
-    run.run_dir.parent.mkdir(parents=True, exist_ok=True)
-    start = time.time()
     argv = run.train_argv()
-    with open(run.run_dir.with_suffix(".log"), "w") as log:
-        code = subprocess.run(argv, cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT).returncode
+    log_path = run.run_dir.with_suffix(".log")
+
+    def runner(args: list[str]) -> int:
+        with open(log_path, "a" if "ckpt_path=last" in args else "w") as log:
+            return subprocess.run(args, cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT).returncode
+
+    trained, code = train_in_segments(argv, run.run_dir, git_commit(REPO), runner)
     record = {
-        "commit": git_commit(REPO),
+        "commit": trained["commit"],
         "rc": code,
-        "wall_s": time.time() - start,
+        "wall_s": trained["wall_s"],
         "command": ["python", *argv[1:]],
         "omp_num_threads": threads,
+        **({"segments": trained["segments"]} if len(trained["segments"]) > 1 else {}),
     }
     atomic_write_text(run.trained, json.dumps(record, indent=1) + "\n")
     if code != 0:
-        raise RuntimeError(f"{run.name}: training exited {code} (log: {run.run_dir.with_suffix('.log')})")
+        raise RuntimeError(f"{run.name}: training exited {code} (log: {log_path})")
 
 
 def score(run: StudyRun, records: Path, threads: int = 1) -> Path:

@@ -55,6 +55,7 @@ from airfisheye_bench.studies.crossover import run_frame_scores, run_region_scor
 from airfisheye_bench.studies.generated_blocks import replace_block
 from airfisheye_bench.studies.paired import paired_differences, paired_table
 from airfisheye_bench.studies.provenance import git_commit, provenance
+from airfisheye_bench.studies.segments import resume_argv, segments_path, train_in_segments
 
 # The checkout this package sits in: the ablation drives its train.py (studies run from a checkout).
 REPO = Path(__file__).resolve().parents[2]
@@ -135,31 +136,14 @@ def execute(
                 )
             argv = run.argv(overrides)
             command = " ".join(["python", *(Path(a).name if a == argv[1] else a for a in argv[1:])])
-            # Beside the run, not in it: train.py owns the run's folder.
-            segments_path = run.out.parent / f"{run.out.name}.segments.json"
-            segments = (
-                json.loads(segments_path.read_text(encoding="utf-8")) if segments_path.is_file() else []
-            )
-            killed_earlier = (run.out / "checkpoints" / "last.ckpt").is_file()  # a session's end cut it
-            if killed_earlier:  # resume it
-                argv = [argv[0], argv[1], "ckpt_path=last", f"hydra.run.dir={run.out}"]
+            resumed = segments_path(run.out).is_file() or resume_argv(argv, run.out) != argv
             print(
-                f"[{k}/{len(runs)}] {run.method} seed {run.seed}" + (" (resumed)" if segments else ""),
+                f"[{k}/{len(runs)}] {run.method} seed {run.seed}" + (" (resumed)" if resumed else ""),
                 file=sys.stderr,
             )
-            segments.append({"commit": commit, "argv": argv[2:], "started": time.time()})
-            run.out.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write_text(segments_path, json.dumps(segments, indent=2) + "\n")
-            runner(argv)
-            segments[-1]["wall_s"] = round(time.time() - segments[-1]["started"], 1)
-            wall = ablation_records.running_time(segments)  # None: a killed segment's is unknown
-            record = {
-                "commit": segments[0]["commit"],
-                "command": command,
-                "wall_s": None if wall is None else round(wall, 1),
-                # A run killed and resumed (ckpt_path=last: exact on one CPU process) trained in several segments.
-                "segments": [{"commit": seg["commit"], "wall_s": seg.get("wall_s")} for seg in segments],
-            }
+            # A run killed and resumed (ckpt_path=last: exact on one CPU process) trained in several segments.
+            trained, _ = train_in_segments(argv, run.out, commit, runner)
+            record = {**trained, "command": command}
             atomic_write_text(run.out / "provenance.json", json.dumps(record, indent=2) + "\n")
         if after is not None:
             after(run)

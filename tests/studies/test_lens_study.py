@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -19,9 +20,11 @@ from airfisheye_bench.studies.lens_study import (
     plan,
     report_block,
     summarise,
+    train,
     upgrade_record,
 )
 from airfisheye_bench.studies.provenance import REPO
+from airfisheye_bench.studies.segments import train_in_segments
 
 
 def test_plan_pairs_seeds_and_each_arm_trains_and_scores_as_documented(tmp_path: Path) -> None:
@@ -37,6 +40,48 @@ def test_plan_pairs_seeds_and_each_arm_trains_and_scores_as_documented(tmp_path:
     assert "views=cube" in plan(tmp_path, ["d"], ["seg"], [0])[0].evaluate_argv()
     with pytest.raises(ValueError, match="unknown arm 'e'"):
         plan(tmp_path, ["e"], ["seg"], [0])
+
+
+def test_a_training_cut_by_a_sessions_end_is_resumed_and_its_segments_recorded(
+    tmp_path: Path, monkeypatch
+) -> None:
+    run = plan(tmp_path, ["d"], ["depth"], [1])[0]
+    calls: list[list[str]] = []
+
+    def fake_run(argv: list[str], **kwargs) -> subprocess.CompletedProcess:
+        calls.append(argv)
+        if "ckpt_path=last" not in argv:  # the first segment is killed after its first checkpoint
+            (run.run_dir / "checkpoints").mkdir(parents=True)
+            (run.run_dir / "checkpoints" / "last.ckpt").write_text("weights")
+            raise KeyboardInterrupt
+        return subprocess.CompletedProcess(argv, 0)
+
+    monkeypatch.setattr("airfisheye_bench.studies.lens_study.subprocess.run", fake_run)
+    monkeypatch.setattr("airfisheye_bench.studies.lens_study.git_commit", lambda repo: "c0ffee")
+    with pytest.raises(KeyboardInterrupt):
+        train(run)
+    assert not run.trained.exists()  # a cut training leaves no record, only its segment
+    train(run)
+    assert calls[1][2:] == ["ckpt_path=last", f"hydra.run.dir={run.run_dir}"]
+    record = json.loads(run.trained.read_text())
+    assert record["rc"] == 0 and record["commit"] == "c0ffee"
+    assert record["command"][:4] == [
+        "python",
+        "train.py",
+        "task=depth",
+        "seed=1",
+    ]  # the run's, not the resume's
+    assert [s["wall_s"] is None for s in record["segments"]] == [True, False]
+    assert record["wall_s"] is None  # the cut segment's time is unknown, not 0
+
+
+def test_a_run_cut_before_its_segments_were_kept_starts_with_an_unknown_one(tmp_path: Path) -> None:
+    run_dir = tmp_path / "seed0"
+    (run_dir / "checkpoints").mkdir(parents=True)
+    (run_dir / "checkpoints" / "last.ckpt").write_text("weights")
+    trained, returned = train_in_segments(["python", "train.py", "seed=0"], run_dir, "c0ffee", lambda argv: 0)
+    assert returned == 0 and trained["commit"] is None and trained["wall_s"] is None
+    assert [s["commit"] for s in trained["segments"]] == [None, "c0ffee"]
 
 
 def test_the_test_lenses_parse_and_their_files_are_committed() -> None:
