@@ -1,5 +1,6 @@
 """The lens study's arms compared lens by lens (docs/results.md, section 9): does the lens list help, do rays help
-on top of it, and what does a pinhole model lose against the one-lens fisheye model?
+on top of it, and what does a pinhole model lose against the one-lens fisheye model? And each arm against its own
+lens perturbed (:func:`robustness_changes`): which change of the intrinsics moves it, and how far?
 
 Each comparison ``x − y`` (:data:`CONTRASTS`) is measured on every test lens over the test flights: the score of
 each flight averaged over the seeds both arms have (seeds are paired across arms: same data order and
@@ -24,7 +25,14 @@ from typing import Any
 
 from airfisheye_bench.studies.clustered import cluster_difference
 
-__all__ = ["CONTRASTS", "arm_contrasts", "contrast_lines", "flight_scores"]
+__all__ = [
+    "CONTRASTS",
+    "arm_contrasts",
+    "contrast_lines",
+    "flight_scores",
+    "robustness_changes",
+    "robustness_lines",
+]
 
 #: ``(x, y)``: arm x's score minus arm y's. b − a: what training across lenses buys; c − b: what the ray map adds
 #: to it; d − a: a pinhole model through perspective views against the one-lens fisheye model.
@@ -84,6 +92,91 @@ def arm_contrasts(
             contrasts[f"{x} − {y}"] = {"seeds": seeds, "lenses": cells}
         out[task] = {"metric": metric, "family": family, "contrasts": contrasts}
     return out
+
+
+def robustness_changes(
+    records: Sequence[Mapping[str, Any]], metrics: Mapping[str, str], level: float = 0.95
+) -> dict[str, Any]:
+    """``{task: {"metric", "family", "arms": {arm: {"seeds", "perturbations": {name: interval}}}}}``: per arm and
+    perturbation of its robustness row (``cross_lens.robustness``), the change of the task's metric from the
+    unperturbed lens, each flight's change averaged over the arm's seeds first, with a t-interval over the flights
+    and a Bonferroni family of every arm and perturbation of the task.
+
+    Example:
+        >>> row = lambda seed, shift: {"arm": "a", "task": "seg", "seed": seed, "cross_lens": {"lenses": [],
+        ...     "robustness": {"flights": {f: {"mIoU": 0.5} for f in "pqr"}, "perturbations": [{"name": "up",
+        ...     "flights": {f: {"mIoU": 0.5 + shift + i / 100} for i, f in enumerate("pqr")}}]}}}
+        >>> out = robustness_changes([row(0, -0.02), row(1, -0.04)], {"seg": "mIoU"})["seg"]
+        >>> out["family"], round(out["arms"]["a"]["perturbations"]["up"]["mean"], 3)
+        (1, -0.02)
+    """
+    out: dict[str, Any] = {}
+    for task in dict.fromkeys(r["task"] for r in records if r["task"] in metrics):
+        metric = metrics[task]
+        by_arm: dict[str, list[Mapping[str, Any]]] = {}
+        for record in records:
+            if record["task"] == task and "robustness" in record["cross_lens"]:
+                by_arm.setdefault(record["arm"], []).append(record)
+        changes: dict[str, dict[str, dict[str, float]]] = {}  # arm -> perturbation -> flight -> mean change
+        for arm, runs in by_arm.items():
+            per: dict[str, dict[str, list[float]]] = {}
+            for run in runs:
+                row = run["cross_lens"]["robustness"]
+                reference = row["flights"] or {}
+                for perturbation in row["perturbations"]:
+                    for flight, values in (perturbation.get("flights") or {}).items():
+                        change = values.get(metric, math.nan) - reference.get(flight, {}).get(
+                            metric, math.nan
+                        )
+                        if math.isfinite(change):
+                            per.setdefault(perturbation["name"], {}).setdefault(flight, []).append(change)
+            changes[arm] = {
+                name: {f: sum(v) / len(v) for f, v in flights.items()} for name, flights in per.items()
+            }
+        family = sum(len(p) for p in changes.values())
+        if not family:
+            continue
+        out[task] = {
+            "metric": metric,
+            "family": family,
+            "arms": {
+                arm: {
+                    "seeds": sorted(r["seed"] for r in by_arm[arm]),
+                    "perturbations": {
+                        name: cluster_difference(flights, family, level) for name, flights in per_name.items()
+                    },
+                }
+                for arm, per_name in changes.items()
+            },
+        }
+    return out
+
+
+def robustness_lines(
+    changes: Mapping[str, Any], label: Mapping[str, str], titles: Mapping[str, str], source: str
+) -> list[str]:
+    """One markdown table per task: a row per arm (``titles``: its name), a column per perturbation."""
+    lines: list[str] = []
+    for task, block in changes.items():
+        name = label.get(block["metric"], block["metric"])
+        columns = list(dict.fromkeys(p for arm in block["arms"].values() for p in arm["perturbations"]))
+        lines += [
+            "",
+            f"**{task}, robustness row: change of {name} under each perturbation of the trained lens** (perturbed − "
+            "unperturbed; per test flight the seeds' mean change first, then the mean over the flights with its 95 % "
+            f"interval Bonferroni-corrected over the {block['family']} cells of the table; where that interval holds "
+            f"0, `mde` is the smallest change it would have detected at 80 % power; `{source}`)",
+            "",
+            "| arm | seeds | "
+            + " | ".join(c.removeprefix("trained (").removesuffix(")") for c in columns)
+            + " |",
+            "|---|---:|" + "---:|" * len(columns),
+        ]
+        for arm, cells in block["arms"].items():
+            row = [_cell(cells["perturbations"].get(c)) for c in columns]
+            seeds = ", ".join(map(str, cells["seeds"]))
+            lines.append(f"| {arm}: {titles.get(arm, arm)} | {seeds} | " + " | ".join(row) + " |")
+    return lines
 
 
 def contrast_lines(contrasts: Mapping[str, Any], label: Mapping[str, str], source: str) -> list[str]:

@@ -17,13 +17,14 @@ test lenses are none of the training lenses except arm ``a``'s and ``b``'s equid
 are under ``docs/lenses/`` (their sources in its README). Each run is also scored on the same lenses over
 :data:`HELD_OUT`, 32 test flights of the quick start's data from areas no run trained on (the quick start's own test
 split has 3 flights, too few for an interval over them to bound anything but large gaps): the record's
-``held_out`` block.
+``held_out`` block, with the robustness row over the same flights as its ``robustness``.
 
 :func:`summarise` reads the records alone: per arm, task and test lens the mean and sample standard deviation over
 the seeds, and the cross-lens gap ``1 - other / own`` (``other / own - 1`` for errors) with a t-interval over the
 test flights (the seeds' per-flight scores averaged first: frames of one flight are not independent), Bonferroni
 over the family of lenses. Over the held-out flights the arms are also compared with each other, lens by lens
-(:mod:`airfisheye_bench.studies.lens_contrasts`: b − a, c − b, d − a on paired seeds).
+(:mod:`airfisheye_bench.studies.lens_contrasts`: b − a, c − b, d − a on paired seeds), and each arm's robustness
+row is read perturbation by perturbation: the change of each, flight by flight, with its interval.
 
 The study accumulates across sessions: a run whose record exists is not run again, and a training that a session's
 end cut is resumed exactly from its last checkpoint, its record keeping the segments it trained in
@@ -50,7 +51,13 @@ from airfisheye_bench.runs.results import json_safe
 from airfisheye_bench.specs import get_task
 from airfisheye_bench.studies.clustered import cluster_difference
 from airfisheye_bench.studies.generated_blocks import replace_block
-from airfisheye_bench.studies.lens_contrasts import arm_contrasts, contrast_lines, flight_scores
+from airfisheye_bench.studies.lens_contrasts import (
+    arm_contrasts,
+    contrast_lines,
+    flight_scores,
+    robustness_changes,
+    robustness_lines,
+)
 from airfisheye_bench.studies.provenance import REPO, git_commit, machine, provenance, records_of_format
 from airfisheye_bench.studies.quickstart import METRIC_LABELS
 from airfisheye_bench.studies.segments import train_in_segments
@@ -163,15 +170,25 @@ class StudyRun:
     def evaluate_argv(self, held_out: bool = False) -> list[str]:
         """The scoring command: the run's own test split with the robustness row, or (``held_out``) the lenses
         over :data:`HELD_OUT`'s flights."""
+        return self._scoring_argv(
+            f"lenses=[{','.join(TEST_LENSES)}]",
+            *(HELD_OUT if held_out else ("robustness=true",)),
+            out=self.evaluated(held_out),
+        )
+
+    def robustness_argv(self) -> list[str]:
+        """The robustness row over :data:`HELD_OUT`'s flights (the trained lens and its perturbations alone)."""
+        return self._scoring_argv("robustness=true", *HELD_OUT, out=self.run_dir / "robustness_flights")
+
+    def _scoring_argv(self, *overrides: str, out: Path) -> list[str]:
         return [
             sys.executable,
             "scripts/evaluate.py",
             f"ckpt_path={self.run_dir}",
-            f"lenses=[{','.join(TEST_LENSES)}]",
-            *(HELD_OUT if held_out else ("robustness=true",)),
+            *overrides,
             "num_panels=0",
             *ARMS[self.arm].evaluate,
-            f"out={self.evaluated(held_out)}",
+            f"out={out}",
         ]
 
     def evaluated(self, held_out: bool = False) -> Path:
@@ -215,7 +232,7 @@ def train(run: StudyRun, threads: int = 1) -> None:
 
 def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
     """Score a trained run on every test lens and the robustness row; write its record into ``records``."""
-    evaluated, evaluation = _evaluate(run, False, threads)
+    evaluated, evaluation = _evaluate(run.evaluate_argv(), threads)
     own = json.loads((run.run_dir / "results.json").read_text(encoding="utf-8"))
     trained = json.loads(run.trained.read_text(encoding="utf-8"))
     record = {
@@ -234,13 +251,14 @@ def score(run: StudyRun, records: Path, threads: int = 1) -> Path:
     path = records / f"{run.name}.json"
     atomic_write_text(path, json.dumps(record, indent=1) + "\n")
     score_held_out(run, path, threads)
+    score_held_out_robustness(run, path, threads)
     return path
 
 
 def score_held_out(run: StudyRun, path: Path, threads: int = 1) -> None:
     """Score the trained ``run`` on every test lens over :data:`HELD_OUT` and add that to its record at ``path``
     (``held_out``: the overrides, the evaluation's commit and command, the data's identity, ``cross_lens``)."""
-    evaluated, evaluation = _evaluate(run, True, threads)
+    evaluated, evaluation = _evaluate(run.evaluate_argv(held_out=True), threads)
     record = json.loads(path.read_text(encoding="utf-8"))
     record["held_out"] = {
         "overrides": list(HELD_OUT),
@@ -251,15 +269,32 @@ def score_held_out(run: StudyRun, path: Path, threads: int = 1) -> None:
     atomic_write_text(path, json.dumps(record, indent=1) + "\n")
 
 
-def _evaluate(run: StudyRun, held_out: bool, threads: int) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Run one scoring of ``run`` (one thread each) and return its ``results.json`` and how it was made: the commit,
-    the command (its output folder named relative to the run), the wall time and the threads."""
-    argv = run.evaluate_argv(held_out)
+def score_held_out_robustness(run: StudyRun, path: Path, threads: int = 1) -> None:
+    """Score the trained ``run``'s robustness row over :data:`HELD_OUT` and add it to the ``held_out`` block of its
+    record at ``path`` (``robustness``: the evaluation's commit and command, and the row with its flights). The
+    quick start's 3 flights cannot tell one perturbation's direction from another; 32 can."""
+    evaluated, evaluation = _evaluate(run.robustness_argv(), threads)
+    record = json.loads(path.read_text(encoding="utf-8"))
+    if evaluated["dataset"] != record["held_out"]["dataset"]:
+        raise RuntimeError(
+            f"{run.name}: the robustness row was scored on other data than the held-out lenses"
+        )
+    record["held_out"]["robustness"] = {
+        "evaluation": {**evaluation, "machine": machine()},
+        **evaluated["cross_lens"]["robustness"],
+    }
+    atomic_write_text(path, json.dumps(record, indent=1) + "\n")
+
+
+def _evaluate(argv: list[str], threads: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Run one scoring command (``threads`` threads) and return its ``results.json`` and how it was made: the commit, the
+    command (its output folder named relative to the run), the wall time and the threads."""
     env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
     start = time.time()
     subprocess.run(argv, cwd=REPO, env=env, check=True, stdout=subprocess.DEVNULL)
-    evaluated = json.loads((run.evaluated(held_out) / "results.json").read_text(encoding="utf-8"))
-    out = f"out=<run>/{run.evaluated(held_out).name}"
+    folder = Path(argv[-1].removeprefix("out="))
+    evaluated = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+    out = f"out=<run>/{folder.name}"
     evaluation = {
         "commit": git_commit(REPO),
         "command": ["python", *argv[1:-1], out],
@@ -301,7 +336,7 @@ def held_out_records(records: Sequence[Mapping[str, Any]]) -> list[dict[str, Any
     """The records scored over :data:`HELD_OUT`, each with that scoring as its ``cross_lens`` and ``dataset`` (what
     :func:`summarise` reads); ``ValueError`` when they were scored on different data."""
     held = [
-        {**r, "cross_lens": r["held_out"]["cross_lens"], "dataset": r["held_out"]["dataset"]}
+        {**r, "cross_lens": _held_out_cross_lens(r["held_out"]), "dataset": r["held_out"]["dataset"]}
         for r in records
         if "held_out" in r
     ]
@@ -314,6 +349,21 @@ def held_out_records(records: Sequence[Mapping[str, Any]]) -> list[dict[str, Any
 CELL_METRICS = {"seg": ("mIoU",), "depth": ("delta1", "abs_rel"), "completion": ("delta1", "abs_rel")}
 #: The metric the arms are compared on, per task: the first of its cells.
 COMPARED = {task: metrics[0] for task, metrics in CELL_METRICS.items()}
+
+
+def held_out_analysis(held: Sequence[Mapping[str, Any]]) -> tuple[dict, dict, dict]:
+    """What the study reports of its :func:`held_out_records`: their :func:`summarise`, the arms compared lens by
+    lens (:func:`~airfisheye_bench.studies.lens_contrasts.arm_contrasts`) and each arm's robustness row perturbation
+    by perturbation (:func:`~airfisheye_bench.studies.lens_contrasts.robustness_changes`)."""
+    return summarise(held), arm_contrasts(held, COMPARED), robustness_changes(held, COMPARED)
+
+
+def _held_out_cross_lens(held_out: Mapping[str, Any]) -> dict[str, Any]:
+    """The held-out scoring's ``cross_lens``, with its robustness row where the run has one."""
+    rows = dict(held_out["cross_lens"])
+    if "robustness" in held_out:
+        rows["robustness"] = {k: v for k, v in held_out["robustness"].items() if k != "evaluation"}
+    return rows
 
 
 def summarise(records: Sequence[Mapping[str, Any]], level: float = 0.95) -> dict[str, Any]:
@@ -412,10 +462,12 @@ def report_block(
     source: str = "figures/lens_study/summary.json",
     held: Mapping[str, Any] | None = None,
     contrasts: Mapping[str, Any] | None = None,
+    robustness: Mapping[str, Any] | None = None,
 ) -> str:
     """The study's tables as markdown: first, where there are any, the scores over :data:`HELD_OUT`'s flights
     (``held``: per task and metric the arms by test lens, then the cross-lens gap with its family interval over the
-    flights; ``contrasts``: :func:`~airfisheye_bench.studies.lens_contrasts.arm_contrasts` of the same records),
+    flights; ``contrasts``: :func:`~airfisheye_bench.studies.lens_contrasts.arm_contrasts` of the same records;
+    ``robustness``: :func:`~airfisheye_bench.studies.lens_contrasts.robustness_changes` of them),
     then the same on the quick start's own test split with the robustness row."""
     lines = [f"Generated from [`{source}`]({source}) (each run's record: `figures/lens_study/runs/`)."]
     if held:
@@ -425,6 +477,8 @@ def report_block(
         ]
         lines += _task_tables(held, f"{source}, held_out", robustness=False)
         lines += contrast_lines(contrasts or {}, METRIC_LABELS, f"{source}, held_out.contrasts")
+        titles = {name: arm.title for name, arm in ARMS.items()}
+        lines += robustness_lines(robustness or {}, METRIC_LABELS, titles, f"{source}, held_out.robustness")
         lines += ["", "##### On the quick start's own test split (3 flights), with the robustness row"]
     lines += _task_tables(summary, source, robustness=True)
     return "\n".join(lines)
@@ -550,7 +604,7 @@ def main(argv: Sequence[str] | None = None) -> None:
                 f"lens study: the records in {records} come from different datasets: {sorted(datasets)}"
             )
         held = held_out_records(runs)
-        held_summary, contrasts = summarise(held), arm_contrasts(held, COMPARED)
+        held_summary, contrasts, robustness = held_out_analysis(held)
         record = {
             "format": "airfisheye-bench/lens-study-summary/v1",
             "provenance": provenance("scripts/lens_study.py", argv if argv is not None else sys.argv[1:]),
@@ -563,12 +617,13 @@ def main(argv: Sequence[str] | None = None) -> None:
                 "records": [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in held],
                 "tasks": json_safe(held_summary),
                 "contrasts": json_safe(contrasts),
+                "robustness": json_safe(robustness),
             },
         }
         atomic_write_text(Path(args.summary), json.dumps(record, indent=1, allow_nan=False) + "\n")
         if args.report:
             report = Path(args.report)
-            block = report_block(summary, held=held_summary, contrasts=contrasts)
+            block = report_block(summary, held=held_summary, contrasts=contrasts, robustness=robustness)
             text = replace_block(report.read_text(encoding="utf-8"), block, REPORT_BEGIN, REPORT_END)
             atomic_write_text(report, text)
         return
@@ -579,10 +634,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     for run in runs:
         path = records / f"{run.name}.json"
-        if path.is_file():
-            if "held_out" not in json.loads(path.read_text(encoding="utf-8")) and run.run_dir.is_dir():
+        if path.is_file():  # a record from before a scoring was added to the study: that scoring, if it can
+            held_out = json.loads(path.read_text(encoding="utf-8")).get("held_out")
+            if run.run_dir.is_dir() and (held_out is None or "robustness" not in held_out):
                 print(f"score {run.name} over the held-out flights", file=sys.stderr, flush=True)
-                score_held_out(run, path, args.threads)
+                if held_out is None:
+                    score_held_out(run, path, args.threads)
+                score_held_out_robustness(run, path, args.threads)
                 if args.commit:
                     _commit_record(path)
             continue

@@ -7,7 +7,12 @@ import math
 
 import pytest
 
-from airfisheye_bench.studies.lens_contrasts import arm_contrasts, contrast_lines
+from airfisheye_bench.studies.lens_contrasts import (
+    arm_contrasts,
+    contrast_lines,
+    robustness_changes,
+    robustness_lines,
+)
 
 FLIGHTS = ("f0", "f1", "f2", "f3")
 
@@ -64,3 +69,49 @@ def test_the_table_states_an_interval_holding_zero_with_its_detectable_differenc
     low, high = y_cell["ci_family"]
     assert low < 0 < high and math.isfinite(y_cell["mde_family"])
     assert y.rstrip(" |").endswith(f"· mde {y_cell['mde_family']:.3f}")
+
+
+def _robust(arm: str, seed: int, reference: list[float], shifted: dict[str, list[float]]) -> dict:
+    """A record whose robustness row has the ``reference`` score per flight and one row per perturbation."""
+    flights = lambda values: {f: {"delta1": v} for f, v in zip(FLIGHTS, values, strict=True)}  # noqa: E731
+    return {
+        "arm": arm,
+        "task": "depth",
+        "seed": seed,
+        "cross_lens": {
+            "lenses": [],
+            "robustness": {
+                "flights": flights(reference),
+                "perturbations": [
+                    {"name": f"trained ({n})", "flights": flights(v)} for n, v in shifted.items()
+                ],
+            },
+        },
+    }
+
+
+def test_a_robustness_change_is_per_flight_over_the_seeds_with_every_arm_and_perturbation_in_its_family() -> (
+    None
+):
+    ref = [0.5, 0.6, 0.4, 0.5]
+    records = [
+        _robust("a", 0, ref, {"up": [0.4, 0.5, 0.3, 0.4], "down": ref}),
+        _robust(
+            "a", 1, ref, {"up": [0.5, 0.6, 0.4, 0.5], "down": ref}
+        ),  # seed 1 does not move: half of seed 0
+        _robust("b", 0, ref, {"up": ref}),
+        {
+            "arm": "c",
+            "task": "depth",
+            "seed": 0,
+            "cross_lens": {"lenses": []},
+        },  # not scored: not in the table
+    ]
+    out = robustness_changes(records, {"depth": "delta1"})["depth"]
+    assert out["family"] == 3 and list(out["arms"]) == ["a", "b"] and out["arms"]["a"]["seeds"] == [0, 1]
+    up = out["arms"]["a"]["perturbations"]["trained (up)"]
+    assert up["n"] == 4 and up["mean"] == pytest.approx(-0.05) and up["std"] == pytest.approx(0.0)
+    table = robustness_lines({"depth": out}, {"delta1": "δ1"}, {"a": "one lens"}, "summary.json")
+    assert "| arm | seeds | up | down |" in table and "Bonferroni-corrected over the 3 cells" in table[1]
+    row = next(line for line in table if line.startswith("| a: one lens | 0, 1 |"))
+    assert row.split(" | ")[2] == "-0.050 [-0.050, -0.050]" and "mde" in row.split(" | ")[3]

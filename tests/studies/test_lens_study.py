@@ -194,6 +194,10 @@ def test_a_run_is_also_scored_over_the_held_out_flights_and_reported_first() -> 
     argv = run.evaluate_argv(held_out=True)
     assert set(HELD_OUT) <= set(argv) and "robustness=true" not in argv
     assert argv[-1] == f"out={run.run_dir / 'lenses_flights'}"
+    robustness = run.robustness_argv()  # the trained lens and its perturbations alone, over the same flights
+    assert set(HELD_OUT) <= set(robustness) and "robustness=true" in robustness
+    assert not any(a.startswith("lenses=") for a in robustness)
+    assert robustness[-1] == f"out={run.run_dir / 'robustness_flights'}"
     many = {f"f{i}": 0.5 + 0.01 * i for i in range(8)}
     records = [
         _record("a", s, {"f1": 0.5, "f2": 0.6, "f3": 0.4}, {"f1": 0.4, "f2": 0.3, "f3": 0.4}) for s in (0, 1)
@@ -208,6 +212,12 @@ def test_a_run_is_also_scored_over_the_held_out_flights_and_reported_first() -> 
     text = report_block(summarise(records), held=summarise(held))
     first, second = text.index("32 held-out test flights"), text.index("own test split (3 flights)")
     assert first < second and "robustness row" not in text[:second] and "robustness row" in text[second:]
+    row = {"flights": {}, "perturbations": [], "largest_change": {"delta1": 0.02}}
+    records[0]["held_out"]["robustness"] = {"evaluation": {"commit": "c0ffee"}, **row}
+    assert (
+        held_out_records(records)[0]["cross_lens"]["robustness"] == row
+    )  # the held-out summary's robustness row
+    assert summarise(held_out_records(records))["depth"]["a"]["robustness"]["delta1"]["mean"] == 0.02
     records[1]["held_out"] = {"dataset": {"name": "other"}, "cross_lens": records[1]["cross_lens"]}
     with pytest.raises(ValueError, match="different datasets"):
         held_out_records(records)
@@ -216,8 +226,7 @@ def test_a_run_is_also_scored_over_the_held_out_flights_and_reported_first() -> 
 def test_the_committed_report_is_the_one_the_committed_records_give() -> None:
     """docs/results.md's block and summary.json are what ``scripts/lens_study.py --summary ... --report ...`` makes
     of the committed records: regenerate them when a record lands."""
-    from airfisheye_bench.studies.lens_contrasts import arm_contrasts
-    from airfisheye_bench.studies.lens_study import COMPARED, held_out_records, load_records
+    from airfisheye_bench.studies.lens_study import held_out_analysis, held_out_records, load_records
 
     records = load_records(REPO / "docs" / "figures" / "lens_study" / "runs")
     summary = json.loads(
@@ -227,7 +236,28 @@ def test_the_committed_report_is_the_one_the_committed_records_give() -> None:
     held = held_out_records(records)
     assert summary["held_out"]["records"] == [f"{r['arm']}_{r['task']}_seed{r['seed']}.json" for r in held]
     text = (REPO / "docs" / "results.md").read_text(encoding="utf-8")
-    expected = report_block(summarise(records), held=summarise(held), contrasts=arm_contrasts(held, COMPARED))
+    held_summary, contrasts, robustness = held_out_analysis(held)
+    expected = report_block(summarise(records), held=held_summary, contrasts=contrasts, robustness=robustness)
     assert block_in(text, REPORT_BEGIN, REPORT_END) == expected, (
         "regenerate: python scripts/lens_study.py --summary docs/figures/lens_study/summary.json --report docs/results.md"
     )
+
+
+def test_the_held_out_robustness_row_joins_the_records_held_out_block(tmp_path: Path, monkeypatch) -> None:
+    from airfisheye_bench.studies import lens_study
+
+    run = plan(tmp_path, ["a"], ["depth"], [0])[0]
+    path = tmp_path / "a_depth_seed0.json"
+    path.write_text(json.dumps({"held_out": {"dataset": {"name": "held"}, "cross_lens": {"lenses": []}}}))
+    row = {"camera": {}, "metrics": {}, "flights": {}, "perturbations": [], "largest_change": {}}
+    scored = {"dataset": {"name": "held"}, "cross_lens": {"lenses": [], "robustness": row}}
+    monkeypatch.setattr(lens_study, "_evaluate", lambda argv, threads: (scored, {"command": argv}))
+    lens_study.score_held_out_robustness(run, path)
+    held_out = json.loads(path.read_text())["held_out"]
+    assert (
+        held_out["robustness"]["perturbations"] == []
+        and "robustness=true" in held_out["robustness"]["evaluation"]["command"]
+    )
+    scored["dataset"] = {"name": "other"}  # scored on other data than the held-out lenses: refused
+    with pytest.raises(RuntimeError, match="other data"):
+        lens_study.score_held_out_robustness(run, path)
