@@ -153,27 +153,38 @@ def robustness_changes(
 
 
 def robustness_lines(
-    changes: Mapping[str, Any], label: Mapping[str, str], titles: Mapping[str, str], source: str
+    changes: Mapping[str, Any],
+    label: Mapping[str, str],
+    titles: Mapping[str, str],
+    source: str,
+    largest: Mapping[str, Mapping[str, str]] | None = None,
 ) -> list[str]:
-    """One markdown table per task: a row per arm (``titles``: its name), a column per perturbation."""
+    """One markdown table per task: a row per arm (``titles``: its name), a column per perturbation and, with
+    ``largest`` (``{task: {arm: text}}``), a last column with the arm's largest change."""
     lines: list[str] = []
     for task, block in changes.items():
         name = label.get(block["metric"], block["metric"])
         columns = list(dict.fromkeys(p for arm in block["arms"].values() for p in arm["perturbations"]))
+        last = (largest or {}).get(task)
+        heads = [c.removeprefix("trained (").removesuffix(")") for c in columns] + (
+            ["largest change"] if last else []
+        )
         lines += [
             "",
             f"**{task}, robustness row: change of {name} under each perturbation of the trained lens** (perturbed − "
             "unperturbed; per test flight the seeds' mean change first, then the mean over the flights with its 95 % "
             f"interval Bonferroni-corrected over the {block['family']} cells of the table; where that interval holds "
-            f"0, `mde` is the smallest change it would have detected at 80 % power; `{source}`)",
+            "0, `mde` is the smallest change it would have detected at 80 % power"
+            + ("; largest change: of the whole test split's score, mean ± std over the seeds" if last else "")
+            + f"; `{source}`)",
             "",
-            "| arm | seeds | "
-            + " | ".join(c.removeprefix("trained (").removesuffix(")") for c in columns)
-            + " |",
-            "|---|---:|" + "---:|" * len(columns),
+            "| arm | seeds | " + " | ".join(heads) + " |",
+            "|---|---:|" + "---:|" * len(heads),
         ]
         for arm, cells in block["arms"].items():
-            row = [_cell(cells["perturbations"].get(c)) for c in columns]
+            row = [_cell(cells["perturbations"].get(c)) for c in columns] + (
+                [last.get(arm, "–")] if last else []
+            )
             seeds = ", ".join(map(str, cells["seeds"]))
             lines.append(f"| {arm}: {titles.get(arm, arm)} | {seeds} | " + " | ".join(row) + " |")
     return lines

@@ -478,7 +478,13 @@ def report_block(
         lines += _task_tables(held, f"{source}, held_out", robustness=False)
         lines += contrast_lines(contrasts or {}, METRIC_LABELS, f"{source}, held_out.contrasts")
         titles = {name: arm.title for name, arm in ARMS.items()}
-        lines += robustness_lines(robustness or {}, METRIC_LABELS, titles, f"{source}, held_out.robustness")
+        largest = {
+            task: {name: _pm(arm["robustness"][COMPARED[task]]) for name, arm in arms.items()}
+            for task, arms in held.items()
+        }
+        lines += robustness_lines(
+            robustness or {}, METRIC_LABELS, titles, f"{source}, held_out.robustness", largest
+        )
         lines += ["", "##### On the quick start's own test split (3 flights), with the robustness row"]
     lines += _task_tables(summary, source, robustness=True)
     return "\n".join(lines)

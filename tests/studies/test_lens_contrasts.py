@@ -115,3 +115,6 @@ def test_a_robustness_change_is_per_flight_over_the_seeds_with_every_arm_and_per
     assert "| arm | seeds | up | down |" in table and "Bonferroni-corrected over the 3 cells" in table[1]
     row = next(line for line in table if line.startswith("| a: one lens | 0, 1 |"))
     assert row.split(" | ")[2] == "-0.050 [-0.050, -0.050]" and "mde" in row.split(" | ")[3]
+    largest = robustness_lines({"depth": out}, {}, {}, "s", largest={"depth": {"a": "0.050 ± 0.071"}})
+    assert "| arm | seeds | up | down | largest change |" in largest
+    assert largest[-2].endswith("| 0.050 ± 0.071 |") and largest[-1].endswith("| – |")  # b: none given
