@@ -287,8 +287,8 @@ def score_held_out_robustness(run: StudyRun, path: Path, threads: int = 1) -> No
 
 
 def _evaluate(argv: list[str], threads: int) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Run one scoring command (``threads`` threads) and return its ``results.json`` and how it was made: the commit, the
-    command (its output folder named relative to the run), the wall time and the threads."""
+    """Run one scoring command (``threads`` threads); return its ``results.json`` and how it was made: the commit,
+    the command (its output folder named relative to the run), the wall time and the threads."""
     env = {**os.environ, "OMP_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads)}
     start = time.time()
     subprocess.run(argv, cwd=REPO, env=env, check=True, stdout=subprocess.DEVNULL)

@@ -94,18 +94,13 @@ def test_a_robustness_change_is_per_flight_over_the_seeds_with_every_arm_and_per
     None
 ):
     ref = [0.5, 0.6, 0.4, 0.5]
+    unscored = {"arm": "c", "task": "depth", "seed": 0, "cross_lens": {"lenses": []}}  # not in the table
     records = [
         _robust("a", 0, ref, {"up": [0.4, 0.5, 0.3, 0.4], "down": ref}),
-        _robust(
-            "a", 1, ref, {"up": [0.5, 0.6, 0.4, 0.5], "down": ref}
-        ),  # seed 1 does not move: half of seed 0
+        # Seed 1 does not move, so the mean over the seeds is half of seed 0's change.
+        _robust("a", 1, ref, {"up": [0.5, 0.6, 0.4, 0.5], "down": ref}),
         _robust("b", 0, ref, {"up": ref}),
-        {
-            "arm": "c",
-            "task": "depth",
-            "seed": 0,
-            "cross_lens": {"lenses": []},
-        },  # not scored: not in the table
+        unscored,
     ]
     out = robustness_changes(records, {"depth": "delta1"})["depth"]
     assert out["family"] == 3 and list(out["arms"]) == ["a", "b"] and out["arms"]["a"]["seeds"] == [0, 1]

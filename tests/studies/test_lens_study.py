@@ -65,12 +65,8 @@ def test_a_training_cut_by_a_sessions_end_is_resumed_and_its_segments_recorded(
     assert calls[1][2:] == ["ckpt_path=last", f"hydra.run.dir={run.run_dir}"]
     record = json.loads(run.trained.read_text())
     assert record["rc"] == 0 and record["commit"] == "c0ffee"
-    assert record["command"][:4] == [
-        "python",
-        "train.py",
-        "task=depth",
-        "seed=1",
-    ]  # the run's, not the resume's
+    # The record names the run's command, not the resume's.
+    assert record["command"][:4] == ["python", "train.py", "task=depth", "seed=1"]
     assert [s["wall_s"] is None for s in record["segments"]] == [True, False]
     assert record["wall_s"] is None  # the cut segment's time is unknown, not 0
 
@@ -214,9 +210,8 @@ def test_a_run_is_also_scored_over_the_held_out_flights_and_reported_first() -> 
     assert first < second and "robustness row" not in text[:second] and "robustness row" in text[second:]
     row = {"flights": {}, "perturbations": [], "largest_change": {"delta1": 0.02}}
     records[0]["held_out"]["robustness"] = {"evaluation": {"commit": "c0ffee"}, **row}
-    assert (
-        held_out_records(records)[0]["cross_lens"]["robustness"] == row
-    )  # the held-out summary's robustness row
+    held_row = held_out_records(records)[0]["cross_lens"]["robustness"]  # what the held-out summary reads
+    assert held_row == row
     assert summarise(held_out_records(records))["depth"]["a"]["robustness"]["delta1"]["mean"] == 0.02
     records[1]["held_out"] = {"dataset": {"name": "other"}, "cross_lens": records[1]["cross_lens"]}
     with pytest.raises(ValueError, match="different datasets"):
